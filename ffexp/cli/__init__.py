@@ -1,0 +1,43 @@
+"""The ``ffexp`` command line (typer).
+
+Each command group lives in its own module and is mounted here; every command
+turns user errors into one line on stderr and a non-zero exit
+(see :func:`ffexp.cli._common.cli_errors`).
+"""
+
+from __future__ import annotations
+
+import typer
+
+from ffexp import __version__
+from ffexp.cli import friction, simulate
+
+app = typer.Typer(
+    name="ffexp",
+    help="Force-control experiments on free-floating objects: simulate, run, record, analyse.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+app.add_typer(simulate.app, name="simulate")
+app.add_typer(friction.app, name="friction")
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"ffexp {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Print the version and exit."
+    ),
+) -> None:
+    """Force-control experiments on free-floating objects."""
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app()

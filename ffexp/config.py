@@ -1,0 +1,109 @@
+"""Loading TOML files into pydantic models, with one-line errors.
+
+Every protocol and scene in ffexp goes through :func:`load_model`: the file is
+parsed with :mod:`tomllib`, ``--set dotted.key=value`` overrides are applied,
+and the result is validated by a pydantic model that rejects unknown keys.
+Any problem becomes a :class:`~ffexp.errors.ConfigError` that names the file
+and the field, e.g. ``sec3.toml: sweep.values: Input should be a valid list``.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from ffexp.errors import ConfigError
+
+M = TypeVar("M", bound=BaseModel)
+
+
+class StrictModel(BaseModel):
+    """Base of every configuration model: unknown keys are errors, fields frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Split ``a.b.c=value`` into its key path and a TOML-typed value.
+
+    The value is read as a TOML value (``1``, ``0.5``, ``true``, ``[1, 2]``,
+    ``"text"``); anything that is not valid TOML is taken as a plain string.
+
+    Raises:
+        ConfigError: the text has no ``=`` or an empty key.
+    """
+    key, sep, raw = text.partition("=")
+    key = key.strip()
+    if not sep or not key or any(not part for part in key.split(".")):
+        raise ConfigError("--set", text, "expected dotted.key=value")
+    raw = raw.strip()
+    try:
+        value: Any = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key.split("."), value
+
+
+def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> dict[str, Any]:
+    """Return a copy of ``data`` with every ``dotted.key=value`` override applied."""
+    result = _deep_copy(data)
+    for text in overrides:
+        path, value = parse_override(text)
+        node = result
+        for part in path[:-1]:
+            child = node.get(part)
+            if child is None:
+                child = {}
+                node[part] = child
+            elif not isinstance(child, dict):
+                raise ConfigError("--set", text, f"'{part}' is not a table")
+            node = child
+        node[path[-1]] = value
+    return result
+
+
+def _deep_copy(data: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: _deep_copy(v) if isinstance(v, Mapping) else v for k, v in data.items()}
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; a missing or malformed file is a :class:`ConfigError`."""
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ConfigError(str(path), "", "file not found") from None
+    except IsADirectoryError:
+        raise ConfigError(str(path), "", "is a directory, expected a TOML file") from None
+    except PermissionError:
+        raise ConfigError(str(path), "", "permission denied") from None
+    except UnicodeDecodeError:
+        raise ConfigError(str(path), "", "not a text file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(str(path), "", f"invalid TOML: {exc}") from None
+
+
+def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
+    """Validate ``data`` against ``model``; the first error becomes a ConfigError."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = ".".join(str(p) for p in err["loc"])
+        message = err["msg"]
+        if err["type"] == "extra_forbidden":
+            message = "unknown key"
+        more = exc.error_count() - 1
+        if more:
+            message += f" (and {more} more error{'s' if more > 1 else ''})"
+        raise ConfigError(source, field, message) from None
+
+
+def load_model(model: type[M], path: Path, overrides: Iterable[str] = ()) -> M:
+    """Read ``path`` as TOML, apply overrides, validate as ``model``."""
+    data = apply_overrides(read_toml(path), overrides)
+    return validate(model, data, str(path))

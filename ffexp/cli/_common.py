@@ -9,7 +9,6 @@ from typing import ParamSpec, TypeVar
 
 import typer
 
-from drivers.errors import DriverError
 from ffexp.errors import FfexpError
 
 P = ParamSpec("P")
@@ -20,13 +19,13 @@ SET_HELP = "Override a protocol field, e.g. --set sweep.values=[1,2] (repeatable
 
 
 def cli_errors(func: Callable[P, R]) -> Callable[P, R]:
-    """Turn an :class:`FfexpError` or :class:`DriverError` into one line on stderr and its exit code."""
+    """Turn any :class:`FfexpError` into one line on stderr and its exit code."""
 
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
             return func(*args, **kwargs)
-        except (FfexpError, DriverError) as exc:
+        except FfexpError as exc:
             print(f"error: {exc}", file=sys.stderr)
             raise typer.Exit(exc.exit_code) from None
         except KeyboardInterrupt:

@@ -4,4 +4,7 @@ from __future__ import annotations
 
 import typer
 
-app = typer.Typer(help="Residual friction of the air-bed target from video.", no_args_is_help=True)
+app = typer.Typer(
+    help="Residual friction of the air-bed target from video.",
+    no_args_is_help=True,
+)

@@ -3,7 +3,7 @@
 Every protocol and scene in ffexp goes through :func:`load_model`: the file is
 parsed with :mod:`tomllib`, ``--set dotted.key=value`` overrides are applied,
 and the result is validated by a pydantic model that rejects unknown keys.
-Any problem becomes a :class:`~ffexp.errors.ConfigError` that names the file
+Any problem becomes a :class:`~drivers.errors.ConfigError` that names the file
 and the field, e.g. ``sec3.toml: sweep.values: Input should be a valid list``.
 """
 
@@ -16,7 +16,7 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from ffexp.errors import ConfigError
+from drivers.errors import ConfigError
 
 M = TypeVar("M", bound=BaseModel)
 

@@ -95,6 +95,8 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
         err = exc.errors()[0]
         field = ".".join(str(p) for p in err["loc"])
         message = err["msg"]
+        if err["type"] == "value_error" and "error" in err.get("ctx", {}):
+            message = str(err["ctx"]["error"])
         if err["type"] == "extra_forbidden":
             message = "unknown key"
         more = exc.error_count() - 1

@@ -48,3 +48,34 @@ class DriverTimeoutError(DriverError):
 
 class LinkLostError(DriverError):
     """The link to a device was lost while running."""
+
+
+class MalformedPacketError(DriverError):
+    """A datagram from a device could not be decoded.
+
+    Args:
+        source: where the datagram came from (``"192.168.0.10:49938"``), or a
+            description such as ``"<buffer>"`` when the caller did not say.
+        reason: a short machine-readable code (``"too_short"``, ``"wrong_id"``, ...).
+        message: what is wrong, in one line.
+    """
+
+    def __init__(self, source: str, reason: str, message: str) -> None:
+        self.source = source
+        self.reason = reason
+        self.message = message
+        super().__init__(f"{source}: malformed packet ({reason}): {message}")
+
+
+class PacketEncodeError(DriverError):
+    """A value cannot be put on the wire (NaN, infinite, or out of the wire type's range).
+
+    Args:
+        field: the offending field, named as in the packet (``"cmd.jntPos"``).
+        message: what is wrong, in one line.
+    """
+
+    def __init__(self, field: str, message: str) -> None:
+        self.field = field
+        self.message = message
+        super().__init__(f"cannot encode {field}: {message}")

@@ -1,0 +1,249 @@
+"""Control laws of the paper, in ffexp's sign conventions. Pure maths: no I/O.
+
+All wrenches are ``[fx, fy, fz, tx, ty, tz]`` in the tool frame (TCF). The
+measured wrench ``w`` is what the environment exerts ON the tool
+(``shared/design/CONVENTIONS.md``), so the contact wrench the tool applies is
+``-w``; along the approach axis Z the contact force is ``f_z = -w[2]``.
+
+The paper's eq. (9), written with our signs, over all six axes:
+
+    F* = W (K_p (F_ref - F_c) + K_i ∫ (F_ref - F_c) dt) + (I - W) K_RI w,    F_c = -w
+
+``W`` selects the force-controlled axes (a diagonal 0/1 matrix), ``K_p``,
+``K_i`` are the PI gains on them, ``K_RI`` the positive-feedback gains of the
+apparent inertia reduction on the others. With W = diag(0,0,1,0,0,0),
+K_RI = diag(0, k_yp, 0, k_xp, 0, 0) this is the paper's reduced 3-DOF case:
+``F*_z = k_zp (f_ref - f_z) + k_zi ∫ (f_ref - f_z) dt``, ``F*_y = k_yp w[1]``,
+``T*_x = k_xp w[3]``. A free tool of mass m pushed by an external force f then
+feels ``m a = f + k f``: it accelerates as if its mass were ``m / (1 + k)``.
+
+The approach phase uses the external impedance law
+``F_cmd = K_e (x_sp - x) - B_e x'`` (the paper prints the first term with the
+opposite sign), with a set-point moving along a straight line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field, model_validator
+
+from drivers.config import StrictModel
+
+FloatArray = NDArray[np.float64]
+Vec6 = tuple[float, float, float, float, float, float]
+
+AXES = ("x", "y", "z", "rx", "ry", "rz")
+ZERO6: Vec6 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+class ForceControlConfig(StrictModel):
+    """Gains of eq. (9) over six TCF axes; the defaults are the paper's Method I case I.
+
+    ``force_axes`` is the diagonal of W. Gains on axes where they do not act
+    (``kp``/``ki`` outside W, ``k_ri`` inside W) must be zero, so a protocol
+    cannot silently carry a gain that does nothing.
+    """
+
+    force_axes: tuple[bool, bool, bool, bool, bool, bool] = (
+        False, False, True, False, False, False,
+    )
+    f_ref: Vec6 = Field((0.0, 0.0, 0.8, 0.0, 0.0, 0.0), description="F_ref [N, N m].")
+    kp: Vec6 = Field((0.0, 0.0, 1.0, 0.0, 0.0, 0.0), description="K_pFB, dimensionless.")
+    ki: Vec6 = Field((0.0, 0.0, 0.07, 0.0, 0.0, 0.0), description="K_iFB, see ki_unit.")
+    ki_unit: Literal["per_second", "per_sample"] = Field(
+        "per_second",
+        description="How ki is read: per second of integrated error (continuous time), "
+        "or per controller sample (then ki / cycle_s per second).",
+    )
+    k_ri: Vec6 = Field(
+        (0.0, 0.2, 0.0, 0.5, 0.0, 0.0), description="K_RI positive-feedback gains (k_yp, k_xp)."
+    )
+    output_limit: Vec6 = Field(
+        (20.0, 20.0, 20.0, 2.0, 2.0, 2.0), description="|F*| limit per axis [N, N m]."
+    )
+    integral_limit: Vec6 = Field(
+        (10.0, 10.0, 10.0, 1.0, 1.0, 1.0),
+        description="Anti-windup: |K_i * integral| limit per axis [N, N m].",
+    )
+
+    @model_validator(mode="after")
+    def _gains_where_they_act(self) -> ForceControlConfig:
+        for i, axis in enumerate(AXES):
+            if self.force_axes[i] and self.k_ri[i] != 0.0:
+                raise ValueError(f"k_ri[{i}] ({axis}) must be 0 on a force-controlled axis")
+            if not self.force_axes[i] and (self.kp[i] or self.ki[i] or self.f_ref[i]):
+                raise ValueError(f"kp/ki/f_ref[{i}] ({axis}) must be 0 outside the force axes")
+            if self.output_limit[i] < 0.0 or self.integral_limit[i] < 0.0:
+                raise ValueError(f"limits[{i}] ({axis}) must be >= 0")
+        return self
+
+    def ki_per_second(self, cycle_s: float) -> FloatArray:
+        """K_i in 1/s whatever the file's reading."""
+        ki = np.asarray(self.ki, dtype=np.float64)
+        return ki / cycle_s if self.ki_unit == "per_sample" else ki
+
+
+@dataclass
+class ForceControlTerms:
+    """One cycle of eq. (9), split into its terms (all TCF, [N, N m])."""
+
+    p: FloatArray = field(default_factory=lambda: np.zeros(6))
+    i: FloatArray = field(default_factory=lambda: np.zeros(6))
+    ri: FloatArray = field(default_factory=lambda: np.zeros(6))
+    total: FloatArray = field(default_factory=lambda: np.zeros(6))
+    saturated: bool = False
+
+
+class ForceController:
+    """Discrete eq. (9) with anti-windup and output limits.
+
+    The integral is a forward-Euler sum at the controller cycle. Anti-windup is
+    twofold: the integral term is clamped to ``integral_limit``, and the
+    integral does not grow on an axis whose output is saturated in the same
+    direction as the error (conditional integration).
+    """
+
+    def __init__(self, config: ForceControlConfig, cycle_s: float) -> None:
+        if cycle_s <= 0.0:
+            raise ValueError("cycle_s must be > 0")
+        self.config = config
+        self.cycle_s = cycle_s
+        self._w_sel = np.asarray(config.force_axes, dtype=np.float64)
+        self._kp = np.asarray(config.kp, dtype=np.float64)
+        self._ki = config.ki_per_second(cycle_s)
+        self._kri = np.asarray(config.k_ri, dtype=np.float64)
+        self._f_ref = np.asarray(config.f_ref, dtype=np.float64)
+        self._out_lim = np.asarray(config.output_limit, dtype=np.float64)
+        self._int_lim = np.asarray(config.integral_limit, dtype=np.float64)
+        self._integral = np.zeros(6)
+        self.terms = ForceControlTerms()
+
+    def reset(self) -> None:
+        """Forget the integral (on entering the force-controlled phase)."""
+        self._integral[:] = 0.0
+
+    @property
+    def integral(self) -> FloatArray:
+        """∫ (F_ref - F_c) dt per axis [N s, N m s] (a copy)."""
+        return self._integral.copy()
+
+    def update(self, w: FloatArray) -> ForceControlTerms:
+        """One controller cycle from the measured wrench ``w`` (environment on tool)."""
+        t = self.terms
+        error = self._w_sel * (self._f_ref + w)  # F_ref - F_c, with F_c = -w
+        np.multiply(self._kp, error, out=t.p)
+        np.multiply(self._kri * (1.0 - self._w_sel), w, out=t.ri)
+        # tentative integral, then conditional integration where the output saturates
+        candidate = self._integral + error * self.cycle_s
+        i_term = self._ki * candidate
+        i_clamped = np.clip(i_term, -self._int_lim, self._int_lim)
+        raw = t.p + i_clamped + t.ri
+        out = np.clip(raw, -self._out_lim, self._out_lim)
+        winding = (raw != out) & (np.sign(error) == np.sign(raw))
+        keep = ~winding
+        self._integral[keep] = candidate[keep]
+        # the stored integral never exceeds what the clamp lets through
+        nz = self._ki != 0.0
+        self._integral[nz] = np.clip(
+            self._integral[nz], -self._int_lim[nz] / np.abs(self._ki[nz]),
+            self._int_lim[nz] / np.abs(self._ki[nz]),
+        )
+        np.multiply(self._ki, self._integral, out=t.i)
+        np.clip(t.p + t.i + t.ri, -self._out_lim, self._out_lim, out=t.total)
+        t.saturated = bool(np.any(raw != out))
+        return t
+
+
+class ImpedanceConfig(StrictModel):
+    """External impedance of the approach phase (the paper's Table exp_table).
+
+    ``stiffness`` [N/m, N m/rad] and ``damping`` [N s/m, N m s/rad] are per TCF
+    axis. The set-point starts at the pose where the phase starts and moves
+    along ``direction`` (TCF, normalised) at ``speed_mps`` for at most
+    ``distance_m``.
+    """
+
+    stiffness: Vec6 = (0.0, 0.0, 500.0, 0.0, 0.0, 0.0)
+    damping: Vec6 = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
+    direction: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    speed_mps: float = Field(0.02, ge=0.0)
+    distance_m: float = Field(0.3, ge=0.0)
+    output_limit: Vec6 = (20.0, 20.0, 20.0, 2.0, 2.0, 2.0)
+
+    @model_validator(mode="after")
+    def _direction_nonzero(self) -> ImpedanceConfig:
+        if float(np.linalg.norm(self.direction)) < 1e-9:
+            raise ValueError("direction must not be the zero vector")
+        if any(k < 0.0 for k in self.stiffness) or any(d < 0.0 for d in self.damping):
+            raise ValueError("stiffness and damping must be >= 0")
+        return self
+
+
+def rotation_log(r: FloatArray) -> FloatArray:
+    """Rotation vector (axis * angle) of a 3x3 rotation matrix."""
+    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
+    angle = float(np.arccos(cos))
+    v = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    if angle < 1e-9:
+        small: FloatArray = 0.5 * v
+        return small
+    if np.pi - angle < 1e-6:
+        # near pi: axis from the diagonal of (R + I) / 2
+        b = (r + np.eye(3)) / 2.0
+        k = int(np.argmax(np.diag(b)))
+        axis = b[:, k] / np.sqrt(max(b[k, k], 1e-300))
+        near_pi: FloatArray = axis * angle
+        return near_pi
+    general: FloatArray = v * (angle / (2.0 * np.sin(angle)))
+    return general
+
+
+def pose_error_tcf(pose: FloatArray, setpoint: FloatArray) -> FloatArray:
+    """Set-point minus pose as a TCF 6-vector: translation and rotation vector.
+
+    Both are 4x4 base-frame poses of the tool; the error is expressed in the
+    current tool frame, where the impedance gains are defined.
+    """
+    r = pose[:3, :3]
+    dp = r.T @ (setpoint[:3, 3] - pose[:3, 3])
+    dr = rotation_log(r.T @ setpoint[:3, :3])
+    return np.concatenate([dp, dr])
+
+
+class ImpedanceController:
+    """``F_cmd = K_e (x_sp - x) - B_e x'`` with a straight-line moving set-point."""
+
+    def __init__(self, config: ImpedanceConfig) -> None:
+        self.config = config
+        self._k = np.asarray(config.stiffness, dtype=np.float64)
+        self._b = np.asarray(config.damping, dtype=np.float64)
+        d = np.asarray(config.direction, dtype=np.float64)
+        self._dir = d / np.linalg.norm(d)
+        self._lim = np.asarray(config.output_limit, dtype=np.float64)
+        self._start: FloatArray | None = None
+        self.setpoint = np.eye(4)
+
+    def start(self, pose: FloatArray) -> None:
+        """Anchor the line at the current tool pose (4x4, base frame)."""
+        self._start = pose.copy()
+        self.setpoint = pose.copy()
+
+    def setpoint_at(self, elapsed_s: float) -> FloatArray:
+        """The set-point ``elapsed_s`` after :meth:`start` (direction in the start TCF)."""
+        if self._start is None:
+            raise RuntimeError("ImpedanceController.start() was not called")
+        travel = min(self.config.speed_mps * max(elapsed_s, 0.0), self.config.distance_m)
+        sp = self._start.copy()
+        sp[:3, 3] += self._start[:3, :3] @ (self._dir * travel)
+        return sp
+
+    def update(self, pose: FloatArray, twist_tcf: FloatArray, elapsed_s: float) -> FloatArray:
+        """Commanded wrench (TCF) for the tool pose and its twist in TCF."""
+        self.setpoint = self.setpoint_at(elapsed_s)
+        e = pose_error_tcf(pose, self.setpoint)
+        out: FloatArray = np.clip(self._k * e - self._b * twist_tcf, -self._lim, self._lim)
+        return out

@@ -1,0 +1,350 @@
+"""State estimation for the runner: wrench and tool-motion Kalman filters
+(filterpy), tool-load compensation and a contact detector. No I/O.
+
+Wrench filter
+    One :class:`filterpy.kalman.KalmanFilter` over 12 states, per TCF axis the
+    true wrench ``f`` (random walk, fast) and the sensor bias ``b`` (random
+    walk, slow: the Mini45 drifts 0.1-0.4 N over minutes), measured as
+    ``z = f + b + noise``. The bias is observable only while the wrench is
+    known to be zero, so :meth:`WrenchFilter.tare` feeds N samples taken in
+    free space with a pseudo-measurement ``f = 0``; afterwards the bias moves
+    only as slowly as its drift allows and the fast state follows the contact.
+    All F/T samples that arrive in one controller cycle update the filter once,
+    with their mean and the covariance divided by their number.
+
+Motion filter
+    Constant-acceleration model per axis (position, velocity, acceleration)
+    over the tool's translation and its accumulated rotation vector, both in
+    the base frame, measured from the pose once per cycle.
+
+Tool load
+    ``w_load = [m R^T g, c x (m R^T g)]`` in the sensor frame for a tool of mass
+    ``m`` with centre of mass ``c`` behind the sensor, and its least-squares
+    identification (with the bias) from static poses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import KalmanFilter
+from numpy.typing import NDArray
+from pydantic import Field, model_validator
+
+from drivers.config import StrictModel
+from ffexp.control import rotation_log
+
+FloatArray = NDArray[np.float64]
+Vec3 = tuple[float, float, float]
+Vec6 = tuple[float, float, float, float, float, float]
+
+GRAVITY_BASE_MPS2: FloatArray = np.array([0.0, 0.0, -9.81])
+"""Gravity in the robot base frame (base Z up). In the paper's TCF it is along -X."""
+
+
+class WrenchFilterConfig(StrictModel):
+    """Noise model of the wrench filter (per TCF axis, SI units).
+
+    Defaults: white noise from the Mini45 fact sheet (1 sigma per sample at
+    ~1-2 kHz: Fx 0.02, Fy 0.019, Fz 0.05 N; torques from the 1/752 N m
+    resolution), drift 0.17-0.36 N over 10 min read as a random walk of about
+    0.01 N/sqrt(s), and a wrench that may change by ~20 N/sqrt(s) in contact.
+    """
+
+    noise_std: Vec6 = (0.02, 0.02, 0.05, 0.002, 0.002, 0.001)
+    wrench_walk_std: Vec6 = Field(
+        (20.0, 20.0, 20.0, 2.0, 2.0, 2.0), description="Random walk of the wrench [unit/sqrt(s)]."
+    )
+    bias_walk_std: Vec6 = Field(
+        (0.01, 0.01, 0.01, 0.0005, 0.0005, 0.0005),
+        description="Random walk of the bias [unit/sqrt(s)].",
+    )
+    tare_samples: int = Field(200, ge=1, description="Free-space samples used by the tare.")
+
+    @model_validator(mode="after")
+    def _positive(self) -> WrenchFilterConfig:
+        for name in ("noise_std", "wrench_walk_std", "bias_walk_std"):
+            if any(v <= 0.0 for v in getattr(self, name)):
+                raise ValueError(f"{name}: every entry must be > 0")
+        return self
+
+
+class WrenchFilter:
+    """Kalman filter of the measured wrench with a per-axis bias state."""
+
+    def __init__(self, config: WrenchFilterConfig) -> None:
+        self.config = config
+        self._r = np.diag(np.square(np.asarray(config.noise_std, dtype=np.float64)))
+        self._q_rate = np.concatenate(
+            [np.square(config.wrench_walk_std), np.square(config.bias_walk_std)]
+        ).astype(np.float64)
+        kf = KalmanFilter(dim_x=12, dim_z=6)
+        kf.F = np.eye(12)
+        kf.H = np.hstack([np.eye(6), np.eye(6)])
+        kf.x = np.zeros((12, 1))
+        kf.P = np.diag(np.concatenate([np.full(6, 100.0), np.full(6, 100.0)]))
+        kf.R = self._r.copy()
+        self.kf = kf
+        self.tared = False
+
+    def tare(self, samples: FloatArray) -> None:
+        """Estimate the bias from samples (N, 6) taken in free space (wrench = 0).
+
+        A bias-only Kalman filter (``z = b + noise``) runs over the samples;
+        its estimate and covariance become the bias part of the main filter,
+        and the wrench state restarts at zero with the noise's uncertainty.
+        """
+        samples = np.asarray(samples, dtype=np.float64).reshape(-1, 6)
+        if samples.shape[0] == 0:
+            raise ValueError("tare needs at least one sample")
+        tare = KalmanFilter(dim_x=6, dim_z=6)
+        tare.x = np.zeros((6, 1))
+        tare.P = np.eye(6) * 100.0
+        tare.R = self._r
+        tare.H = np.eye(6)
+        for z in samples:
+            tare.update(z)
+        self.kf.x = np.vstack([np.zeros((6, 1)), tare.x])
+        self.kf.P = np.zeros((12, 12))
+        self.kf.P[:6, :6] = self._r
+        self.kf.P[6:, 6:] = tare.P
+        self.tared = True
+
+    def update(self, samples: FloatArray, dt_s: float) -> None:
+        """Predict over ``dt_s`` and update with the mean of this cycle's samples.
+
+        With no samples the filter only predicts (its covariance grows).
+        """
+        self.kf.predict(Q=np.diag(self._q_rate * dt_s))
+        samples = np.asarray(samples, dtype=np.float64).reshape(-1, 6)
+        n = samples.shape[0]
+        if n:
+            self.kf.update(samples.mean(axis=0), R=self._r / n)
+
+    @property
+    def wrench(self) -> FloatArray:
+        """Filtered wrench (bias removed), TCF."""
+        w: FloatArray = self.kf.x[:6, 0].copy()
+        return w
+
+    @property
+    def bias(self) -> FloatArray:
+        """Estimated sensor bias, TCF."""
+        b: FloatArray = self.kf.x[6:, 0].copy()
+        return b
+
+    @property
+    def wrench_std(self) -> FloatArray:
+        """1-sigma uncertainty of :attr:`wrench`."""
+        s: FloatArray = np.sqrt(np.diag(self.kf.P)[:6])
+        return s
+
+
+class MotionFilterConfig(StrictModel):
+    """Constant-acceleration model of the tool motion."""
+
+    position_noise_m: float = Field(1e-5, gt=0)
+    rotation_noise_rad: float = Field(1e-4, gt=0)
+    accel_walk: float = Field(50.0, gt=0, description="Jerk noise spectral density [m/s^3].")
+
+
+class MotionFilter:
+    """Velocity and acceleration of the tool from its pose (base frame)."""
+
+    def __init__(self, config: MotionFilterConfig, cycle_s: float) -> None:
+        self.config = config
+        self.cycle_s = cycle_s
+        kf = KalmanFilter(dim_x=18, dim_z=6)
+        f1 = np.array([[1.0, cycle_s, 0.5 * cycle_s**2], [0.0, 1.0, cycle_s], [0.0, 0.0, 1.0]])
+        kf.F = np.kron(np.eye(6), f1)
+        kf.H = np.kron(np.eye(6), np.array([[1.0, 0.0, 0.0]]))
+        kf.Q = Q_discrete_white_noise(
+            dim=3, dt=cycle_s, var=config.accel_walk**2 * cycle_s, block_size=6, order_by_dim=True
+        )
+        noise = [config.position_noise_m] * 3 + [config.rotation_noise_rad] * 3
+        kf.R = np.diag(np.square(noise))
+        kf.P = np.eye(18) * 1e-2
+        self.kf = kf
+        self._rot_prev: FloatArray | None = None
+        self._theta = np.zeros(3)
+
+    def update(self, pose: FloatArray) -> None:
+        """One cycle with the measured 4x4 tool pose (base frame)."""
+        r = pose[:3, :3]
+        if self._rot_prev is None:
+            self.kf.x = np.zeros((18, 1))
+            self.kf.x[0:18:3, 0] = np.concatenate([pose[:3, 3], self._theta])
+        else:
+            # accumulate the incremental rotation, in the base frame
+            self._theta += self._rot_prev @ rotation_log(self._rot_prev.T @ r)
+        self._rot_prev = r.copy()
+        self.kf.predict()
+        self.kf.update(np.concatenate([pose[:3, 3], self._theta]))
+
+    @property
+    def twist_base(self) -> FloatArray:
+        """[vx, vy, vz, wx, wy, wz] in the base frame."""
+        v: FloatArray = self.kf.x[1:18:3, 0].copy()
+        return v
+
+    @property
+    def accel_base(self) -> FloatArray:
+        """Linear and angular acceleration in the base frame."""
+        a: FloatArray = self.kf.x[2:18:3, 0].copy()
+        return a
+
+    def twist_tcf(self, pose: FloatArray) -> FloatArray:
+        """The twist expressed in the tool frame of ``pose``."""
+        r = pose[:3, :3]
+        v = self.twist_base
+        return np.concatenate([r.T @ v[:3], r.T @ v[3:]])
+
+
+class ToolLoad(StrictModel):
+    """Mass and centre of mass (sensor frame) of what hangs behind the sensor."""
+
+    mass_kg: float = Field(0.0, ge=0)
+    com_m: Vec3 = (0.0, 0.0, 0.0)
+
+    def wrench(
+        self, r_base_sensor: FloatArray, gravity: FloatArray = GRAVITY_BASE_MPS2
+    ) -> FloatArray:
+        """Wrench the tool's weight adds to the reading (our sign convention)."""
+        f = self.mass_kg * (r_base_sensor.T @ gravity)
+        return np.concatenate([f, np.cross(np.asarray(self.com_m), f)])
+
+
+def skew(v: FloatArray) -> FloatArray:
+    """Cross-product matrix: ``skew(a) @ b == a x b``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+@dataclass(frozen=True)
+class ToolLoadFit:
+    """Result of :func:`identify_tool_load`."""
+
+    load: ToolLoad
+    bias: FloatArray
+    residual_rms: FloatArray
+
+
+def identify_tool_load(
+    rotations: FloatArray, wrenches: FloatArray, gravity: FloatArray = GRAVITY_BASE_MPS2
+) -> ToolLoadFit:
+    """Least-squares tool mass, centre of mass and sensor bias from static poses.
+
+    Args:
+        rotations: (K, 3, 3) sensor orientations in the base frame.
+        wrenches: (K, 6) static readings (our sign convention).
+
+    The model ``w = [m g_s, (m c) x g_s] + bias`` with ``g_s = R^T g`` is
+    linear in ``(m, m c, bias)``; it needs at least three orientations that
+    are not all rotations about the gravity axis.
+    """
+    rotations = np.asarray(rotations, dtype=np.float64)
+    wrenches = np.asarray(wrenches, dtype=np.float64)
+    k = rotations.shape[0]
+    if k < 3 or wrenches.shape != (k, 6):
+        raise ValueError("need >= 3 poses with one 6-vector each")
+    a = np.zeros((6 * k, 10))
+    for i in range(k):
+        g_s = rotations[i].T @ gravity
+        a[6 * i : 6 * i + 3, 0] = g_s
+        a[6 * i : 6 * i + 3, 4:7] = np.eye(3)
+        a[6 * i + 3 : 6 * i + 6, 1:4] = -skew(g_s)
+        a[6 * i + 3 : 6 * i + 6, 7:10] = np.eye(3)
+    sol, _res, rank, _sv = np.linalg.lstsq(a, wrenches.reshape(-1), rcond=None)
+    if rank < 10:
+        raise ValueError("poses do not excite every parameter: add different orientations")
+    mass = float(sol[0])
+    com = sol[1:4] / mass if abs(mass) > 1e-9 else np.zeros(3)
+    residual = (a @ sol - wrenches.reshape(-1)).reshape(k, 6)
+    return ToolLoadFit(
+        load=ToolLoad(mass_kg=max(mass, 0.0), com_m=(float(com[0]), float(com[1]), float(com[2]))),
+        bias=np.concatenate([sol[4:7], sol[7:10]]),
+        residual_rms=np.sqrt(np.mean(residual**2, axis=0)),
+    )
+
+
+class ContactDetectorConfig(StrictModel):
+    """Hysteresis and debounce on the filtered contact force.
+
+    ``signal`` picks what is compared: the norm of the force vector, or the
+    approach-axis contact force ``f_z = -w[2]``.
+    """
+
+    signal: Literal["force_norm", "fz"] = "force_norm"
+    on_threshold_n: float = Field(0.3, gt=0)
+    off_threshold_n: float = Field(0.1, ge=0)
+    debounce_on_s: float = Field(0.01, ge=0)
+    debounce_off_s: float = Field(0.05, ge=0)
+
+    @model_validator(mode="after")
+    def _hysteresis(self) -> ContactDetectorConfig:
+        if self.off_threshold_n >= self.on_threshold_n:
+            raise ValueError("off_threshold_n must be below on_threshold_n")
+        return self
+
+
+@dataclass(frozen=True)
+class ContactEvent:
+    """Contact made or broken at ``time_ns``; ``previous_s`` is how long the
+    previous state (free or in contact) lasted."""
+
+    kind: Literal["made", "broken"]
+    time_ns: int
+    previous_s: float
+
+
+@dataclass
+class ContactDetector:
+    """Contact state from the filtered wrench, with hysteresis and debounce.
+
+    Contact is declared once the signal has stayed above ``on_threshold_n``
+    for ``debounce_on_s``, and lost once it has stayed below
+    ``off_threshold_n`` for ``debounce_off_s``; the event carries the time the
+    crossing began, not the time it was confirmed.
+    """
+
+    config: ContactDetectorConfig
+    in_contact: bool = False
+    events: list[ContactEvent] = field(default_factory=list)
+    _pending_since_ns: int | None = None
+    _state_since_ns: int | None = None
+
+    def signal(self, wrench: FloatArray) -> float:
+        """The scalar the thresholds apply to."""
+        if self.config.signal == "fz":
+            return float(-wrench[2])
+        return float(np.linalg.norm(wrench[:3]))
+
+    def update(self, time_ns: int, wrench: FloatArray) -> ContactEvent | None:
+        """Feed one filtered wrench; return the event this sample confirms, if any."""
+        if self._state_since_ns is None:
+            self._state_since_ns = time_ns
+        s = self.signal(wrench)
+        crossing = s < self.config.off_threshold_n if self.in_contact else (
+            s > self.config.on_threshold_n
+        )
+        if not crossing:
+            self._pending_since_ns = None
+            return None
+        if self._pending_since_ns is None:
+            self._pending_since_ns = time_ns
+        hold_s = self.config.debounce_off_s if self.in_contact else self.config.debounce_on_s
+        if (time_ns - self._pending_since_ns) * 1e-9 + 1e-12 < hold_s:
+            return None
+        start = self._pending_since_ns
+        event = ContactEvent(
+            kind="broken" if self.in_contact else "made",
+            time_ns=start,
+            previous_s=(start - self._state_since_ns) * 1e-9,
+        )
+        self.in_contact = not self.in_contact
+        self._state_since_ns = start
+        self._pending_since_ns = None
+        self.events.append(event)
+        return event

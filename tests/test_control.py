@@ -1,0 +1,139 @@
+"""Control laws against the paper's equations in our sign conventions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+from scipy.spatial.transform import Rotation
+
+from ffexp.control import (
+    ForceControlConfig,
+    ForceController,
+    ImpedanceConfig,
+    ImpedanceController,
+    pose_error_tcf,
+    rotation_log,
+)
+
+DT = 0.005
+
+
+def paper_case(k_xp: float, k_yp: float, f_ref: float, **kw: object) -> ForceControlConfig:
+    return ForceControlConfig(
+        f_ref=(0, 0, f_ref, 0, 0, 0), k_ri=(0, k_yp, 0, k_xp, 0, 0), **kw  # type: ignore[arg-type]
+    )
+
+
+def test_reduced_case_is_the_papers_equation() -> None:
+    """F*_z = k_zp (f_ref - f_z) + k_zi ∫(f_ref - f_z), F*_y = k_yp w_y, T*_x = k_xp w_tx."""
+    cfg = paper_case(0.5, 0.2, 0.8)
+    ctl = ForceController(cfg, DT)
+    rng = np.random.default_rng(1)
+    integral = 0.0
+    for _ in range(200):
+        w = rng.normal(scale=[0.3, 0.5, 0.6, 0.05, 0.05, 0.05])
+        f_z = -w[2]
+        integral += (0.8 - f_z) * DT
+        terms = ctl.update(w)
+        expected = np.zeros(6)
+        expected[2] = 1.0 * (0.8 - f_z) + 0.07 * integral
+        expected[1] = 0.2 * w[1]
+        expected[3] = 0.5 * w[3]
+        np.testing.assert_allclose(terms.total, expected, atol=1e-12)
+        np.testing.assert_allclose(terms.p + terms.i + terms.ri, terms.total, atol=1e-12)
+
+
+def test_force_axis_signs() -> None:
+    ctl = ForceController(paper_case(0, 0, 0.8, ki=(0, 0, 0, 0, 0, 0)), DT)
+    # pushing too lightly (f_z = 0.3 N, i.e. w_z = -0.3): push harder along +Z
+    assert ctl.update(np.array([0, 0, -0.3, 0, 0, 0.0])).total[2] == pytest.approx(0.5)
+    # pushing too hard: back off
+    assert ctl.update(np.array([0, 0, -2.0, 0, 0, 0.0])).total[2] == pytest.approx(-1.2)
+
+
+@pytest.mark.parametrize(("unit", "scale"), [("per_second", 1.0), ("per_sample", 1.0 / DT)])
+def test_integral_gain_reading(unit: str, scale: float) -> None:
+    cfg = paper_case(0, 0, 1.0, kp=(0, 0, 0, 0, 0, 0), ki_unit=unit, integral_limit=(1e9,) * 6)
+    ctl = ForceController(cfg, DT)
+    for _ in range(100):
+        terms = ctl.update(np.zeros(6))  # f_z = 0: error 1 N
+    assert terms.i[2] == pytest.approx(0.07 * scale * 1.0 * 100 * DT)
+
+
+def test_anti_windup_recovers_quickly() -> None:
+    cfg = paper_case(0, 0, 5.0, output_limit=(20, 20, 2.0, 2, 2, 2))
+    ctl = ForceController(cfg, DT)
+    for _ in range(20_000):  # 100 s of a large error: output saturated at 2 N
+        terms = ctl.update(np.zeros(6))
+    assert terms.total[2] == pytest.approx(2.0)
+    assert terms.saturated
+    # without anti-windup the integral would be 500 N s; the clamp keeps it small
+    assert abs(ctl.integral[2] * 0.07) <= 10.0 + 1e-9
+    # error reverses: the output leaves saturation within a few seconds, not minutes
+    steps = 0
+    while ctl.update(np.array([0, 0, -8.0, 0, 0, 0])).total[2] > 0.0:
+        steps += 1
+        assert steps < 2000
+    assert steps * DT < 10.0
+
+
+def test_apparent_inertia_reduction_on_a_point_mass() -> None:
+    """A free mass m pushed by f with positive feedback k w moves as mass m/(1+k)."""
+    for k in (0.2, 1.0):
+        ctl = ForceController(paper_case(0.0, k, 0.8), DT)
+        m, f_env = 3.0, 1.5
+        w = np.array([0.0, f_env, 0.0, 0.0, 0.0, 0.0])  # environment pushes the tool along +Y
+        cmd = ctl.update(w).total
+        accel = (f_env + cmd[1]) / m
+        assert accel == pytest.approx(f_env / (m / (1.0 + k)), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "word"),
+    [
+        ({"k_ri": (0, 0, 0.5, 0, 0, 0)}, "k_ri[2]"),
+        ({"kp": (1, 0, 1, 0, 0, 0)}, "[0]"),
+        ({"f_ref": (0, 1, 0.8, 0, 0, 0)}, "[1]"),
+    ],
+)
+def test_gains_only_where_they_act(kwargs: dict[str, object], word: str) -> None:
+    with pytest.raises(ValidationError, match=word.replace("[", r"\[")):
+        ForceControlConfig.model_validate(kwargs)
+
+
+def test_impedance_setpoint_line_and_law() -> None:
+    cfg = ImpedanceConfig(speed_mps=0.02, distance_m=0.1)
+    ctl = ImpedanceController(cfg)
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_euler("y", 90, degrees=True).as_matrix()  # tool Z = base +X
+    ctl.start(pose)
+    sp = ctl.setpoint_at(2.0)
+    np.testing.assert_allclose(sp[:3, 3], [0.04, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(ctl.setpoint_at(100.0)[:3, 3], [0.1, 0.0, 0.0], atol=1e-12)
+    # at rest on the start pose after 1 s: the spring pulls along +Z_tcf by K * 0.02 m
+    f = ctl.update(pose, np.zeros(6), 1.0)
+    np.testing.assert_allclose(f, [0, 0, 500.0 * 0.02, 0, 0, 0], atol=1e-9)
+    # damping opposes the TCF twist
+    f = ctl.update(ctl.setpoint_at(1.0), np.array([0.1, -0.2, 0.3, 0.0, 0.0, 1.0]), 1.0)
+    np.testing.assert_allclose(f, [-0.1, 0.2, -0.3, 0, 0, -1.0], atol=1e-9)
+
+
+def test_rotation_log_matches_scipy() -> None:
+    rng = np.random.default_rng(3)
+    for rv in [*rng.normal(size=(50, 3)), np.array([1e-12, 0, 0]), np.array([0, np.pi - 1e-9, 0])]:
+        if np.linalg.norm(rv) > np.pi:
+            rv = rv / np.linalg.norm(rv) * (np.linalg.norm(rv) % np.pi)
+        r = Rotation.from_rotvec(rv).as_matrix()
+        got = rotation_log(r)
+        np.testing.assert_allclose(Rotation.from_rotvec(got).as_matrix(), r, atol=1e-7)
+
+
+def test_pose_error_in_tool_frame() -> None:
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_euler("x", 90, degrees=True).as_matrix()
+    sp = pose.copy()
+    sp[:3, 3] = [0.0, 0.0, 0.1]  # base +Z is tool +Y after +90 deg about X
+    sp[:3, :3] = pose[:3, :3] @ Rotation.from_euler("z", 0.2).as_matrix()
+    e = pose_error_tcf(pose, sp)
+    np.testing.assert_allclose(e, [0.0, 0.1, 0.0, 0.0, 0.0, 0.2], atol=1e-12)

@@ -1,0 +1,322 @@
+"""Reading run recordings back: fast ``load`` into numpy, and recovery of
+files whose writer never finished.
+
+A finished file is read through its summary: topic and time-range selection
+use the chunk index (``SeekingReader.iter_messages``), so only the chunks that
+hold the wanted topics and times are decompressed. An unfinished file (killed
+run) has no footer; it is read record by record from the start, keeping every
+complete chunk, until the stream ends (``EndOfFile``) or breaks off in the
+middle of a record (``struct.error``).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import struct
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mcap.exceptions import EndOfFile, McapError
+from mcap.reader import make_reader
+from mcap.records import Attachment, Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+
+from ffexp.errors import InputError
+from ffexp.recording.schema import FieldSpec, MessageSpec
+from ffexp.recording.topics import CDR_TOPICS
+
+MAGIC = b"\x89MCAP0\r\n"
+_READ_ERRORS = (EndOfFile, McapError, struct.error, ValueError, MemoryError)
+
+
+@dataclass
+class TopicData:
+    """One CDR topic: log times and one array per field (first axis = message)."""
+
+    log_time_ns: np.ndarray
+    fields: dict[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return int(self.log_time_ns.shape[0])
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.fields[name]
+
+
+@dataclass
+class JsonData:
+    """One JSON topic: log times and the decoded messages."""
+
+    log_time_ns: np.ndarray
+    messages: list[dict[str, Any]]
+
+    def __len__(self) -> int:
+        return len(self.messages)
+
+
+@dataclass
+class Recording:
+    """What :func:`load` returns."""
+
+    path: Path
+    topics: dict[str, TopicData] = field(default_factory=dict)
+    json: dict[str, JsonData] = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    attachments: dict[str, bytes] = field(default_factory=dict)
+    complete: bool = True
+    """False when the file was not finished (recovered up to its last complete chunk)."""
+    warnings: list[str] = field(default_factory=list)
+
+    def topic(self, name: str) -> TopicData:
+        """A CDR topic; an :class:`InputError` naming the file if it is absent."""
+        try:
+            return self.topics[name]
+        except KeyError:
+            raise InputError(f"{self.path}: no topic {name} in this recording") from None
+
+
+_LINE = re.compile(r"^\s*([a-z0-9]+)(?:\[(\d+)\])?\s+([A-Za-z_][A-Za-z0-9_]*)\s*(?:#.*)?$")
+
+
+def spec_from_schema(schema: Schema) -> MessageSpec | None:
+    """A flat fixed-size ros2msg schema as a :class:`MessageSpec`, else None."""
+    known = {t.spec.name: t.spec for t in CDR_TOPICS.values()}
+    if schema.name in known and schema.data.decode(errors="replace") == known[schema.name].ros2msg:
+        return known[schema.name]
+    fields = []
+    for raw in schema.data.decode(errors="replace").splitlines():
+        if not raw.strip() or raw.lstrip().startswith("#"):
+            continue
+        if raw.startswith("====="):
+            return None  # nested message definitions: not a flat message
+        m = _LINE.match(raw)
+        if m is None:
+            return None
+        try:
+            fields.append(FieldSpec(m.group(3), m.group(1), int(m.group(2) or 1)))
+        except ValueError:
+            return None
+    return MessageSpec(schema.name, tuple(fields)) if fields else None
+
+
+def _check_magic(path: Path) -> None:
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(len(MAGIC))
+    except FileNotFoundError:
+        raise InputError(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a directory, expected an MCAP file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    if not head:
+        raise InputError(f"{path}: empty file, not an MCAP recording")
+    if head != MAGIC:
+        raise InputError(f"{path}: not an MCAP file")
+
+
+@dataclass
+class _Stream:
+    """Everything readable from a file, in file order."""
+
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    messages: list[Message] = field(default_factory=list)
+    metadata: list[Metadata] = field(default_factory=list)
+    attachments: list[Attachment] = field(default_factory=list)
+    complete: bool = False
+    error: str = ""
+
+
+def _read_stream(path: Path) -> _Stream:
+    """Read every complete record of a (possibly unfinished) file."""
+    out = _Stream()
+    with path.open("rb") as fh:
+        try:
+            for rec in StreamReader(fh, validate_crcs=True).records:
+                if isinstance(rec, Schema):
+                    out.schemas[rec.id] = rec
+                elif isinstance(rec, Channel):
+                    out.channels[rec.id] = rec
+                elif isinstance(rec, Message):
+                    out.messages.append(rec)
+                elif isinstance(rec, Metadata):
+                    out.metadata.append(rec)
+                elif isinstance(rec, Attachment):
+                    out.attachments.append(rec)
+            out.complete = True
+        except _READ_ERRORS as exc:
+            out.error = type(exc).__name__
+    return out
+
+
+def _finished_messages(
+    path: Path, topics: list[str] | None, start_ns: int | None, end_ns: int | None
+) -> tuple[_Stream, bool]:
+    """Read a finished file through its index; (stream, False) if it has none."""
+    out = _Stream(complete=True)
+    with path.open("rb") as fh:
+        try:
+            reader = make_reader(fh)
+            summary = reader.get_summary()
+            if summary is None:
+                return out, False
+            # file order is cheaper than the reader's merge by time; each topic
+            # is sorted by log time when it is decoded
+            kwargs: dict[str, Any] = {"topics": topics, "log_time_order": False}
+            if start_ns is not None:
+                kwargs["starting_at"] = start_ns
+            if end_ns is not None:
+                kwargs["ending_before"] = end_ns
+            out.messages = [message for _s, _c, message in reader.iter_messages(**kwargs)]
+            out.channels = dict(summary.channels)
+            out.schemas = dict(summary.schemas)
+            if topics is not None:
+                out.channels = {k: c for k, c in out.channels.items() if c.topic in topics}
+            out.metadata = [
+                Metadata(name=m.name, metadata=m.metadata) for m in reader.iter_metadata()
+            ]
+            out.attachments = list(reader.iter_attachments())
+        except _READ_ERRORS:
+            return _Stream(), False
+    return out, True
+
+
+def load(
+    path: Path | str,
+    topics: Iterable[str] | None = None,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+) -> Recording:
+    """Load a recording into numpy arrays per topic.
+
+    Args:
+        path: the MCAP file.
+        topics: only these topics (default: all).
+        start_ns, end_ns: only messages with ``start_ns <= log_time < end_ns``.
+
+    An unfinished file loads what it holds, with ``complete = False`` and a
+    warning. Raises :class:`InputError` for a missing, empty or non-MCAP file.
+    """
+    path = Path(path)
+    _check_magic(path)
+    wanted = None if topics is None else list(topics)
+    stream, indexed = _finished_messages(path, wanted, start_ns, end_ns)
+    rec = Recording(path=path)
+    if not indexed:
+        stream = _read_stream(path)
+        rec.complete = False
+        last = max((m.log_time for m in stream.messages), default=None)
+        upto = f" up to log time {last} ns" if last is not None else ""
+        rec.warnings.append(
+            f"{path}: recording is incomplete ({stream.error or 'no summary'}); "
+            f"read {len(stream.messages)} messages{upto}; `ffexp recover` rewrites it"
+        )
+        stream.messages = [
+            m
+            for m in stream.messages
+            if stream.channels.get(m.channel_id) is not None
+            and (wanted is None or stream.channels[m.channel_id].topic in wanted)
+            and (start_ns is None or m.log_time >= start_ns)
+            and (end_ns is None or m.log_time < end_ns)
+        ]
+    _decode_into(rec, stream)
+    return rec
+
+
+def _decode_into(rec: Recording, stream: _Stream) -> None:
+    by_channel: dict[int, list[Message]] = {}
+    for m in stream.messages:
+        by_channel.setdefault(m.channel_id, []).append(m)
+    for cid, channel in stream.channels.items():
+        msgs = by_channel.get(cid, [])
+        schema = stream.schemas.get(channel.schema_id)
+        times = np.fromiter((m.log_time for m in msgs), dtype=np.int64, count=len(msgs))
+        if times.size > 1 and np.any(np.diff(times) < 0):
+            order = np.argsort(times, kind="stable")
+            times = times[order]
+            msgs = [msgs[i] for i in order]
+        if channel.message_encoding == "cdr" and schema is not None:
+            spec = spec_from_schema(schema)
+            if spec is None:
+                rec.warnings.append(f"{rec.path}: {channel.topic}: schema {schema.name} skipped")
+                continue
+            dtype = spec.dtype
+            if any(len(m.data) != dtype.itemsize for m in msgs):
+                rec.warnings.append(
+                    f"{rec.path}: {channel.topic}: messages do not match {schema.name}; skipped"
+                )
+                continue
+            arr = np.frombuffer(b"".join(m.data for m in msgs), dtype=dtype)
+            rec.topics[channel.topic] = TopicData(
+                times, {f.name: arr[f.name].copy() for f in spec.fields}
+            )
+        elif channel.message_encoding == "json":
+            try:
+                decoded = [json.loads(m.data) for m in msgs]
+            except (json.JSONDecodeError, UnicodeDecodeError):
+                rec.warnings.append(f"{rec.path}: {channel.topic}: invalid JSON; skipped")
+                continue
+            rec.json[channel.topic] = JsonData(times, decoded)
+        else:
+            rec.warnings.append(
+                f"{rec.path}: {channel.topic}: encoding {channel.message_encoding!r} skipped"
+            )
+    for md in stream.metadata:
+        rec.metadata[md.name] = dict(md.metadata)
+    for att in stream.attachments:
+        rec.attachments[att.name] = bytes(att.data)
+
+
+@dataclass(frozen=True)
+class RecoverResult:
+    """What :func:`recover` salvaged."""
+
+    messages: int
+    channels: int
+    complete: bool
+    last_log_time_ns: int | None
+
+
+def recover(src: Path, dst: Path) -> RecoverResult:
+    """Rewrite every complete record of ``src`` as a valid, indexed ``dst``."""
+    _check_magic(src)
+    if src.resolve() == dst.resolve():
+        raise InputError(f"{dst}: output must differ from the input")
+    stream = _read_stream(src)
+    try:
+        fh = dst.open("wb")
+    except OSError as exc:
+        raise InputError(f"{dst}: cannot write: {exc.strerror}") from None
+    with fh:
+        writer = Writer(fh, compression=CompressionType.ZSTD)
+        writer.start(profile="ffexp", library="ffexp recover")
+        schema_ids: dict[int, int] = {}
+        channel_ids: dict[int, int] = {}
+        for sid, schema in stream.schemas.items():
+            schema_ids[sid] = writer.register_schema(schema.name, schema.encoding, schema.data)
+        for cid, ch in stream.channels.items():
+            channel_ids[cid] = writer.register_channel(
+                ch.topic, ch.message_encoding, schema_ids.get(ch.schema_id, 0), dict(ch.metadata)
+            )
+        for m in _in_order(stream.messages):
+            if m.channel_id in channel_ids:
+                writer.add_message(
+                    channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
+                )
+        for md in stream.metadata:
+            writer.add_metadata(md.name, dict(md.metadata))
+        for att in stream.attachments:
+            writer.add_attachment(att.create_time, att.log_time, att.name, att.media_type, att.data)
+        writer.finish()  # type: ignore[no-untyped-call]
+    last = max((m.log_time for m in stream.messages), default=None)
+    return RecoverResult(len(stream.messages), len(stream.channels), stream.complete, last)
+
+
+def _in_order(messages: list[Message]) -> Iterator[Message]:
+    return iter(sorted(messages, key=lambda m: m.log_time))

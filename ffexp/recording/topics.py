@@ -1,0 +1,268 @@
+"""Every topic of an ffexp run recording, its message type and fields: the one
+place they are defined and documented (``ffexp topics`` prints this as text).
+
+Encodings:
+
+- high-rate numeric topics: ROS 2 ``ros2msg`` schemas with ``cdr`` message
+  encoding, flat fixed-size messages (see :mod:`ffexp.recording.schema`);
+  measured in ``benchmarks/bench_recording.py``: encoding is a numpy
+  ``tobytes()`` (about a microsecond) where ``json.dumps`` of the same
+  measurement costs tens, and ``load`` decodes a topic with one
+  ``np.frombuffer`` instead of parsing every message;
+- low-rate topics (events, phases, transforms): JSON with a JSON schema,
+  using Foxglove's well-known schema names (``foxglove.Log``,
+  ``foxglove.FrameTransform``) so its panels pick them up.
+
+Units are SI; wrenches ``[fx, fy, fz, tx, ty, tz]`` in the tool frame (TCF),
+measured wrench = what the environment exerts on the tool; 4x4 poses are
+stored row-major as 16 numbers; log times are integer nanoseconds.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+from ffexp.recording.schema import FieldSpec, MessageSpec
+
+F = FieldSpec
+
+MEASUREMENT = MessageSpec(
+    "ffexp_msgs/msg/Measurement",
+    (
+        F("msr_jnt_pos", "float64", 7, "rad", "measured joint positions"),
+        F("cmd_jnt_pos", "float64", 7, "rad", "commanded joint positions"),
+        F("cmd_jnt_pos_fri_offset", "float64", 7, "rad"),
+        F("msr_cart_pos", "float64", 16, "m", "measured TCP pose, 4x4 row-major"),
+        F("cmd_cart_pos", "float64", 16, "m", "commanded TCP pose, 4x4 row-major"),
+        F("msr_jnt_trq", "float64", 7, "N m"),
+        F("est_ext_jnt_trq", "float64", 7, "N m", "external joint torques (KRC estimate)"),
+        F("est_ext_tcp_ft", "float64", 6, "N, N m", "external TCP wrench (KRC estimate), TCF"),
+        F("jacobian", "float64", 42, "", "6x7 row-major, rows vx vy vz wx wy wz (TCF)"),
+        F("mass_matrix", "float64", 49, "kg m^2", "7x7 joint-space inertia"),
+        F("gravity", "float64", 7, "N m", "gravity joint torques"),
+        F("temperature", "float64", 7, "degC"),
+        F("seq", "uint32", 1, "", "KRC send sequence counter"),
+        F("state", "int32", 1, "", "FRI state: -1 invalid, 0 off, 1 mon, 2 cmd"),
+        F("quality", "int32", 1, "", "FRI quality: 0 unacceptable, 1 bad, 2 ok, 3 perfect"),
+        F("control", "int32", 1, "", "control mode: 1 joint pos, 2 cart imp, 3 joint imp"),
+        F("power", "uint32"),
+        F("error", "uint32"),
+        F("warning", "uint32"),
+    ),
+    "One FRI measurement packet per controller cycle.",
+)
+
+LINK = MessageSpec(
+    "ffexp_msgs/msg/LinkStats",
+    (
+        F("answer_rate", "float64", 1, "", "fraction of cycles answered (last 100)"),
+        F("latency_s", "float64", 1, "s"),
+        F("jitter_s", "float64", 1, "s"),
+        F("miss_rate", "float64", 1, ""),
+        F("miss_counter", "uint32"),
+        F("state", "int32"),
+        F("quality", "int32"),
+    ),
+    "FRI link statistics per cycle.",
+)
+
+FT_SAMPLE = MessageSpec(
+    "ffexp_msgs/msg/FtSample",
+    (
+        F("wrench", "float64", 6, "N, N m", "raw reading, environment on tool, TCF"),
+        F("seq", "uint32", 1, "", "sensor sample counter"),
+        F("status", "uint32", 1, "", "Net F/T status word (0x00020000 saturation)"),
+    ),
+    "Every F/T sample at the sensor's rate (log time = sample time).",
+)
+
+ESTIMATE = MessageSpec(
+    "ffexp_msgs/msg/Estimate",
+    (
+        F("wrench", "float64", 6, "N, N m", "filtered, bias and tool load removed, TCF"),
+        F("wrench_std", "float64", 6, "N, N m", "1-sigma of wrench"),
+        F("bias", "float64", 6, "N, N m", "estimated sensor bias"),
+        F("twist_tcf", "float64", 6, "m/s, rad/s", "tool twist in TCF (motion filter)"),
+        F("f_z", "float64", 1, "N", "contact force along the approach axis, -wrench[2]"),
+        F("n_samples", "uint32", 1, "", "F/T samples that arrived in this cycle"),
+        F("in_contact", "uint8", 1, "", "contact detector state"),
+    ),
+    "Estimator state per controller cycle.",
+)
+
+CONTROL = MessageSpec(
+    "ffexp_msgs/msg/ControlTerms",
+    (
+        F("p", "float64", 6, "N, N m", "proportional term of the force loop"),
+        F("i", "float64", 6, "N, N m", "integral term of the force loop"),
+        F("ri", "float64", 6, "N, N m", "apparent inertia reduction K_RI w"),
+        F("impedance", "float64", 6, "N, N m", "external impedance law"),
+        F("total", "float64", 6, "N, N m", "superposed wrench sent (addTcpFT), TCF"),
+        F("f_ref", "float64", 6, "N, N m", "force reference"),
+        F("setpoint", "float64", 16, "m", "impedance set-point, 4x4 row-major"),
+        F("phase", "int32", 1, "", "runner phase id (see /runner/phase)"),
+        F("saturated", "uint8"),
+    ),
+    "Controller terms per cycle.",
+)
+
+COMMAND = MessageSpec(
+    "ffexp_msgs/msg/Command",
+    (
+        F("jnt_pos", "float64", 7, "rad"),
+        F("cart_pos", "float64", 16, "m", "4x4 row-major"),
+        F("add_jnt_trq", "float64", 7, "N m"),
+        F("add_tcp_ft", "float64", 6, "N, N m", "superposed wrench, TCF"),
+        F("jnt_stiffness", "float64", 7, "N m/rad"),
+        F("jnt_damping", "float64", 7, "", "normalised"),
+        F("cart_stiffness", "float64", 6, "N/m, N m/rad", "x y z rx ry rz"),
+        F("cart_damping", "float64", 6, "", "normalised, x y z rx ry rz"),
+        F("flags", "uint32", 1, "", "FRI cmdFlags"),
+        F("control", "int32", 1, "", "requested control mode"),
+    ),
+    "The command sent in answer to each measurement.",
+)
+
+TRUTH = MessageSpec(
+    "ffexp_msgs/msg/SimTruth",
+    (
+        F("target_pose", "float64", 16, "m", "target block pose in the world, 4x4 row-major"),
+        F("target_twist", "float64", 3, "m/s, rad/s", "vx, vy, wz in the world"),
+        F("contact_wrench", "float64", 6, "N, N m", "true wrench of the target on the tool, TCF"),
+        F("tcp_twist", "float64", 6, "m/s, rad/s", "true TCP twist, TCF"),
+        F("lateral_error", "float64", 1, "m", "tool tip offset from the funnel axis"),
+        F("vertical_error", "float64", 1, "m"),
+        F("yaw_error", "float64", 1, "rad", "tool yaw minus funnel yaw"),
+        F("insertion", "float64", 1, "m", "tool tip depth past the funnel mouth"),
+        F("seated", "uint8"),
+        F("in_contact", "uint8"),
+    ),
+    "Ground truth that only the simulator has.",
+)
+
+
+@dataclass(frozen=True)
+class CdrTopic:
+    """A topic whose messages are one fixed-layout CDR message type."""
+
+    topic: str
+    spec: MessageSpec
+    rate: str
+
+
+@dataclass(frozen=True)
+class JsonTopic:
+    """A low-rate topic of JSON messages with a JSON schema."""
+
+    topic: str
+    schema_name: str
+    schema: dict[str, Any]
+    rate: str
+    doc: str
+
+    @property
+    def schema_bytes(self) -> bytes:
+        return json.dumps(self.schema).encode()
+
+
+CDR_TOPICS: dict[str, CdrTopic] = {
+    t.topic: t
+    for t in (
+        CdrTopic("/robot/measurement", MEASUREMENT, "every controller cycle"),
+        CdrTopic("/robot/link", LINK, "every controller cycle"),
+        CdrTopic("/robot/command", COMMAND, "every controller cycle"),
+        CdrTopic("/ft/raw", FT_SAMPLE, "every sensor sample"),
+        CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
+        CdrTopic("/control/terms", CONTROL, "every controller cycle"),
+        CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
+    )
+}
+
+_TIME = {
+    "type": "object",
+    "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
+}
+_VEC3 = {
+    "type": "object",
+    "properties": {k: {"type": "number"} for k in ("x", "y", "z")},
+}
+_QUAT = {
+    "type": "object",
+    "properties": {k: {"type": "number"} for k in ("x", "y", "z", "w")},
+}
+
+LOG_LEVELS = {"DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
+
+JSON_TOPICS: dict[str, JsonTopic] = {
+    t.topic: t
+    for t in (
+        JsonTopic(
+            "/events",
+            "foxglove.Log",
+            {
+                "title": "foxglove.Log",
+                "type": "object",
+                "properties": {
+                    "timestamp": _TIME,
+                    "level": {"type": "integer", "description": "1 debug .. 5 fatal"},
+                    "message": {"type": "string"},
+                    "name": {"type": "string", "description": "event kind"},
+                    "file": {"type": "string"},
+                    "line": {"type": "integer"},
+                },
+            },
+            "on event",
+            "Phase changes, contact made/broken, aborts, faults; name = event kind.",
+        ),
+        JsonTopic(
+            "/tf",
+            "foxglove.FrameTransform",
+            {
+                "title": "foxglove.FrameTransform",
+                "type": "object",
+                "properties": {
+                    "timestamp": _TIME,
+                    "parent_frame_id": {"type": "string"},
+                    "child_frame_id": {"type": "string"},
+                    "translation": _VEC3,
+                    "rotation": _QUAT,
+                },
+            },
+            "every 20 ms of run time per frame",
+            "Tool (TCP) in the robot base, target in the world (sim), for the 3D panel.",
+        ),
+        JsonTopic(
+            "/runner/phase",
+            "ffexp.Phase",
+            {
+                "title": "ffexp.Phase",
+                "type": "object",
+                "properties": {
+                    "phase": {"type": "string"},
+                    "phase_id": {"type": "integer"},
+                    "reason": {"type": "string"},
+                },
+            },
+            "on phase change",
+            "Runner phase: CONNECT, APPROACH, ALIGN, DONE, ABORT.",
+        ),
+    )
+}
+
+
+def describe() -> str:
+    """All topics and fields as text (the documentation of a recording)."""
+    out = [__doc__ or "", ""]
+    for t in CDR_TOPICS.values():
+        out.append(f"{t.topic}  [{t.spec.name}, cdr, {t.rate}]  {t.spec.doc}")
+        for f in t.spec.fields:
+            arr = f"[{f.count}]" if f.count > 1 else ""
+            unit = f" [{f.unit}]" if f.unit else ""
+            out.append(f"    {f.type}{arr} {f.name}{unit}  {f.doc}".rstrip())
+    for j in JSON_TOPICS.values():
+        out.append(f"{j.topic}  [{j.schema_name}, json, {j.rate}]  {j.doc}")
+        for name in j.schema["properties"]:
+            out.append(f"    {name}")
+    return "\n".join(out)

@@ -1,0 +1,193 @@
+"""Recorder and reader: CDR layout, round trips, selection, crash safety, bad files."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.writer import Writer
+
+from ffexp.errors import InputError
+from ffexp.recording import Recorder, load, recover
+from ffexp.recording.schema import FieldSpec, MessageSpec
+from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS, describe
+
+
+def test_cdr_alignment_counts_from_after_the_header() -> None:
+    spec = MessageSpec(
+        "t/msg/A",
+        (
+            FieldSpec("flag", "uint8"),
+            FieldSpec("x", "float64", 2),
+            FieldSpec("n", "uint16"),
+            FieldSpec("k", "int32"),
+        ),
+    )
+    dt = spec.dtype
+    # header 4 bytes; flag at 0 (+4); x aligned to 8 -> 8 (+4); n at 24 (+4); k aligned to 4 -> 28
+    assert [dt.fields[n][1] for n in ("flag", "x", "n", "k")] == [4, 12, 28, 32]
+    assert dt.itemsize == 36
+    assert spec.ros2msg.splitlines() == ["uint8 flag", "float64[2] x", "uint16 n", "int32 k"]
+    rec = spec.new_record()
+    rec["x"] = [1.5, -2.0]
+    rec["k"] = -7
+    raw = rec.tobytes()
+    assert raw[:4] == b"\x00\x01\x00\x00"
+    assert np.frombuffer(raw[12:28], "<f8").tolist() == [1.5, -2.0]
+    assert int.from_bytes(raw[32:36], "little", signed=True) == -7
+
+
+def random_fill(rec: np.ndarray, rng: np.random.Generator) -> None:
+    for name in rec.dtype.names or ():
+        if name == "_cdr_header":
+            continue
+        field = rec[name]
+        if field.dtype.kind == "f":
+            rec[name] = rng.normal(size=field.shape)
+        else:
+            info = np.iinfo(field.dtype)
+            rec[name] = rng.integers(info.min, info.max, size=field.shape, endpoint=True)
+
+
+def write_all_topics(
+    path: Path, n: int, seed: int = 0, chunk_size: int = 1 << 20
+) -> dict[str, list[np.ndarray]]:
+    rng = np.random.default_rng(seed)
+    written: dict[str, list[np.ndarray]] = {t: [] for t in CDR_TOPICS}
+    with Recorder(path, chunk_size=chunk_size) as rec:
+        rec.metadata("run", {"protocol": "test", "seed": str(seed)})
+        rec.attach("protocol.toml", b"name = 'x'\n", "application/toml", 0)
+        for k in range(n):
+            t_ns = 1_700_000_000_000_000_000 + k * 5_000_000
+            for topic in CDR_TOPICS:
+                r = rec.record(topic)
+                random_fill(r, rng)
+                rec.write(topic, t_ns)
+                written[topic].append(r.copy())
+            if k % 10 == 0:
+                rec.log(t_ns, "INFO", "tick", f"cycle {k}")
+                pose = np.eye(4)
+                pose[:3, 3] = [k, 0, 0]
+                rec.transform(t_ns, "base", "tool", pose)
+    return written
+
+
+def test_round_trip_every_field_of_every_topic(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    written = write_all_topics(path, 50)
+    loaded = load(path)
+    assert loaded.complete and not loaded.warnings
+    for topic, records in written.items():
+        data = loaded.topic(topic)
+        assert len(data) == 50
+        for f in CDR_TOPICS[topic].spec.fields:
+            expected = np.concatenate([r[f.name] for r in records])
+            np.testing.assert_array_equal(data[f.name], expected)
+        assert np.all(np.diff(data.log_time_ns) == 5_000_000)
+    assert loaded.metadata["run"] == {"protocol": "test", "seed": "0"}
+    assert loaded.attachments["protocol.toml"] == b"name = 'x'\n"
+    events = loaded.json["/events"].messages
+    assert [e["message"] for e in events] == [f"cycle {k}" for k in range(0, 50, 10)]
+    tf = loaded.json["/tf"].messages[2]
+    assert tf["translation"]["x"] == 20 and tf["rotation"]["w"] == pytest.approx(1.0)
+
+
+def test_topic_and_time_selection(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    write_all_topics(path, 100)
+    t0 = 1_700_000_000_000_000_000
+    start, end = t0 + 10 * 5_000_000, t0 + 20 * 5_000_000
+    part = load(path, topics=["/robot/link"], start_ns=start, end_ns=end)
+    assert set(part.topics) == {"/robot/link"}
+    assert part.topics["/robot/link"].log_time_ns.tolist() == [
+        t0 + k * 5_000_000 for k in range(10, 20)
+    ]
+
+
+def test_flush_bounds_what_a_kill_loses(tmp_path: Path) -> None:
+    """At any moment the bytes on disk hold everything written up to the last
+    flush, and flushes come at least once a second of wall time."""
+    now = [0.0]
+    path = tmp_path / "run.mcap"
+    rec = Recorder(path, clock=lambda: now[0], flush_interval_s=1.0)
+    r = rec.record("/robot/link")
+    for k in range(5000):  # 5 s of wall time, one message per ms
+        now[0] = k * 1e-3
+        r["miss_counter"] = k
+        rec.write("/robot/link", k * 1_000_000)
+        if k in (1500, 3999, 4999):
+            snapshot = tmp_path / f"killed_{k}.mcap"
+            shutil.copyfile(path, snapshot)  # what a kill -9 would leave behind
+            got = load(snapshot)
+            assert not got.complete and got.warnings
+            counters = got.topics["/robot/link"]["miss_counter"]
+            assert counters.tolist() == list(range(len(counters)))
+            assert k - len(counters) <= 1000  # lost at most 1 s of data
+    rec.finish()
+    assert load(path).complete
+
+
+def test_recover_rewrites_a_valid_indexed_file(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    written = write_all_topics(path, 400, chunk_size=64 * 1024)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size * 2 // 3])
+    partial = load(cut)
+    n = len(partial.topics["/robot/measurement"])
+    assert 0 < n < 400
+    result = recover(cut, tmp_path / "fixed.mcap")
+    assert not result.complete and result.messages > 0
+    fixed = load(tmp_path / "fixed.mcap")
+    assert fixed.complete and not fixed.warnings
+    seqs = fixed.topics["/robot/measurement"]["seq"]
+    expected = np.concatenate([r["seq"] for r in written["/robot/measurement"][: len(seqs)]])
+    np.testing.assert_array_equal(seqs, expected)
+    assert fixed.metadata["run"]["protocol"] == "test"
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [(b"", "empty file"), (b"hello, world\n" * 10, "not an MCAP file")],
+)
+def test_bad_files_give_one_clear_error(tmp_path: Path, content: bytes, message: str) -> None:
+    path = tmp_path / "bad.mcap"
+    path.write_bytes(content)
+    with pytest.raises(InputError, match=message) as info:
+        load(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
+    with pytest.raises(InputError, match="file not found"):
+        load(tmp_path / "missing.mcap")
+
+
+def test_foreign_mcap_loads_what_it_understands(tmp_path: Path) -> None:
+    path = tmp_path / "foreign.mcap"
+    with path.open("wb") as fh:
+        w = Writer(fh)
+        w.start()
+        flat = w.register_schema("pkg/msg/Flat", "ros2msg", b"float64 a\nint32[2] b\n")
+        nested = w.register_schema("pkg/msg/Nested", "ros2msg", b"pkg/Flat f\n" + b"=" * 80)
+        proto = w.register_schema("pkg.Proto", "protobuf", b"\x00")
+        c1 = w.register_channel("/flat", "cdr", flat)
+        c2 = w.register_channel("/nested", "cdr", nested)
+        c3 = w.register_channel("/proto", "protobuf", proto)
+        body = np.float64(2.5).tobytes() + np.array([3, -4], "<i4").tobytes()
+        payload = b"\x00\x01\x00\x00" + body
+        for cid in (c1, c2, c3):
+            w.add_message(cid, 7, payload, 7)
+        w.finish()
+    got = load(path)
+    assert got.topics["/flat"]["a"].tolist() == [2.5]
+    assert got.topics["/flat"]["b"].tolist() == [[3, -4]]
+    assert {"/nested", "/proto"}.isdisjoint(got.topics)
+    assert len(got.warnings) == 2
+
+
+def test_topics_are_documented() -> None:
+    text = describe()
+    for topic in [*CDR_TOPICS, *JSON_TOPICS]:
+        assert topic in text
+    for t in CDR_TOPICS.values():
+        for f in t.spec.fields:
+            assert f" {f.name}" in text

@@ -79,3 +79,11 @@ class PacketEncodeError(DriverError):
         self.field = field
         self.message = message
         super().__init__(f"cannot encode {field}: {message}")
+
+
+class InvalidCommandError(DriverError):
+    """A command carried non-finite or malformed values (the KRC would drop to monitor mode)."""
+
+
+class SimulationError(DriverError):
+    """The physics simulation diverged or was driven outside what it models."""

@@ -1,0 +1,251 @@
+"""Scene files: the simulated rig as TOML, validated by pydantic.
+
+A scene describes everything :class:`~drivers.sim.world.SimWorld` builds: the
+physics settings, the arm (pose, joint friction, limits of the KRC's internal
+controller), the tool and the F/T sensor, the air-bed target with its funnel,
+and the funnel contact. Every field has the paper's rig as its default, so an
+empty file is the paper's rig; ``data/scenes/paper.toml`` spells it out.
+
+Load with :func:`load_scene`, which reports any problem as one line
+``file: field: message`` (a :class:`~drivers.errors.ConfigError`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import Field, model_validator
+
+from drivers.config import StrictModel, load_model
+
+Vec7 = Annotated[tuple[float, ...], Field(min_length=7, max_length=7)]
+Vec6 = Annotated[tuple[float, ...], Field(min_length=6, max_length=6)]
+Vec3 = Annotated[tuple[float, ...], Field(min_length=3, max_length=3)]
+Pair = Annotated[tuple[float, ...], Field(min_length=2, max_length=2)]
+PosFloat = Annotated[float, Field(gt=0.0)]
+NonNeg = Annotated[float, Field(ge=0.0)]
+
+#: Jubien 2014 identified drive-side joint friction of the LWR4+ (fact sheet
+#: section 1(d), ISIR-SYROCO/kukaKDL kukakdl_const.hpp): Coulomb [N m].
+JUBIEN_COULOMB = (11.9, 11.5, 8.98, 8.35, 8.31, 4.72, 6.04)
+#: ... and viscous [N m s/rad], same source.
+JUBIEN_VISCOUS = (14.4, 15.3, 6.55, 11.0, 4.29, 2.26, 1.6)
+
+
+class PhysicsSettings(StrictModel):
+    """MuJoCo solver settings. ``timestep`` must divide the FRI cycle."""
+
+    timestep: Annotated[float, Field(gt=0.0, le=0.001)] = 0.001
+    integrator: Literal["implicitfast", "implicit", "Euler"] = "implicitfast"
+    impratio: Annotated[float, Field(ge=1.0)] = 10.0
+    iterations: Annotated[int, Field(ge=1)] = 50
+    tolerance: PosFloat = 1e-8
+    gravity: PosFloat = 9.81
+    settle_time: NonNeg = 0.05
+    """Physics time run before t = 0 so the target settles on its pads."""
+
+
+class FriSettings(StrictModel):
+    """The FRI link as the KRC runs it."""
+
+    cycle: Annotated[float, Field(ge=0.001, le=0.1)] = 0.005
+    """FRI cycle [s] (``friOpen(ms)``: 1 to 100 ms). The paper runs 200 Hz."""
+    control: Literal["cart_impedance", "joint_position", "joint_impedance"] = "cart_impedance"
+
+
+class ControllerSettings(StrictModel):
+    """The KRC's internal impedance controller and its limits.
+
+    Stiffness order is ``[x, y, z, rx, ry, rz]`` in TCF (FRI sends
+    ``[x, y, z, A(rz), B(ry), C(rx)]``; the codec reorders).
+    """
+
+    cart_stiffness_max: Pair = (5000.0, 300.0)
+    """Upper limits [N/m, N m/rad]. Not confirmed for the LWR4+ by a primary
+    source (fact sheet sec. 2): the commonly quoted 5000 / 300."""
+    cart_stiffness: Vec6 = (5000.0, 0.0, 0.0, 0.0, 300.0, 300.0)
+    """Initial stiffness: the paper's setting (X, rot-Y, rot-Z maximal; Y, Z, rot-X zero)."""
+    cart_damping: Vec6 = (0.7, 0.0, 0.0, 0.0, 0.7, 0.7)
+    jnt_stiffness_max: PosFloat = 5000.0
+    """Joint stiffness upper limit [N m/rad] (CentroEPiaggio URDF ``max_stiffness``)."""
+    jnt_position_stiffness: PosFloat = 3000.0
+    """Stiffness [N m/rad] used to emulate the KRC's joint-position mode."""
+    jnt_position_damping: Annotated[float, Field(ge=0.0, le=1.0)] = 0.7
+
+
+class ArmSettings(StrictModel):
+    """The LWR4+: where it stands, its start pose, friction and torque limits."""
+
+    base_pos: Vec3 = (0.0, 0.0, 0.0)
+    q_init: Vec7 = (0.0, -0.3533, 0.0, 1.714, 0.0, 0.4965, 0.0)
+    """Initial joint angles [rad]; the paper pose: flange horizontal along
+    world +x, flange X up (so TCF X is vertical as in the paper)."""
+    friction_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.03
+    """Fraction of Jubien's drive-side friction that remains link-side under
+    the LWR's torque feedback (an assumption, see the issue note)."""
+    coulomb: Vec7 | None = None
+    """Explicit joint Coulomb friction [N m]; overrides ``friction_scale``."""
+    viscous: Vec7 | None = None
+    """Explicit joint viscous friction [N m s/rad]; overrides ``friction_scale``."""
+    armature_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.05
+    """Fraction of Jubien's reflected rotor inertia seen link-side (assumption)."""
+    torque_limits: Vec7 = (176.0, 176.0, 100.0, 100.0, 100.0, 38.0, 38.0)
+    """[N m], CentroEPiaggio URDF effort limits (fact sheet sec. 1)."""
+
+    def coulomb_friction(self) -> list[float]:
+        if self.coulomb is not None:
+            return list(self.coulomb)
+        return [self.friction_scale * v for v in JUBIEN_COULOMB]
+
+    def viscous_friction(self) -> list[float]:
+        if self.viscous is not None:
+            return list(self.viscous)
+        return [self.friction_scale * v for v in JUBIEN_VISCOUS]
+
+
+class FunnelGeometry(StrictModel):
+    """A funnel: a cone of capsules (target) or a cone of capsules on a nose sphere (tool)."""
+
+    half_angle_deg: Annotated[float, Field(gt=5.0, lt=80.0)] = 30.0
+    depth: PosFloat = 0.065
+    """Axial length of the cone [m]."""
+    opening: PosFloat = 0.04
+    """Radius of the cone's mouth (target) or base (tool) [m]."""
+    generators: Annotated[int, Field(ge=3, le=32)] = 16
+    capsule_radius: PosFloat = 0.003
+
+    @property
+    def half_angle(self) -> float:
+        return math.radians(self.half_angle_deg)
+
+
+class ToolSettings(StrictModel):
+    """Sensor body and funnel tool between the flange and the TCP."""
+
+    sensor_mass: PosFloat = 0.0917
+    """Mini45 mass [kg] (ATI catalogue figure, not in the fact sheet)."""
+    sensor_height: PosFloat = 0.0157
+    sensor_radius: PosFloat = 0.0225
+    mass: PosFloat = 0.25
+    """Tool (adapter + funnel) mass behind the sensing element [kg]; an estimate."""
+    funnel: FunnelGeometry = FunnelGeometry(
+        half_angle_deg=30.0, depth=0.045, opening=0.032, generators=8, capsule_radius=0.003
+    )
+    nose_radius: PosFloat = 0.006
+    shaft_length: NonNeg = 0.03
+    """Adapter length between sensor and the funnel base [m]."""
+
+
+class FtSensorSettings(StrictModel):
+    """ATI Mini45 with the SI-145-5 calibration (fact sheet sec. 3)."""
+
+    rate: PosFloat = 1000.0
+    """Sample rate [Hz]; its period must be a multiple of the physics step."""
+    range: Vec6 = (145.0, 145.0, 290.0, 5.0, 5.0, 5.0)
+    """Saturation limits in the sensor frame [N, N m]."""
+    resolution: Pair = (1.0 / 16.0, 1.0 / 752.0)
+    """Quantisation step [N, N m]."""
+    noise_std: Pair = (0.03, 0.0005)
+    """White noise per sample [N, N m] (an assumption: half a count on force)."""
+    bias_std: Pair = (0.5, 0.01)
+    """Standard deviation of the random start-up bias [N, N m]."""
+    drift_density: Pair = (0.002, 2e-5)
+    """Random-walk drift density [N/sqrt(s), N m/sqrt(s)]."""
+
+
+class ContactSettings(StrictModel):
+    """Funnel-funnel contact. See :mod:`drivers.sim.mjcf` for the conversion to solref."""
+
+    stiffness: PosFloat = 2.0e4
+    """Quasi-static stiffness of one contact [N/m]."""
+    damping_ratio: NonNeg = 1.0
+    friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.3
+    """Coulomb coefficient between the funnels."""
+    impedance: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.5
+    """MuJoCo solimp d (constant); impact stiffness is d times the static one."""
+
+
+class HoseSettings(StrictModel):
+    """Optional air-hose: a linear spring to an anchor and a drag, in the bed plane."""
+
+    stiffness: NonNeg = 0.0
+    """[N/m]; 0 disables the spring."""
+    damping: NonNeg = 0.0
+    """[N s/m]; 0 disables the drag."""
+
+
+class TargetSettings(StrictModel):
+    """The 12 kg aluminium block on the air bed, placed relative to the start TCF."""
+
+    mass: PosFloat = 12.0
+    size: Vec3 = (0.25, 0.25, 0.05)
+    mu: Annotated[float, Field(ge=0.0, le=0.02)] = 0.005
+    """Residual bed friction coefficient (paper: below 0.01)."""
+    distance: float = 0.03
+    """Gap along TCF Z from the tool tip to the funnel mouth plane at start [m]."""
+    lateral: float = 0.012
+    """Offset of the funnel axis along TCF Y at start [m]."""
+    yaw_deg: float = 8.0
+    """Rotation of the target about the vertical (TCF X) at start [deg]."""
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    """Initial twist in the bed plane: [vx, vy] world [m/s], yaw rate [rad/s]."""
+    funnel: FunnelGeometry = FunnelGeometry()
+    hose: HoseSettings = HoseSettings()
+
+
+class Scene(StrictModel):
+    """A whole simulated rig."""
+
+    name: str = "paper"
+    seed: int = 0
+    physics: PhysicsSettings = PhysicsSettings()
+    fri: FriSettings = FriSettings()
+    controller: ControllerSettings = ControllerSettings()
+    arm: ArmSettings = ArmSettings()
+    tool: ToolSettings = ToolSettings()
+    ft_sensor: FtSensorSettings = FtSensorSettings()
+    contact: ContactSettings = ContactSettings()
+    target: TargetSettings = TargetSettings()
+
+    @model_validator(mode="after")
+    def _check_rates(self) -> Scene:
+        dt = self.physics.timestep
+        n = self.fri.cycle / dt
+        if abs(n - round(n)) > 1e-6:
+            raise ValueError(
+                f"fri.cycle {self.fri.cycle} is not a multiple of physics.timestep {dt}"
+            )
+        k = (1.0 / self.ft_sensor.rate) / dt
+        if abs(k - round(k)) > 1e-6 or round(k) < 1:
+            raise ValueError(f"ft_sensor.rate {self.ft_sensor.rate} Hz: period is not a multiple "
+                             f"of physics.timestep {dt}")
+        tool = self.tool.funnel
+        if tool.opening >= self.target.funnel.opening:
+            raise ValueError("tool.funnel.opening must be smaller than target.funnel.opening")
+        for name, val in zip("xyz", self.controller.cart_stiffness[:3], strict=True):
+            if not 0.0 <= val <= self.controller.cart_stiffness_max[0]:
+                raise ValueError(f"controller.cart_stiffness {name} outside [0, max]")
+        for name, val in zip(("rx", "ry", "rz"), self.controller.cart_stiffness[3:], strict=True):
+            if not 0.0 <= val <= self.controller.cart_stiffness_max[1]:
+                raise ValueError(f"controller.cart_stiffness {name} outside [0, max]")
+        if any(not 0.0 <= v <= 1.0 for v in self.controller.cart_damping):
+            raise ValueError("controller.cart_damping must lie in [0, 1]")
+        return self
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per FRI cycle."""
+        return round(self.fri.cycle / self.physics.timestep)
+
+    @property
+    def ft_decimation(self) -> int:
+        """Physics steps per F/T sample."""
+        return round(1.0 / self.ft_sensor.rate / self.physics.timestep)
+
+
+def load_scene(path: Path, overrides: Iterable[str] = ()) -> Scene:
+    """Read a scene TOML file (with ``dotted.key=value`` overrides)."""
+    return load_model(Scene, path, overrides)

@@ -1,0 +1,496 @@
+"""The simulated rig: LWR4+ with its KRC impedance controller, air-bed target, F/T sensor.
+
+:class:`SimWorld` is lockstep and in-process: ``step(command)`` runs one FRI
+cycle of physics and returns the measurement the KRC would send at its end.
+
+How the KRC is modelled (see :mod:`drivers.sim.controller` for the laws):
+
+* The command is held for the cycle (zero-order hold). The KRC's own
+  impedance loop runs much faster than FRI; here it runs at the physics rate,
+  built from MuJoCo actuators so that it costs nothing in Python:
+  six ``general`` actuators on the TCP site with the commanded frame as
+  ``refsite`` (a mocap site) realise ``K (x_cmd - x_msr) - D xdot`` per axis
+  of the commanded frame; six force actuators on the TCP site realise
+  ``F_cmd`` in the TCF (``addTcpFT``); seven joint actuators realise joint
+  impedance / position mode and ``addJntTrq``.
+* D is recomputed once per cycle from the Cartesian inertia at the start of
+  the cycle. f_dyn: gravity is compensated exactly every physics step (body
+  ``gravcomp``, routed through the actuators so the torque limits apply);
+  Coriolis/centrifugal terms are computed once per cycle and held.
+* Joint torque limits clamp the total actuator torque per joint
+  (``actuatorfrcrange``); joint Coulomb and viscous friction act link-side.
+
+Honest differences from the real KRC: the real Cartesian stiffness acts in
+the TCF and its exact rotational error metric is not public (here: the
+commanded frame's axes, MuJoCo's rotation-vector metric; the two agree to
+first order in the pose error); no null-space stiffness is modelled (the
+redundant elbow is held by joint friction only); estimated external
+torques/wrench are exact (no torque-sensor noise or model error); FRI
+quality is always PERFECT.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.base.types import (
+    WARN_POSITION_LIMIT,
+    WARN_STIFFNESS_CLIPPED,
+    WARN_TORQUE_LIMIT,
+    WARN_VELOCITY_LIMIT,
+    CmdFlags,
+    Command,
+    ControlMode,
+    FriQuality,
+    FriState,
+    FtSamples,
+    GroundTruth,
+    Measurement,
+)
+from drivers.errors import InvalidCommandError, SimulationError
+from drivers.sim import mjcf
+from drivers.sim.controller import cartesian_inertia, clip_cart_stiffness, normalized_damping
+from drivers.sim.ftsensor import FtSensorModel
+from drivers.sim.scene import Scene
+
+F64 = NDArray[np.float64]
+
+#: Seated: tool tip within this of the seat depth [m] ...
+SEAT_DEPTH_TOL = 0.005
+#: ... and this close to the funnel axis [m] ...
+SEAT_LATERAL_TOL = 0.002
+#: ... and axes within this yaw [rad].
+SEAT_YAW_TOL = math.radians(2.0)
+
+_N_ARM = 7
+
+
+def _pose(pos: F64, mat9: F64) -> F64:
+    out = np.eye(4)
+    out[:3, :3] = mat9.reshape(3, 3)
+    out[:3, 3] = pos
+    return out
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@dataclass(frozen=True)
+class ContactInfo:
+    """Funnel contact parameters as MuJoCo sees them (for the record)."""
+
+    m_eff: float
+    solref_stiffness: float
+    solref_damping: float
+
+
+class SimWorld:
+    """The physics world, stepped one FRI cycle at a time.
+
+    Args:
+        scene: the rig.
+        seed: overrides ``scene.seed``; same seed and same commands give
+            bit-identical measurements and F/T samples.
+    """
+
+    def __init__(self, scene: Scene, seed: int | None = None) -> None:
+        self.scene = scene
+        self.seed = scene.seed if seed is None else seed
+        self.rng = np.random.default_rng(self.seed)
+        self.dt = scene.physics.timestep
+        self.substeps = scene.substeps
+        self.cycle_ns = round(scene.fri.cycle * 1e9)
+        self.step_ns = round(self.dt * 1e9)
+
+        # 1. Arm alone: where is the TCF at the start pose?
+        m0 = mujoco.MjModel.from_xml_string(mjcf.build_xml(scene, None))
+        d0 = mujoco.MjData(m0)
+        d0.qpos[:_N_ARM] = scene.arm.q_init
+        mujoco.mj_forward(m0, d0)
+        tcp0 = d0.site("tcp")
+        self.layout = mjcf.compute_layout(scene, tcp0.xpos.copy(), tcp0.xmat.reshape(3, 3).copy())
+
+        # 2. The whole rig.
+        self.xml = mjcf.build_xml(scene, self.layout)
+        self.model = m = mujoco.MjModel.from_xml_string(self.xml)
+        self.data = d = mujoco.MjData(m)
+        self._tcp = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tcp")
+        self._ft_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "ft_site")
+        self._mouth = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "funnel_mouth")
+        cmd_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "cmd_frame")
+        self._cmd_mocap = int(m.body_mocapid[cmd_body])
+        self._target_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "target")
+        self._tool_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "tool")
+        jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in mjcf.TARGET_JOINTS]
+        self._t_qadr = np.array([m.jnt_qposadr[j] for j in jid])
+        self._t_vadr = np.array([m.jnt_dofadr[j] for j in jid])
+        self._tool_geoms = {g for g in range(m.ngeom) if m.geom_bodyid[g] == self._tool_body
+                            and m.geom_contype[g] != 0}
+        self._is_tool_geom = np.zeros(m.ngeom, dtype=bool)
+        self._is_tool_geom[list(self._tool_geoms)] = True
+        self._funnel_geoms = {
+            g for g in range(m.ngeom)
+            if m.geom_contype[g] != 0 and m.geom_bodyid[g] != self._target_body
+            and (g in self._tool_geoms or m.geom_contype[g] == 2)
+        }
+        self._act_jnt = slice(0, 7)
+        self._act_cart = slice(7, 13)
+        self._act_ft = slice(13, 19)
+        self._vel_limits = np.radians(mjcf.LWR_VEL_LIMITS_DEG)
+        self._pos_limits = np.radians(mjcf.LWR_POS_LIMITS_DEG)
+        self._torque_limits = np.asarray(scene.arm.torque_limits)
+
+        # Preallocated work arrays.
+        self._jacp = np.zeros((3, m.nv))
+        self._jacr = np.zeros((3, m.nv))
+        self._mfull = np.zeros((m.nv, m.nv))
+        self._ft_raw = np.zeros((self.substeps, 6))
+        self._cforce = np.zeros(6)
+        self._quat = np.zeros(4)
+        self._sensordata = d.sensordata
+        fadr = m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_FORCE)]
+        tadr = m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_TORQUE)]
+        if tadr != fadr + 3:
+            raise SimulationError("unexpected sensor layout")
+        self._ft_adr = int(fadr)
+
+        # Start state: arm at q_init, target yawed on its hinge.
+        d.qpos[self._t_qadr[3]] = self.layout.target_yaw
+        d.qpos[:_N_ARM] = scene.arm.q_init
+        mujoco.mj_forward(m, d)
+        self._update_kinematics()
+
+        # Funnel contact: physical N/m -> MuJoCo direct solref via the effective mass.
+        self.contact_info = self._configure_contact()
+
+        # Initial command: hold the start pose with the scene's impedance.
+        self.control = ControlMode(
+            {"cart_impedance": 2, "joint_position": 1, "joint_impedance": 3}[scene.fri.control]
+        )
+        ctl = scene.controller
+        self._cart_pos = self.tcp_pose.copy()
+        self._cart_stiff = np.asarray(ctl.cart_stiffness, dtype=np.float64)
+        self._cart_damp = np.asarray(ctl.cart_damping, dtype=np.float64)
+        self._tcp_ft = np.zeros(6)
+        self._jnt_pos = d.qpos[:_N_ARM].copy()
+        self._jnt_trq = np.zeros(7)
+        self._jnt_stiff = np.full(7, ctl.jnt_position_stiffness)
+        self._jnt_damp = np.full(7, ctl.jnt_position_damping)
+        self._warning = 0
+        self._apply()
+
+        # Let the target settle on its pads, then start the clock.
+        for _ in range(round(scene.physics.settle_time / self.dt)):
+            mujoco.mj_step(m, d)
+        d.time = 0.0
+        vx, vy, wz = scene.target.velocity
+        self.set_target_velocity(vx, vy, wz)
+        mujoco.mj_forward(m, d)
+        self._contact, self._touching = self.contact_wrench()
+        self._update_kinematics()
+
+        self.ft_model = FtSensorModel(
+            scene.ft_sensor, self.rng, np.array([0.0, 0.0, -mjcf.tool_tip_offset(scene)])
+        )
+        self._ft_decim = scene.ft_decimation
+        self._ft_pending: list[FtSamples] = []
+        self.cycle = 0
+        self._step_count = 0
+        self.last_measurement = self._measure()
+
+    # ------------------------------------------------------------------ setup
+    def _configure_contact(self) -> ContactInfo:
+        """Map the scene's contact stiffness [N/m] and damping ratio onto solref.
+
+        MuJoCo's direct solref is mass-normalised (fact sheet sec. 3): a
+        contact with constant impedance d and reference stiffness k holds a
+        quasi-static load F at penetration ``F (1 - d) / (d k m_eff)``. We pick
+        k so that this equals ``F / stiffness``, with m_eff the reduced mass
+        of the TCP (Cartesian inertia along the approach axis) and the target.
+        """
+        ct = self.scene.contact
+        lam = self.cart_inertia
+        m_tcp = float(lam[2, 2])
+        m_eff = 1.0 / (1.0 / m_tcp + 1.0 / self.scene.target.mass)
+        dimp = ct.impedance
+        k = ct.stiffness * (1.0 - dimp) / (dimp * m_eff)
+        limit = 1.0 / (2.0 * self.dt) ** 2
+        if k > limit:
+            from drivers.errors import ConfigError
+
+            raise ConfigError(
+                self.scene.name, "contact.stiffness",
+                f"{ct.stiffness:g} N/m maps to solref stiffness {k:.3g} > 1/(2h)^2 = {limit:.3g}; "
+                "lower it or the physics timestep",
+            )
+        b = 2.0 * ct.damping_ratio * math.sqrt(dimp * k) / dimp
+        m = self.model
+        for g in self._funnel_geoms:
+            m.geom_solref[g, 0] = -k
+            m.geom_solref[g, 1] = -b
+        return ContactInfo(m_eff=m_eff, solref_stiffness=k, solref_damping=b)
+
+    def set_target_velocity(self, vx: float, vy: float, wz: float) -> None:
+        """Give the target a twist in the bed plane (world frame) [m/s, rad/s]."""
+        v = self.data.qvel
+        v[self._t_vadr[0]] = vx
+        v[self._t_vadr[1]] = vy
+        v[self._t_vadr[3]] = wz
+
+    # -------------------------------------------------------------- per cycle
+    def _update_kinematics(self) -> None:
+        """TCP pose, Jacobian (TCF), mass matrix, Cartesian inertia at the current state."""
+        m, d = self.model, self.data
+        self.tcp_pose = _pose(d.site_xpos[self._tcp], d.site_xmat[self._tcp])
+        r = self.tcp_pose[:3, :3]
+        mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp)
+        jac = np.empty((6, _N_ARM))
+        jac[:3] = r.T @ self._jacp[:, :_N_ARM]
+        jac[3:] = r.T @ self._jacr[:, :_N_ARM]
+        self.jacobian = jac
+        mujoco.mj_fullM(m, d, self._mfull)
+        self.mass_matrix = self._mfull[:_N_ARM, :_N_ARM].copy()
+        self.cart_inertia = cartesian_inertia(jac, self.mass_matrix)
+
+    def _apply(self) -> None:
+        """Write the held command into actuators, mocap and applied forces."""
+        m, d = self.model, self.data
+        gain = m.actuator_gainprm
+        bias = m.actuator_biasprm
+        ctrl = d.ctrl
+        cart = self._act_cart
+        jnt = self._act_jnt
+        if self.control == ControlMode.CART_IMPEDANCE:
+            d.mocap_pos[self._cmd_mocap] = self._cart_pos[:3, 3]
+            mujoco.mju_mat2Quat(self._quat, self._cart_pos[:3, :3].ravel())
+            d.mocap_quat[self._cmd_mocap] = self._quat
+            damp = normalized_damping(self._cart_stiff, self._cart_damp, np.diag(self.cart_inertia))
+            bias[cart, 1] = -self._cart_stiff
+            bias[cart, 2] = -damp
+            ctrl[self._act_ft] = self._tcp_ft
+            gain[jnt, 0] = 0.0
+            bias[jnt, 0] = self._jnt_trq
+            bias[jnt, 1] = 0.0
+            bias[jnt, 2] = 0.0
+        else:
+            bias[cart, 1] = 0.0
+            bias[cart, 2] = 0.0
+            ctrl[self._act_ft] = 0.0
+            if self.control == ControlMode.JOINT_POSITION:
+                k = np.full(7, self.scene.controller.jnt_position_stiffness)
+                dd = np.full(7, self.scene.controller.jnt_position_damping)
+            else:
+                k, dd = self._jnt_stiff, self._jnt_damp
+            damp = normalized_damping(k, dd, np.diag(self.mass_matrix))
+            gain[jnt, 0] = k
+            bias[jnt, 0] = self._jnt_trq
+            bias[jnt, 1] = -k
+            bias[jnt, 2] = -damp
+            ctrl[jnt] = self._jnt_pos
+        # f_dyn: Coriolis/centrifugal (gravity is compensated inside every step).
+        d.qfrc_applied[:_N_ARM] = d.qfrc_bias[:_N_ARM] - d.qfrc_gravcomp[:_N_ARM]
+
+    def _take(self, cmd: Command) -> None:
+        """Latch the fields of ``cmd`` its flags select (the KRC's rule)."""
+        f = cmd.flags
+        if cmd.control != self.control:
+            if cmd.control not in (ControlMode.CART_IMPEDANCE, ControlMode.JOINT_POSITION,
+                                   ControlMode.JOINT_IMPEDANCE):
+                raise InvalidCommandError(f"control mode {cmd.control!r} not supported")
+            self.control = ControlMode(cmd.control)
+            self._cart_pos = self.tcp_pose.copy()
+            self._jnt_pos = self.data.qpos[:_N_ARM].copy()
+        self._warning = 0
+        if f & CmdFlags.CARTPOS:
+            p = np.asarray(cmd.cart_pos, dtype=np.float64)
+            if p.shape != (4, 4) or not np.all(np.isfinite(p)):
+                raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
+            self._cart_pos = p.copy()
+        if f & CmdFlags.CARTSTIFF:
+            k = np.asarray(cmd.cart_stiffness, dtype=np.float64)
+            if k.shape != (6,) or not np.all(np.isfinite(k)):
+                raise InvalidCommandError("cart_stiffness must be 6 finite values")
+            mx = self.scene.controller.cart_stiffness_max
+            self._cart_stiff, clipped = clip_cart_stiffness(k, mx[0], mx[1])
+            if clipped:
+                self._warning |= WARN_STIFFNESS_CLIPPED
+        if f & CmdFlags.CARTDAMP:
+            self._cart_damp = np.clip(self._finite(cmd.cart_damping, 6, "cart_damping"), 0.0, 1.0)
+        if f & CmdFlags.TCPFT:
+            self._tcp_ft = self._finite(cmd.add_tcp_ft, 6, "add_tcp_ft")
+        if f & CmdFlags.JNTPOS:
+            self._jnt_pos = np.clip(self._finite(cmd.jnt_pos, 7, "jnt_pos"),
+                                    -self._pos_limits, self._pos_limits)
+        if f & CmdFlags.JNTTRQ:
+            self._jnt_trq = self._finite(cmd.add_jnt_trq, 7, "add_jnt_trq")
+        if f & CmdFlags.JNTSTIFF:
+            k = self._finite(cmd.jnt_stiffness, 7, "jnt_stiffness")
+            self._jnt_stiff = np.clip(k, 0.0, self.scene.controller.jnt_stiffness_max)
+            if np.any(self._jnt_stiff != k):
+                self._warning |= WARN_STIFFNESS_CLIPPED
+        if f & CmdFlags.JNTDAMP:
+            self._jnt_damp = np.clip(self._finite(cmd.jnt_damping, 7, "jnt_damping"), 0.0, 1.0)
+
+    @staticmethod
+    def _finite(v: F64, n: int, name: str) -> F64:
+        a = np.asarray(v, dtype=np.float64)
+        if a.shape != (n,) or not np.all(np.isfinite(a)):
+            raise InvalidCommandError(f"{name} must be {n} finite values")
+        return a.copy()
+
+    def step(self, command: Command | None = None) -> Measurement:
+        """Run one FRI cycle with ``command`` held (``None``: keep the last one)."""
+        if command is not None:
+            self._take(command)
+        self._apply()
+        m, d = self.model, self.data
+        raw = self._ft_raw
+        sd = self._sensordata
+        a = self._ft_adr
+        step = mujoco.mj_step
+        for i in range(self.substeps):
+            step(m, d)
+            raw[i] = sd[a:a + 6]
+        # Contacts and constraint forces are consistent now (state of the last
+        # step, 1 physics step before the cycle's end); mj_step1 would redo collisions.
+        self._contact, self._touching = self.contact_wrench()
+        mujoco.mj_step1(m, d)
+        if not np.all(np.isfinite(d.qpos)):
+            raise SimulationError(f"physics diverged at t = {d.time:.4f} s")
+        t0 = self.cycle * self.cycle_ns
+        first = (-self._step_count) % self._ft_decim
+        rows = raw[first::self._ft_decim]
+        if rows.shape[0]:
+            self._ft_pending.append(self.ft_model.process(rows, t0 + first * self.step_ns))
+        self._step_count += self.substeps
+        self.cycle += 1
+        self._update_kinematics()
+        self.last_measurement = self._measure()
+        return self.last_measurement
+
+    def ft_samples(self) -> FtSamples:
+        """Every F/T sample produced since the last call."""
+        out = FtSamples.concat(self._ft_pending)
+        self._ft_pending = []
+        return out
+
+    def tare_ft(self) -> None:
+        """Software bias: the last sample reads zero from now on (Net F/T 0x0042)."""
+        last = self.ft_model.last_wrench
+        if last is not None:
+            self.ft_model.tare_offset = self.ft_model.tare_offset + last
+
+    # ------------------------------------------------------------ measurement
+    def contact_wrench(self) -> tuple[F64, bool]:
+        """True wrench the target exerts on the tool (TCF at the TCP), and whether touching.
+
+        Valid only right after ``mj_step``/``mj_forward`` (contacts and
+        constraint forces must come from the same collision pass).
+        """
+        m, d = self.model, self.data
+        f_w = np.zeros(3)
+        t_w = np.zeros(3)
+        tcp = d.site_xpos[self._tcp]
+        touching = False
+        tool = self._tool_geoms
+        if d.ncon == 0:
+            return np.zeros(6), False
+        hits = np.flatnonzero(self._is_tool_geom[d.contact.geom].any(axis=1))
+        for i in hits:
+            c = d.contact[i]
+            on1 = int(c.geom[0]) in tool
+            touching = True
+            mujoco.mj_contactForce(m, d, int(i), self._cforce)
+            frame = c.frame.reshape(3, 3)
+            f = frame.T @ self._cforce[:3]
+            # mj_contactForce gives the force geom1 exerts on geom2.
+            if on1:
+                f = -f
+            f_w += f
+            t_w += np.cross(c.pos - tcp, f)
+        r = d.site_xmat[self._tcp].reshape(3, 3)
+        out = np.empty(6)
+        out[:3] = r.T @ f_w
+        out[3:] = r.T @ t_w
+        return out, touching
+
+    def _truth(self, contact: F64, touching: bool, tcp_twist: F64) -> GroundTruth:
+        d = self.data
+        tp = _pose(d.xpos[self._target_body], d.xmat[self._target_body])
+        v = d.qvel
+        twist = np.array([v[self._t_vadr[0]], v[self._t_vadr[1]], v[self._t_vadr[3]]])
+        mouth = d.site_xpos[self._mouth]
+        rm = d.site_xmat[self._mouth].reshape(3, 3)
+        rel = rm.T @ (self.tcp_pose[:3, 3] - mouth)
+        z_tool = self.tcp_pose[:3, 2]
+        yaw_err = _wrap(math.atan2(z_tool[1], z_tool[0]) - math.atan2(rm[1, 0], rm[0, 0]))
+        seated = (
+            rel[0] >= self.layout.funnel_seat_depth - SEAT_DEPTH_TOL
+            and abs(rel[1]) <= SEAT_LATERAL_TOL
+            and abs(yaw_err) <= SEAT_YAW_TOL
+        )
+        return GroundTruth(
+            target_pose=tp,
+            target_twist=twist,
+            contact_wrench=contact,
+            lateral_error=float(rel[1]),
+            vertical_error=float(rel[2]),
+            yaw_error=yaw_err,
+            insertion=float(rel[0]),
+            seated=bool(seated),
+            in_contact=touching,
+            tcp_twist=tcp_twist,
+        )
+
+    def _measure(self) -> Measurement:
+        d = self.data
+        q = d.qpos[:_N_ARM].copy()
+        qd = d.qvel[:_N_ARM]
+        jac = self.jacobian
+        contact, touching = self._contact, self._touching
+        tau_ext = jac.T @ contact
+        gravity = d.qfrc_gravcomp[:_N_ARM].copy()
+        # Link-side torque sensors: M qdd + c + g = tau_msr + tau_ext.
+        tau_msr = self.mass_matrix @ d.qacc[:_N_ARM] + d.qfrc_bias[:_N_ARM] - tau_ext
+        warning = self._warning
+        if np.any(np.abs(qd) > self._vel_limits):
+            warning |= WARN_VELOCITY_LIMIT
+        if np.any(np.abs(q) > self._pos_limits - 1e-3):
+            warning |= WARN_POSITION_LIMIT
+        if np.any(np.abs(d.qfrc_actuator[:_N_ARM]) >= self._torque_limits - 1e-9):
+            warning |= WARN_TORQUE_LIMIT
+        cart = self.control == ControlMode.CART_IMPEDANCE
+        tcp_twist = jac @ qd
+        return Measurement(
+            seq=self.cycle,
+            time_ns=self.cycle * self.cycle_ns,
+            state=FriState.CMD,
+            quality=FriQuality.PERFECT,
+            control=self.control,
+            msr_sample_time=self.scene.fri.cycle,
+            cmd_sample_time=self.scene.fri.cycle,
+            warning=warning,
+            temperature=np.full(7, 30.0),
+            msr_jnt_pos=q,
+            msr_cart_pos=self.tcp_pose.copy(),
+            cmd_jnt_pos=q.copy() if cart else self._jnt_pos.copy(),
+            cmd_cart_pos=self._cart_pos.copy() if cart else self.tcp_pose.copy(),
+            msr_jnt_trq=tau_msr,
+            est_ext_jnt_trq=tau_ext,
+            est_ext_tcp_ft=contact.copy(),
+            jacobian=jac.copy(),
+            mass_matrix=self.mass_matrix.copy(),
+            gravity=gravity,
+            truth=self._truth(contact, touching, tcp_twist),
+        )
+
+    @property
+    def time(self) -> float:
+        """Simulated time since the start [s]."""
+        return self.cycle * self.scene.fri.cycle

@@ -1,0 +1,41 @@
+from __future__ import annotations
+
+import numpy as np
+
+from drivers.base import CmdFlags, Command, ControlMode, FtSamples, Measurement
+
+
+def test_hold_mirrors_the_krc() -> None:
+    m = Measurement(control=ControlMode.CART_IMPEDANCE)
+    m.cmd_jnt_pos[:] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]
+    m.cmd_jnt_pos_fri_offset[:] = 0.01
+    m.cmd_cart_pos[:3, 3] = [0.6, 0.0, 0.5]
+    c = Command.hold(m)
+    assert c.flags == CmdFlags.JNTPOS | CmdFlags.CARTPOS
+    np.testing.assert_allclose(c.jnt_pos, m.cmd_jnt_pos + 0.01)
+    np.testing.assert_array_equal(c.cart_pos, m.cmd_cart_pos)
+    assert c.cart_pos is not m.cmd_cart_pos
+
+
+def test_flag_values_match_fricomm() -> None:
+    assert int(CmdFlags.JNTPOS) == 0x0001
+    assert int(CmdFlags.TCPFT) == 0x0400
+    assert int(CmdFlags.CARTSTIFF | CmdFlags.CARTDAMP) == 0x3000
+
+
+def test_default_arrays_are_not_shared() -> None:
+    a, b = Command(), Command()
+    a.add_tcp_ft[2] = 1.0
+    assert b.add_tcp_ft[2] == 0.0
+
+
+def test_ft_samples_concat() -> None:
+    a = FtSamples(time_ns=np.array([1, 2]), seq=np.array([0, 1]), wrench=np.ones((2, 6)),
+                  status=np.zeros(2, dtype=np.uint32))
+    b = FtSamples(time_ns=np.array([3]), seq=np.array([2]), wrench=np.zeros((1, 6)),
+                  status=np.array([0x20000], dtype=np.uint32))
+    c = FtSamples.concat([a, b])
+    assert len(c) == 3
+    assert list(c.time_ns) == [1, 2, 3]
+    assert c.status[2] == 0x20000
+    assert len(FtSamples.concat([])) == 0

@@ -1,0 +1,365 @@
+"""SimWorld against physics and closed forms (issue 3 acceptance tests)."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from drivers.base.types import (
+    WARN_STIFFNESS_CLIPPED,
+    WARN_TORQUE_LIMIT,
+    CmdFlags,
+    Command,
+    ControlMode,
+    FtStatus,
+    Measurement,
+)
+from drivers.errors import InvalidCommandError
+from drivers.sim.controller import cart_impedance_torque, cartesian_mobility, normalized_damping
+from drivers.sim.scene import Scene
+from drivers.sim.world import SimWorld
+
+G = 9.81
+STIFF = np.array([5000.0, 5000.0, 5000.0, 300.0, 300.0, 300.0])
+
+
+def scene(**sections: dict[str, object]) -> Scene:
+    return Scene.model_validate(sections)
+
+
+def far_target() -> dict[str, object]:
+    """Target out of the tool's reach."""
+    return {"distance": 0.3}
+
+
+def push(fz: float = 0.0, fy: float = 0.0, fx: float = 0.0) -> Command:
+    return Command(flags=CmdFlags.TCPFT, add_tcp_ft=np.array([fx, fy, fz, 0.0, 0.0, 0.0]))
+
+
+def test_cartesian_inertia_predicts_free_acceleration() -> None:
+    """K = 0 on Y, F_cmd on Y: the TCP accelerates as (J M^-1 J^T) F predicts."""
+    w = SimWorld(scene(arm={"friction_scale": 0.0}, target=far_target()))
+    m0 = w.last_measurement
+    mob = cartesian_mobility(m0.jacobian, m0.mass_matrix)
+    force = 4.0
+    a_pred = mob[1, 1] * force
+    p0 = m0.msr_cart_pos[:3, 3].copy()
+    y_axis = m0.msr_cart_pos[:3, 1].copy()
+    ts, ys = [], []
+    for _ in range(6):  # 30 ms
+        m = w.step(push(fy=force))
+        ts.append(w.time)
+        ys.append(float(y_axis @ (m.msr_cart_pos[:3, 3] - p0)))
+    a_fit = 2.0 * np.polyfit(ts, ys, 2)[0]
+    assert a_fit == pytest.approx(a_pred, rel=0.05)
+    # The Cartesian inertia itself: Lambda = (J M^-1 J^T)^-1, Lambda_yy of a few kg.
+    lam = np.linalg.inv(mob)
+    assert 1.0 < lam[1, 1] < 15.0
+
+
+def test_stiff_axis_deflects_by_f_over_k() -> None:
+    """X held at K = 5000 N/m (paper: maximal) deflects F/K under F_cmd on X."""
+    w = SimWorld(scene(target=far_target()))
+    p0 = w.last_measurement.msr_cart_pos[:3, 3].copy()
+    x_axis = w.last_measurement.msr_cart_pos[:3, 0].copy()
+    force = 25.0
+    for _ in range(400):  # 2 s
+        m = w.step(push(fx=force))
+    dx = float(x_axis @ (m.msr_cart_pos[:3, 3] - p0))
+    assert dx == pytest.approx(force / 5000.0, rel=0.05)
+
+
+def test_actuators_realise_the_krc_law() -> None:
+    """MuJoCo's actuator torques equal tau = J^T (K e - D xdot + F) + g at an offset pose."""
+    w = SimWorld(scene(target=far_target()))
+    m0 = w.last_measurement
+    cmd_pose = m0.msr_cart_pos.copy()
+    cmd_pose[:3, 3] += cmd_pose[:3, :3] @ np.array([0.004, -0.003, 0.005])
+    c, s = math.cos(0.01), math.sin(0.01)
+    cmd_pose[:3, :3] = cmd_pose[:3, :3] @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    k = STIFF.copy()
+    d = np.full(6, 0.7)
+    f_cmd = np.array([1.0, -2.0, 3.0, 0.1, -0.2, 0.05])
+    w._take(
+        Command(
+            flags=CmdFlags.CARTPOS | CmdFlags.CARTSTIFF | CmdFlags.CARTDAMP | CmdFlags.TCPFT,
+            cart_pos=cmd_pose, cart_stiffness=k, cart_damping=d, add_tcp_ft=f_cmd,
+        )
+    )
+    w._apply()
+    mujoco.mj_forward(w.model, w.data)
+    tau_sim = w.data.qfrc_actuator[:7].copy()
+    damp = normalized_damping(k, d, np.diag(w.cart_inertia))
+    tau_ref = cart_impedance_torque(
+        m0.jacobian, cmd_pose, m0.msr_cart_pos, np.zeros(6), k, damp, f_cmd, m0.gravity
+    )
+    np.testing.assert_allclose(tau_sim, tau_ref, rtol=0.01, atol=0.01)
+
+
+@pytest.mark.slow
+def test_holds_commanded_pose_for_60_s() -> None:
+    """Stiff impedance, cmd = current pose, no F_cmd: drift < 1 mm over 60 s."""
+    w = SimWorld(scene(target=far_target()))
+    p0 = w.last_measurement.msr_cart_pos[:3, 3].copy()
+    cmd = Command(
+        flags=CmdFlags.CARTPOS | CmdFlags.CARTSTIFF | CmdFlags.CARTDAMP,
+        cart_pos=w.last_measurement.msr_cart_pos.copy(),
+        cart_stiffness=STIFF, cart_damping=np.full(6, 0.7),
+    )
+    worst = 0.0
+    for i in range(12000):
+        m = w.step(cmd if i == 0 else None)
+        worst = max(worst, float(np.linalg.norm(m.msr_cart_pos[:3, 3] - p0)))
+    assert worst < 1e-3
+
+
+def _target_decel(mu: float, seconds: float) -> tuple[float, list[float]]:
+    w = SimWorld(scene(target={"mu": mu, "distance": 0.3, "velocity": (0.1, 0.0, 0.0)}))
+    ts, vs = [], []
+    for _ in range(round(seconds / 0.005)):
+        m = w.step()
+        assert m.truth is not None
+        ts.append(w.time)
+        vs.append(float(m.truth.target_twist[0]))
+    return -float(np.polyfit(ts, vs, 1)[0]), vs
+
+
+@pytest.mark.parametrize(("mu", "seconds"), [(0.005, 1.5), (0.02, 0.4)])
+def test_target_decelerates_at_mu_g(mu: float, seconds: float) -> None:
+    decel, vs = _target_decel(mu, seconds)
+    assert decel == pytest.approx(mu * G, rel=0.05)
+    assert vs[-1] > 0.0  # still sliding within the fit window
+
+
+def test_frictionless_target_keeps_momentum() -> None:
+    w = SimWorld(scene(target={"mu": 0.0, "distance": 0.3, "velocity": (0.1, 0.0, 0.0)}))
+    for _ in range(400):  # 2 s
+        m = w.step()
+    assert m.truth is not None
+    assert m.truth.target_twist[0] == pytest.approx(0.1, rel=0.01)
+    assert m.truth.target_pose[0, 3] - w.layout.target_pos[0] == pytest.approx(0.2, rel=0.01)
+
+
+def test_bed_friction_is_isotropic() -> None:
+    """Diagonal slide: speed drops at mu g and the direction does not turn."""
+    v0 = 0.1 / math.sqrt(2.0)
+    w = SimWorld(scene(target={"mu": 0.01, "distance": 0.3, "velocity": (v0, v0, 0.0)}))
+    for _ in range(100):  # 0.5 s
+        m = w.step()
+    assert m.truth is not None
+    vx, vy, _ = m.truth.target_twist
+    assert math.hypot(vx, vy) == pytest.approx(0.1 - 0.01 * G * 0.5, rel=0.02)
+    assert vx == pytest.approx(vy, rel=1e-3)
+
+
+def test_joint_friction_breakaway_matches_closed_form() -> None:
+    """The tool stays put while every |J^T F|_i is below joint i's Coulomb friction."""
+    w0 = SimWorld(scene(target=far_target()))
+    m0 = w0.last_measurement
+    coulomb = np.array(w0.scene.arm.coulomb_friction())
+    e_y = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    breakaway = 1.0 / float(np.max(np.abs(m0.jacobian.T @ e_y) / coulomb))
+
+    def moved(force: float) -> float:
+        w = SimWorld(scene(target=far_target()))
+        p0 = w.last_measurement.msr_cart_pos[:3, 3].copy()
+        for _ in range(100):  # 0.5 s
+            m = w.step(push(fy=force))
+        return float(np.linalg.norm(m.msr_cart_pos[:3, 3] - p0))
+
+    assert moved(0.8 * breakaway) < 2e-4
+    assert moved(1.5 * breakaway) > 2e-3
+
+
+def _paper_push(force: float, seconds: float, seed: int = 0) -> tuple[SimWorld, list[Measurement]]:
+    w = SimWorld(scene(seed=seed))  # type: ignore[arg-type]
+    out = []
+    cmd = push(fz=force)
+    for _ in range(round(seconds / 0.005)):
+        out.append(w.step(cmd))
+    return w, out
+
+
+@pytest.fixture(scope="module")
+def paper_push() -> tuple[SimWorld, list[Measurement]]:
+    return _paper_push(3.0, 4.0)
+
+
+@pytest.mark.slow
+def test_push_slides_funnels_into_alignment(paper_push: tuple[SimWorld, list[Measurement]]) -> None:
+    w, ms = paper_push
+    first, last = ms[0].truth, ms[-1].truth
+    assert first is not None and last is not None
+    assert abs(first.lateral_error) > 0.01 and abs(first.yaw_error) > math.radians(7)
+    assert any(m.truth is not None and m.truth.in_contact for m in ms)
+    assert abs(last.lateral_error) < 2e-3
+    assert abs(last.yaw_error) < math.radians(2.5)
+    assert last.insertion > w.layout.funnel_seat_depth - 0.005
+    assert last.seated
+
+
+@pytest.mark.slow
+def test_target_moves_away_by_the_contact_impulse(
+    paper_push: tuple[SimWorld, list[Measurement]],
+) -> None:
+    """Over the final stretch of unbroken contact, the target's momentum change equals
+    the contact impulse on it minus bed friction (sampled once per FRI cycle)."""
+    w, ms = paper_push
+    dt = w.scene.fri.cycle
+    mass, mu = w.scene.target.mass, w.scene.target.mu
+    start = len(ms)
+    while start > 0 and ms[start - 1].truth is not None and ms[start - 1].truth.in_contact:
+        start -= 1
+    window = ms[start + 40:]  # skip 0.2 s of impact transient (shorter than a cycle)
+    assert len(window) * dt > 1.0  # at least 1 s of continuous contact
+    p = np.zeros(2)
+    for m in window[1:]:
+        assert m.truth is not None
+        f_on_tool_world = m.msr_cart_pos[:3, :3] @ m.truth.contact_wrench[:3]
+        p -= f_on_tool_world[:2] * dt
+        v = m.truth.target_twist[:2]
+        speed = float(np.linalg.norm(v))
+        if speed > 1e-4:
+            p -= mu * mass * G * v / speed * dt
+    v0 = window[0].truth.target_twist[:2]  # type: ignore[union-attr]
+    v1 = window[-1].truth.target_twist[:2]  # type: ignore[union-attr]
+    assert float(np.linalg.norm(v1)) > 0.005  # it does float away ...
+    assert v1[0] > 0.0  # ... along the approach direction (TCF +Z = world +x)
+    dp = mass * (v1 - v0)
+    scale = float(np.abs(p).max())
+    np.testing.assert_allclose(dp, p, atol=0.05 * scale + 0.002)
+
+
+@pytest.mark.slow
+def test_sensor_reads_our_sign_in_contact(paper_push: tuple[SimWorld, list[Measurement]]) -> None:
+    """Pushing +Z into the target, the true contact wrench and the sensor read w[2] < 0."""
+    _, ms = paper_push
+    contact = [m for m in ms if m.truth is not None and m.truth.contact_wrench[2] < -0.5]
+    assert contact
+    assert all(m.est_ext_tcp_ft[2] < 0.0 for m in contact)
+
+
+def test_sensor_matches_contact_wrench_during_push() -> None:
+    """Sensor minus its free-motion reading equals the true contact wrench.
+
+    The true wrench and the cycle's last F/T sample refer to the same physics
+    step. Before contact the reading holds bias, drift and the tool load; the
+    tool's inertia (0.25 kg) adds ``-m a`` during impacts, hence 3 %.
+    """
+    w = SimWorld(scene())
+    cmd = push(fz=3.0)
+    free: list[float] = []
+    pairs: list[tuple[float, float]] = []
+    for _ in range(800):
+        m = w.step(cmd)
+        ft = w.ft_samples()
+        assert m.truth is not None
+        if not m.truth.in_contact and not pairs:
+            free.append(float(ft.wrench[:, 2].mean()))
+        elif m.truth.contact_wrench[2] < -0.3:
+            pairs.append((float(ft.wrench[-1, 2]), float(m.truth.contact_wrench[2])))
+    assert len(pairs) >= 50
+    base = float(np.mean(free[-40:]))
+    for reading, truth in pairs:
+        assert reading - base < 0.0
+        assert reading - base == pytest.approx(truth, abs=0.2 + 0.03 * abs(truth))
+
+
+def test_static_reading_shows_noise_and_quantisation() -> None:
+    w = SimWorld(scene(target=far_target()))
+    for _ in range(200):
+        w.step()
+    s = w.ft_samples()
+    assert len(s) == 1000
+    fz = s.wrench[:, 2]
+    assert np.std(fz) > 0.01  # noise visible
+    np.testing.assert_allclose(fz * 16.0, np.rint(fz * 16.0), atol=1e-9)  # 1/16 N counts
+    assert np.all(s.status == 0)
+    # The static reading carries the tool's weight on -X (gravity along -X of TCF).
+    m_tool = w.scene.tool.mass
+    bias_x = w.ft_model.bias[0] + w.ft_model.drift[0]
+    assert np.mean(s.wrench[:, 0]) - bias_x == pytest.approx(-m_tool * G, abs=0.05)
+
+
+def test_saturation_flagged_in_world() -> None:
+    """With a 1 N range on X the tool's own weight saturates the gauge."""
+    w = SimWorld(scene(target=far_target(),
+                       ft_sensor={"range": (1.0, 145.0, 290.0, 5.0, 5.0, 5.0),
+                                  "bias_std": (0.0, 0.0)}))
+    w.step()
+    s = w.ft_samples()
+    assert np.all(s.status & FtStatus.SATURATION)
+    assert np.all(np.abs(s.wrench[:, 0]) <= 1.0 + 1 / 32)
+
+
+def test_same_seed_identical_runs() -> None:
+    def run(seed: int) -> tuple[list[Measurement], np.ndarray]:
+        w = SimWorld(scene(), seed=seed)
+        ms, ft = [], []
+        for i in range(150):
+            ms.append(w.step(push(fz=3.0, fy=0.3 * math.sin(i / 10))))
+            ft.append(w.ft_samples().wrench)
+        return ms, np.concatenate(ft)
+
+    a, fa = run(5)
+    b, fb = run(5)
+    _, fc = run(6)
+    assert np.array_equal(fa, fb)
+    assert not np.array_equal(fa, fc)
+    for ma, mb in zip(a, b, strict=True):
+        for name in ("msr_jnt_pos", "msr_cart_pos", "msr_jnt_trq", "est_ext_tcp_ft", "jacobian"):
+            assert np.array_equal(getattr(ma, name), getattr(mb, name)), name
+
+
+def test_measurement_fields_are_consistent() -> None:
+    w = SimWorld(scene(target=far_target()))
+    m = w.step()
+    assert m.seq == 1 and m.time_ns == 5_000_000
+    assert m.control == ControlMode.CART_IMPEDANCE
+    assert m.jacobian.shape == (6, 7) and m.mass_matrix.shape == (7, 7)
+    np.testing.assert_allclose(m.mass_matrix, m.mass_matrix.T, atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(m.mass_matrix) > 0)
+    # Held still with gravity compensated: measured torque = gravity torque.
+    np.testing.assert_allclose(m.msr_jnt_trq, m.gravity, atol=0.05)
+    np.testing.assert_allclose(m.est_ext_jnt_trq, 0.0, atol=1e-9)
+    # TCF: X up (gravity along -X), Z horizontal.
+    np.testing.assert_allclose(m.msr_cart_pos[:3, 0], [0.0, 0.0, 1.0], atol=1e-4)
+    assert abs(m.msr_cart_pos[2, 2]) < 1e-4
+    np.testing.assert_allclose(m.cmd_cart_pos, w.tcp_pose, atol=1e-3)
+
+
+def test_joint_position_mode_tracks() -> None:
+    w = SimWorld(scene(target=far_target()))
+    q0 = w.last_measurement.msr_jnt_pos.copy()
+    q_cmd = q0 + np.array([0.05, -0.03, 0.0, 0.04, 0.0, 0.0, 0.02])
+    cmd = Command(flags=CmdFlags.JNTPOS, control=ControlMode.JOINT_POSITION, jnt_pos=q_cmd)
+    for _ in range(200):
+        m = w.step(cmd)
+    assert m.control == ControlMode.JOINT_POSITION
+    np.testing.assert_allclose(m.msr_jnt_pos, q_cmd, atol=2e-3)
+
+
+def test_torque_limits_clamp_and_warn() -> None:
+    w = SimWorld(scene(target=far_target()))
+    cmd = Command(flags=CmdFlags.JNTTRQ, add_jnt_trq=np.array([0, 0, 0, 0, 0, 0, 500.0]))
+    m = w.step(cmd)
+    assert abs(w.data.qfrc_actuator[6]) <= 38.0 + 1e-9
+    assert m.warning & WARN_TORQUE_LIMIT
+
+
+def test_stiffness_clipped_to_max_with_warning() -> None:
+    w = SimWorld(scene(target=far_target()))
+    cmd = Command(flags=CmdFlags.CARTSTIFF, cart_stiffness=np.array([9e3, 0, 0, 0, 500.0, 0]))
+    m = w.step(cmd)
+    assert m.warning & WARN_STIFFNESS_CLIPPED
+    assert -w.model.actuator_biasprm[7, 1] == pytest.approx(5000.0)
+    assert -w.model.actuator_biasprm[11, 1] == pytest.approx(300.0)
+
+
+def test_non_finite_command_rejected() -> None:
+    w = SimWorld(scene(target=far_target()))
+    with pytest.raises(InvalidCommandError):
+        w.step(push(fz=float("nan")))

@@ -191,3 +191,19 @@ def test_topics_are_documented() -> None:
     for t in CDR_TOPICS.values():
         for f in t.spec.fields:
             assert f" {f.name}" in text
+
+
+def test_transform_quaternion_matches_scipy() -> None:
+    from scipy.spatial.transform import Rotation
+
+    from ffexp.recording.recorder import pose_to_transform
+
+    for r in Rotation.random(300, random_state=1).as_matrix():
+        pose = np.eye(4)
+        pose[:3, :3] = r
+        pose[:3, 3] = [1.0, -2.0, 0.5]
+        t, q = pose_to_transform(pose)
+        got = np.array([q["x"], q["y"], q["z"], q["w"]])
+        ref = Rotation.from_matrix(r).as_quat()
+        assert min(np.abs(got - ref).max(), np.abs(got + ref).max()) < 1e-9
+        assert t == {"x": 1.0, "y": -2.0, "z": 0.5}

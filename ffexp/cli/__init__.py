@@ -10,7 +10,8 @@ from __future__ import annotations
 import typer
 
 from ffexp import __version__
-from ffexp.cli import friction, simulate
+from ffexp.cli import friction, records, simulate
+from ffexp.cli import run as run_cli
 
 app = typer.Typer(
     name="ffexp",
@@ -21,6 +22,12 @@ app = typer.Typer(
 )
 app.add_typer(simulate.app, name="simulate")
 app.add_typer(friction.app, name="friction")
+app.command("run")(run_cli.run)
+app.command("campaign")(run_cli.campaign)
+app.command("analyze")(records.analyze)
+app.command("compare")(records.compare)
+app.command("recover")(records.recover_cmd)
+app.command("topics")(records.topics)
 
 
 def _version(value: bool) -> None:

@@ -121,6 +121,8 @@ class Recorder:
 
     # -- writing --------------------------------------------------------------
     def _add(self, topic: str, time_ns: int, data: bytes) -> None:
+        if time_ns < 0:
+            raise ValueError(f"{topic}: negative log time {time_ns} ns")
         cid = self._channel(topic)
         seq = self._seq[topic]
         self._seq[topic] = seq + 1

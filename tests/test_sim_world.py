@@ -185,7 +185,7 @@ def _paper_push(force: float, seconds: float, seed: int = 0) -> tuple[SimWorld, 
 
 @pytest.fixture(scope="module")
 def paper_push() -> tuple[SimWorld, list[Measurement]]:
-    return _paper_push(3.0, 4.0)
+    return _paper_push(3.0, 5.0)
 
 
 @pytest.mark.slow
@@ -226,8 +226,10 @@ def test_target_moves_away_by_the_contact_impulse(
             p -= mu * mass * G * v / speed * dt
     v0 = window[0].truth.target_twist[:2]  # type: ignore[union-attr]
     v1 = window[-1].truth.target_twist[:2]  # type: ignore[union-attr]
-    assert float(np.linalg.norm(v1)) > 0.005  # it does float away ...
-    assert v1[0] > 0.0  # ... along the approach direction (TCF +Z = world +x)
+    # it was pushed away along the approach direction (TCF +Z = world +x) ...
+    moved = ms[-1].truth.target_pose[:2, 3] - ms[0].truth.target_pose[:2, 3]  # type: ignore[union-attr]
+    assert moved[0] > 0.03 and abs(moved[1]) < moved[0]
+    # ... and its momentum change is the impulse it received
     dp = mass * (v1 - v0)
     scale = float(np.abs(p).max())
     np.testing.assert_allclose(dp, p, atol=0.05 * scale + 0.002)

@@ -82,6 +82,11 @@ TARGET_JOINTS = ("target_x", "target_y", "target_z", "target_yaw")
 FT_SENSOR_FORCE = "ft_force"
 FT_SENSOR_TORQUE = "ft_torque"
 
+#: Funnel contacts closer than this are reported (``margin``) but exert no
+#: force until they touch (``gap``): the ground truth calls them "in contact",
+#: so sliding over the capsule ridges is not counted as contact breaks.
+TOUCH_MARGIN = 2e-4
+
 # Collision groups: tool funnel <-> target funnel, pads <-> glass, nothing else.
 _TOOL = 'contype="1" conaffinity="2"'
 _TARGET = 'contype="2" conaffinity="1"'
@@ -349,6 +354,7 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
 <default>
   <default class="funnel">
     <geom condim="3" friction="{_f(ct.friction)} 0.005 0.0001" solref="-1000 -60"
+          margin="{_f(TOUCH_MARGIN)}" gap="{_f(TOUCH_MARGIN)}"
           solimp="{_f(ct.impedance)} {_f(ct.impedance)} 0.001 0.5 2" mass="0"
           rgba="0.3 0.5 0.9 1"/>
   </default>

@@ -60,12 +60,13 @@ from drivers.sim.scene import Scene
 
 F64 = NDArray[np.float64]
 
-#: Seated: tool tip within this of the seat depth [m] ...
+#: Seated: tool tip within this of the (estimated) seat depth [m] ...
 SEAT_DEPTH_TOL = 0.005
 #: ... and this close to the funnel axis [m] ...
-SEAT_LATERAL_TOL = 0.002
-#: ... and axes within this yaw [rad].
-SEAT_YAW_TOL = math.radians(2.0)
+SEAT_LATERAL_TOL = 0.0025
+#: ... and axes within this yaw [rad]. Lateral and yaw tolerances are the
+#: play of a 45 mm capsule cone in the 16-capsule funnel (about 1-2 mm, 2-3 deg).
+SEAT_YAW_TOL = math.radians(3.0)
 
 _N_ARM = 7
 
@@ -406,6 +407,8 @@ class SimWorld:
             c = d.contact[i]
             on1 = int(c.geom[0]) in tool
             touching = True
+            if c.efc_address < 0:  # within the touch margin, not yet pressing
+                continue
             mujoco.mj_contactForce(m, d, int(i), self._cforce)
             frame = c.frame.reshape(3, 3)
             f = frame.T @ self._cforce[:3]

@@ -2,9 +2,197 @@
 
 from __future__ import annotations
 
+import json
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
 import typer
+from pydantic import ValidationError
+
+from ffexp.cli._common import cli_errors
+from ffexp.errors import InputError
 
 app = typer.Typer(
     help="Residual friction of the air-bed target from video.",
     no_args_is_help=True,
 )
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(p) for p in text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--size: expected WIDTHxHEIGHT such as 1280x720, not {text!r}") from None
+    return w, h
+
+
+@app.command()
+@cli_errors
+def synth(
+    out: Annotated[Path, typer.Option("--out", help="Output video (.avi; .mkv for FFV1).")],
+    mu: Annotated[float, typer.Option(help="Friction coefficient (deceleration / g).")] = 0.01,
+    v0: Annotated[float, typer.Option(help="Speed right after the impulse (m/s).")] = 0.2,
+    duration: Annotated[float, typer.Option(help="Video length (s).")] = 3.0,
+    fps: Annotated[float, typer.Option(help="Frame rate (1/s).")] = 50.0,
+    size: Annotated[str, typer.Option(help="Frame size WIDTHxHEIGHT (px).")] = "1280x720",
+    noise: Annotated[float, typer.Option(help="Sensor noise std (grey levels).")] = 2.0,
+    seed: Annotated[int, typer.Option(help="Seed of the random generator.")] = 0,
+    truth: Annotated[Path | None, typer.Option(help="Write the ground truth (JSON) here.")] = None,
+    px_per_m: Annotated[float, typer.Option("--px-per-m", help="Image scale (px/m).")] = 1000.0,
+    block_m: Annotated[float, typer.Option("--block-m", help="Block side (m).")] = 0.25,
+    rest_s: Annotated[float, typer.Option("--rest-s", help="Time at rest first (s).")] = 0.5,
+    direction_deg: Annotated[
+        float, typer.Option("--direction-deg", help="Motion direction in the image (deg from +u).")
+    ] = 0.0,
+    blur_px: Annotated[float, typer.Option("--blur-px", help="Defocus blur sigma (px).")] = 0.0,
+    exposure_s: Annotated[
+        float, typer.Option("--exposure-s", help="Motion-blur exposure (s).")
+    ] = 0.0,
+    lighting: Annotated[
+        float, typer.Option(help="Relative brightening over the video (lighting change).")
+    ] = 0.03,
+    marker: Annotated[
+        str | None, typer.Option(help="Draw an ArUco/AprilTag marker, e.g. DICT_4X4_50.")
+    ] = None,
+    codec: Annotated[str, typer.Option(help="ffv1 | png (lossless) | mjpg (lossy).")] = "ffv1",
+) -> None:
+    """Render a synthetic top-view video of a block sliding with known friction."""
+    from ffexp.friction.synth import FOURCC, SynthConfig, write_video
+
+    width, height = _parse_size(size)
+    if codec not in FOURCC:
+        raise InputError(f"--codec: expected one of {', '.join(FOURCC)}, not {codec!r}")
+    try:
+        cfg = SynthConfig(
+            mu=mu,
+            v0_mps=v0,
+            duration_s=duration,
+            fps=fps,
+            width_px=width,
+            height_px=height,
+            px_per_m=px_per_m,
+            block_m=block_m,
+            rest_s=rest_s,
+            direction_deg=direction_deg,
+            noise=noise,
+            blur_px=blur_px,
+            exposure_s=exposure_s,
+            lighting=lighting,
+            marker_dict=marker,
+        )
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        where = ".".join(str(p) for p in err["loc"]) or "parameters"
+        raise InputError(f"synth: {where}: {err['msg']}") from None
+    try:
+        result = write_video(
+            cfg,
+            out,
+            np.random.default_rng(seed),
+            codec=codec,  # type: ignore[arg-type]
+            truth_path=truth,
+        )
+    except ValueError as exc:
+        raise InputError(f"{out}: {exc}") from None
+    except OSError as exc:
+        raise InputError(f"{truth or out}: {exc.strerror or exc}") from None
+    typer.echo(
+        f"wrote {out}: {cfg.n_frames} frames {width}x{height} @ {fps:g} fps, "
+        f"mu {mu:g} (a = {result.decel_mps2:.5f} m/s²), impulse at {result.impulse_time_s:.3f} s"
+    )
+
+
+@app.command()
+@cli_errors
+def estimate(
+    video: Annotated[Path, typer.Argument(help="Video of the target sliding (any OpenCV format).")],
+    px_per_m: Annotated[
+        float | None, typer.Option("--px-per-m", help="Image scale (px/m).")
+    ] = None,
+    object_size_m: Annotated[
+        float | None,
+        typer.Option("--object-size-m", help="Known target size (m): long side, or marker side."),
+    ] = None,
+    table_points: Annotated[
+        Path | None,
+        typer.Option(
+            "--table-points",
+            help='JSON {"image_px": [[u,v] x4], "table_m": [[x,y] x4]} for a homography.',
+        ),
+    ] = None,
+    marker: Annotated[
+        str | None, typer.Option(help="Track an ArUco/AprilTag marker of this dictionary.")
+    ] = None,
+    marker_id: Annotated[int | None, typer.Option("--marker-id", help="Which marker.")] = None,
+    start: Annotated[float | None, typer.Option(help="Start of the fit window (s).")] = None,
+    end: Annotated[float | None, typer.Option(help="End of the fit window (s).")] = None,
+    fps: Annotated[float | None, typer.Option(help="Frame-rate override (1/s).")] = None,
+    confidence: Annotated[float, typer.Option(help="Two-sided confidence level.")] = 0.95,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    plot: Annotated[Path | None, typer.Option(help="Write a PNG plot here.")] = None,
+    record: Annotated[
+        Path | None, typer.Option(help="Write the track and the result to this MCAP file.")
+    ] = None,
+    progress: Annotated[
+        bool | None,
+        typer.Option("--progress/--no-progress", help="Progress bar (default: on a terminal)."),
+    ] = None,
+) -> None:
+    """Estimate the friction coefficient from a video of the target sliding freely."""
+    from ffexp.friction.estimate import Scale, estimate_video
+
+    scale = Scale(px_per_m=px_per_m, object_size_m=object_size_m, table_points=table_points)
+    show = sys.stderr.isatty() if progress is None else progress
+    if show:
+        from rich.console import Console
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+        with Progress(
+            TextColumn("tracking"),
+            BarColumn(),
+            TextColumn("{task.completed} frames"),
+            TimeRemainingColumn(),
+            transient=True,
+            console=Console(stderr=True),
+        ) as bar:
+            task = bar.add_task("track", total=None)
+
+            def tick(done: int, total: int) -> None:
+                bar.update(task, completed=done, total=total or None)
+
+            result = estimate_video(
+                video,
+                scale,
+                marker_dict=marker,
+                marker_id=marker_id,
+                start_s=start,
+                end_s=end,
+                fps=fps,
+                confidence=confidence,
+                progress=tick,
+            )
+    else:
+        result = estimate_video(
+            video,
+            scale,
+            marker_dict=marker,
+            marker_id=marker_id,
+            start_s=start,
+            end_s=end,
+            fps=fps,
+            confidence=confidence,
+        )
+    if plot is not None:
+        from ffexp.friction.plot import plot_result
+
+        plot_result(result, plot)
+    if record is not None:
+        from ffexp.friction.record import record_result
+
+        record_result(result, record)
+    if as_json:
+        typer.echo(json.dumps(result.to_dict()))
+    else:
+        typer.echo(result.summary())

@@ -365,3 +365,45 @@ def test_non_finite_command_rejected() -> None:
     w = SimWorld(scene(target=far_target()))
     with pytest.raises(InvalidCommandError):
         w.step(push(fz=float("nan")))
+
+
+def test_hose_drag_decays_exponentially() -> None:
+    """Hose drag b on a frictionless target: v(t) = v0 exp(-b t / m)."""
+    b = 6.0
+    w = SimWorld(scene(target={"mu": 0.0, "distance": 0.3, "velocity": (0.1, 0.0, 0.0),
+                               "hose": {"damping": b}}))
+    for _ in range(200):  # 1 s
+        m = w.step()
+    assert m.truth is not None
+    assert m.truth.target_twist[0] == pytest.approx(0.1 * math.exp(-b * 1.0 / 12.0), rel=0.01)
+
+
+def test_hose_spring_oscillates_at_its_natural_frequency() -> None:
+    """Hose spring k on a frictionless target: x(t) = (v0 / w) sin(w t), w = sqrt(k / m)."""
+    k = 12.0
+    omega = math.sqrt(k / 12.0)
+    w = SimWorld(scene(target={"mu": 0.0, "distance": 0.3, "velocity": (0.05, 0.0, 0.0),
+                               "hose": {"stiffness": k}}))
+    x0 = w.last_measurement.truth.target_pose[0, 3]  # type: ignore[union-attr]
+    for _ in range(200):  # 1 s
+        m = w.step()
+    assert m.truth is not None
+    x = m.truth.target_pose[0, 3] - x0
+    assert x == pytest.approx(0.05 / omega * math.sin(omega * 1.0), rel=0.01)
+
+
+def test_joint_impedance_deflects_by_tau_over_k() -> None:
+    """Joint impedance on A1 with addJntTrq: static deflection tau / k (no joint friction)."""
+    w = SimWorld(scene(arm={"friction_scale": 0.0}, target=far_target()))
+    q0 = w.last_measurement.msr_jnt_pos.copy()
+    k = np.full(7, 800.0)
+    tau = np.array([8.0, 0, 0, 0, 0, 0, 0])
+    cmd = Command(
+        flags=CmdFlags.JNTPOS | CmdFlags.JNTSTIFF | CmdFlags.JNTDAMP | CmdFlags.JNTTRQ,
+        control=ControlMode.JOINT_IMPEDANCE, jnt_pos=q0, jnt_stiffness=k,
+        jnt_damping=np.full(7, 0.7), add_jnt_trq=tau,
+    )
+    for _ in range(300):
+        m = w.step(cmd)
+    assert m.control == ControlMode.JOINT_IMPEDANCE
+    assert m.msr_jnt_pos[0] - q0[0] == pytest.approx(8.0 / 800.0, rel=0.02)

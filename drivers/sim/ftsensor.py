@@ -57,6 +57,12 @@ class FtSensorModel:
         self.drift = np.zeros(6)
         self.tare_offset = np.zeros(6)
         self._r = np.asarray(r_site_in_tcf, dtype=np.float64)
+        rx, ry, rz = self._r
+        # Row-vector tool transform: [f, t_tcp] = [f, t_site] @ xform, t_tcp = t_site + r x f.
+        self._xform = np.eye(6)
+        self._xform[:3, 3:] = np.array([[0.0, -rz, ry], [rz, 0.0, -rx], [-ry, rx, 0.0]]).T
+        self._scale = np.concatenate([self._drift_step, self._noise])
+        self._inv_res = 1.0 / self._res
         self.seq = 0
         self.last_wrench: F64 | None = None
 
@@ -66,26 +72,22 @@ class FtSensorModel:
         if n == 0:
             return FtSamples()
         gauss = self._rng.standard_normal((n, 12))
-        drift = np.cumsum(gauss[:, :6] * self._drift_step, axis=0)
+        gauss *= self._scale
+        drift = np.cumsum(gauss[:, :6], axis=0)
         drift += self.drift
         self.drift = drift[-1].copy()
         # environment (incl. tool load) on the tool, sensor frame
-        w = gauss[:, 6:] * self._noise
-        w -= raw_parent_on_child
+        w = gauss[:, 6:] - raw_parent_on_child
         w += drift
         w += self.bias
-        over = np.abs(w) > self._range
-        np.minimum(w, self._range, out=w)
-        np.maximum(w, -self._range, out=w)
-        status = over.any(axis=1).astype(np.uint32) * np.uint32(FtStatus.SATURATION)
-        # tool transform: torque about the TCP = torque about the sensing point + r x f
-        rx, ry, rz = self._r
-        fx, fy, fz = w[:, 0], w[:, 1], w[:, 2]
-        w[:, 3] += ry * fz - rz * fy
-        w[:, 4] += rz * fx - rx * fz
-        w[:, 5] += rx * fy - ry * fx
+        over = (np.abs(w) > self._range).any(axis=1)
+        np.clip(w, -self._range, self._range, out=w)
+        status = np.where(over, np.uint32(FtStatus.SATURATION), np.uint32(0)).astype(np.uint32)
+        # tool transform (torque about the TCP = torque about the sensing point + r x f),
+        # software bias, then the counts' resolution
+        w = w @ self._xform
         w -= self.tare_offset
-        w /= self._res
+        w *= self._inv_res
         np.rint(w, out=w)
         w *= self._res
         self.last_wrench = w[-1].copy()

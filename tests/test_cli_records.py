@@ -1,0 +1,117 @@
+"""``ffexp analyze``, ``compare``, ``recover`` and ``topics`` through the CLI."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+from mcap.writer import Writer
+from typer.testing import CliRunner
+
+from ffexp.cli import app
+
+ROOT = Path(__file__).resolve().parents[1]
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def run_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("runs")
+    result = runner.invoke(
+        app,
+        ["run", str(ROOT / "protocols/method1_case2.toml"), "--set", "run.timeout_s=1.0",
+         "--out", str(out)],
+    )
+    assert result.exit_code == 0, result.stderr
+    (path,) = out.glob("*.mcap")
+    assert f"recording: {path}" in result.stdout
+    return path
+
+
+def test_analyze_json_has_the_documented_keys(run_file: Path, tmp_path: Path) -> None:
+    result = runner.invoke(app, ["analyze", str(run_file), "--json", "--plots", str(tmp_path)])
+    assert result.exit_code == 0, result.stderr
+    m = json.loads(result.stdout)
+    for key in ("protocol", "method", "aligned", "alignment_time_s", "first_contact_s",
+                "contact_breaks", "mean_fz_align_n", "peak_abs_fz_n", "fz_tracking_rmse_n",
+                "target_speed_after_contact_mps", "aborted"):
+        assert key in m
+    assert m["protocol"] == "method1_case2" and m["method"] == "force_ri"
+    assert isinstance(m["aligned"], bool) and isinstance(m["contact_breaks"], int)
+    assert m["aborted"] is None
+    for name in ("method1_case2_wrench.png", "method1_case2_applied.png"):
+        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_compare_writes_csv(run_file: Path, tmp_path: Path) -> None:
+    out = tmp_path / "table.csv"
+    result = runner.invoke(app, ["compare", str(run_file), str(run_file), "--csv", str(out)])
+    assert result.exit_code == 0, result.stderr
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 2 and rows[0]["protocol"] == "method1_case2"
+    assert rows[0]["k_yp"] == "1" and rows[0]["k_xp"] == "0"
+
+
+def test_recover_of_a_finished_file(run_file: Path, tmp_path: Path) -> None:
+    out = tmp_path / "copy.mcap"
+    result = runner.invoke(app, ["recover", str(run_file), "-o", str(out)])
+    assert result.exit_code == 0
+    assert "complete file" in result.stdout
+    again = runner.invoke(app, ["analyze", str(out), "--json"])
+    assert json.loads(again.stdout)["protocol"] == "method1_case2"
+
+
+def foreign_mcap(path: Path) -> None:
+    with path.open("wb") as fh:
+        w = Writer(fh)
+        w.start()
+        sid = w.register_schema("x", "jsonschema", b"{}")
+        cid = w.register_channel("/other", "json", sid)
+        w.add_message(cid, 1, b"{}", 1)
+        w.finish()
+
+
+@pytest.mark.parametrize(
+    ("maker", "message"),
+    [
+        (lambda p: p.write_bytes(b""), "empty file"),
+        (lambda p: p.write_text("not a recording\n"), "not an MCAP file"),
+        (foreign_mcap, "no topic /estimator/state"),
+        (lambda p: None, "file not found"),
+    ],
+)
+def test_bad_recordings_give_one_line(tmp_path: Path, maker: object, message: str) -> None:
+    path = tmp_path / "bad.mcap"
+    maker(path)  # type: ignore[operator]
+    for cmd in (["analyze", str(path)], ["compare", str(path)]):
+        result = runner.invoke(app, cmd)
+        assert result.exit_code == 2
+        lines = result.stderr.strip().splitlines()
+        assert len(lines) == 1 and message in lines[0] and str(path) in lines[0]
+        assert "Traceback" not in result.stdout + result.stderr
+
+
+def test_truncated_recording_gives_partial_results_with_a_warning(
+    run_file: Path, tmp_path: Path
+) -> None:
+    from mcap.reader import make_reader
+
+    with run_file.open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    first = min(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(run_file.read_bytes()[: first.chunk_start_offset + first.chunk_length + 10])
+    result = runner.invoke(app, ["analyze", str(cut), "--json"])
+    assert result.exit_code == 0, result.stderr
+    assert "incomplete" in result.stderr and str(cut) in result.stderr
+    m = json.loads(result.stdout)
+    assert m["complete"] is False and m["protocol"] == "method1_case2"
+
+
+def test_topics_lists_every_topic() -> None:
+    result = runner.invoke(app, ["topics"])
+    assert result.exit_code == 0
+    assert "/robot/measurement" in result.stdout and "foxglove.FrameTransform" in result.stdout

@@ -1,0 +1,101 @@
+"""Whole runs on the simulator: recording round trip, crash recovery, analysis."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from drivers.sim.driver import open_sim
+from ffexp.cli import app
+from ffexp.protocol import load_run_protocol, scene_path
+from ffexp.recording import Recorder, load
+from ffexp.runner import Runner
+
+ROOT = Path(__file__).resolve().parents[1]
+START_NS = 1_750_000_000 * 10**9
+
+
+class CapturingRecorder(Recorder):
+    """Keeps a copy of every CDR record the runner writes."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        self.captured: dict[str, list[tuple[int, np.ndarray]]] = {}
+
+    def write(self, topic: str, time_ns: int) -> None:
+        self.captured.setdefault(topic, []).append((time_ns, self.record(topic).copy()))
+        super().write(topic, time_ns)
+
+    def write_records(self, topic: str, times_ns: np.ndarray, records: np.ndarray) -> None:
+        for t, r in zip(times_ns.tolist(), records, strict=True):
+            self.captured.setdefault(topic, []).append((int(t), r.copy()))
+        super().write_records(topic, times_ns, records)
+
+
+def test_recording_round_trip_of_a_sim_run(tmp_path: Path) -> None:
+    ppath = ROOT / "protocols/method1_case1.toml"
+    protocol = load_run_protocol(ppath, ["run.timeout_s=1.5"])
+    robot, sensor = open_sim(scene_path(ppath, protocol), seed=protocol.seed)
+    path = tmp_path / "run.mcap"
+    with CapturingRecorder(path) as rec:
+        Runner(protocol, robot, sensor, rec, start_utc_ns=START_NS).run()
+    loaded = load(path)
+    assert loaded.complete and not loaded.warnings
+    for topic, items in rec.captured.items():
+        data = loaded.topic(topic)
+        assert data.log_time_ns.tolist() == [t for t, _ in items], topic
+        records = np.concatenate([np.atleast_1d(r) for _, r in items])
+        for name in data.fields:
+            np.testing.assert_array_equal(data[name], records[name], err_msg=f"{topic}.{name}")
+    assert len(loaded.topic("/robot/measurement")) == 1 + round(1.5 / 0.005) + round(0.1 / 0.005)
+
+
+@pytest.mark.slow
+def test_kill_9_loses_at_most_about_a_second(tmp_path: Path) -> None:  # real-time
+    """A run killed after 5 s of wall time: recover it and analyse it."""
+    out = tmp_path / "runs"
+    proc = subprocess.Popen(
+        [
+            sys.executable, "-c", "from ffexp.cli import main; main()", "run",
+            str(ROOT / "protocols/method1_case1.toml"), "--out", str(out),
+        ],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )
+    with pytest.raises(subprocess.TimeoutExpired):
+        proc.wait(timeout=5.0)  # the run lasts about 30 s of simulated time
+    os.kill(proc.pid, signal.SIGKILL)
+    killed_at = time.time()
+    proc.wait()
+    files = list(out.glob("*.mcap"))
+    assert len(files) == 1
+    broken = files[0]
+    # the last flush reached the disk at most about a second before the kill
+    assert killed_at - broken.stat().st_mtime <= 1.5
+    fixed = tmp_path / "fixed.mcap"
+    runner = CliRunner()
+    result = runner.invoke(app, ["recover", str(broken), "-o", str(fixed)])
+    assert result.exit_code == 0, result.stderr
+    assert "unfinished file" in result.stdout
+    rec = load(fixed)
+    assert rec.complete
+    seq = rec.topic("/robot/measurement")["seq"]
+    assert len(seq) > 100
+    assert np.all(np.diff(seq.astype(np.int64)) == 1)  # nothing missing before the cut
+    result = runner.invoke(app, ["analyze", str(fixed), "--json"])
+    assert result.exit_code == 0, result.stderr
+    metrics = json.loads(result.stdout)
+    assert metrics["protocol"] == "method1_case1"
+    assert metrics["duration_s"] > 0.5
+    # analysing the unfinished file directly works too, with a warning
+    result = runner.invoke(app, ["analyze", str(broken), "--json"])
+    assert result.exit_code == 0
+    assert "incomplete" in result.stderr

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 import struct
+import warnings
 
 import numpy as np
 import pytest
@@ -639,6 +640,16 @@ def test_encoding_refuses_non_finite_and_out_of_range_floats() -> None:
     m.gravity[0] = np.inf
     with pytest.raises(PacketEncodeError, match=r"data\.gravity"):
         c.encode_msr(m)
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf, 1e39, -1e300, 1.7e308])
+def test_encoding_rejects_bad_floats_without_numpy_warnings(value: float) -> None:
+    cmd = c.CmdArrays()
+    cmd.add_jnt_trq[6] = value
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(PacketEncodeError, match=r"cmd\.addJntTrq.*entry 6"):
+            c.encode_cmd(cmd)
 
 
 def test_encoding_accepts_the_float32_extremes_and_ignores_the_pose_bottom_row() -> None:

@@ -69,6 +69,14 @@ SEAT_LATERAL_TOL = 0.0025
 SEAT_YAW_TOL = math.radians(3.0)
 
 _N_ARM = 7
+_CARTPOS = int(CmdFlags.CARTPOS)
+_CARTSTIFF = int(CmdFlags.CARTSTIFF)
+_CARTDAMP = int(CmdFlags.CARTDAMP)
+_TCPFT = int(CmdFlags.TCPFT)
+_JNTPOS = int(CmdFlags.JNTPOS)
+_JNTTRQ = int(CmdFlags.JNTTRQ)
+_JNTSTIFF = int(CmdFlags.JNTSTIFF)
+_JNTDAMP = int(CmdFlags.JNTDAMP)
 
 
 def _pose(pos: F64, mat9: F64) -> F64:
@@ -299,7 +307,7 @@ class SimWorld:
 
     def _take(self, cmd: Command) -> None:
         """Latch the fields of ``cmd`` its flags select (the KRC's rule)."""
-        f = cmd.flags
+        f = int(cmd.flags)
         if cmd.control != self.control:
             if cmd.control not in (ControlMode.CART_IMPEDANCE, ControlMode.JOINT_POSITION,
                                    ControlMode.JOINT_IMPEDANCE):
@@ -308,12 +316,12 @@ class SimWorld:
             self._cart_pos = self.tcp_pose.copy()
             self._jnt_pos = self.data.qpos[:_N_ARM].copy()
         self._warning = 0
-        if f & CmdFlags.CARTPOS:
+        if f & _CARTPOS:
             p = np.asarray(cmd.cart_pos, dtype=np.float64)
             if p.shape != (4, 4) or not np.all(np.isfinite(p)):
                 raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
             self._cart_pos = p.copy()
-        if f & CmdFlags.CARTSTIFF:
+        if f & _CARTSTIFF:
             k = np.asarray(cmd.cart_stiffness, dtype=np.float64)
             if k.shape != (6,) or not np.all(np.isfinite(k)):
                 raise InvalidCommandError("cart_stiffness must be 6 finite values")
@@ -321,21 +329,21 @@ class SimWorld:
             self._cart_stiff, clipped = clip_cart_stiffness(k, mx[0], mx[1])
             if clipped:
                 self._warning |= WARN_STIFFNESS_CLIPPED
-        if f & CmdFlags.CARTDAMP:
+        if f & _CARTDAMP:
             self._cart_damp = np.clip(self._finite(cmd.cart_damping, 6, "cart_damping"), 0.0, 1.0)
-        if f & CmdFlags.TCPFT:
+        if f & _TCPFT:
             self._tcp_ft = self._finite(cmd.add_tcp_ft, 6, "add_tcp_ft")
-        if f & CmdFlags.JNTPOS:
+        if f & _JNTPOS:
             self._jnt_pos = np.clip(self._finite(cmd.jnt_pos, 7, "jnt_pos"),
                                     -self._pos_limits, self._pos_limits)
-        if f & CmdFlags.JNTTRQ:
+        if f & _JNTTRQ:
             self._jnt_trq = self._finite(cmd.add_jnt_trq, 7, "add_jnt_trq")
-        if f & CmdFlags.JNTSTIFF:
+        if f & _JNTSTIFF:
             k = self._finite(cmd.jnt_stiffness, 7, "jnt_stiffness")
             self._jnt_stiff = np.clip(k, 0.0, self.scene.controller.jnt_stiffness_max)
             if np.any(self._jnt_stiff != k):
                 self._warning |= WARN_STIFFNESS_CLIPPED
-        if f & CmdFlags.JNTDAMP:
+        if f & _JNTDAMP:
             self._jnt_damp = np.clip(self._finite(cmd.jnt_damping, 7, "jnt_damping"), 0.0, 1.0)
 
     @staticmethod
@@ -395,33 +403,40 @@ class SimWorld:
         constraint forces must come from the same collision pass).
         """
         m, d = self.model, self.data
-        f_w = np.zeros(3)
-        t_w = np.zeros(3)
-        tcp = d.site_xpos[self._tcp]
-        touching = False
-        tool = self._tool_geoms
         if d.ncon == 0:
             return np.zeros(6), False
         hits = np.flatnonzero(self._is_tool_geom[d.contact.geom].any(axis=1))
-        for i in hits:
+        if hits.size == 0:
+            return np.zeros(6), False
+        tool = self._is_tool_geom
+        cx, cy, cz = d.site_xpos[self._tcp].tolist()
+        fx = fy = fz = tx = ty = tz = 0.0
+        cf = self._cforce
+        for i in hits.tolist():
             c = d.contact[i]
-            on1 = int(c.geom[0]) in tool
-            touching = True
             if c.efc_address < 0:  # within the touch margin, not yet pressing
                 continue
-            mujoco.mj_contactForce(m, d, int(i), self._cforce)
-            frame = c.frame.reshape(3, 3)
-            f = frame.T @ self._cforce[:3]
+            mujoco.mj_contactForce(m, d, i, cf)
+            n0, n1, n2 = cf[:3].tolist()
+            r = c.frame.tolist()  # rows: normal, tangent 1, tangent 2
             # mj_contactForce gives the force geom1 exerts on geom2.
-            if on1:
-                f = -f
-            f_w += f
-            t_w += np.cross(c.pos - tcp, f)
-        r = d.site_xmat[self._tcp].reshape(3, 3)
+            sgn = -1.0 if tool[c.geom[0]] else 1.0
+            ax = sgn * (n0 * r[0] + n1 * r[3] + n2 * r[6])
+            ay = sgn * (n0 * r[1] + n1 * r[4] + n2 * r[7])
+            az = sgn * (n0 * r[2] + n1 * r[5] + n2 * r[8])
+            px, py, pz = c.pos.tolist()
+            px, py, pz = px - cx, py - cy, pz - cz
+            fx += ax
+            fy += ay
+            fz += az
+            tx += py * az - pz * ay
+            ty += pz * ax - px * az
+            tz += px * ay - py * ax
+        rot = d.site_xmat[self._tcp].reshape(3, 3)
         out = np.empty(6)
-        out[:3] = r.T @ f_w
-        out[3:] = r.T @ t_w
-        return out, touching
+        out[:3] = rot.T @ np.array([fx, fy, fz])
+        out[3:] = rot.T @ np.array([tx, ty, tz])
+        return out, True
 
     def _truth(self, contact: F64, touching: bool, tcp_twist: F64) -> GroundTruth:
         d = self.data

@@ -54,17 +54,24 @@ class MalformedPacketError(DriverError):
     """A datagram from a device could not be decoded.
 
     Args:
-        source: where the datagram came from (``"192.168.0.10:49938"``), or a
-            description such as ``"<buffer>"`` when the caller did not say.
+        source: where the datagram came from: an address tuple as ``recvfrom``
+            returns it (shown as ``"192.168.0.10:49938"``), a string, or
+            ``None`` (shown as ``"<buffer>"``).
         reason: a short machine-readable code (``"too_short"``, ``"wrong_id"``, ...).
         message: what is wrong, in one line.
     """
 
-    def __init__(self, source: str, reason: str, message: str) -> None:
-        self.source = source
+    def __init__(self, source: object, reason: str, message: str) -> None:
+        if source is None:
+            where = "<buffer>"
+        elif isinstance(source, tuple) and len(source) >= 2:
+            where = f"{source[0]}:{source[1]}"
+        else:
+            where = str(source)
+        self.source = where
         self.reason = reason
         self.message = message
-        super().__init__(f"{source}: malformed packet ({reason}): {message}")
+        super().__init__(f"{where}: malformed packet ({reason}): {message}")
 
 
 class PacketEncodeError(DriverError):

@@ -98,7 +98,6 @@ __all__ = [
     "encode_cmd",
     "encode_msr",
     "enum_to_wire",
-    "format_source",
     "frame_to_matrix",
     "fri_control_from_wire",
     "fri_quality_from_wire",
@@ -411,15 +410,6 @@ def check_cmd(buf: BytesLike) -> DecodeStatus:
     return _check(buf, CMD_SIZE, CMD_DATAGRAM_ID)
 
 
-def format_source(source: object) -> str:
-    """Name a datagram's origin: ``("10.0.0.2", 49938)`` -> ``"10.0.0.2:49938"``."""
-    if source is None:
-        return "<buffer>"
-    if isinstance(source, tuple) and len(source) >= 2:
-        return f"{source[0]}:{source[1]}"
-    return str(source)
-
-
 def _error(
     status: DecodeStatus, buf: BytesLike, what: str, size: int, ident: int, source: object
 ) -> MalformedPacketError:
@@ -432,7 +422,7 @@ def _error(
     else:
         psize = _SIZE_ID.unpack_from(buf, 4)[0]
         msg = f"{what} datagram has packetSize {psize}, expected {size}"
-    return MalformedPacketError(format_source(source), status.name.lower(), msg)
+    return MalformedPacketError(source, status.name.lower(), msg)
 
 
 def _decode(

@@ -129,21 +129,20 @@ def decode_request(buf: BytesLike, *, source: object = None) -> RdtRequest:
             (``"unknown_command"``); the message names ``source``.
     """
     n = _nbytes(buf)
-    where = _format_source(source)
     if n != REQUEST_SIZE:
         raise MalformedPacketError(
-            where, "wrong_size", f"RDT request is {n} bytes, expected {REQUEST_SIZE}"
+            source, "wrong_size", f"RDT request is {n} bytes, expected {REQUEST_SIZE}"
         )
     header, command, count = _REQUEST.unpack_from(buf)
     if header != REQUEST_HEADER:
         raise MalformedPacketError(
-            where, "wrong_header", f"RDT request header is 0x{header:04x}, expected 0x1234"
+            source, "wrong_header", f"RDT request header is 0x{header:04x}, expected 0x1234"
         )
     try:
         cmd = RdtCommand(command)
     except ValueError:
         raise MalformedPacketError(
-            where, "unknown_command", f"RDT request has unknown command 0x{command:04x}"
+            source, "unknown_command", f"RDT request has unknown command 0x{command:04x}"
         ) from None
     return RdtRequest(cmd, count)
 
@@ -286,14 +285,6 @@ def _nbytes(buf: BytesLike) -> int:
     return buf.nbytes if type(buf) is memoryview else len(buf)
 
 
-def _format_source(source: object) -> str:
-    if source is None:
-        return "<buffer>"
-    if isinstance(source, tuple) and len(source) >= 2:
-        return f"{source[0]}:{source[1]}"
-    return str(source)
-
-
 _OK, _EMPTY, _NOT_MULTIPLE, _TOO_MANY = (
     RdtDecodeStatus.OK,
     RdtDecodeStatus.EMPTY,
@@ -374,7 +365,7 @@ def decode_rdt(
     if status is not _OK:
         n = _nbytes(buf)
         raise MalformedPacketError(
-            _format_source(source),
+            source,
             status.name.lower(),
             f"RDT datagram is {n} bytes; expected 36 x k bytes with 1 <= k <= {MAX_RECORDS}",
         )

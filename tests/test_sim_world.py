@@ -14,6 +14,7 @@ from drivers.base.types import (
     CmdFlags,
     Command,
     ControlMode,
+    FriState,
     FtStatus,
     Measurement,
 )
@@ -407,3 +408,13 @@ def test_joint_impedance_deflects_by_tau_over_k() -> None:
         m = w.step(cmd)
     assert m.control == ControlMode.JOINT_IMPEDANCE
     assert m.msr_jnt_pos[0] - q0[0] == pytest.approx(8.0 / 800.0, rel=0.02)
+
+
+def test_monitor_mode_ignores_commands() -> None:
+    w = SimWorld(scene(target=far_target()))
+    w.fri_state = FriState.MON
+    p0 = w.last_measurement.msr_cart_pos[:3, 3].copy()
+    for _ in range(40):
+        m = w.step(push(fy=5.0))
+    assert m.state == FriState.MON
+    np.testing.assert_allclose(m.msr_cart_pos[:3, 3], p0, atol=1e-6)

@@ -211,6 +211,11 @@ class SimWorld:
         self._ft_pending: list[FtSamples] = []
         self.cycle = 0
         self._step_count = 0
+        #: FRI interface state and quality the measurements report. The sim
+        #: starts commanding (CMD, PERFECT); an emulator may set MON, in which
+        #: the KRC ignores commands and holds the last ones, as the real one does.
+        self.fri_state = FriState.CMD
+        self.fri_quality = FriQuality.PERFECT
         self.last_measurement = self._measure()
 
     # ------------------------------------------------------------------ setup
@@ -354,8 +359,11 @@ class SimWorld:
         return a.copy()
 
     def step(self, command: Command | None = None) -> Measurement:
-        """Run one FRI cycle with ``command`` held (``None``: keep the last one)."""
-        if command is not None:
+        """Run one FRI cycle with ``command`` held (``None``: keep the last one).
+
+        Commands are taken only in :attr:`fri_state` CMD (monitor mode ignores them).
+        """
+        if command is not None and self.fri_state == FriState.CMD:
             self._take(command)
         self._apply()
         m, d = self.model, self.data
@@ -488,8 +496,8 @@ class SimWorld:
         return Measurement(
             seq=self.cycle,
             time_ns=self.cycle * self.cycle_ns,
-            state=FriState.CMD,
-            quality=FriQuality.PERFECT,
+            state=self.fri_state,
+            quality=self.fri_quality,
             control=self.control,
             msr_sample_time=self.scene.fri.cycle,
             cmd_sample_time=self.scene.fri.cycle,

@@ -162,19 +162,22 @@ class Recorder:
         )
 
     def transform(self, time_ns: int, parent: str, child: str, pose: np.ndarray) -> None:
-        """A ``foxglove.FrameTransform`` of ``child`` in ``parent`` on ``/tf``."""
-        translation, rotation = pose_to_transform(pose)
-        self.write_json(
-            "/tf",
-            time_ns,
-            {
-                "timestamp": _stamp(time_ns),
-                "parent_frame_id": parent,
-                "child_frame_id": child,
-                "translation": translation,
-                "rotation": rotation,
-            },
+        """A ``foxglove.FrameTransform`` of ``child`` in ``parent`` on ``/tf``.
+
+        Formatted directly (frame names are plain identifiers, numbers finite):
+        ``json.dumps`` of the same dict costs ten times more per cycle.
+        """
+        t, q = pose_to_transform(pose)
+        if not all(math.isfinite(v) for v in (*t.values(), *q.values())):
+            raise ValueError(f"/tf: {child} pose is not finite")
+        sec, nsec = divmod(time_ns, 1_000_000_000)
+        text = (
+            f'{{"timestamp":{{"sec":{sec},"nsec":{nsec}}},'
+            f'"parent_frame_id":{json.dumps(parent)},"child_frame_id":{json.dumps(child)},'
+            f'"translation":{{"x":{t["x"]!r},"y":{t["y"]!r},"z":{t["z"]!r}}},'
+            f'"rotation":{{"x":{q["x"]!r},"y":{q["y"]!r},"z":{q["z"]!r},"w":{q["w"]!r}}}}}'
         )
+        self._add("/tf", time_ns, text.encode())
 
     def metadata(self, name: str, values: Mapping[str, str]) -> None:
         """An MCAP metadata record (string to string map)."""

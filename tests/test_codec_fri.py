@@ -498,8 +498,8 @@ def pose_strategy() -> st.SearchStrategy[np.ndarray]:
             k: f32
             for k in (
                 "timestamp",
-                "desired_msr_sample_time",
-                "desired_cmd_sample_time",
+                "msr_sample_time",
+                "cmd_sample_time",
                 "safety_limits",
                 "answer_rate",
                 "latency",
@@ -682,6 +682,17 @@ def test_encoding_refuses_integers_that_do_not_fit() -> None:
     m.krl_int = np.zeros(16, np.int64)  # type: ignore[assignment]
     with pytest.raises(PacketEncodeError, match=r"krl\.intData"):
         c.encode_msr(m)
+
+
+def test_field_name_lists_cover_every_float_attribute() -> None:
+    m, cmd = c.MsrArrays(), c.CmdArrays()
+    assert len(c.MSR_ARRAY_FIELDS) == 14 and len(c.MSR_SCALAR_FIELDS) == 8
+    sizes = [np.asarray(getattr(m, k)).size for k in c.MSR_ARRAY_FIELDS + c.MSR_SCALAR_FIELDS]
+    # 175 data floats + 16 KRL + 7 temperature + 8 intf floats, with 3 x 4 pose bottom entries
+    assert sum(sizes) == 175 + 16 + 7 + 8 + 3 * 4 == m.floats.size
+    assert all(isinstance(getattr(m, k), float) for k in c.MSR_SCALAR_FIELDS)
+    sizes = [getattr(cmd, k).size for k in c.CMD_ARRAY_FIELDS]
+    assert sum(sizes) == 58 + 16 + 4 == cmd.floats.size
 
 
 def test_packet_buffer_is_reused_and_returned_bytes_are_copies() -> None:

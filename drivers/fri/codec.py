@@ -58,6 +58,7 @@ from numpy.typing import ArrayLike, NDArray
 from drivers.errors import MalformedPacketError, PacketEncodeError
 
 __all__ = [
+    "CMD_ARRAY_FIELDS",
     "CMD_BLOCK_DTYPE",
     "CMD_DATAGRAM_ID",
     "CMD_DTYPE",
@@ -67,9 +68,11 @@ __all__ = [
     "INTF_DTYPE",
     "INTF_STAT_DTYPE",
     "KRL_DTYPE",
+    "MSR_ARRAY_FIELDS",
     "MSR_DATAGRAM_ID",
     "MSR_DATA_DTYPE",
     "MSR_DTYPE",
+    "MSR_SCALAR_FIELDS",
     "MSR_SIZE",
     "NUM_JOINTS",
     "ROBOT_DTYPE",
@@ -704,8 +707,8 @@ _MSR_LAYOUT: Final = _FloatLayout(
     [
         ("krl_real", "krl.realData", _VEC),
         ("timestamp", "intf.timestamp", _VEC),
-        ("desired_msr_sample_time", "intf.desiredMsrSampleTime", _VEC),
-        ("desired_cmd_sample_time", "intf.desiredCmdSampleTime", _VEC),
+        ("msr_sample_time", "intf.desiredMsrSampleTime", _VEC),
+        ("cmd_sample_time", "intf.desiredCmdSampleTime", _VEC),
         ("safety_limits", "intf.safetyLimits", _VEC),
         ("answer_rate", "intf.stat.answerRate", _VEC),
         ("latency", "intf.stat.latency", _VEC),
@@ -741,6 +744,13 @@ _CMD_LAYOUT: Final = _FloatLayout(
         ("cart_damping", "cmd.cartDamping", _ROT6),
     ],
 )
+
+#: Names of the float fields of :class:`MsrArrays` / :class:`CmdArrays` in our
+#: conventions: arrays (views of ``floats``) and scalar floats. They match the
+#: field names of ``drivers.base`` Measurement / Command where those exist.
+MSR_ARRAY_FIELDS: Final = tuple(k for k, (_, sh) in _MSR_LAYOUT.slices.items() if sh != (1,))
+MSR_SCALAR_FIELDS: Final = tuple(k for k, (_, sh) in _MSR_LAYOUT.slices.items() if sh == (1,))
+CMD_ARRAY_FIELDS: Final = tuple(_CMD_LAYOUT.slices)
 
 # Integer fields, read and written with one struct call each (pad bytes skip the floats).
 # Measurement: head (4H) | krl.boolData, krl.fill | intf.state, intf.quality |
@@ -789,15 +799,15 @@ class MsrArrays:
         est_ext_tcp_ft (6): ``[fx, fy, fz, tx, ty, tz]`` (wire ``Fx..Fz, Tz, Ty, Tx``),
         jacobian (6x7): rows ``x, y, z, rx, ry, rz``, mass_matrix (7x7),
         krl_real (16) [krl.realData], krl_int (16, int32) [krl.intData],
-        scalar floats (properties): timestamp, desired_msr_sample_time,
-        desired_cmd_sample_time, safety_limits, answer_rate, latency, jitter, miss_rate,
+        scalar floats (properties): timestamp, msr_sample_time,
+        cmd_sample_time, safety_limits, answer_rate, latency, jitter, miss_rate,
         ints: send_seq, refl_seq, krl_bool, krl_fill, state_raw, quality_raw,
         miss_counter, power, control_raw, error, warning.
     """
 
     timestamp = _Slot(_MSR_LAYOUT.scalar_index("timestamp"))
-    desired_msr_sample_time = _Slot(_MSR_LAYOUT.scalar_index("desired_msr_sample_time"))
-    desired_cmd_sample_time = _Slot(_MSR_LAYOUT.scalar_index("desired_cmd_sample_time"))
+    msr_sample_time = _Slot(_MSR_LAYOUT.scalar_index("msr_sample_time"))
+    cmd_sample_time = _Slot(_MSR_LAYOUT.scalar_index("cmd_sample_time"))
     safety_limits = _Slot(_MSR_LAYOUT.scalar_index("safety_limits"))
     answer_rate = _Slot(_MSR_LAYOUT.scalar_index("answer_rate"))
     latency = _Slot(_MSR_LAYOUT.scalar_index("latency"))

@@ -210,11 +210,11 @@ def test_enum_values() -> None:
         "OK": 2,
         "PERFECT": 3,
     }
-    assert {m.name: m.value for m in c.FriControl} == {
+    assert {m.name: m.value for m in c.ControlMode} == {
         "OTHER": 0,
-        "POSITION": 1,
-        "CART_IMP": 2,
-        "JNT_IMP": 3,
+        "JOINT_POSITION": 1,
+        "CART_IMPEDANCE": 2,
+        "JOINT_IMPEDANCE": 3,
     }
     assert {m.name: m.value for m in c.CmdFlags} == {
         "JNTPOS": 0x0001,
@@ -228,6 +228,13 @@ def test_enum_values() -> None:
     }
 
 
+def test_enums_are_the_shared_ones_of_drivers_base() -> None:
+    from drivers.base import types as t
+
+    assert c.FriState is t.FriState and c.FriQuality is t.FriQuality
+    assert c.ControlMode is t.ControlMode and c.CmdFlags is t.CmdFlags
+
+
 def test_invalid_is_0xffff_on_the_wire_and_unknown_values_read_as_invalid() -> None:
     assert c.enum_to_wire(c.FriState.INVALID) == 0xFFFF
     assert c.enum_to_wire(c.FriQuality.INVALID) == 0xFFFF
@@ -238,17 +245,17 @@ def test_invalid_is_0xffff_on_the_wire_and_unknown_values_read_as_invalid() -> N
     assert c.fri_quality_from_wire(3) is c.FriQuality.PERFECT
     assert c.fri_state_from_wire(7) is c.FriState.INVALID
     assert c.fri_quality_from_wire(0x8000) is c.FriQuality.INVALID
-    assert c.fri_control_from_wire(3) is c.FriControl.JNT_IMP
-    assert c.fri_control_from_wire(99) is c.FriControl.OTHER
+    assert c.fri_control_from_wire(3) is c.ControlMode.JOINT_IMPEDANCE
+    assert c.fri_control_from_wire(99) is c.ControlMode.OTHER
 
 
 @given(
     state=st.sampled_from(c.FriState),
     quality=st.sampled_from(c.FriQuality),
-    control=st.sampled_from(c.FriControl),
+    control=st.sampled_from(c.ControlMode),
 )
 def test_enums_round_trip_through_a_packet(
-    state: c.FriState, quality: c.FriQuality, control: c.FriControl
+    state: c.FriState, quality: c.FriQuality, control: c.ControlMode
 ) -> None:
     a = c.MsrArrays()
     a.state, a.quality, a.control = state, quality, control
@@ -397,7 +404,8 @@ def test_measurement_arrays_use_our_conventions() -> None:
     assert a.krl_real[0] == 2.5 and a.krl_int[15] == -3 and a.krl_bool == 0b101
     assert a.timestamp == 12.25
     assert a.state is c.FriState.INVALID and a.quality is c.FriQuality.PERFECT
-    assert a.miss_counter == 123456 and a.power == 0x7F and a.control is c.FriControl.CART_IMP
+    assert a.miss_counter == 123456 and a.power == 0x7F
+    assert a.control is c.ControlMode.CART_IMPEDANCE
     assert a.msr_jnt_pos == pytest.approx([0.1 * k for k in range(7)], rel=1e-7)
     assert a.msr_cart_pos.tolist() == [
         [0, -1, 0, 0.5],

@@ -32,7 +32,7 @@ Enumerations on the wire: ``intf.state`` and ``intf.quality`` are uint16 fields
 that carry C enums whose INVALID member is -1. On the wire -1 is ``0xFFFF``
 (two's complement truncated to 16 bits); :func:`enum_to_wire` produces that and
 :func:`fri_state_from_wire` / :func:`fri_quality_from_wire` read it back. A raw
-value that is no member of the enum decodes as INVALID (``FriControl``: OTHER);
+value that is no member of the enum decodes as INVALID (``ControlMode``: OTHER);
 the raw value stays available (``MsrArrays.state_raw``) for logging.
 
 Floats are IEEE float32 on the wire. Decoding widens them to float64 exactly.
@@ -48,13 +48,14 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
-from enum import IntEnum, IntFlag
+from enum import IntEnum
 from itertools import pairwise
 from typing import Final, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from drivers.base.types import CmdFlags, ControlMode, FriQuality, FriState
 from drivers.errors import MalformedPacketError, PacketEncodeError
 
 __all__ = [
@@ -80,9 +81,9 @@ __all__ = [
     "BytesLike",
     "CmdArrays",
     "CmdFlags",
+    "ControlMode",
     "DecodeStats",
     "DecodeStatus",
-    "FriControl",
     "FriQuality",
     "FriState",
     "MsrArrays",
@@ -217,45 +218,8 @@ assert MSR_DTYPE.itemsize == MSR_SIZE and CMD_DTYPE.itemsize == CMD_SIZE
 # --------------------------------------------------------------------------- enums
 
 
-class FriState(IntEnum):
-    """``intf.state`` (FRI_STATE). INVALID is 0xFFFF on the wire."""
-
-    INVALID = -1
-    OFF = 0
-    MON = 1
-    CMD = 2
-
-
-class FriQuality(IntEnum):
-    """``intf.quality`` (FRI_QUALITY). BAD, OK and PERFECT allow commanding."""
-
-    INVALID = -1
-    UNACCEPTABLE = 0
-    BAD = 1
-    OK = 2
-    PERFECT = 3
-
-
-class FriControl(IntEnum):
-    """``robot.control`` (FRI_CTRL): the controller the KRC runs."""
-
-    OTHER = 0
-    POSITION = 1
-    CART_IMP = 2
-    JNT_IMP = 3
-
-
-class CmdFlags(IntFlag):
-    """``cmd.cmdFlags``: which command fields the KRC reads."""
-
-    JNTPOS = 0x0001
-    JNTTRQ = 0x0004
-    JNTSTIFF = 0x0010
-    JNTDAMP = 0x0020
-    CARTPOS = 0x0100
-    TCPFT = 0x0400
-    CARTSTIFF = 0x1000
-    CARTDAMP = 0x2000
+# FriState, FriQuality, ControlMode (``robot.control``, FRI_CTRL) and CmdFlags are
+# the shared enums of :mod:`drivers.base.types`; this module re-exports them.
 
 
 def enum_to_wire(value: int) -> int:
@@ -265,7 +229,7 @@ def enum_to_wire(value: int) -> int:
 
 _STATE_BY_RAW: Final = {enum_to_wire(m): m for m in FriState}
 _QUALITY_BY_RAW: Final = {enum_to_wire(m): m for m in FriQuality}
-_CONTROL_BY_RAW: Final = {enum_to_wire(m): m for m in FriControl}
+_CONTROL_BY_RAW: Final = {enum_to_wire(m): m for m in ControlMode}
 
 
 def fri_state_from_wire(raw: int) -> FriState:
@@ -278,9 +242,9 @@ def fri_quality_from_wire(raw: int) -> FriQuality:
     return _QUALITY_BY_RAW.get(int(raw), FriQuality.INVALID)
 
 
-def fri_control_from_wire(raw: int) -> FriControl:
-    """Read ``robot.control``; an unknown value gives :attr:`FriControl.OTHER`."""
-    return _CONTROL_BY_RAW.get(int(raw), FriControl.OTHER)
+def fri_control_from_wire(raw: int) -> ControlMode:
+    """Read ``robot.control``; an unknown value gives :attr:`ControlMode.OTHER`."""
+    return _CONTROL_BY_RAW.get(int(raw), ControlMode.OTHER)
 
 
 # --------------------------------------------------------------------------- sequence counters
@@ -842,7 +806,7 @@ class MsrArrays:
         self.quality_raw = enum_to_wire(FriQuality.UNACCEPTABLE)
         self.miss_counter = 0
         self.power = 0
-        self.control_raw = enum_to_wire(FriControl.OTHER)
+        self.control_raw = enum_to_wire(ControlMode.OTHER)
         self.error = 0
         self.warning = 0
 
@@ -865,12 +829,12 @@ class MsrArrays:
         self.quality_raw = enum_to_wire(value)
 
     @property
-    def control(self) -> FriControl:
+    def control(self) -> ControlMode:
         """``robot.control`` as an enum (unknown raw values read as OTHER)."""
         return fri_control_from_wire(self.control_raw)
 
     @control.setter
-    def control(self, value: FriControl) -> None:
+    def control(self, value: ControlMode) -> None:
         self.control_raw = enum_to_wire(value)
 
     def _unpack(self, buf: BytesLike) -> None:

@@ -175,18 +175,22 @@ def test_joint_friction_breakaway_matches_closed_form() -> None:
     assert moved(1.5 * breakaway) > 2e-3
 
 
-def _paper_push(force: float, seconds: float, seed: int = 0) -> tuple[SimWorld, list[Measurement]]:
-    w = SimWorld(scene(seed=seed))  # type: ignore[arg-type]
+def _paper_push(
+    force: float, seconds: float, cycle: float = 0.005
+) -> tuple[SimWorld, list[Measurement]]:
+    w = SimWorld(scene(fri={"cycle": cycle}))
     out = []
     cmd = push(fz=force)
-    for _ in range(round(seconds / 0.005)):
+    for _ in range(round(seconds / cycle)):
         out.append(w.step(cmd))
     return w, out
 
 
 @pytest.fixture(scope="module")
 def paper_push() -> tuple[SimWorld, list[Measurement]]:
-    return _paper_push(3.0, 5.0)
+    # 2 N: above the ~1 N below which the funnels stick (paper), below the force
+    # that throws the target out of the arm's reach before it is seated
+    return _paper_push(2.0, 3.5)
 
 
 @pytest.mark.slow
@@ -199,22 +203,22 @@ def test_push_slides_funnels_into_alignment(paper_push: tuple[SimWorld, list[Mea
     assert abs(last.lateral_error) < 2e-3
     assert abs(last.yaw_error) < math.radians(2.5)
     assert last.insertion > w.layout.funnel_seat_depth - 0.005
-    assert last.seated
+    # seated, and it stays seated for the last second
+    assert all(m.truth is not None and m.truth.seated for m in ms[-200:])
 
 
 @pytest.mark.slow
-def test_target_moves_away_by_the_contact_impulse(
-    paper_push: tuple[SimWorld, list[Measurement]],
-) -> None:
+def test_target_moves_away_by_the_contact_impulse() -> None:
     """Over the final stretch of unbroken contact, the target's momentum change equals
-    the contact impulse on it minus bed friction (sampled once per FRI cycle)."""
-    w, ms = paper_push
+    the contact impulse on it minus bed friction. FRI cycle = physics step here, so
+    the truth samples every step's contact force (the impulse sum is exact)."""
+    w, ms = _paper_push(2.0, 3.5, cycle=0.001)
     dt = w.scene.fri.cycle
     mass, mu = w.scene.target.mass, w.scene.target.mu
     start = len(ms)
     while start > 0 and ms[start - 1].truth is not None and ms[start - 1].truth.in_contact:
         start -= 1
-    window = ms[start + 40:]  # skip 0.2 s of impact transient (shorter than a cycle)
+    window = ms[start:]
     assert len(window) * dt > 1.0  # at least 1 s of continuous contact
     p = np.zeros(2)
     for m in window[1:]:

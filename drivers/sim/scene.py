@@ -83,7 +83,7 @@ class ArmSettings(StrictModel):
     q_init: Vec7 = (0.0, -0.3533, 0.0, 1.714, 0.0, 0.4965, 0.0)
     """Initial joint angles [rad]; the paper pose: flange horizontal along
     world +x, flange X up (so TCF X is vertical as in the paper)."""
-    friction_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.03
+    friction_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.01
     """Fraction of Jubien's drive-side friction that remains link-side under
     the LWR's torque feedback (an assumption, see the issue note)."""
     coulomb: Vec7 | None = None

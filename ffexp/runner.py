@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import enum
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -129,6 +130,10 @@ class Runner:
         self._zero6 = np.zeros(6)
         self._approach_anchor_ns = 0
         self.force_terms: ForceControlTerms | None = None
+        #: Wall time spent per part of the loop [s] (for the benchmark; cheap).
+        self.timings: dict[str, float] = dict.fromkeys(
+            ("driver", "sensor", "estimation", "control", "recording"), 0.0
+        )
 
     # -- helpers --------------------------------------------------------------
     def _log_ns(self, t_ns: int) -> int:
@@ -170,7 +175,10 @@ class Runner:
             self.robot.connect()
             self.sensor.start()
             first = True
+            clock = time.perf_counter
+            t_wait = clock()
             for m in self.robot.measurements():
+                self.timings["driver"] += clock() - t_wait
                 if first:
                     self._setup(m)
                     first = False
@@ -182,6 +190,7 @@ class Runner:
                     break
                 if t_ns >= p.run.timeout_s * NS and self.phase not in (Phase.DONE, Phase.ABORT):
                     self._set_phase(t_ns, Phase.DONE, "timeout")
+                t_wait = clock()
         except DriverError as exc:
             self.abort(last_t, f"link lost: {exc}")
             self._event(last_t, "ERROR", "fault", str(exc))
@@ -225,6 +234,9 @@ class Runner:
 
     def _cycle(self, m: Measurement, t_ns: int) -> None:
         p = self.p
+        clock = time.perf_counter
+        tm = self.timings
+        t_a = clock()
         ft = self.sensor.samples()
         pose = m.msr_cart_pos
         r = pose[:3, :3]
@@ -263,6 +275,8 @@ class Runner:
             self.abort(t_ns, "stop requested (Ctrl-C / SIGTERM)")
 
         # --- estimation ------------------------------------------------------
+        t_b = clock()
+        tm["sensor"] += t_b - t_a
         self.mf.update(pose)
         twist = self.mf.twist_tcf(pose)
         if self.phase == Phase.CONNECT:
@@ -283,6 +297,8 @@ class Runner:
                 self.abort(t_ns, f"workspace limit: offset {np.round(offset, 3).tolist()} m")
 
         # --- phase logic -----------------------------------------------------
+        t_c = clock()
+        tm["estimation"] += t_c - t_b
         self._phase_logic(m, t_ns, event, w)
 
         # --- command ---------------------------------------------------------
@@ -290,7 +306,10 @@ class Runner:
         self.robot.send(self._cmd)
 
         # --- recording -------------------------------------------------------
+        t_d = clock()
+        tm["control"] += t_d - t_c
         self._record(m, t_ns, ft, w, twist, total)
+        tm["recording"] += clock() - t_d
         if self.progress is not None and t_ns >= self._next_progress_ns:
             self._next_progress_ns = t_ns + NS // 10
             self.progress(Progress(self.phase, t_ns / NS, -w[2], self.contacts, self.breaks))

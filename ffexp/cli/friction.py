@@ -57,11 +57,22 @@ def synth(
         str | None, typer.Option(help="Draw an ArUco/AprilTag marker, e.g. DICT_4X4_50.")
     ] = None,
     codec: Annotated[str, typer.Option(help="ffv1 | png (lossless) | mjpg (lossy).")] = "ffv1",
+    start_px: Annotated[
+        str | None,
+        typer.Option("--start-px", help="Block centre at rest 'U,V' (px); default centres it."),
+    ] = None,
 ) -> None:
     """Render a synthetic top-view video of a block sliding with known friction."""
     from ffexp.friction.synth import FOURCC, SynthConfig, write_video
 
     width, height = _parse_size(size)
+    start: tuple[float, float] | None = None
+    if start_px is not None:
+        try:
+            su, sv = (float(p) for p in start_px.split(","))
+        except ValueError:
+            raise InputError(f"--start-px: expected U,V in pixels, not {start_px!r}") from None
+        start = (su, sv)
     if codec not in FOURCC:
         raise InputError(f"--codec: expected one of {', '.join(FOURCC)}, not {codec!r}")
     try:
@@ -80,7 +91,7 @@ def synth(
             blur_px=blur_px,
             exposure_s=exposure_s,
             lighting=lighting,
-            marker_dict=marker,
+            marker_dict=marker, start_px=start,
         )
     except ValidationError as exc:
         err = exc.errors()[0]

@@ -264,9 +264,9 @@ def find_sliding_interval(
       searched over ``push_window_s`` after the onset (the end of the push);
       never before the onset;
     - end: if the last ``stop_check_s`` of the track do not move (within
-      ``k_onset`` noise), the target stopped, and the window ends at the last
-      sample more than ``k_stop`` noise short of the final position; otherwise
-      at the last sample.
+      ``k_onset`` noise), the target stopped, and the window ends just before
+      the first sample within ``k_stop`` noise of the final position;
+      otherwise at the last sample.
 
     Args:
         t_s: sample times (s).
@@ -295,6 +295,12 @@ def find_sliding_interval(
     thr = k_onset * noise
     away = (s - rest_level) > thr
     both = away[:-1] & away[1:]
+    if left_frame and bool(away[-1]) and not bool(both.any()):
+        # moved in the last tracked frame only, then left
+        raise FitError(
+            f"the target leaves the frame after 1 frame(s) of free sliding "
+            f"(need at least {MIN_FIT_FRAMES})"
+        )
     if not bool(both.any()):
         raise FitError(
             f"the target does not move (displacement below {thr:.2e} m = {k_onset:g} x noise)"
@@ -313,8 +319,8 @@ def find_sliding_interval(
         tail = s[-n_check:]
         if float(tail.max() - tail.min()) < 2.0 * thr:
             final = float(np.median(tail))
-            moving = np.nonzero(final - s[start:] > k_stop * noise)[0]
-            end = start + int(moving[-1]) if moving.size else start
+            arrived = np.flatnonzero(final - s[start:] <= k_stop * noise)
+            end = start + int(arrived[0]) - 1 if arrived.size else n - 1
             reason = "stopped"
     frames = end - start + 1
     if frames < MIN_FIT_FRAMES:

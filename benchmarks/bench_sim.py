@@ -24,8 +24,8 @@ from drivers.sim import SimWorld, load_scene
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def bench_world(world: SimWorld, cycles: int) -> float:
-    cmd = Command(flags=CmdFlags.TCPFT, add_tcp_ft=np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0]))
+def bench_world(world: SimWorld, cycles: int, force: float) -> float:
+    cmd = Command(flags=CmdFlags.TCPFT, add_tcp_ft=np.array([0.0, 0.0, force, 0.0, 0.0, 0.0]))
     t0 = time.perf_counter()
     for _ in range(cycles):
         world.step(cmd)
@@ -53,23 +53,30 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--scene", type=Path, default=ROOT / "data" / "scenes" / "paper.toml")
     args = ap.parse_args()
-    scene = load_scene(args.scene)
-    world_rates, bare_rates = [], []
-    for _ in range(args.repeats):
-        world = SimWorld(scene)
-        world_rates.append(bench_world(world, args.cycles))
-        bare_rates.append(bench_bare(world, args.cycles * world.substeps))
-    cyc = statistics.median(world_rates)
-    phys = cyc * scene.substeps
-    bare = statistics.median(bare_rates)
-    print(f"scene {args.scene.name}: physics dt {scene.physics.timestep * 1e3:g} ms, "
-          f"FRI cycle {scene.fri.cycle * 1e3:g} ms ({scene.substeps} steps/cycle), "
-          f"{args.repeats} x {args.cycles} cycles, push into the target")
-    print(f"world:    {cyc:10.0f} cycles/s  = {phys:10.0f} physics steps/s  "
-          f"(real-time factor {cyc * scene.fri.cycle:6.1f}x)")
-    print(f"bare:     {bare:10.0f} mj_step/s                         "
-          f"(real-time factor {bare * scene.physics.timestep:6.1f}x)")
-    print(f"ratio world/bare (physics steps/s): {phys / bare:.2f}")
+    base = load_scene(args.scene)
+    cases = [
+        ("free motion (target out of reach)", ["target.distance=0.5"], 0.5),
+        ("push into the target (2 N)", [], 2.0),
+    ]
+    print(f"scene {args.scene.name}: physics dt {base.physics.timestep * 1e3:g} ms, "
+          f"FRI cycle {base.fri.cycle * 1e3:g} ms ({base.substeps} steps/cycle), "
+          f"{args.repeats} x {args.cycles} cycles per case, medians")
+    for label, overrides, force in cases:
+        scene = load_scene(args.scene, overrides)
+        world_rates, bare_rates = [], []
+        for _ in range(args.repeats):
+            world = SimWorld(scene)
+            world_rates.append(bench_world(world, args.cycles, force))
+            bare_rates.append(bench_bare(world, args.cycles * world.substeps))
+        cyc = statistics.median(world_rates)
+        phys = cyc * scene.substeps
+        bare = statistics.median(bare_rates)
+        print(f"{label}:")
+        print(f"  world: {cyc:8.0f} cycles/s = {phys:8.0f} physics steps/s "
+              f"(real-time factor {cyc * scene.fri.cycle:5.1f}x)")
+        print(f"  bare:  {bare:8.0f} mj_step/s of the same model and state "
+              f"(real-time factor {bare * scene.physics.timestep:5.1f}x)")
+        print(f"  ratio world/bare (physics steps/s): {phys / bare:.2f}")
 
 
 if __name__ == "__main__":

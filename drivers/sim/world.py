@@ -54,7 +54,7 @@ from drivers.base.types import (
 )
 from drivers.errors import InvalidCommandError, SimulationError
 from drivers.sim import mjcf
-from drivers.sim.controller import cartesian_inertia, clip_cart_stiffness, normalized_damping
+from drivers.sim.controller import clip_cart_stiffness, normalized_damping
 from drivers.sim.ftsensor import FtSensorModel
 from drivers.sim.scene import Scene
 
@@ -159,6 +159,8 @@ class SimWorld:
         self._jacp = np.zeros((3, m.nv))
         self._jacr = np.zeros((3, m.nv))
         self._mfull = np.zeros((m.nv, m.nv))
+        self._jfull = np.zeros((6, m.nv))
+        self._minv_jt = np.zeros((6, m.nv))
         self._ft_raw = np.zeros((self.substeps, 6))
         self._cforce = np.zeros(6)
         self._quat = np.zeros(4)
@@ -264,13 +266,15 @@ class SimWorld:
         self.tcp_pose = _pose(d.site_xpos[self._tcp], d.site_xmat[self._tcp])
         r = self.tcp_pose[:3, :3]
         mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp)
-        jac = np.empty((6, _N_ARM))
-        jac[:3] = r.T @ self._jacp[:, :_N_ARM]
-        jac[3:] = r.T @ self._jacr[:, :_N_ARM]
-        self.jacobian = jac
+        jfull = self._jfull
+        np.matmul(r.T, self._jacp, out=jfull[:3])
+        np.matmul(r.T, self._jacr, out=jfull[3:])
+        self.jacobian = jfull[:, :_N_ARM].copy()
         mujoco.mj_fullM(m, d, self._mfull)
         self.mass_matrix = self._mfull[:_N_ARM, :_N_ARM].copy()
-        self.cart_inertia = cartesian_inertia(jac, self.mass_matrix)
+        # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M.
+        mujoco.mj_solveM(m, d, self._minv_jt, jfull)
+        self.cart_inertia = np.linalg.inv(jfull @ self._minv_jt.T)
 
     def _apply(self) -> None:
         """Write the held command into actuators, mocap and applied forces."""

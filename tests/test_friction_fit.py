@@ -18,6 +18,7 @@ from ffexp.friction.fit import (
     fit_quadratic,
     lag1_autocorrelation,
     project_on_motion,
+    trim_at_fitted_stop,
 )
 
 FPS = 50.0
@@ -196,3 +197,20 @@ def test_no_motion_and_too_short_slides_are_errors() -> None:
     t2, s2 = _track(0.5, 0.05, 1.0, 0.3, seed=1, noise=1e-6)
     with pytest.raises(FitError, match="stops after"):
         find_sliding_interval(t2, s2)
+
+
+def test_a_stop_just_before_the_end_is_cut_at_the_fitted_stop() -> None:
+    t_imp, mu, v0 = 0.2137, 0.03, 0.1
+    t_stop = t_imp + v0 / (mu * G_MPS2)
+    t, s = _track(mu, v0, t_stop + 0.05, t_imp, seed=9, noise=5e-6)  # two frames at rest
+    iv = find_sliding_interval(t, s)
+    assert iv.end_reason == "end_of_video"  # too short a rest to be seen
+    cut = trim_at_fitted_stop(t, s, iv)
+    assert cut.end_reason == "stopped"
+    assert t[cut.end] < t_stop
+    est = estimate_friction(t[cut.start : cut.end + 1], s[cut.start : cut.end + 1])
+    assert est.mu_low <= mu <= est.mu_high
+    # a target still sliding at the end is left alone
+    t2, s2 = _track(0.005, 0.2, 1.0, 0.2, seed=3)
+    iv2 = find_sliding_interval(t2, s2)
+    assert trim_at_fitted_stop(t2, s2, iv2) == iv2

@@ -26,6 +26,7 @@ from ffexp.friction.fit import (
     estimate_friction,
     find_sliding_interval,
     project_on_motion,
+    trim_at_fitted_stop,
 )
 from ffexp.friction.track import (
     ProgressFn,
@@ -223,6 +224,7 @@ def estimate_video(
     try:
         s, direction = project_on_motion(pos)
         interval = find_sliding_interval(t, s, left_frame=track.left_frame)
+        interval = trim_at_fitted_stop(t, s, interval)
         lo, hi = interval.start, interval.end
         if start_s is not None or end_s is not None:
             t0 = t[lo] if start_s is None else start_s

@@ -335,6 +335,39 @@ def find_sliding_interval(
     return SlidingInterval(start=start, end=end, end_reason=reason, onset=onset, noise_m=noise)
 
 
+def trim_at_fitted_stop(
+    t_s: FloatArray, s_m: FloatArray, interval: SlidingInterval, *, max_iter: int = 5
+) -> SlidingInterval:
+    """Cut the window at the stop predicted by its own fit.
+
+    A target slowed by friction stops when its fitted velocity reaches zero
+    (the vertex of the parabola) and stays there; samples after that instant
+    are not free sliding even when too few of them remain to be seen as a
+    rest (a stop just before the end of the video). Refit until the vertex
+    is after the last sample.
+
+    Returns:
+        The interval, ending ``"stopped"`` if it was cut.
+    """
+    t = np.asarray(t_s, dtype=np.float64)
+    s = np.asarray(s_m, dtype=np.float64)
+    start, end, reason = interval.start, interval.end, interval.end_reason
+    for _ in range(max_iter):
+        fit = fit_quadratic(t[start : end + 1], s[start : end + 1])
+        if fit.decel_mps2 <= 0.0:
+            break
+        t_stop = fit.t_centre_s + fit.v_centre_mps / fit.decel_mps2
+        if t_stop >= t[end]:
+            break
+        new_end = int(np.searchsorted(t, t_stop, side="left")) - 1
+        if new_end - start + 1 < MIN_FIT_FRAMES or new_end >= end:
+            break
+        end, reason = new_end, "stopped"
+    return SlidingInterval(
+        start=start, end=end, end_reason=reason, onset=interval.onset, noise_m=interval.noise_m
+    )
+
+
 @dataclass(frozen=True)
 class FrictionEstimate:
     """Deceleration, friction coefficient, its interval and its bound."""

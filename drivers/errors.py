@@ -94,3 +94,21 @@ class InvalidCommandError(DriverError):
 
 class SimulationError(DriverError):
     """The physics simulation diverged or was driven outside what it models."""
+
+
+class AddressError(DriverError):
+    """A network address is malformed, cannot be resolved, or its port cannot be bound.
+
+    Args:
+        option: where the address came from (``"--robot-ip"``, ``"--remote"``, ...).
+        address: the address as given.
+        message: what is wrong, in one line.
+    """
+
+    exit_code = 2
+
+    def __init__(self, option: str, address: str, message: str) -> None:
+        self.option = option
+        self.address = address
+        self.message = message
+        super().__init__(f"{option} {address}: {message}")

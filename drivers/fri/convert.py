@@ -1,0 +1,194 @@
+"""Between :mod:`drivers.base` objects and the codec's packet arrays, both sides of the link.
+
+The codec (:mod:`drivers.fri.codec`) already converts the wire layout to our
+conventions; this module only copies between its preallocated
+:class:`~drivers.fri.codec.MsrArrays` / :class:`~drivers.fri.codec.CmdArrays`
+and :class:`~drivers.base.types.Measurement` / :class:`~drivers.base.types.Command`.
+
+Two conventions of ffexp on top of FRI 1.x live here (README, "Running on a
+real KUKA KRC"):
+
+* **Control strategy request.** FRI 1.x has no command field for the
+  controller. The remote writes the requested KRL strategy into
+  ``krl.intData[0]`` (``$FRI_FRM_INT[1]``): 10 joint position, 20 Cartesian
+  impedance, 30 joint impedance, 0 = no request. The KRL script switches
+  ``$stiffness.strategy`` when it differs from the running one.
+* **Lockstep marker (emulator only).** In lockstep pacing the emulator sets
+  ``krl.intData[15]`` (``$FRI_TO_INT[16]``) to :data:`LOCKSTEP_MARKER`; the
+  remote driver then answers each cycle with the runner's command for that
+  cycle, however long the runner takes, so that lockstep runs are
+  deterministic. A real KRC never sets it unless a KRL script writes this
+  value there.
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+from drivers.base.types import CmdFlags, Command, ControlMode, Measurement
+from drivers.fri.codec import CmdArrays, MsrArrays
+
+__all__ = [
+    "LOCKSTEP_INDEX",
+    "LOCKSTEP_MARKER",
+    "STRATEGY_INDEX",
+    "arrays_to_command",
+    "arrays_to_measurement",
+    "command_to_arrays",
+    "control_from_strategy",
+    "cycle_ns_from_seconds",
+    "measurement_to_arrays",
+    "strategy_code",
+]
+
+#: ``krl.intData`` index (``$FRI_FRM_INT[1]``) that carries the requested KRL strategy.
+STRATEGY_INDEX: Final = 0
+#: ``krl.intData`` index (``$FRI_TO_INT[16]``) of the emulator's lockstep marker.
+LOCKSTEP_INDEX: Final = 15
+#: Value of ``$FRI_TO_INT[16]`` that marks a lockstep emulator ("LOCK" in ASCII).
+LOCKSTEP_MARKER: Final = 0x4C4F434B
+
+_STRATEGY: Final = {
+    ControlMode.JOINT_POSITION: 10,
+    ControlMode.CART_IMPEDANCE: 20,
+    ControlMode.JOINT_IMPEDANCE: 30,
+}
+_CONTROL: Final = {v: k for k, v in _STRATEGY.items()}
+
+
+def strategy_code(control: ControlMode) -> int:
+    """KRL ``$stiffness.strategy`` for ``control`` (0 for OTHER: no request)."""
+    return _STRATEGY.get(ControlMode(control), 0)
+
+
+def control_from_strategy(code: int) -> ControlMode | None:
+    """The control mode a strategy request asks for; ``None`` for 0 or an unknown code."""
+    return _CONTROL.get(int(code))
+
+
+def cycle_ns_from_seconds(seconds: float) -> int:
+    """A sample time from the wire (float32 seconds) in whole microseconds, as ns.
+
+    ``float32(0.005)`` is 0.00499999988...; the KRC's cycles are whole
+    milliseconds, so rounding to the microsecond recovers the exact value.
+    """
+    return round(float(seconds) * 1e6) * 1000
+
+
+def measurement_to_arrays(m: Measurement, out: MsrArrays) -> None:
+    """Fill ``out`` from ``m`` (the emulator side); head counters are left alone."""
+    out.krl_real[:] = m.krl_real
+    out.krl_int[:] = m.krl_int
+    out.krl_bool = int(m.krl_bool)
+    out.timestamp = m.time_ns * 1e-9
+    out.state = m.state
+    out.quality = m.quality
+    out.msr_sample_time = m.msr_sample_time
+    out.cmd_sample_time = m.cmd_sample_time
+    out.safety_limits = m.safety_limits
+    out.answer_rate = m.answer_rate
+    out.latency = m.latency
+    out.jitter = m.jitter
+    out.miss_rate = m.miss_rate
+    out.miss_counter = int(m.miss_counter)
+    out.power = int(m.power)
+    out.control = m.control
+    out.error = int(m.error)
+    out.warning = int(m.warning)
+    out.temperature[:] = m.temperature
+    out.msr_jnt_pos[:] = m.msr_jnt_pos
+    out.msr_cart_pos[:] = m.msr_cart_pos
+    out.cmd_jnt_pos[:] = m.cmd_jnt_pos
+    out.cmd_jnt_pos_fri_offset[:] = m.cmd_jnt_pos_fri_offset
+    out.cmd_cart_pos[:] = m.cmd_cart_pos
+    out.cmd_cart_pos_fri_offset[:] = m.cmd_cart_pos_fri_offset
+    out.msr_jnt_trq[:] = m.msr_jnt_trq
+    out.est_ext_jnt_trq[:] = m.est_ext_jnt_trq
+    out.est_ext_tcp_ft[:] = m.est_ext_tcp_ft
+    out.jacobian[:] = m.jacobian
+    out.mass_matrix[:] = m.mass_matrix
+    out.gravity[:] = m.gravity
+
+
+def arrays_to_measurement(a: MsrArrays, seq: int, time_ns: int) -> Measurement:
+    """A new :class:`Measurement` (own copies) from decoded arrays (the remote side).
+
+    ``seq`` is the unwrapped ``sendSeqCount``, ``time_ns`` the cycle's time;
+    ground truth does not travel over FRI (``truth`` is ``None``).
+    """
+    return Measurement(
+        seq=seq,
+        time_ns=time_ns,
+        state=a.state,
+        quality=a.quality,
+        control=a.control,
+        msr_sample_time=a.msr_sample_time,
+        cmd_sample_time=a.cmd_sample_time,
+        safety_limits=a.safety_limits,
+        answer_rate=a.answer_rate,
+        latency=a.latency,
+        jitter=a.jitter,
+        miss_rate=a.miss_rate,
+        miss_counter=a.miss_counter,
+        power=a.power,
+        error=a.error,
+        warning=a.warning,
+        temperature=a.temperature.copy(),
+        msr_jnt_pos=a.msr_jnt_pos.copy(),
+        msr_cart_pos=a.msr_cart_pos.copy(),
+        cmd_jnt_pos=a.cmd_jnt_pos.copy(),
+        cmd_jnt_pos_fri_offset=a.cmd_jnt_pos_fri_offset.copy(),
+        cmd_cart_pos=a.cmd_cart_pos.copy(),
+        cmd_cart_pos_fri_offset=a.cmd_cart_pos_fri_offset.copy(),
+        msr_jnt_trq=a.msr_jnt_trq.copy(),
+        est_ext_jnt_trq=a.est_ext_jnt_trq.copy(),
+        est_ext_tcp_ft=a.est_ext_tcp_ft.copy(),
+        jacobian=a.jacobian.copy(),
+        mass_matrix=a.mass_matrix.copy(),
+        gravity=a.gravity.copy(),
+        krl_real=a.krl_real.copy(),
+        krl_int=a.krl_int.copy(),
+        krl_bool=a.krl_bool,
+        truth=None,
+    )
+
+
+def command_to_arrays(c: Command, out: CmdArrays) -> None:
+    """Fill ``out`` from ``c`` (the remote side); the strategy goes to ``krl.intData[0]``."""
+    out.cmd_flags = int(c.flags)
+    out.jnt_pos[:] = c.jnt_pos
+    out.cart_pos[:] = c.cart_pos
+    out.add_jnt_trq[:] = c.add_jnt_trq
+    out.add_tcp_ft[:] = c.add_tcp_ft
+    out.jnt_stiffness[:] = c.jnt_stiffness
+    out.jnt_damping[:] = c.jnt_damping
+    out.cart_stiffness[:] = c.cart_stiffness
+    out.cart_damping[:] = c.cart_damping
+    out.krl_real[:] = c.krl_real
+    out.krl_int[:] = c.krl_int
+    out.krl_int[STRATEGY_INDEX] = strategy_code(c.control)
+    out.krl_bool = int(c.krl_bool) & 0xFFFF
+
+
+def arrays_to_command(a: CmdArrays, current: ControlMode) -> Command:
+    """A new :class:`Command` from a decoded packet (the emulator side).
+
+    The control mode is the strategy requested in ``krl.intData[0]``, or
+    ``current`` when there is no (valid) request.
+    """
+    control = control_from_strategy(int(a.krl_int[STRATEGY_INDEX]))
+    return Command(
+        flags=CmdFlags(a.cmd_flags & 0xFFFFFFFF),
+        control=current if control is None else control,
+        jnt_pos=a.jnt_pos.copy(),
+        cart_pos=a.cart_pos.copy(),
+        add_jnt_trq=a.add_jnt_trq.copy(),
+        add_tcp_ft=a.add_tcp_ft.copy(),
+        jnt_stiffness=a.jnt_stiffness.copy(),
+        jnt_damping=a.jnt_damping.copy(),
+        cart_stiffness=a.cart_stiffness.copy(),
+        cart_damping=a.cart_damping.copy(),
+        krl_real=a.krl_real.copy(),
+        krl_int=a.krl_int.copy(),
+        krl_bool=a.krl_bool,
+    )

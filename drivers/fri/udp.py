@@ -1,0 +1,83 @@
+"""UDP plumbing shared by the FRI and Net F/T back-ends: addresses and sockets.
+
+Every failure a user can cause (a malformed or unresolvable address, a port in
+use, an address that is not local) becomes one :class:`~drivers.errors.AddressError`
+line that names the option and the address.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import socket
+
+from drivers.errors import AddressError
+
+__all__ = ["bind_udp", "parse_host", "parse_host_port", "resolve_ipv4"]
+
+#: Receive buffer asked for on every socket (the kernel may grant less).
+RCVBUF_BYTES = 1 << 20
+
+
+def resolve_ipv4(option: str, host: str) -> str:
+    """``host`` (a dotted IPv4 address or a name) as a dotted IPv4 address."""
+    text = host.strip()
+    if not text:
+        raise AddressError(option, repr(host), "empty address")
+    try:
+        return str(ipaddress.IPv4Address(text))
+    except ValueError:
+        pass
+    if any(c in text for c in " /\\:@"):
+        raise AddressError(option, host, "not an IPv4 address or host name")
+    try:
+        infos = socket.getaddrinfo(text, None, socket.AF_INET, socket.SOCK_DGRAM)
+    except (socket.gaierror, UnicodeError) as exc:
+        raise AddressError(option, host, f"cannot resolve host name ({exc})") from None
+    return str(infos[0][4][0])
+
+
+def parse_host(option: str, text: str) -> str:
+    """An IPv4 address or host name, resolved (``--robot-ip``)."""
+    return resolve_ipv4(option, text)
+
+
+def parse_port(option: str, text: str, port: str | int, *, allow_zero: bool) -> int:
+    """A UDP port number; 0 (any free port) only where ``allow_zero``."""
+    try:
+        value = int(port)
+    except (TypeError, ValueError):
+        raise AddressError(option, text, f"port {port!r} is not a number") from None
+    low = 0 if allow_zero else 1
+    if not low <= value <= 65535:
+        raise AddressError(option, text, f"port {value} is outside {low}..65535")
+    return value
+
+
+def parse_host_port(option: str, text: str, default_port: int | None = None) -> tuple[str, int]:
+    """``HOST:PORT`` (or ``HOST`` when ``default_port`` is given) -> ``(ipv4, port)``."""
+    host, sep, port = text.strip().rpartition(":")
+    if not sep:
+        if default_port is None:
+            raise AddressError(option, text, "expected HOST:PORT")
+        host, port = text.strip(), str(default_port)
+    return resolve_ipv4(option, host), parse_port(option, text, port, allow_zero=False)
+
+
+def bind_udp(option: str, host: str, port: int) -> socket.socket:
+    """A UDP socket bound to ``host:port`` (port 0: any free port), with a large receive buffer.
+
+    Raises:
+        AddressError: the port is in use, the address is not local, or the
+            port is privileged.
+    """
+    parse_port(option, f"{host}:{port}", port, allow_zero=True)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        where = f"{host or '0.0.0.0'}:{port}"
+        reason = exc.strerror or str(exc)
+        raise AddressError(option, where, f"cannot bind UDP socket: {reason}") from None
+    return sock

@@ -17,6 +17,15 @@ K_RI = diag(0, k_yp, 0, k_xp, 0, 0) this is the paper's reduced 3-DOF case:
 ``T*_x = k_xp w[3]``. A free tool of mass m pushed by an external force f then
 feels ``m a = f + k f``: it accelerates as if its mass were ``m / (1 + k)``.
 
+What is sent as the superposed wrench (FRI addTcpFT) follows the paper's
+eq. (2), ``F = M M_d^-1 F* + C + G + F_c`` with ``M_d = M`` and C, G left to
+the KRC's own model (f_dyn): on the force-controlled axes the measured contact
+force is fed forward, ``F_cmd = F* + F_c`` (``F_c = -w``), so the PI loop
+commands the net force on the tool and ``F_cmd = F_ref`` in steady state. On
+the inertia-reduction axes ``F_cmd = F*`` alone, as the paper's results
+report the applied force there as ``k`` times the contact force
+(``contact_feedforward = false`` drops the term everywhere).
+
 The approach phase uses the external impedance law
 ``F_cmd = K_e (x_sp - x) - B_e x'`` (the paper prints the first term with the
 opposite sign), with a set-point moving along a straight line.
@@ -69,6 +78,9 @@ class ForceControlConfig(StrictModel):
         (10.0, 10.0, 10.0, 1.0, 1.0, 1.0),
         description="Anti-windup: |K_i * integral| limit per axis [N, N m].",
     )
+    contact_feedforward: bool = Field(
+        True, description="Eq. (2)'s +F_c on the force-controlled axes (see module doc)."
+    )
 
     @model_validator(mode="after")
     def _gains_where_they_act(self) -> ForceControlConfig:
@@ -94,6 +106,7 @@ class ForceControlTerms:
     p: FloatArray = field(default_factory=lambda: np.zeros(6))
     i: FloatArray = field(default_factory=lambda: np.zeros(6))
     ri: FloatArray = field(default_factory=lambda: np.zeros(6))
+    ff: FloatArray = field(default_factory=lambda: np.zeros(6))
     total: FloatArray = field(default_factory=lambda: np.zeros(6))
     saturated: bool = False
 
@@ -119,6 +132,7 @@ class ForceController:
         self._f_ref = np.asarray(config.f_ref, dtype=np.float64)
         self._out_lim = np.asarray(config.output_limit, dtype=np.float64)
         self._int_lim = np.asarray(config.integral_limit, dtype=np.float64)
+        self._ff_sel = self._w_sel if config.contact_feedforward else np.zeros(6)
         self._integral = np.zeros(6)
         self.terms = ForceControlTerms()
 
@@ -137,11 +151,12 @@ class ForceController:
         error = self._w_sel * (self._f_ref + w)  # F_ref - F_c, with F_c = -w
         np.multiply(self._kp, error, out=t.p)
         np.multiply(self._kri * (1.0 - self._w_sel), w, out=t.ri)
+        np.multiply(self._ff_sel, -w, out=t.ff)
         # tentative integral, then conditional integration where the output saturates
         candidate = self._integral + error * self.cycle_s
         i_term = self._ki * candidate
         i_clamped = np.clip(i_term, -self._int_lim, self._int_lim)
-        raw = t.p + i_clamped + t.ri
+        raw = t.p + i_clamped + t.ri + t.ff
         out = np.clip(raw, -self._out_lim, self._out_lim)
         winding = (raw != out) & (np.sign(error) == np.sign(raw))
         keep = ~winding
@@ -153,7 +168,7 @@ class ForceController:
             self._int_lim[nz] / np.abs(self._ki[nz]),
         )
         np.multiply(self._ki, self._integral, out=t.i)
-        np.clip(t.p + t.i + t.ri, -self._out_lim, self._out_lim, out=t.total)
+        np.clip(t.p + t.i + t.ri + t.ff, -self._out_lim, self._out_lim, out=t.total)
         t.saturated = bool(np.any(raw != out))
         return t
 

@@ -204,16 +204,26 @@ class MotionFilter:
 
 
 class ToolLoad(StrictModel):
-    """Mass and centre of mass (sensor frame) of what hangs behind the sensor."""
+    """Mass and centre of mass (sensor frame) of the tool the sensor carries.
+
+    The reading, in our convention, is ``w = w_contact + w_load`` with
+    ``w_load = [m R^T (g - a), c x m R^T (g - a)]``: the tool's weight and,
+    while it accelerates by ``a`` (base frame), its inertia. Subtracting
+    ``w_load`` leaves the contact wrench.
+    """
 
     mass_kg: float = Field(0.0, ge=0)
     com_m: Vec3 = (0.0, 0.0, 0.0)
 
     def wrench(
-        self, r_base_sensor: FloatArray, gravity: FloatArray = GRAVITY_BASE_MPS2
+        self,
+        r_base_sensor: FloatArray,
+        accel_base: FloatArray | None = None,
+        gravity: FloatArray = GRAVITY_BASE_MPS2,
     ) -> FloatArray:
-        """Wrench the tool's weight adds to the reading (our sign convention)."""
-        f = self.mass_kg * (r_base_sensor.T @ gravity)
+        """Wrench the tool's weight (and inertia, given ``accel_base``) adds to the reading."""
+        g = gravity if accel_base is None else gravity - accel_base
+        f = self.mass_kg * (r_base_sensor.T @ g)
         return np.concatenate([f, np.cross(np.asarray(self.com_m), f)])
 
 

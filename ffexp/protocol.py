@@ -100,9 +100,16 @@ class RunSettings(StrictModel):
 
 
 class Estimation(StrictModel):
+    """Filters, tool load and contact detection (see ffexp.estimation)."""
+
     wrench: WrenchFilterConfig = WrenchFilterConfig()
     motion: MotionFilterConfig = MotionFilterConfig()
     tool_load: ToolLoad = ToolLoad()
+    inertial_compensation: bool = Field(
+        True,
+        description="Also remove the tool's inertia (mass x acceleration from the motion "
+        "filter) from the reading; needs tool_load.mass_kg.",
+    )
     contact: ContactDetectorConfig = ContactDetectorConfig()
 
 

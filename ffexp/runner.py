@@ -242,7 +242,8 @@ class Runner:
         r = pose[:3, :3]
         comp = ft.wrench
         if p.estimation.tool_load.mass_kg > 0.0 and len(ft):
-            comp = ft.wrench - p.estimation.tool_load.wrench(r)
+            accel = self.mf.accel_base[:3] if p.estimation.inertial_compensation else None
+            comp = ft.wrench - p.estimation.tool_load.wrench(r, accel)
 
         # --- watchdogs (every phase) ---------------------------------------
         if len(ft):
@@ -491,11 +492,13 @@ class Runner:
             r["p"] = terms.p
             r["i"] = terms.i
             r["ri"] = terms.ri
+            r["ff"] = terms.ff
             r["saturated"] = int(terms.saturated)
         else:
             r["p"] = 0.0
             r["i"] = 0.0
             r["ri"] = 0.0
+            r["ff"] = 0.0
             r["saturated"] = 0
         r["impedance"] = self._impedance_wrench
         r["total"] = total

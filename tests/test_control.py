@@ -37,15 +37,33 @@ def test_reduced_case_is_the_papers_equation() -> None:
         integral += (0.8 - f_z) * DT
         terms = ctl.update(w)
         expected = np.zeros(6)
-        expected[2] = 1.0 * (0.8 - f_z) + 0.07 * integral
+        # F*_z plus the eq. (2) feedforward of the measured contact force f_z
+        expected[2] = 1.0 * (0.8 - f_z) + 0.07 * integral + f_z
         expected[1] = 0.2 * w[1]
         expected[3] = 0.5 * w[3]
         np.testing.assert_allclose(terms.total, expected, atol=1e-12)
-        np.testing.assert_allclose(terms.p + terms.i + terms.ri, terms.total, atol=1e-12)
+        np.testing.assert_allclose(
+            terms.p + terms.i + terms.ri + terms.ff, terms.total, atol=1e-12
+        )
+        np.testing.assert_allclose(terms.ff, [0, 0, f_z, 0, 0, 0], atol=1e-12)
+
+
+def test_feedforward_makes_the_steady_command_f_ref() -> None:
+    """With eq. (2)'s feedforward, F_cmd = f_ref once f_z = f_ref; without, 0."""
+    w = np.array([0.0, 0.3, -0.8, 0.02, 0.0, 0.0])  # pushing with exactly f_ref
+    with_ff = ForceController(paper_case(0.5, 0.2, 0.8), DT).update(w)
+    assert with_ff.total[2] == pytest.approx(0.8)
+    without = ForceController(paper_case(0.5, 0.2, 0.8, contact_feedforward=False), DT)
+    assert without.update(w).total[2] == pytest.approx(0.0)
+    # the reduction axes never get the feedforward: applied = k * contact
+    assert with_ff.total[1] == pytest.approx(0.2 * 0.3)
+    assert with_ff.total[3] == pytest.approx(0.5 * 0.02)
 
 
 def test_force_axis_signs() -> None:
-    ctl = ForceController(paper_case(0, 0, 0.8, ki=(0, 0, 0, 0, 0, 0)), DT)
+    ctl = ForceController(
+        paper_case(0, 0, 0.8, ki=(0, 0, 0, 0, 0, 0), contact_feedforward=False), DT
+    )
     # pushing too lightly (f_z = 0.3 N, i.e. w_z = -0.3): push harder along +Z
     assert ctl.update(np.array([0, 0, -0.3, 0, 0, 0.0])).total[2] == pytest.approx(0.5)
     # pushing too hard: back off
@@ -54,7 +72,9 @@ def test_force_axis_signs() -> None:
 
 @pytest.mark.parametrize(("unit", "scale"), [("per_second", 1.0), ("per_sample", 1.0 / DT)])
 def test_integral_gain_reading(unit: str, scale: float) -> None:
-    cfg = paper_case(0, 0, 1.0, kp=(0, 0, 0, 0, 0, 0), ki_unit=unit, integral_limit=(1e9,) * 6)
+    cfg = paper_case(
+        0, 0, 1.0, kp=(0, 0, 0, 0, 0, 0), ki_unit=unit, integral_limit=(1e9,) * 6
+    )
     ctl = ForceController(cfg, DT)
     for _ in range(100):
         terms = ctl.update(np.zeros(6))  # f_z = 0: error 1 N
@@ -62,7 +82,7 @@ def test_integral_gain_reading(unit: str, scale: float) -> None:
 
 
 def test_anti_windup_recovers_quickly() -> None:
-    cfg = paper_case(0, 0, 5.0, output_limit=(20, 20, 2.0, 2, 2, 2))
+    cfg = paper_case(0, 0, 5.0, output_limit=(20, 20, 2.0, 2, 2, 2), contact_feedforward=False)
     ctl = ForceController(cfg, DT)
     for _ in range(20_000):  # 100 s of a large error: output saturated at 2 N
         terms = ctl.update(np.zeros(6))

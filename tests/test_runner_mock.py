@@ -122,8 +122,12 @@ def test_contact_switches_to_align_and_loss_counts_a_break(tmp_path: Path) -> No
     cycle = np.arange(len(ctl))
     align = (ctl["phase"] == Phase.ALIGN) & (cycle < 400)
     assert align.sum() > 150
-    # in ALIGN the command is eq. (9): here f_z = 1 > f_ref = 0.8, so F*_z < 0 (back off)
-    assert np.all(ctl["total"][align][5:, 2] < 0.0)
+    # in ALIGN the command is eq. (9): here f_z = 1 > f_ref = 0.8, so F*_z < 0 (back off),
+    # plus eq. (2)'s feedforward of the measured contact force (1 N)
+    pi = ctl["p"][align][5:, 2] + ctl["i"][align][5:, 2]
+    assert np.all(pi < 0.0)
+    np.testing.assert_allclose(ctl["ff"][align][5:, 2], 1.0, atol=0.05)
+    np.testing.assert_allclose(ctl["total"][align][5:, 2], pi + ctl["ff"][align][5:, 2])
     # after the force vanishes the loop pushes again until the break is confirmed
     assert np.all(ctl["total"][(ctl["phase"] == Phase.ALIGN) & (cycle > 402), 2] > 0.0)
     # in APPROACH the command is the impedance law K_e (x_sp - x): the tool stands still

@@ -98,6 +98,7 @@ CONTROL = MessageSpec(
         F("p", "float64", 6, "N, N m", "proportional term of the force loop"),
         F("i", "float64", 6, "N, N m", "integral term of the force loop"),
         F("ri", "float64", 6, "N, N m", "apparent inertia reduction K_RI w"),
+        F("ff", "float64", 6, "N, N m", "contact-force feedforward on the force axes, eq. (2)"),
         F("impedance", "float64", 6, "N, N m", "external impedance law"),
         F("total", "float64", 6, "N, N m", "superposed wrench sent (addTcpFT), TCF"),
         F("f_ref", "float64", 6, "N, N m", "force reference"),

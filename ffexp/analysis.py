@@ -149,9 +149,10 @@ def metrics(rec: Recording) -> RunMetrics:
         peak_fz = float(np.max(np.abs(f_z[in_align])))
         mean_w = np.mean(np.abs(s.wrench[in_align]), axis=0).tolist()
         peak_w = np.max(np.abs(s.wrench[in_align]), axis=0).tolist()
-        f_ref = float(np.median(s.f_ref[in_align, 2]))
+        force_control = info.get("method") != "impedance"
+        f_ref = float(np.median(s.f_ref[in_align, 2])) if force_control else None
         settled = in_align & (_time_in_phase(s) >= SETTLE_S)
-        if settled.any():
+        if settled.any() and force_control:
             rmse = float(np.sqrt(np.mean((f_z[settled] - s.f_ref[settled, 2]) ** 2)))
     speed_mean = speed_max = disp = lat = yaw = None
     truth = rec.topics.get("/sim/truth")
@@ -293,8 +294,9 @@ def wrench_figure(rec: Recording, title: str) -> Figure:
     ax = axes[0]
     _shade_phases(ax, s)
     ax.plot(s.t_s, -s.wrench[:, 2], lw=0.9, label="f_z = -w_z (contact, pushing > 0)")
-    ref = np.where(s.phase == ALIGN, s.f_ref[:, 2], np.nan)
-    ax.plot(s.t_s, ref, "k--", lw=0.9, label="f_z ref")
+    if np.any(s.f_ref[:, 2]):
+        ref = np.where(s.phase == ALIGN, s.f_ref[:, 2], np.nan)
+        ax.plot(s.t_s, ref, "k--", lw=0.9, label="f_z ref")
     ax.set_ylabel("force Z [N]")
     _legend_phases(ax)
     ax = axes[1]
@@ -332,7 +334,7 @@ def applied_figure(rec: Recording, title: str) -> Figure:
         _shade_phases(ax, s)
         ax.plot(s.t_s, contact, lw=0.9, label="contact (measured)")
         ax.plot(s.t_s, applied, lw=0.9, label=applied_label)
-        if name.startswith("(a)"):
+        if name.startswith("(a)") and np.any(s.f_ref[:, 2]):
             ax.plot(s.t_s, np.where(s.phase == ALIGN, s.f_ref[:, 2], np.nan), "k--", lw=0.9,
                     label="f_z ref")
         ax.set_title(name, fontsize=9)
@@ -359,8 +361,9 @@ def campaign_figure(recs: list[tuple[str, Recording]]) -> Figure:
         ax.plot(s.t_s, -s.wrench[:, 2], lw=0.8, label="f_z")
         ax.plot(s.t_s, s.wrench[:, 1], lw=0.8, label="w_y")
         ax.plot(s.t_s, s.wrench[:, 3], lw=0.8, label="t_x [N m]")
-        ax.plot(s.t_s, np.where(s.phase == ALIGN, s.f_ref[:, 2], np.nan), "k--", lw=0.8,
-                label="f_z ref")
+        if np.any(s.f_ref[:, 2]):
+            ax.plot(s.t_s, np.where(s.phase == ALIGN, s.f_ref[:, 2], np.nan), "k--", lw=0.8,
+                    label="f_z ref")
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("time since start [s]")
         ax.set_ylabel("[N], [N m]")

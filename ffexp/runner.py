@@ -129,6 +129,10 @@ class Runner:
         self._impedance_wrench = np.zeros(6)
         self._zero6 = np.zeros(6)
         self._approach_anchor_ns = 0
+        # Method III has no force reference: record zeros, not the unused default
+        self._f_ref = np.zeros(6) if protocol.method == "impedance" else np.asarray(
+            protocol.align.f_ref, dtype=np.float64
+        )
         self.force_terms: ForceControlTerms | None = None
         #: Wall time spent per part of the loop [s] (for the benchmark; cheap).
         self.timings: dict[str, float] = dict.fromkeys(
@@ -502,7 +506,7 @@ class Runner:
             r["saturated"] = 0
         r["impedance"] = self._impedance_wrench
         r["total"] = total
-        r["f_ref"] = self.p.align.f_ref
+        r["f_ref"] = self._f_ref
         r["setpoint"] = self.impedance.setpoint.reshape(-1)
         r["phase"] = int(self.phase)
         rec.write("/control/terms", log_ns)

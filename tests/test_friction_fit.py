@@ -214,3 +214,26 @@ def test_a_stop_just_before_the_end_is_cut_at_the_fitted_stop() -> None:
     t2, s2 = _track(0.005, 0.2, 1.0, 0.2, seed=3)
     iv2 = find_sliding_interval(t2, s2)
     assert trim_at_fitted_stop(t2, s2, iv2) == iv2
+
+
+def test_pooled_noise_keeps_coverage_and_narrows_short_windows() -> None:
+    rng = np.random.default_rng(21)
+    mu, sigma = 0.05, 10e-6
+    t = np.arange(5) / FPS
+    x = _slide(mu * G_MPS2, 0.05, t, -0.001)
+    covered = 0
+    widths_alone, widths_pooled = [], []
+    trials = 600
+    for _ in range(trials):
+        xs = x + rng.normal(0.0, sigma, t.size)
+        other = float(np.std(rng.normal(0.0, sigma, 40), ddof=1))  # same noise, 39 dof
+        pooled = estimate_friction(t, xs, noise_m=other, noise_dof=39)
+        alone = estimate_friction(t, xs)
+        covered += pooled.mu_low <= mu <= pooled.mu_high
+        widths_alone.append(alone.mu_high - alone.mu_low)
+        widths_pooled.append(pooled.mu_high - pooled.mu_low)
+        assert pooled.dof == alone.dof + 39
+    assert 0.92 <= covered / trials <= 0.98
+    # t(0.975; 2) = 4.30 against t(0.975; 41) = 2.02, and a median s of ~0.83 sigma
+    # on 2 dof: the pooled interval is about 0.57 times as wide
+    assert np.median(widths_pooled) < 0.7 * np.median(widths_alone)

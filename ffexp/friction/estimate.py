@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ffexp.errors import InputError
 from ffexp.friction.fit import (
@@ -26,6 +27,7 @@ from ffexp.friction.fit import (
     estimate_friction,
     find_sliding_interval,
     project_on_motion,
+    robust_noise,
     trim_at_fitted_stop,
 )
 from ffexp.friction.track import (
@@ -91,7 +93,7 @@ class FrictionResult:
     s_m: FloatArray  # (N,) along the motion direction, NaN where invalid
     direction: FloatArray  # unit vector in table metres
     interval: SlidingInterval  # indices into the valid samples
-    window_idx: FloatArray  # indices into the track of the fitted frames
+    window_idx: npt.NDArray[np.intp]  # indices into the track of the fitted frames
     estimate: FrictionEstimate
     px_per_m: float | None
     scale_source: str
@@ -120,6 +122,8 @@ class FrictionResult:
             "frames_used": f.n_frames,
             "end_reason": self.interval.end_reason,
             "residual_std_m": f.residual_std_m,
+            "sigma_x_m": e.sigma_x_m,
+            "dof": e.dof,
             "residual_rho1": f.rho1,
             "variance_inflation": f.inflation,
             "noise_m": self.interval.noise_m,
@@ -223,8 +227,14 @@ def estimate_video(
     t = track.t_s[idx]
     try:
         s, direction = project_on_motion(pos)
-        interval = find_sliding_interval(t, s, left_frame=track.left_frame)
-        interval = trim_at_fitted_stop(t, s, interval)
+        if start_s is not None and end_s is not None:
+            # both ends given: no automatic detection needed (nor allowed to fail)
+            interval = SlidingInterval(
+                start=0, end=t.size - 1, end_reason="user", onset=0, noise_m=robust_noise(s)
+            )
+        else:
+            interval = find_sliding_interval(t, s, left_frame=track.left_frame)
+            interval = trim_at_fitted_stop(t, s, interval)
         lo, hi = interval.start, interval.end
         if start_s is not None or end_s is not None:
             t0 = t[lo] if start_s is None else start_s
@@ -239,8 +249,17 @@ def estimate_video(
             interval = SlidingInterval(
                 start=lo, end=hi, end_reason="user", onset=interval.onset, noise_m=interval.noise_m
             )
+        # the tracking noise from every frame after the onset (slide and rest):
+        # robust, from second differences; the MAD has ~37 % efficiency
+        tail = s[interval.onset :]
+        noise_dof = 0.37 * (tail.size - 2) if tail.size >= 8 else 0.0
         est = estimate_friction(
-            t[lo : hi + 1], s[lo : hi + 1], g_mps2=g_mps2, confidence=confidence
+            t[lo : hi + 1],
+            s[lo : hi + 1],
+            g_mps2=g_mps2,
+            confidence=confidence,
+            noise_m=robust_noise(tail) if noise_dof else None,
+            noise_dof=noise_dof,
         )
     except FitError as exc:
         raise InputError(f"{path}: {exc}") from None
@@ -256,7 +275,7 @@ def estimate_video(
         s_m=s_all,
         direction=direction,
         interval=interval,
-        window_idx=idx[lo : hi + 1].astype(np.float64),
+        window_idx=idx[lo : hi + 1].astype(np.intp),
         estimate=est,
         px_per_m=px_per_m,
         scale_source=source,

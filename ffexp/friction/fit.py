@@ -19,7 +19,7 @@ with residual noise ``σ_x``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -71,6 +71,8 @@ class QuadraticFit:
     decel_mps2: float
     #: Covariance of ``(x_centre_m, v_centre_mps, decel_mps2)``, already inflated.
     cov: FloatArray
+    #: ``(XᵀX)⁻¹`` of the design: ``cov = cov_unit σ² inflation``.
+    cov_unit: FloatArray
     residuals_m: FloatArray
     residual_std_m: float
     #: Lag-1 autocorrelation of the residuals (0 when not measured).
@@ -171,7 +173,8 @@ def fit_quadratic(
     rho = lag1_autocorrelation(residuals) if n >= min_frames_for_rho else 0.0
     rho_c = min(rho, 0.9)
     inflation = (1.0 + rho_c) / (1.0 - rho_c) if rho_c > 0.0 else 1.0
-    cov = np.asarray(np.linalg.inv(design.T @ design) * s2 * inflation, np.float64)
+    cov_unit = np.asarray(np.linalg.inv(design.T @ design), np.float64)
+    cov = cov_unit * s2 * inflation
     dt = float(np.median(np.diff(t)))
     return QuadraticFit(
         t_centre_s=t_c,
@@ -179,6 +182,7 @@ def fit_quadratic(
         v_centre_mps=float(coef[1]),
         decel_mps2=float(coef[2]),
         cov=cov,
+        cov_unit=cov_unit,
         residuals_m=residuals,
         residual_std_m=math.sqrt(s2),
         rho1=rho,
@@ -295,10 +299,10 @@ def find_sliding_interval(
     thr = k_onset * noise
     away = (s - rest_level) > thr
     both = away[:-1] & away[1:]
-    if left_frame and bool(away[-1]) and not bool(both.any()):
-        # moved in the last tracked frame only, then left
+    if left_frame and not bool(both.any()):
+        # the target left the frame (almost) as soon as it moved
         raise FitError(
-            f"the target leaves the frame after 1 frame(s) of free sliding "
+            f"the target leaves the frame after {int(away.sum())} frame(s) of free sliding "
             f"(need at least {MIN_FIT_FRAMES})"
         )
     if not bool(both.any()):
@@ -387,10 +391,20 @@ class FrictionEstimate:
     sigma_a_formula_mps2: float
     significant: bool
     t_quantile: float
+    #: Position noise used for the uncertainty: pooled, inflated (m).
+    sigma_x_m: float
+    #: Degrees of freedom of ``sigma_x_m`` (window residuals + pooled noise).
+    dof: float
 
 
 def estimate_friction(
-    t_s: FloatArray, x_m: FloatArray, *, g_mps2: float = G_MPS2, confidence: float = 0.95
+    t_s: FloatArray,
+    x_m: FloatArray,
+    *,
+    g_mps2: float = G_MPS2,
+    confidence: float = 0.95,
+    noise_m: float | None = None,
+    noise_dof: float = 0.0,
 ) -> FrictionEstimate:
     """Fit the sliding window and turn the deceleration into ``mu``.
 
@@ -401,11 +415,18 @@ def estimate_friction(
     resolve); it is the number to report as ``mu < bound`` when the estimate
     is not significant.
 
+    The position noise is the window's residual variance, pooled (when
+    ``noise_m`` is given) with an independent estimate of the same tracking
+    noise from more frames, weighted by degrees of freedom; a window of a
+    few frames has almost no residual degrees of freedom of its own.
+
     Args:
         t_s: times of the sliding window (s).
         x_m: positions along the motion direction (m).
         g_mps2: gravity (m/s²).
         confidence: two-sided confidence level of the interval.
+        noise_m: independent estimate of the position noise (m), if any.
+        noise_dof: its degrees of freedom.
 
     Returns:
         The estimate.
@@ -413,12 +434,17 @@ def estimate_friction(
     if not 0.0 < confidence < 1.0:
         raise FitError("confidence must be between 0 and 1")
     fit = fit_quadratic(t_s, x_m)
-    tq = float(stats.t.ppf(0.5 + 0.5 * confidence, fit.dof))
+    s2 = fit.residual_std_m**2
+    dof = float(fit.dof)
+    if noise_m is not None and noise_m > 0.0 and noise_dof > 0.0:
+        s2 = (dof * s2 + noise_dof * noise_m**2) / (dof + noise_dof)
+        dof += noise_dof
+        fit = replace(fit, cov=fit.cov_unit * s2 * fit.inflation)
+    sigma_x = math.sqrt(s2 * fit.inflation)
+    tq = float(stats.t.ppf(0.5 + 0.5 * confidence, dof))
     mu = fit.decel_mps2 / g_mps2
     mu_std = fit.decel_std_mps2 / g_mps2
-    sigma_formula = detect_sigma_a(
-        fit.residual_std_m * math.sqrt(fit.inflation), fit.n_frames, fit.window_s
-    )
+    sigma_formula = detect_sigma_a(sigma_x, fit.n_frames, fit.window_s)
     return FrictionEstimate(
         fit=fit,
         g_mps2=g_mps2,
@@ -432,4 +458,6 @@ def estimate_friction(
         sigma_a_formula_mps2=sigma_formula,
         significant=abs(mu) > tq * mu_std,
         t_quantile=tq,
+        sigma_x_m=sigma_x,
+        dof=dof,
     )

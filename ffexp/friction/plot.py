@@ -27,7 +27,7 @@ def plot_result(result: FrictionResult, out: Path) -> None:
     t = result.track.t_s
     s = result.s_m
     ok = np.isfinite(s)
-    win = result.window_idx.astype(int)
+    win = result.window_idx
     tq = e.t_quantile
     t_fine = np.linspace(f.t_start_s, f.t_end_s, 300)
     x_fit = f.position_m(t_fine)

@@ -40,6 +40,8 @@ from ffexp.errors import InputError
 FloatArray = npt.NDArray[np.float64]
 GreyF = npt.NDArray[np.float32]
 Grey8 = npt.NDArray[np.uint8]
+#: A decoded frame: BGR (h, w, 3) or grey (h, w).
+Frame = npt.NDArray[np.uint8]
 
 #: ``progress(frames_done, frames_total_or_0)``.
 ProgressFn = Callable[[int, int], None]
@@ -111,12 +113,13 @@ class VideoFrames:
         self.frame_count = max(count, 0)
         self.size = (int(first.shape[1]), int(first.shape[0]))
 
-    def __iter__(self) -> Iterator[Grey8]:
+    def __iter__(self) -> Iterator[Frame]:
+        """Decoded frames as OpenCV returns them (BGR, or grey)."""
         try:
             frame = self._first
             self._first = None
             while frame is not None:
-                yield _to_grey(frame)
+                yield frame
                 with quiet_opencv():
                     ok, nxt = self._cap.read()
                 frame = np.asarray(nxt, np.uint8) if ok and nxt is not None else None
@@ -128,7 +131,7 @@ class VideoFrames:
         self._cap.release()
 
 
-def _to_grey(frame: npt.NDArray[np.uint8]) -> Grey8:
+def _to_grey(frame: Frame) -> Grey8:
     if frame.ndim == 2:
         return frame
     if frame.shape[2] == 1:
@@ -212,7 +215,7 @@ class _BackgroundTracker:
 
     def run(
         self,
-        frames: Iterator[Grey8],
+        frames: Iterator[Frame],
         path: Path,
         progress: ProgressFn | None,
         total: int,
@@ -226,10 +229,11 @@ class _BackgroundTracker:
         first_small: GreyF | None = None
         n_read = 0
         pending: Grey8 | None = None
-        for grey in frames:
+        for raw in frames:
             n_read += 1
             if progress is not None:
                 progress(n_read, total)
+            grey = _to_grey(raw)
             small = self._small(grey)
             if first_small is None:
                 first_small = small
@@ -272,14 +276,15 @@ class _BackgroundTracker:
             buffer.append(pending)
             changed = check(pending)
         while changed is None:
-            nxt = next(stream, None)
-            if nxt is None:
+            raw_next = next(stream, None)
+            if raw_next is None:
                 raise InputError(
                     f"{path}: no moving object (nothing changes against the first frames)"
                 )
             n_read += 1
             if progress is not None:
                 progress(n_read, total)
+            nxt = _to_grey(raw_next)
             buffer.append(nxt)
             changed = check(nxt)
         # 3. segment the target in the background model
@@ -292,9 +297,9 @@ class _BackgroundTracker:
         moved = False
         still_limit = max(round(still_stop_s * fps), 5) if still_stop_s > 0 else 0
 
-        def step(grey: Grey8) -> bool:
+        def step(frame: Frame) -> bool:
             nonlocal end, still_frames, moved
-            c = state.measure(grey)
+            c = state.measure(frame)
             centres.append(c)
             if c is None:
                 end = state.why
@@ -315,11 +320,11 @@ class _BackgroundTracker:
                 break
         buffer.clear()
         if going:
-            for grey in stream:
+            for raw in stream:
                 n_read += 1
                 if progress is not None:
                     progress(n_read, total)
-                if not step(grey):
+                if not step(raw):
                     break
         return centres, end, target.size_px, n_read, noise
 
@@ -423,80 +428,80 @@ class _BackgroundTracker:
         )
 
 
-SLOPE_ALPHA: float | None = None
-
-
 class _Follow:
-    """Window-following centroid measurement of the markerless target."""
+    """Window-following centroid measurement of the markerless target.
+
+    The centroid window is the target's footprint box plus a margin; an
+    annulus ``ANNULUS_PX`` wide around it (table only) gives, in every frame,
+    the illumination relative to the background as a plane (level and
+    gradient), fitted by least squares: wide enough that its noise adds
+    little, and per frame, so that the errors stay uncorrelated in time.
+    """
+
+    ANNULUS_PX = 12
 
     def __init__(self, target: _Target, margin: int, w: int, h: int) -> None:
         self.t = target
         self.w, self.h = w, h
-        ring = max(2, min(3, margin // 2))
+        self.inv_bg = np.asarray(1.0 / target.bg, np.float32)
+        a = self.ANNULUS_PX
         bw, bh = target.box[2] - target.box[0], target.box[3] - target.box[1]
-        ys, xs = np.mgrid[0:bh, 0:bw].astype(np.float32)
-        self.grid_x = (xs - bw / 2) / bw
-        self.grid_y = (ys - bh / 2) / bh
-        mask = np.ones((bh, bw), bool)
-        mask[ring:-ring, ring:-ring] = False
-        self.ring_mask = mask
-        self.slope: FloatArray | None = None
-        self.slope_alpha: float | None = SLOPE_ALPHA
-        self.n_slope = 0
-        self.ring_xy1 = np.stack(
-            [np.ones(int(mask.sum()), np.float32), self.grid_x[mask], self.grid_y[mask]], axis=1
-        )
+        ow, oh = bw + 2 * a, bh + 2 * a
+        ys, xs = np.mgrid[0:oh, 0:ow].astype(np.float64)
+        gx = (xs - ow / 2) / ow
+        gy = (ys - oh / 2) / oh
+        ring = np.ones((oh, ow), bool)
+        ring[a:-a, a:-a] = False
+        self.ring_mask = ring
+        design = np.stack([np.ones(int(ring.sum())), gx[ring], gy[ring]], axis=1)
+        self.ring_pinv = np.linalg.pinv(design)
+        self.grid_x = gx[a:-a, a:-a].astype(np.float32)
+        self.grid_y = gy[a:-a, a:-a].astype(np.float32)
         self.last: FloatArray = target.centre0.copy()
         self.velocity: FloatArray = np.zeros(2)
         self.why: TrackEnd = "end_of_video"
         self.displacement_px = 0.0
         self.last_step_px = 0.0
+        self._gain = np.empty((bh, bw), np.float32)
 
-    def _at(self, grey: Grey8, centre: FloatArray) -> FloatArray | None:
+    def _at(self, frame: Frame, centre: FloatArray) -> FloatArray | None:
         t = self.t
+        a = self.ANNULUS_PX
         off = np.rint(centre - t.centre0).astype(int)
         u0, v0, u1, v1 = t.box[0] + off[0], t.box[1] + off[1], t.box[2] + off[0], t.box[3] + off[1]
-        if u0 < 0 or v0 < 0 or u1 > self.w or v1 > self.h:
+        if u0 - a < 0 or v0 - a < 0 or u1 + a > self.w or v1 + a > self.h:
             self.why = "left_frame"
             return None
-        img = grey[v0:v1, u0:u1].astype(np.float32)
-        bg = t.bg[v0:v1, u0:u1]
-        # illumination change of this frame: a plane fitted to frame / background
-        # on the window border; weights are the relative contrast, which is
-        # proportional to the target's coverage under any illumination
-        ratio = img / bg
-        ring = ratio[self.ring_mask]
-        coef = np.linalg.lstsq(self.ring_xy1, ring, rcond=None)[0]
-        # the gradient is noisy from a thin ring: smooth it over time (it is a
-        # slow lighting change); a lag only adds a constant offset
-        self.n_slope += 1
-        if self.slope is None:
-            self.slope = coef[1:].astype(np.float64)
-        else:
-            alpha = self.slope_alpha if self.slope_alpha is not None else 1.0 / self.n_slope
-            self.slope += alpha * (coef[1:] - self.slope)
-        plane = self.slope[0] * self.ring_xy1[:, 1] + self.slope[1] * self.ring_xy1[:, 2]
-        g0 = float(np.mean(ring - plane))
-        gain = g0 + self.slope[0] * self.grid_x + self.slope[1] * self.grid_y
-        wts = (ratio / gain.astype(np.float32) - np.float32(1.0)) * np.float32(t.polarity)
-        mom = cv2.moments(wts)
+        outer = _to_grey(frame[v0 - a : v1 + a, u0 - a : u1 + a]).astype(np.float32)
+        outer *= self.inv_bg[v0 - a : v1 + a, u0 - a : u1 + a]
+        # Weights: the relative contrast frame / (illumination x background) - 1,
+        # proportional to the target's coverage under any illumination.
+        level, gx, gy = self.ring_pinv @ outer[self.ring_mask]
+        gain = self._gain
+        np.multiply(self.grid_x, np.float32(gx), out=gain)
+        gain += self.grid_y * np.float32(gy)
+        gain += np.float32(level)
+        ratio = outer[a:-a, a:-a]
+        ratio /= gain
+        ratio -= np.float32(1.0)
+        if t.polarity < 0:
+            np.negative(ratio, out=ratio)
+        mom = cv2.moments(ratio)
         m00 = mom["m00"]
         if not 0.5 * t.mass0 < m00 < 2.0 * t.mass0:
             self.why = "lost"
             return None
         return np.array([u0 + mom["m10"] / m00, v0 + mom["m01"] / m00])
 
-    def measure(self, grey: Grey8) -> FloatArray | None:
+    def measure(self, frame: Frame) -> FloatArray | None:
         guess = self.last + self.velocity
         c: FloatArray | None = None
         for _ in range(4):
-            c = self._at(grey, guess)
+            c = self._at(frame, guess)
             if c is None:
                 return None
-            if (
-                float(np.max(np.abs(np.rint(c - self.t.centre0) - np.rint(guess - self.t.centre0))))
-                == 0
-            ):
+            same = np.rint(c - self.t.centre0) == np.rint(guess - self.t.centre0)
+            if bool(same.all()):
                 break
             guess = c
         assert c is not None
@@ -528,8 +533,8 @@ class _MarkerTracker:
         self.velocity: FloatArray = np.zeros(2)
         self.misses = 0
 
-    def _detect(self, grey: Grey8, u0: int, v0: int) -> FloatArray | None:
-        corners, ids, _ = self.detector.detectMarkers(grey)
+    def _detect(self, frame: Frame, u0: int, v0: int) -> FloatArray | None:
+        corners, ids, _ = self.detector.detectMarkers(np.ascontiguousarray(_to_grey(frame)))
         if ids is None or len(ids) == 0:
             return None
         flat = [int(i) for i in np.asarray(ids).ravel()]
@@ -543,7 +548,7 @@ class _MarkerTracker:
         self.sides.append(float(sides.mean()))
         return diagonal_centre(quad)
 
-    def measure(self, grey: Grey8) -> FloatArray | None:
+    def measure(self, frame: Frame) -> FloatArray | None:
         c: FloatArray | None = None
         if self.last is not None and self.sides:
             side = float(np.median(self.sides[-20:]))
@@ -552,9 +557,9 @@ class _MarkerTracker:
             u0, v0 = max(int(guess[0] - half), 0), max(int(guess[1] - half), 0)
             u1, v1 = min(int(guess[0] + half) + 1, self.w), min(int(guess[1] + half) + 1, self.h)
             if u1 - u0 > 8 and v1 - v0 > 8:
-                c = self._detect(np.ascontiguousarray(grey[v0:v1, u0:u1]), u0, v0)
+                c = self._detect(frame[v0:v1, u0:u1], u0, v0)
         if c is None:
-            c = self._detect(grey, 0, 0)
+            c = self._detect(frame, 0, 0)
         if c is None:
             self.misses += 1
             return None
@@ -612,11 +617,11 @@ def track_video(
         end = "end_of_video"
         n_read = 0
         seen = False
-        for grey in video:
+        for raw in video:
             n_read += 1
             if progress is not None:
                 progress(n_read, total)
-            c = mt.measure(grey)
+            c = mt.measure(raw)
             centres.append(c)
             seen = seen or c is not None
             if seen and mt.misses > 3:

@@ -25,8 +25,10 @@ from __future__ import annotations
 
 import contextlib
 import math
+import queue
+import threading
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -113,18 +115,55 @@ class VideoFrames:
         self.frame_count = max(count, 0)
         self.size = (int(first.shape[1]), int(first.shape[0]))
 
-    def __iter__(self) -> Iterator[Frame]:
-        """Decoded frames as OpenCV returns them (BGR, or grey)."""
-        try:
-            frame = self._first
-            self._first = None
-            while frame is not None:
-                yield frame
-                with quiet_opencv():
+    def __iter__(self) -> Generator[Frame, None, None]:
+        """Decoded frames as OpenCV returns them (BGR, or grey).
+
+        Decoding runs in a read-ahead thread (OpenCV releases the GIL while
+        decoding), so that it overlaps with tracking.
+        """
+        frames: queue.Queue[Frame | None] = queue.Queue(maxsize=8)
+        stop = threading.Event()
+
+        def read_ahead() -> None:
+            try:
+                while not stop.is_set():
                     ok, nxt = self._cap.read()
-                frame = np.asarray(nxt, np.uint8) if ok and nxt is not None else None
-        finally:
-            self.close()
+                    if not ok or nxt is None:
+                        break
+                    while not stop.is_set():
+                        try:
+                            frames.put(np.asarray(nxt, np.uint8), timeout=0.1)
+                            break
+                        except queue.Full:
+                            continue
+            finally:
+                while not stop.is_set():
+                    try:
+                        frames.put(None, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+
+        first = self._first
+        self._first = None
+        if first is None:
+            return
+        with quiet_opencv():
+            worker = threading.Thread(target=read_ahead, name="ffexp-video-read", daemon=True)
+            worker.start()
+            try:
+                yield first
+                while (frame := frames.get()) is not None:
+                    yield frame
+            finally:
+                stop.set()
+                while worker.is_alive():
+                    try:
+                        frames.get(timeout=0.05)
+                    except queue.Empty:
+                        pass
+                worker.join()
+                self.close()
 
     def close(self) -> None:
         """Release the decoder."""
@@ -603,36 +642,40 @@ def track_video(
         video.close()
         raise InputError(f"{path}: the video has no frame rate; give --fps")
     total = video.frame_count
-    if marker_dict is None:
-        tracker = _BackgroundTracker(video.size)
-        centres, end, size_px, n_read, noise = tracker.run(
-            iter(video), path, progress, total, still_stop_s, rate
-        )
-        method: Literal["background", "marker"] = "background"
-    else:
-        from ffexp.friction.synth import aruco_dictionary
+    frames = iter(video)
+    try:
+        if marker_dict is None:
+            tracker = _BackgroundTracker(video.size)
+            centres, end, size_px, n_read, noise = tracker.run(
+                frames, path, progress, total, still_stop_s, rate
+            )
+            method: Literal["background", "marker"] = "background"
+        else:
+            from ffexp.friction.synth import aruco_dictionary
 
-        mt = _MarkerTracker(aruco_dictionary(marker_dict), marker_id, video.size)
-        centres = []
-        end = "end_of_video"
-        n_read = 0
-        seen = False
-        for raw in video:
-            n_read += 1
-            if progress is not None:
-                progress(n_read, total)
-            c = mt.measure(raw)
-            centres.append(c)
-            seen = seen or c is not None
-            if seen and mt.misses > 3:
-                end = "left_frame"
-                break
+            mt = _MarkerTracker(aruco_dictionary(marker_dict), marker_id, video.size)
+            centres = []
+            end = "end_of_video"
+            n_read = 0
+            seen = False
+            for raw in frames:
+                n_read += 1
+                if progress is not None:
+                    progress(n_read, total)
+                c = mt.measure(raw)
+                centres.append(c)
+                seen = seen or c is not None
+                if seen and mt.misses > 3:
+                    end = "left_frame"
+                    break
+            if not seen:
+                raise InputError(f"{path}: no {marker_dict} marker found in any frame")
+            size_px = float(np.median(mt.sides))
+            noise = 0.0
+            method = "marker"
+    finally:
+        frames.close()  # stops the read-ahead thread
         video.close()
-        if not seen:
-            raise InputError(f"{path}: no {marker_dict} marker found in any frame")
-        size_px = float(np.median(mt.sides))
-        noise = 0.0
-        method = "marker"
     n = len(centres)
     t_s = np.arange(n, dtype=np.float64) / rate
     centre_px = np.full((n, 2), np.nan)

@@ -81,6 +81,9 @@ from drivers.fri.udp import bind_udp, resolve_ipv4
 
 __all__ = ["FriEstimateSensor", "FriRobot", "FriSettings", "LinkStats"]
 
+#: Plausible ``desiredMsrSampleTime`` [s]: friOpen takes 1..100 ms.
+MIN_CYCLE_S: Final = 0.0009
+MAX_CYCLE_S: Final = 0.101
 #: A measurement older than this many cycles is taken as a KRC restart, not as reordering.
 RESTART_SEQ_JUMP: Final = 100
 _TURNAROUND_CAPACITY: Final = 1 << 17
@@ -132,6 +135,8 @@ class LinkStats:
     lost: int
     """Measurements missing in the sequence (gaps)."""
     restarts: int
+    implausible: int
+    """Measurements with a header but impossible contents (sample time, NaN), dropped."""
     answers: int
     """Command datagrams sent (including re-answers of duplicates)."""
     runner_answers: int
@@ -208,6 +213,7 @@ class FriRobot(RobotDriver):
         self._stale = 0
         self._lost = 0
         self._restarts = 0
+        self._implausible = 0
         self._answers = 0
         self._runner_answers = 0
         self._deadline_answers = 0
@@ -373,6 +379,7 @@ class FriRobot(RobotDriver):
                 stale=self._stale,
                 lost=self._lost,
                 restarts=self._restarts,
+                implausible=self._implausible,
                 answers=self._answers,
                 runner_answers=self._runner_answers,
                 deadline_answers=self._deadline_answers,
@@ -428,11 +435,10 @@ class FriRobot(RobotDriver):
 
     def _on_measurement(self, msr: MsrArrays, addr: tuple[str, int], t_rx: int) -> None:
         seq = msr.send_seq
-        if self._last_seq is None:
-            delta = 1
-            self._unwrapped = seq
-            self._time_base_seq = seq
-        else:
+        first = self._last_seq is None
+        delta = 1
+        event = SeqEvent.NEXT
+        if self._last_seq is not None:
             event, delta = classify_seq(seq, self._last_seq)
             if event is SeqEvent.DUPLICATE:
                 self._duplicates += 1
@@ -446,11 +452,25 @@ class FriRobot(RobotDriver):
                     return
                 self._restarts += 1
                 delta = 1
-            elif event is SeqEvent.GAP:
+        sample_time = msr.msr_sample_time
+        if not (
+            MIN_CYCLE_S <= sample_time <= MAX_CYCLE_S
+            and np.isfinite(msr.cmd_jnt_pos).all()
+            and np.isfinite(msr.cmd_jnt_pos_fri_offset).all()
+            and np.isfinite(msr.cmd_cart_pos).all()
+        ):
+            # a KRC never sends this; the packet cannot be mirrored or timed
+            self._implausible += 1
+            return
+        self._last_seq = seq
+        if first:
+            self._unwrapped = seq
+            self._time_base_seq = seq
+        else:
+            if event is SeqEvent.GAP:
                 self._lost += delta - 1
             self._unwrapped += delta
-        self._last_seq = seq
-        cycle_ns = cycle_ns_from_seconds(msr.msr_sample_time) or self._last_cycle_ns
+        cycle_ns = cycle_ns_from_seconds(sample_time)
         if cycle_ns != self._last_cycle_ns:
             self._time_base_ns = self._time_ns(self._last_cycle_ns)
             self._time_base_seq = self._unwrapped

@@ -30,12 +30,14 @@ Commands: each command datagram is applied at most once (its
 counted and dropped). The control strategy comes from ``krl.intData[0]``
 (see :mod:`drivers.fri.convert`).
 
-Fault injection (:class:`FaultSettings`, seeded): every datagram in either
+Fault injection (:class:`FaultSettings`, seeded; from the first ``friStart``
+on unless ``faults_from_start``): every datagram in either
 direction is lost with probability ``loss``; outgoing measurement datagrams
 get a delay ``delay_s + |N(0, jitter_s)|``, are sent twice with probability
 ``duplicate``, held back one cycle (so the next overtakes them) with
-probability ``reorder``, and get 1-4 random bytes overwritten with
-probability ``corrupt``.
+probability ``reorder`` (in lockstep that is only a delay: nothing else is
+in flight), and get 1-4 random bytes overwritten (each in the header with
+probability 1/2) with probability ``corrupt``.
 
 The world's F/T samples of each cycle go to an optional
 :class:`~drivers.netft.emulator.NetFtServer` after the step.
@@ -87,6 +89,7 @@ __all__ = [
     "FriEmulator",
     "LinkWindow",
     "QualityThresholds",
+    "plausible_command",
     "quality_of",
 ]
 
@@ -213,6 +216,9 @@ class EmulatorSettings:
         start_cycles: consecutive answered cycles before ``friStart``.
         max_consecutive_misses: misses in a row that end command mode.
         faults: injected network faults.
+        faults_from_start: inject them from the first packet; by default they
+            start with the first ``friStart`` (a lossy link would otherwise
+            never pass the script's wait for PERFECT quality).
         quality: thresholds of the quality rating.
     """
 
@@ -224,6 +230,7 @@ class EmulatorSettings:
     start_cycles: int = 100
     max_consecutive_misses: int = 5
     faults: FaultSettings = field(default_factory=FaultSettings)
+    faults_from_start: bool = False
     quality: QualityThresholds = field(default_factory=QualityThresholds)
 
 
@@ -276,6 +283,48 @@ class EmulatorStats:
         )
 
 
+#: Largest command values the emulated KRC takes (beyond them it leaves command mode).
+MAX_TCP_FORCE_N: Final = 1000.0
+MAX_TCP_TORQUE_NM: Final = 200.0
+MAX_JNT_TRQ_NM: Final = 500.0
+MAX_REACH_M: Final = 2.0
+MAX_STIFFNESS: Final = 1.0e5
+MAX_DAMPING: Final = 10.0
+
+
+def plausible_command(c: Command) -> bool:
+    """Whether the fields ``c.flags`` selects are values a KRC would take.
+
+    Finite, forces/torques and stiffnesses within generous bounds, a proper
+    rotation in ``cart_pos`` within reach, joint angles within a turn.
+    """
+    f = int(c.flags)
+    if f & CmdFlags.CARTPOS:
+        p = c.cart_pos
+        r = p[:3, :3]
+        if not (np.isfinite(p).all() and np.abs(p[:3, 3]).max() <= MAX_REACH_M
+                and np.abs(r.T @ r - np.eye(3)).max() <= 1e-3):
+            return False
+    if f & CmdFlags.JNTPOS and not (np.abs(c.jnt_pos) <= 2.0 * math.pi).all():
+        return False
+    if f & CmdFlags.TCPFT and not (
+        (np.abs(c.add_tcp_ft[:3]) <= MAX_TCP_FORCE_N).all()
+        and (np.abs(c.add_tcp_ft[3:]) <= MAX_TCP_TORQUE_NM).all()
+    ):
+        return False
+    if f & CmdFlags.JNTTRQ and not (np.abs(c.add_jnt_trq) <= MAX_JNT_TRQ_NM).all():
+        return False
+    for flag, gains, top in (
+        (CmdFlags.CARTSTIFF, c.cart_stiffness, MAX_STIFFNESS),
+        (CmdFlags.JNTSTIFF, c.jnt_stiffness, MAX_STIFFNESS),
+        (CmdFlags.CARTDAMP, c.cart_damping, MAX_DAMPING),
+        (CmdFlags.JNTDAMP, c.jnt_damping, MAX_DAMPING),
+    ):
+        if f & flag and not ((gains >= 0.0) & (gains <= top)).all():
+            return False
+    return True
+
+
 class _FaultyLink:
     """Applies :class:`FaultSettings` to one UDP socket."""
 
@@ -288,10 +337,11 @@ class _FaultyLink:
         self.rng = np.random.default_rng(faults.seed)
         self.queue: list[tuple[float, int, bytes, tuple[str, int]]] = []
         self._k = 0
+        self.active = True
 
     def send(self, data: bytes, addr: tuple[str, int], now: float) -> None:
         f = self.f
-        if not f.any:
+        if not f.any or not self.active:
             self._sendto(data, addr)
             return
         rng = self.rng
@@ -301,7 +351,9 @@ class _FaultyLink:
         if f.corrupt and rng.random() < f.corrupt:
             b = bytearray(data)
             for _ in range(int(rng.integers(1, 5))):
-                b[int(rng.integers(0, len(b)))] = int(rng.integers(0, 256))
+                # half of the damage in the 8-byte header, so that some is detectable
+                end = 8 if rng.random() < 0.5 else len(b)
+                b[int(rng.integers(0, end))] = int(rng.integers(0, 256))
             data = bytes(b)
             self.stats.corrupted += 1
         delay = f.delay_s + (abs(float(rng.normal(0.0, f.jitter_s))) if f.jitter_s else 0.0)
@@ -321,7 +373,7 @@ class _FaultyLink:
 
     def drop_incoming(self) -> bool:
         f = self.f
-        if f.loss and self.rng.random() < f.loss:
+        if self.active and f.loss and self.rng.random() < f.loss:
             self.stats.dropped_in += 1
             return True
         return False
@@ -363,6 +415,7 @@ class FriEmulator:
         self.sock = bind_udp("--port", settings.bind_host, settings.port)
         self.sock.setblocking(False)
         self.link = _FaultyLink(self.sock, settings.faults, self.cycle_s, self.stats)
+        self.link.active = settings.faults_from_start
         self.state = FriState.MON
         self.quality = FriQuality.BAD
         self._consecutive_ok = 0
@@ -593,11 +646,26 @@ class FriEmulator:
         ):
             self.state = FriState.CMD
             st.starts += 1
+            self.link.active = True
         world.fri_state = self.state
         world.fri_quality = q
         if cmd is not None and self.state == FriState.CMD:
             apply = cmd
+            if not plausible_command(cmd):
+                self._refuse()
+                return
         self._step(apply, self._last_cmd_seq if apply is not None else None)
+
+    def _refuse(self) -> None:
+        """A command the KRC would not take: leave command mode, hold."""
+        st = self.stats
+        st.invalid += 1
+        if self.state == FriState.CMD:
+            st.fallbacks += 1
+        self.state = FriState.MON
+        self._consecutive_ok = 0
+        self.world.fri_state = FriState.MON
+        self._step(None, None)
 
     def _step(self, cmd: Command | None, seq: int | None) -> None:
         st = self.stats
@@ -614,6 +682,7 @@ class FriEmulator:
             self.world.fri_state = FriState.MON
             self.world.step(None)
             cmd = None
+            seq = None
         if cmd is not None and seq is not None:
             st.applied += 1
             st.applied_seqs.append(seq)

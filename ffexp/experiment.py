@@ -26,7 +26,29 @@ from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, sce
 from ffexp.recording import Recorder
 from ffexp.runner import Progress, Runner, RunOutcome
 
-DRIVERS = ("sim",)
+DRIVERS = ("sim", "fri")
+#: F/T back-ends: the in-process sim sensor, an ATI Net F/T box (or the
+#: emulator's), or the KRC's estExtTcpFT.
+FT_SOURCES = ("sim", "netft", "fri-estimate")
+
+
+@dataclass(frozen=True)
+class LinkOptions:
+    """How ``--driver fri`` reaches the robot and the F/T sensor (``ffexp run`` options).
+
+    Args:
+        robot_ip: the KRC's address (``--robot-ip``); packets from elsewhere are dropped.
+        fri_port: local UDP port (``--fri-port``; FRISOCK in the KRC's dlrrc.ini; 0 = any).
+        ft: ``auto`` (sim for the sim driver, netft for fri), ``sim``, ``netft``, ``fri-estimate``.
+        netft: ``HOST:PORT`` of the Net F/T box (default: the robot's host, port 49152).
+        answer_deadline: FRI answer deadline in cycles (see drivers.fri.driver).
+    """
+
+    robot_ip: str | None = None
+    fri_port: int = 49938
+    ft: str = "auto"
+    netft: str | None = None
+    answer_deadline: float = 0.5
 
 
 @dataclass
@@ -49,9 +71,21 @@ def _versions() -> str:
 
 
 def open_drivers(
-    driver: str, protocol_path: Path, protocol: RunProtocol
+    driver: str, protocol_path: Path, protocol: RunProtocol, link: LinkOptions | None = None
 ) -> tuple[RobotDriver, ForceTorqueSensor, dict[str, str], list[tuple[str, bytes]]]:
-    """The robot/sensor pair for ``driver``, run metadata about it, files to attach."""
+    """The robot/sensor pair for ``driver``, run metadata about it, files to attach.
+
+    For ``fri`` the UDP ports are bound here, so that a port in use or a bad
+    address is reported before anything is recorded.
+    """
+    link = link if link is not None else LinkOptions()
+    ft = link.ft
+    if ft not in ("auto", *FT_SOURCES):
+        raise ConfigError("--ft", ft, f"unknown F/T source; choose one of {', '.join(FT_SOURCES)}")
+    if driver == "sim" and ft not in ("auto", "sim"):
+        raise ConfigError("--ft", ft, "--driver sim has only the simulated sensor (--ft sim)")
+    if driver == "fri":
+        return _open_fri(link)
     if driver == "sim":
         spath = scene_path(protocol_path, protocol)
         scene = load_scene(spath, protocol.scene.set)
@@ -63,6 +97,48 @@ def open_drivers(
         }
         return robot, sensor, meta, [(spath.name, spath.read_bytes())]
     raise ConfigError("--driver", driver, f"unknown driver; choose one of {', '.join(DRIVERS)}")
+
+
+def _open_fri(
+    link: LinkOptions,
+) -> tuple[RobotDriver, ForceTorqueSensor, dict[str, str], list[tuple[str, bytes]]]:
+    from drivers.fri.driver import FriEstimateSensor, FriRobot, FriSettings
+    from drivers.fri.udp import parse_host, parse_host_port
+    from drivers.netft.client import NetFtClient, NetFtSettings
+
+    if not link.robot_ip:
+        raise ConfigError("--robot-ip", "", "required with --driver fri (the KRC's address)")
+    ft = "netft" if link.ft == "auto" else link.ft
+    if ft == "sim":
+        raise ConfigError(
+            "--ft", "sim", "with --driver fri the simulated sensor lives in the emulator: use "
+            "--ft netft (ffexp emulate serves it as a Net F/T box) or --ft fri-estimate",
+        )
+    robot_ip = parse_host("--robot-ip", link.robot_ip)
+    robot = FriRobot(
+        FriSettings(robot_ip=robot_ip, port=link.fri_port, answer_deadline=link.answer_deadline)
+    )
+    host, port = robot.bind()
+    meta = {"driver": "fri", "robot_ip": robot_ip, "fri_port": str(port), "ft": ft}
+    sensor: ForceTorqueSensor
+    if ft == "netft":
+        text = link.netft or f"{robot_ip}:49152"
+        nhost, nport = parse_host_port("--netft", text, default_port=49152)
+        client = NetFtClient(NetFtSettings(host=nhost, port=nport), clock=robot.now_ns)
+        try:
+            client.open()
+        except BaseException:
+            robot.close()
+            raise
+        sensor = client
+        meta["netft"] = f"{nhost}:{nport}"
+    else:
+        sensor = FriEstimateSensor(robot)
+    meta["notice"] = (
+        f"fri: listening on {host}:{port} for the KRC at {robot_ip}"
+        + (f"; Net F/T at {meta['netft']}" if "netft" in meta else "; F/T from estExtTcpFT")
+    )
+    return robot, sensor, meta, []
 
 
 def output_path(out_dir: Path, name: str, start: datetime) -> Path:
@@ -84,37 +160,52 @@ def run_file(
     out_dir: Path = Path("runs"),
     progress: Callable[[Progress], None] | None = None,
     stop_requested: Callable[[], bool] = lambda: False,
+    link: LinkOptions | None = None,
+    notice: Callable[[str], None] | None = None,
 ) -> RunResult:
-    """Run one protocol file and record it; the recording is finished even on errors."""
+    """Run one protocol file and record it; the recording is finished even on errors.
+
+    ``link`` configures ``--driver fri``; ``notice`` receives a line about the
+    opened link (where it listens) before the run starts.
+    """
     protocol = load_run_protocol(protocol_path, overrides)
-    robot, sensor, driver_meta, files = open_drivers(driver, protocol_path, protocol)
-    start = datetime.now(UTC)
-    start_ns = time.time_ns()
-    path = output_path(out_dir, protocol.name, start)
-    with Recorder(path) as rec:
-        rec.metadata(
-            "run",
-            {
-                "protocol": protocol.name,
-                "method": protocol.method,
-                "protocol_file": str(protocol_path),
-                "protocol_json": protocol.model_dump_json(),
-                "overrides": json.dumps(list(overrides)),
-                "seed": str(protocol.seed),
-                "start_utc": start.isoformat(),
-                "versions": _versions(),
-                "host": platform.node(),
-                **driver_meta,
-            },
-        )
-        rec.attach(protocol_path.name, protocol_path.read_bytes(), "application/toml", start_ns)
-        for name, data in files:
-            rec.attach(name, data, "application/toml", start_ns)
-        runner = Runner(
-            protocol, robot, sensor, rec, start_utc_ns=start_ns, progress=progress,
-            stop_requested=stop_requested,
-        )
-        outcome = runner.run()
+    robot, sensor, driver_meta, files = open_drivers(driver, protocol_path, protocol, link)
+    message = driver_meta.pop("notice", None)
+    if message is not None and notice is not None:
+        notice(message)
+    try:
+        start = datetime.now(UTC)
+        start_ns = time.time_ns()
+        path = output_path(out_dir, protocol.name, start)
+        with Recorder(path) as rec:
+            rec.metadata(
+                "run",
+                {
+                    "protocol": protocol.name,
+                    "method": protocol.method,
+                    "protocol_file": str(protocol_path),
+                    "protocol_json": protocol.model_dump_json(),
+                    "overrides": json.dumps(list(overrides)),
+                    "seed": str(protocol.seed),
+                    "start_utc": start.isoformat(),
+                    "versions": _versions(),
+                    "host": platform.node(),
+                    **driver_meta,
+                },
+            )
+            rec.attach(protocol_path.name, protocol_path.read_bytes(), "application/toml", start_ns)
+            for name, data in files:
+                rec.attach(name, data, "application/toml", start_ns)
+            runner = Runner(
+                protocol, robot, sensor, rec, start_utc_ns=start_ns, progress=progress,
+                stop_requested=stop_requested,
+            )
+            outcome = runner.run()
+    except BaseException:
+        # the runner closes the drivers; this is for failures before it runs
+        sensor.stop()
+        robot.close()
+        raise
     return RunResult(protocol, outcome, path)
 
 

@@ -27,6 +27,8 @@ def resolve_ipv4(option: str, host: str) -> str:
         return str(ipaddress.IPv4Address(text))
     except ValueError:
         pass
+    if all(c.isdigit() or c == "." for c in text):
+        raise AddressError(option, host, "not a valid IPv4 address (expected a.b.c.d)")
     if any(c in text for c in " /\\:@"):
         raise AddressError(option, host, "not an IPv4 address or host name")
     try:

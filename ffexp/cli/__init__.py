@@ -10,7 +10,7 @@ from __future__ import annotations
 import typer
 
 from ffexp import __version__
-from ffexp.cli import friction, records, simulate
+from ffexp.cli import emulate, friction, records, simulate
 from ffexp.cli import run as run_cli
 
 app = typer.Typer(
@@ -28,6 +28,7 @@ app.command("analyze")(records.analyze)
 app.command("compare")(records.compare)
 app.command("recover")(records.recover_cmd)
 app.command("topics")(records.topics)
+app.command("emulate")(emulate.emulate)
 
 
 def _version(value: bool) -> None:

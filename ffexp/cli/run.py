@@ -16,7 +16,7 @@ from rich.table import Table
 from ffexp.analysis import COMPARE_COLUMNS, compare_rows, metrics, run_info, write_run_figures
 from ffexp.cli._common import SET_HELP, cli_errors
 from ffexp.errors import FfexpError
-from ffexp.experiment import DRIVERS, RunResult, load_campaign, run_file
+from ffexp.experiment import DRIVERS, FT_SOURCES, LinkOptions, RunResult, load_campaign, run_file
 from ffexp.recording import load
 from ffexp.runner import Phase, Progress
 
@@ -85,11 +85,19 @@ def _summary_table(results: list[RunResult]) -> Table:
     return table
 
 
-def _one(protocol: Path, set_: list[str], driver: str, out: Path, flag: _StopFlag) -> RunResult:
+def _one(
+    protocol: Path, set_: list[str], driver: str, out: Path, flag: _StopFlag,
+    link: LinkOptions | None = None,
+) -> RunResult:
     show, done = _progress_printer(protocol.stem)
+
+    def notice(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
     try:
         result = run_file(
-            protocol, set_, driver=driver, out_dir=out, progress=show, stop_requested=flag
+            protocol, set_, driver=driver, out_dir=out, progress=show, stop_requested=flag,
+            link=link, notice=notice,
         )
     finally:
         done()
@@ -106,11 +114,25 @@ def run(
     driver: str = typer.Option("sim", "--driver", help=f"Robot back-end: {', '.join(DRIVERS)}."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
     out: Path = typer.Option(Path("runs"), "--out", help="Directory for the MCAP recording."),
+    fri_port: int = typer.Option(
+        49938, "--fri-port", help="--driver fri: local UDP port (FRISOCK on the KRC; 0 = any)."
+    ),
+    robot_ip: str = typer.Option(
+        "", "--robot-ip", help="--driver fri: the KRC's address; other senders are ignored."
+    ),
+    ft: str = typer.Option(
+        "auto", "--ft",
+        help=f"F/T source: {', '.join(FT_SOURCES)} (auto: sim for --driver sim, netft for fri).",
+    ),
+    netft: str = typer.Option(
+        "", "--netft", help="--ft netft: the box as HOST:PORT (default ROBOT_IP:49152)."
+    ),
 ) -> None:
     """Run one experiment; print a summary and the path of its recording."""
     flag = _StopFlag()
+    link = LinkOptions(robot_ip=robot_ip or None, fri_port=fri_port, ft=ft, netft=netft or None)
     with _signals(flag):
-        result = _one(protocol, set_, driver, out, flag)
+        result = _one(protocol, set_, driver, out, flag, link)
     console.print(_summary_table([result]))
     if flag.signum is not None:
         raise typer.Exit(128 + flag.signum)

@@ -1,0 +1,148 @@
+"""``ffexp emulate``: a simulated KRC2 LR (FRI 1.x over UDP) and Net F/T box.
+
+The controller side of the link, wrapping the MuJoCo rig: it sends FRI
+measurement packets to ``--remote`` every cycle and steps the world with the
+commands that come back (see :mod:`drivers.fri.emulator`), and serves the
+simulated Mini45 as an ATI Net F/T box on ``--netft-port``.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from pathlib import Path
+from types import FrameType
+
+import typer
+
+from drivers.config import apply_overrides, validate
+from drivers.fri.emulator import EmulatorSettings, FaultSettings, FriEmulator
+from drivers.fri.udp import parse_host_port
+from drivers.netft.emulator import NetFtServer
+from drivers.sim.scene import Scene, load_scene
+from drivers.sim.world import SimWorld
+from ffexp.cli._common import cli_errors
+from ffexp.errors import ConfigError
+
+
+def _pct(option: str, value: float) -> float:
+    if not 0.0 <= value <= 100.0:
+        raise ConfigError(option, str(value), "a percentage must be within 0..100")
+    return value / 100.0
+
+
+def _ms(option: str, value: float) -> float:
+    if not (value >= 0.0 and value < 60_000.0):
+        raise ConfigError(option, str(value), "must be >= 0 ms (and below a minute)")
+    return value / 1000.0
+
+
+@cli_errors
+def emulate(
+    remote: str = typer.Option(
+        ..., "--remote", help="The remote driver as IP:PORT (FRIHOST and FRISOCK on a KRC)."
+    ),
+    scene: Path | None = typer.Option(
+        None, "--scene", help="Scene TOML (default: the paper's rig, data/scenes/paper.toml)."
+    ),
+    port: int = typer.Option(0, "--port", help="Local UDP port the KRC sends from (0 = any)."),
+    cycle_ms: int = typer.Option(5, "--cycle-ms", help="FRI cycle, 1..100 ms (friOpen)."),
+    pacing: str = typer.Option(
+        "realtime", "--pacing", help="realtime (wall clock) or lockstep (step on each answer)."
+    ),
+    loss: float = typer.Option(0.0, "--loss", help="Lost datagrams, either direction [%]."),
+    delay_ms: float = typer.Option(0.0, "--delay-ms", help="Added delay of each packet [ms]."),
+    jitter_ms: float = typer.Option(0.0, "--jitter-ms", help="Delay jitter, |N(0, s)| [ms]."),
+    duplicate: float = typer.Option(0.0, "--duplicate", help="Packets sent twice [%]."),
+    reorder: float = typer.Option(0.0, "--reorder", help="Packets overtaken by the next [%]."),
+    corrupt: float = typer.Option(0.0, "--corrupt", help="Packets with damaged bytes [%]."),
+    netft_port: int = typer.Option(
+        49152, "--netft-port", help="UDP port of the emulated Net F/T box (0 = any, -1 = none)."
+    ),
+    seed: int | None = typer.Option(
+        None, "--seed", help="World seed (use the protocol's seed to reproduce a run)."
+    ),
+    set_: list[str] = typer.Option([], "--set", help="Override a scene field (repeatable)."),
+    timeout_ms: float = typer.Option(
+        100.0, "--timeout-ms", help="Lockstep: wait this long for a command before a miss."
+    ),
+    duration: float = typer.Option(
+        0.0, "--duration", help="Stop after this much simulated time [s] (0: until Ctrl-C)."
+    ),
+) -> None:
+    """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""
+    if pacing not in ("realtime", "lockstep"):
+        raise ConfigError("--pacing", pacing, "choose realtime or lockstep")
+    if not 1 <= cycle_ms <= 100:
+        raise ConfigError("--cycle-ms", str(cycle_ms), "the FRI cycle is 1..100 ms")
+    remote_addr = parse_host_port("--remote", remote)
+    faults = FaultSettings(
+        loss=_pct("--loss", loss),
+        delay_s=_ms("--delay-ms", delay_ms),
+        jitter_s=_ms("--jitter-ms", jitter_ms),
+        duplicate=_pct("--duplicate", duplicate),
+        reorder=_pct("--reorder", reorder),
+        corrupt=_pct("--corrupt", corrupt),
+        seed=0 if seed is None else seed,
+    )
+    overrides = [*set_, f"fri.cycle={cycle_ms / 1000.0}"]
+    if scene is None:
+        sc = validate(Scene, apply_overrides({}, overrides), "<paper scene>")
+    else:
+        sc = load_scene(scene, overrides)
+    world = SimWorld(sc, seed=seed)
+    netft: NetFtServer | None = None
+    if netft_port >= 0:
+        netft = NetFtServer.open("0.0.0.0", netft_port, on_bias=world.tare_ft)
+    try:
+        emulator = FriEmulator(
+            world,
+            EmulatorSettings(
+                remote=remote_addr,
+                port=port,
+                pacing="lockstep" if pacing == "lockstep" else "realtime",
+                lockstep_timeout_s=_ms("--timeout-ms", timeout_ms),
+                faults=faults,
+            ),
+            netft,
+        )
+    except BaseException:
+        if netft is not None:
+            netft.close()
+        raise
+    host, lport = emulator.address
+    ft_line = f"Net F/T on 0.0.0.0:{netft.address[1]}" if netft is not None else "no Net F/T"
+    print(
+        f"ffexp emulate: KRC on {host}:{lport} -> remote {remote_addr[0]}:{remote_addr[1]}, "
+        f"{ft_line}, cycle {cycle_ms} ms, {pacing}",
+        file=sys.stderr, flush=True,
+    )
+
+    def handle(_signum: int, _frame: FrameType | None) -> None:
+        emulator.stop()
+
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    for s in old:
+        signal.signal(s, handle)
+    max_cycles = round(duration / sc.fri.cycle) if duration > 0 else None
+    last = [time.monotonic()]
+
+    def status(emu: FriEmulator) -> None:
+        now = time.monotonic()
+        if now - last[0] >= 5.0:
+            last[0] = now
+            st = emu.stats
+            print(
+                f"t={emu.world.time:7.2f} s  {emu.state.name} {emu.quality.name}  "
+                f"answered {st.answered} missed {st.missed} applied {st.applied}",
+                file=sys.stderr, flush=True,
+            )
+
+    try:
+        stats = emulator.run(max_cycles=max_cycles, on_cycle=status)
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        emulator.close()
+    print(f"ffexp emulate: {stats.summary()}", file=sys.stderr, flush=True)

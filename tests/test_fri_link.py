@@ -465,7 +465,7 @@ def test_fri_estimate_sensor_reads_est_ext_tcp_ft() -> None:
 
 def test_no_robot_is_a_timeout_naming_the_address() -> None:
     with driver(connect_timeout_s=0.2) as (robot, _krc):
-        with pytest.raises(DriverTimeoutError, match=r"no FRI packet from 127\.0\.0\.1 on UDP port"):
+        with pytest.raises(DriverTimeoutError, match=r"no FRI packet from 127\.0\.0\.1 on UDP"):
             next(robot.measurements())
 
 
@@ -476,14 +476,14 @@ def test_use_before_connect_and_bad_addresses() -> None:
     with pytest.raises(NotConnectedError):
         robot.send(Command())
     robot.close()
-    with pytest.raises(AddressError, match="--robot-ip 10.0.0"):
+    with pytest.raises(AddressError, match=r"--robot-ip 10\.0\.0"):
         FriRobot(FriSettings(robot_ip="10.0.0"))
     busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     busy.bind((LOCAL, 0))
     try:
         port = busy.getsockname()[1]
         r = FriRobot(FriSettings(robot_ip=LOCAL, port=port, bind_host=LOCAL))
-        with pytest.raises(AddressError, match=f"--fri-port 127.0.0.1:{port}: cannot bind"):
+        with pytest.raises(AddressError, match=rf"--fri-port 127\.0\.0\.1:{port}: cannot bind"):
             r.connect()
         r.close()
     finally:

@@ -400,6 +400,11 @@ class FriRobot(RobotDriver):
 
     # ------------------------------------------------------------ I/O thread
     def _io_loop(self) -> None:
+        # a signalling NaN in a hostile packet would warn on every decode
+        with np.errstate(invalid="ignore"):
+            self._io_loop_inner()
+
+    def _io_loop_inner(self) -> None:
         sock = self._sock
         assert sock is not None
         buf = bytearray(2048)

@@ -246,6 +246,8 @@ class EmulatorStats:
     missed: int = 0
     bridged: int = 0
     """Missed cycles in CMD, bridged by holding the last command."""
+    received: int = 0
+    """Datagrams received on the KRC port (any source)."""
     late: int = 0
     """Commands answering an older packet, dropped."""
     duplicates: int = 0
@@ -569,6 +571,10 @@ class FriEmulator:
 
     def _read_commands(self) -> Command | None:
         """Drain the socket; return the command answering the current packet, if one came."""
+        with np.errstate(invalid="ignore"):  # signalling NaNs in hostile packets
+            return self._read_commands_inner()
+
+    def _read_commands_inner(self) -> Command | None:
         st = self.stats
         remote = self.settings.remote
         view = memoryview(self._buf)
@@ -580,6 +586,7 @@ class FriEmulator:
                 return found
             except OSError:  # ICMP port unreachable: the remote is not (yet) there
                 continue
+            st.received += 1
             if addr[0] != remote[0] or addr[1] != remote[1]:
                 st.foreign += 1
                 continue

@@ -154,6 +154,8 @@ class FrictionResult:
             f"[{f.t_start_s:.3f}, {f.t_end_s:.3f}] s, ended: {self.interval.end_reason}, "
             f"residual {f.residual_std_m * 1e6:.1f} µm, detectable mu {e.mu_detect_limit:.5f}"
         )
+        if e.mu_high < 0.0:
+            tail += "\nwarning: the target speeds up (a tilted table or a push?)"
         return head + "\n" + tail
 
 

@@ -264,9 +264,9 @@ def find_sliding_interval(
 
     - onset: first sample displaced from the rest level by more than
       ``k_onset`` noise (and the next one too);
-    - start: the sample after which the frame-to-frame speed is largest,
-      searched over ``push_window_s`` after the onset (the end of the push);
-      never before the onset;
+    - start: the first sample from the onset on whose frame-to-frame speed
+      is within 3 noise of the largest over ``push_window_s`` (the end of a
+      push of finite length; the onset itself for an impulse);
     - end: if the last ``stop_check_s`` of the track do not move (within
       ``k_onset`` noise), the target stopped, and the window ends just before
       the first sample within ``k_stop`` noise of the final position;
@@ -310,12 +310,17 @@ def find_sliding_interval(
             f"the target does not move (displacement below {thr:.2e} m = {k_onset:g} x noise)"
         )
     onset = int(np.argmax(both))
-    # Start: end of the push = largest frame-to-frame speed shortly after the onset.
+    # Start: the end of the push, i.e. the first sample from which the
+    # frame-to-frame speed no longer rises (within its noise) over the push window.
     speed = np.diff(s) / np.diff(t)
     n_push = max(1, round(push_window_s / dt))
-    lo = max(onset - 1, 0)
     hi = min(onset + n_push, speed.size)
-    start = max(onset, lo + int(np.argmax(speed[lo:hi])))
+    speed_noise = 3.0 * math.sqrt(2.0) * noise / dt
+    start = onset
+    if hi > onset:
+        top = float(np.max(speed[onset:hi]))
+        reach = np.flatnonzero(speed[onset:hi] >= top - speed_noise)
+        start = onset + int(reach[0])
     end = n - 1
     reason: EndReason = "left_frame" if left_frame else "end_of_video"
     n_check = max(3, round(stop_check_s / dt))
@@ -408,7 +413,9 @@ def estimate_friction(
 ) -> FrictionEstimate:
     """Fit the sliding window and turn the deceleration into ``mu``.
 
-    ``significant`` is true when the two-sided interval of ``mu`` excludes 0.
+    ``significant`` is true when the interval of ``mu`` lies above 0
+    (friction detected); an interval below 0 means the target sped up (a
+    tilted table or a push), which is not friction either.
     ``mu_upper_bound`` is ``max(mu, 0) + t_q mu_std``: the upper end of the
     interval, never below the detectability of this window (a negative
     estimate would otherwise give a bound that claims more than the data can
@@ -456,7 +463,7 @@ def estimate_friction(
         mu_upper_bound=max(mu, 0.0) + tq * mu_std,
         mu_detect_limit=tq * sigma_formula / g_mps2,
         sigma_a_formula_mps2=sigma_formula,
-        significant=abs(mu) > tq * mu_std,
+        significant=mu > tq * mu_std,
         t_quantile=tq,
         sigma_x_m=sigma_x,
         dof=dof,

@@ -91,7 +91,8 @@ def synth(
             blur_px=blur_px,
             exposure_s=exposure_s,
             lighting=lighting,
-            marker_dict=marker, start_px=start,
+            marker_dict=marker,
+            start_px=start,
         )
     except ValidationError as exc:
         err = exc.errors()[0]
@@ -130,7 +131,8 @@ def estimate(
         Path | None,
         typer.Option(
             "--table-points",
-            help='JSON {"image_px": [[u,v] x4], "table_m": [[x,y] x4]} for a homography.',
+            help='JSON with "image_px" (u,v pixel points) and "table_m" (the same points on '
+            "the table, x,y in m), at least 4 pairs: scale by a homography.",
         ),
     ] = None,
     marker: Annotated[

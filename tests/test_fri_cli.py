@@ -1,0 +1,165 @@
+"""The command lines: ``ffexp emulate`` and ``ffexp run --driver fri``.
+
+One test runs a paper protocol through the real CLI: ``ffexp emulate
+--pacing lockstep`` and ``ffexp run --driver fri`` as two processes on
+loopback, and compares the outcome with the in-process run. Over FRI there
+is no ground truth, so the in-process run judges alignment from settings as
+well (``alignment.source=settings``). The other tests check that bad input
+gives one error line and a non-zero exit.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from ffexp.analysis import metrics
+from ffexp.cli import app
+from ffexp.experiment import run_file
+from ffexp.recording import load
+
+ROOT = Path(__file__).resolve().parent.parent
+PROTOCOL = ROOT / "protocols" / "method3_impedance.toml"
+FFEXP = Path(sys.executable).parent / "ffexp"
+runner = CliRunner()
+
+
+def free_udp_port() -> int:
+    """A port that was free a moment ago (the two processes need to know each other's)."""
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+    finally:
+        s.close()
+
+
+def one_error_line(result: object, *needles: str) -> None:
+    out = result.stdout + result.stderr  # type: ignore[attr-defined]
+    assert "Traceback" not in out
+    lines = result.stderr.strip().splitlines()  # type: ignore[attr-defined]
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("error: ")
+    for n in needles:
+        assert n in lines[0], lines[0]
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--driver", "fri"], ["--robot-ip", "required"]),
+        (["--driver", "fri", "--robot-ip", "10.0.0"], ["--robot-ip 10.0.0", "IPv4"]),
+        (["--driver", "fri", "--robot-ip", "no such.host"], ["--robot-ip no such.host"]),
+        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--ft", "sim"], ["--ft", "emulator"]),
+        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--ft", "magic"], ["--ft", "magic"]),
+        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--fri-port", "70000"], ["70000"]),
+        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--fri-port", "0",
+          "--netft", "127.0.0.1:x"], ["--netft 127.0.0.1:x", "port"]),
+        (["--ft", "netft"], ["--ft", "--driver sim"]),
+    ],
+)
+def test_run_bad_link_options(args: list[str], needles: list[str], tmp_path: Path) -> None:
+    result = runner.invoke(app, ["run", str(PROTOCOL), "--out", str(tmp_path), *args])
+    assert result.exit_code == 2
+    one_error_line(result, *needles)
+
+
+def test_run_port_in_use_is_one_line(tmp_path: Path) -> None:
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        busy.bind(("0.0.0.0", 0))
+        port = busy.getsockname()[1]
+        result = runner.invoke(app, ["run", str(PROTOCOL), "--out", str(tmp_path), "--driver",
+                                     "fri", "--robot-ip", "127.0.0.1", "--fri-port", str(port)])
+    finally:
+        busy.close()
+    assert result.exit_code == 2
+    one_error_line(result, f"--fri-port 0.0.0.0:{port}", "cannot bind")
+    assert not list(tmp_path.iterdir())  # nothing recorded
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--remote", "127.0.0.1"], ["--remote 127.0.0.1", "HOST:PORT"]),
+        (["--remote", "1.2.3:5"], ["--remote 1.2.3"]),
+        (["--remote", "127.0.0.1:0"], ["port 0"]),
+        (["--remote", "127.0.0.1:5", "--pacing", "fast"], ["--pacing"]),
+        (["--remote", "127.0.0.1:5", "--loss", "120"], ["--loss"]),
+        (["--remote", "127.0.0.1:5", "--cycle-ms", "0"], ["--cycle-ms"]),
+        (["--remote", "127.0.0.1:5", "--scene", "/nonexistent.toml"], ["/nonexistent.toml"]),
+    ],
+)
+def test_emulate_bad_options(args: list[str], needles: list[str]) -> None:
+    result = runner.invoke(app, ["emulate", *args])
+    assert result.exit_code == 2
+    one_error_line(result, *needles)
+
+
+def test_emulate_port_in_use_is_one_line() -> None:
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        busy.bind(("0.0.0.0", 0))
+        port = busy.getsockname()[1]
+        result = runner.invoke(
+            app, ["emulate", "--remote", "127.0.0.1:5", "--netft-port", str(port)]
+        )
+    finally:
+        busy.close()
+    assert result.exit_code == 2
+    one_error_line(result, f"--netft-port 0.0.0.0:{port}")
+
+
+@pytest.mark.slow
+def test_a_paper_protocol_over_the_cli_matches_the_in_process_run(tmp_path: Path) -> None:
+    seed = load_seed()
+    fri_port, netft_port = free_udp_port(), free_udp_port()
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    emulator = subprocess.Popen(
+        [str(FFEXP), "emulate", "--remote", f"127.0.0.1:{fri_port}", "--pacing", "lockstep",
+         "--netft-port", str(netft_port), "--seed", str(seed),
+         "--scene", str(ROOT / "data" / "scenes" / "paper.toml")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )
+    try:
+        run = subprocess.run(
+            [str(FFEXP), "run", str(PROTOCOL), "--driver", "fri", "--fri-port", str(fri_port),
+             "--robot-ip", "127.0.0.1", "--ft", "netft", "--netft", f"127.0.0.1:{netft_port}",
+             "--out", str(tmp_path / "fri")],
+            capture_output=True, text=True, timeout=240, env=env,
+        )
+    finally:
+        emulator.send_signal(signal.SIGTERM)
+        try:
+            _out, emu_err = emulator.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            emulator.kill()
+            _out, emu_err = emulator.communicate()
+    assert run.returncode == 0, run.stderr + emu_err
+    assert emulator.returncode == 0, emu_err
+    assert "Traceback" not in run.stderr + emu_err
+    assert f"fri: listening on 0.0.0.0:{fri_port}" in run.stderr
+    assert "ffexp emulate: cycles" in emu_err
+    match = re.search(r"recording: (\S+)", run.stdout)
+    assert match is not None, run.stdout
+    over_udp = metrics(load(Path(match.group(1))))
+    assert "DONE (aligned)" in run.stdout
+
+    local = run_file(PROTOCOL, ["alignment.source=settings"], driver="sim",
+                     out_dir=tmp_path / "sim")
+    assert local.outcome.aligned
+    assert local.outcome.breaks == over_udp.contact_breaks
+
+
+def load_seed() -> int:
+    from ffexp.protocol import load_run_protocol
+
+    return load_run_protocol(PROTOCOL).seed

@@ -5,13 +5,22 @@ What it does each cycle, as a KRC2 LR with a KRL script would:
 1. send the measurement packet of the world's current state to the remote
    (state, quality and link statistics filled in by the emulator);
 2. wait for the command whose ``reflSeqCount`` is this packet's
-   ``sendSeqCount``: in **real-time** pacing until the next cycle is due
-   (minus the time the physics step needs), in **lockstep** pacing until it
-   comes (or ``lockstep_timeout_s``, then a miss);
+   ``sendSeqCount``: in **lockstep** pacing until it comes (or
+   ``lockstep_timeout_s``, then a miss); in **real-time** pacing until 95 %
+   of the cycle has passed (a reply read after the world's step is stamped
+   when it is read, so latencies above 30 % of the cycle are overestimated
+   by up to the step's duration);
 3. update the statistics over the last 100 packets (:class:`LinkWindow`) and
    the quality (:class:`QualityThresholds`), run the KRL script's state
    machine, and step the world with the command (a missed command is
    bridged: the world holds the last one).
+
+Lockstep steps the world right after the answer, so the answer to packet k
+shapes packet k+1, exactly like the in-process sim. Real time is pipelined
+like a controller that interpolates: the world's step for the next packet
+runs while the remote is answering, with the command that answered the
+previous packet, so the remote has the whole cycle to answer and the answer
+to packet k shapes packet k+2 (one cycle of transport delay).
 
 State machine (the script ``friOpen(ms)``; ``WAIT FOR $FriQuality ==
 #PERFECT``; ``friStart(1.0)``; a loop that waits for the interface to leave
@@ -327,6 +336,16 @@ def plausible_command(c: Command) -> bool:
     return True
 
 
+@dataclass(frozen=True)
+class _Plan:
+    """What one world step does: the interface state during it, the command, its sequence."""
+
+    step_state: FriState
+    command: Command | None
+    seq: int | None
+    stop: bool = False
+
+
 class _FaultyLink:
     """Applies :class:`FaultSettings` to one UDP socket."""
 
@@ -423,12 +442,13 @@ class FriEmulator:
         self._consecutive_ok = 0
         self._consecutive_miss = 0
         self._seq = world.cycle & 0xFFFF
+        self._awaiting = -1
         self._last_cmd_seq: int | None = None
         self._msr = MsrArrays()
         self._pb = new_msr_buffer()
         self._cmd = CmdArrays()
         self._buf = bytearray(2048)
-        self._step_reserve = 0.3 * self.cycle_s
+        self.step_time_s = 0.0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._error: BaseException | None = None
@@ -482,6 +502,7 @@ class FriEmulator:
         st = self.stats
         cycle = self.cycle_s
         waiting_first = self.lockstep
+        plan = _Plan(FriState.MON, None, None)
         t_cycle = time.perf_counter()
         while not self._stop.is_set():
             if max_cycles is not None and st.cycles >= max_cycles:
@@ -490,19 +511,29 @@ class FriEmulator:
             t_send = time.perf_counter()
             self.link.send(data, self.settings.remote, t_send)
             st.sent += 1
+            self._awaiting = self._seq
+            self._seq = seq_next(self._seq)
             if self.lockstep:
-                deadline = t_send + self.settings.lockstep_timeout_s
+                cmd, t_rx = self._wait_command(t_send + self.settings.lockstep_timeout_s)
+                while cmd is None and waiting_first and not self._stop.is_set():
+                    self.link.send(data, self.settings.remote, time.perf_counter())
+                    cmd, t_rx = self._wait_command(time.perf_counter()
+                                                   + self.settings.lockstep_timeout_s)
+                if self._stop.is_set() and cmd is None:
+                    break
+                waiting_first = False
+                self._execute(self._decide(cmd, t_rx - t_send))
             else:
-                deadline = t_cycle + cycle - self._step_reserve
-            cmd, t_rx = self._wait_command(deadline)
-            while cmd is None and waiting_first and not self._stop.is_set():
-                self.link.send(data, self.settings.remote, time.perf_counter())
-                cmd, t_rx = self._wait_command(time.perf_counter()
-                                               + self.settings.lockstep_timeout_s)
-            if self._stop.is_set() and cmd is None:
-                break
-            waiting_first = False
-            self._advance(cmd, t_rx - t_send)
+                # pipelined: the physics of this cycle runs while the remote
+                # answers; its answer is applied in the next cycle's step. A
+                # prompt answer (first 30 % of the cycle) is awaited before the
+                # step, so that its latency is measured, not the step's duration.
+                end = t_cycle + 0.95 * cycle
+                cmd, t_rx = self._wait_command(min(t_send + 0.3 * cycle, end))
+                self._execute(plan)
+                if cmd is None:
+                    cmd, t_rx = self._wait_command(end)
+                plan = self._decide(cmd, t_rx - t_send)
             if on_cycle is not None:
                 on_cycle(self)
             if not self.lockstep:
@@ -605,15 +636,14 @@ class FriEmulator:
                     st.stale += 1
                     continue
             self._last_cmd_seq = s
-            if a.refl_seq != self._seq or found is not None:
+            if a.refl_seq != self._awaiting or found is not None:
                 st.late += 1
                 continue
             found = arrays_to_command(a, self.world.control)
 
-    def _advance(self, cmd: Command | None, latency_s: float) -> None:
-        """Statistics, quality, state machine, one world step."""
+    def _decide(self, cmd: Command | None, latency_s: float) -> _Plan:
+        """Statistics, quality and the script's state machine; what the next step does."""
         st, s = self.stats, self.settings
-        world = self.world
         answered = cmd is not None
         self.window.add(answered, latency_s)
         if answered:
@@ -627,23 +657,12 @@ class FriEmulator:
             self._consecutive_miss += 1
         q = quality_of(self.window, self.cycle_s, s.quality, timing=not self.lockstep)
         self.quality = q
-        m = world.last_measurement
-        apply: Command | None = None
         if self.state == FriState.CMD:
             if q == FriQuality.UNACCEPTABLE or self._consecutive_miss >= s.max_consecutive_misses:
                 st.fallbacks += 1
                 self._consecutive_ok = 0
-                apply = Command(
-                    flags=CmdFlags.CARTPOS | CmdFlags.JNTPOS | CmdFlags.TCPFT | CmdFlags.JNTTRQ,
-                    control=m.control,
-                    jnt_pos=m.msr_jnt_pos.copy(),
-                    cart_pos=m.msr_cart_pos.copy(),
-                )
-                world.fri_state = FriState.CMD
-                self._step(apply, None)
                 self.state = FriState.MON
-                world.fri_state = FriState.MON
-                return
+                return _Plan(FriState.CMD, None, None, stop=True)
             if cmd is None:
                 st.bridged += 1
         elif (
@@ -654,25 +673,30 @@ class FriEmulator:
             self.state = FriState.CMD
             st.starts += 1
             self.link.active = True
-        world.fri_state = self.state
-        world.fri_quality = q
         if cmd is not None and self.state == FriState.CMD:
-            apply = cmd
             if not plausible_command(cmd):
-                self._refuse()
-                return
-        self._step(apply, self._last_cmd_seq if apply is not None else None)
+                st.invalid += 1
+                st.fallbacks += 1
+                self.state = FriState.MON
+                self._consecutive_ok = 0
+                return _Plan(FriState.MON, None, None)
+            return _Plan(FriState.CMD, cmd, self._last_cmd_seq)
+        return _Plan(self.state, None, None)
 
-    def _refuse(self) -> None:
-        """A command the KRC would not take: leave command mode, hold."""
-        st = self.stats
-        st.invalid += 1
-        if self.state == FriState.CMD:
-            st.fallbacks += 1
-        self.state = FriState.MON
-        self._consecutive_ok = 0
-        self.world.fri_state = FriState.MON
-        self._step(None, None)
+    def _execute(self, plan: _Plan) -> None:
+        """One world step as planned; the world's state is the emulator's afterwards."""
+        world = self.world
+        cmd = plan.command
+        if plan.stop:  # leaving CMD: hold the measured pose, no superposed wrench/torque
+            m = world.last_measurement
+            cmd = Command(
+                flags=CmdFlags.CARTPOS | CmdFlags.JNTPOS | CmdFlags.TCPFT | CmdFlags.JNTTRQ,
+                control=m.control, jnt_pos=m.msr_jnt_pos.copy(), cart_pos=m.msr_cart_pos.copy(),
+            )
+        world.fri_state = plan.step_state
+        world.fri_quality = self.quality
+        self._step(cmd, plan.seq)
+        world.fri_state = self.state
 
     def _step(self, cmd: Command | None, seq: int | None) -> None:
         st = self.stats
@@ -694,14 +718,8 @@ class FriEmulator:
             st.applied += 1
             st.applied_seqs.append(seq)
         st.cycles += 1
-        self._seq = seq_next(self._seq)
         if self.netft is not None:
             self.netft.publish(self.world.ft_samples())
         else:
             self.world.ft_samples()
-        dt = time.perf_counter() - t0
-        # real time: keep ~1.5x the recent step time free before the next cycle
-        self._step_reserve = min(0.6 * self.cycle_s,
-                                 max(0.9 * self._step_reserve, 1.5 * dt, 1e-4))
-        if not math.isfinite(self._step_reserve):  # pragma: no cover
-            self._step_reserve = 0.3 * self.cycle_s
+        self.step_time_s = time.perf_counter() - t0

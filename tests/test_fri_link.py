@@ -494,20 +494,25 @@ def test_use_before_connect_and_bad_addresses() -> None:
 
 
 @pytest.mark.slow
-def test_real_time_pacing_keeps_the_cycle_and_reaches_perfect(paper_scene: Scene) -> None:
+def test_real_time_pacing_keeps_the_wall_clock_cycle(paper_scene: Scene) -> None:
+    import time
+
     cmd = constant_command()
     with link(paper_scene, pacing="realtime") as (robot, emu):
-        emu.start_thread(max_cycles=300)
+        emu.start_thread(max_cycles=400)
         got: list[Measurement] = []
+        t0 = time.perf_counter()
         for m in robot.measurements():  # real-time: paced by the emulator's clock
             got.append(m)
             robot.send(cmd)
-            if len(got) == 300:
+            if len(got) == 400:
                 break
+        wall = time.perf_counter() - t0
         emu.join(timeout=30.0)
         st = emu.stats
-    # generous bounds: the machine may be busy (two shared cores)
-    assert st.missed <= 15 and st.overruns <= 15
-    assert st.starts >= 1 and FriState.CMD in {m.state for m in got}
+    # never faster than the wall clock; generous bounds below (two busy shared cores)
+    assert wall >= 0.95 * 399 * 0.005
+    assert st.missed <= 40
     assert got[-1].quality != FriQuality.UNACCEPTABLE
     assert 0.0 < got[-1].latency < 0.005
+    assert got[-1].answer_rate >= 0.9

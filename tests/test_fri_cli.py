@@ -143,7 +143,7 @@ def test_a_paper_protocol_over_the_cli_matches_the_in_process_run(tmp_path: Path
         except subprocess.TimeoutExpired:
             emulator.kill()
             _out, emu_err = emulator.communicate()
-    assert run.returncode == 0, run.stderr + emu_err
+    assert run.returncode == 0, run.stdout[:400] + run.stderr + emu_err
     assert emulator.returncode == 0, emu_err
     assert "Traceback" not in run.stderr + emu_err
     assert f"fri: listening on 0.0.0.0:{fri_port}" in run.stderr

@@ -103,6 +103,8 @@ __all__ = [
 ]
 
 WINDOW: Final = 100
+#: Packets in the window before the link can be rated UNACCEPTABLE.
+MIN_RATED: Final = 10
 _RESTART_JUMP: Final = 100
 
 
@@ -146,7 +148,8 @@ class QualityThresholds:
     * BAD: miss <= ``bad_miss`` (commanding is still allowed);
     * UNACCEPTABLE: more misses than that (the KRC leaves command mode).
 
-    An empty window is BAD; a window not yet full is at most OK.
+    An empty window, or one of fewer than 10 packets that would be
+    UNACCEPTABLE, is BAD; a window not yet full is at most OK.
     """
 
     perfect_latency: float = 0.3
@@ -200,7 +203,8 @@ def quality_of(
     _, lat, jit, miss = window.rates()
     lat_c, jit_c = lat / cycle_s, jit / cycle_s
     if miss > th.bad_miss:
-        return FriQuality.UNACCEPTABLE
+        # a few packets say little: an early miss is BAD, not yet UNACCEPTABLE
+        return FriQuality.UNACCEPTABLE if window.n >= MIN_RATED else FriQuality.BAD
     ok = miss <= th.ok_miss and (not timing or (lat_c <= th.ok_latency and jit_c <= th.ok_jitter))
     if not ok:
         return FriQuality.BAD
@@ -235,7 +239,7 @@ class EmulatorSettings:
     port: int = 0
     bind_host: str = "0.0.0.0"
     pacing: Literal["realtime", "lockstep"] = "realtime"
-    lockstep_timeout_s: float = 0.1
+    lockstep_timeout_s: float = 1.0
     start_cycles: int = 100
     max_consecutive_misses: int = 5
     faults: FaultSettings = field(default_factory=FaultSettings)

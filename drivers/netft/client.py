@@ -12,6 +12,10 @@ from settings: read ``cfgcpf``/``cfgcpt``/``scfgfu``/``scfgtu`` from
 ``http://<box>/netftapi2.xml``). Status words are passed through unchanged
 (the runner aborts on the saturation bit 0x00020000).
 
+While nothing arrives, ``samples()`` repeats the start request every
+``resend_s`` (a request sent before the box was up is simply lost, as
+rpi_ati_net_ft also found).
+
 Sequence tracking on ``rdt_sequence``: gaps (lost datagrams), duplicates and
 reordered (older) datagrams are counted, the last two dropped.
 
@@ -68,6 +72,8 @@ class NetFtSettings:
         mode: ``realtime`` (0x0002) or ``buffered`` (0x0003).
         bind_host, bind_port: local address (port 0: any free port).
         reanchor_s: re-anchor the time stamps when they drift this far from the clock.
+        resend_s: repeat the start request while nothing has come for this long
+            (a request sent before the box was up is lost).
     """
 
     host: str
@@ -78,6 +84,7 @@ class NetFtSettings:
     bind_host: str = "0.0.0.0"
     bind_port: int = 0
     reanchor_s: float = 0.1
+    resend_s: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -93,6 +100,8 @@ class NetFtStats:
     duplicates: int
     stale: int
     reanchors: int
+    requests: int
+    """Start requests sent (more than one: the box did not answer at once)."""
     last_status: int
 
 
@@ -128,6 +137,10 @@ class NetFtClient(ForceTorqueSensor):
         self._duplicates = 0
         self._stale = 0
         self._reanchors = 0
+        self._requests = 0
+        self._last_request = 0.0
+        self._last_rx = 0.0
+        self._start_cmd = RdtCommand.START_REALTIME
         self._last_status = 0
 
     def open(self) -> tuple[str, int]:
@@ -158,7 +171,11 @@ class NetFtClient(ForceTorqueSensor):
         mode = RdtCommand.START_BUFFERED if self.settings.mode == "buffered" else (
             RdtCommand.START_REALTIME
         )
+        self._start_cmd = mode
+        self._last_rx = 0.0
         self._request(mode)
+        self._requests += 1
+        self._last_request = time.monotonic()
         self._running = True
 
     def stop(self) -> None:
@@ -200,6 +217,7 @@ class NetFtClient(ForceTorqueSensor):
             duplicates=self._duplicates,
             stale=self._stale,
             reanchors=self._reanchors,
+            requests=self._requests,
             last_status=self._last_status,
         )
 
@@ -231,12 +249,19 @@ class NetFtClient(ForceTorqueSensor):
                     continue
                 self._lost += d - 1
             self._last_rdt = seq
+            self._last_rx = time.monotonic()
             self._pending.append(rec.words[: rec.n].copy())
 
     def samples(self) -> FtSamples:
         if not self._running or self._sock is None:
             raise NotConnectedError(f"Net F/T {self.host}: samples() before start()")
         self._drain()
+        now = time.monotonic()
+        resend = self.settings.resend_s
+        if now - max(self._last_rx, self._last_request) > resend:
+            self._request(self._start_cmd)  # the box was not up yet, or it stopped
+            self._requests += 1
+            self._last_request = now
         if not self._pending:
             return FtSamples()
         words = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]

@@ -65,7 +65,7 @@ def emulate(
     ),
     set_: list[str] = typer.Option([], "--set", help="Override a scene field (repeatable)."),
     timeout_ms: float = typer.Option(
-        100.0, "--timeout-ms", help="Lockstep: wait this long for a command before a miss."
+        1000.0, "--timeout-ms", help="Lockstep: wait this long for a command before a miss."
     ),
     duration: float = typer.Option(
         0.0, "--duration", help="Stop after this much simulated time [s] (0: until Ctrl-C)."

@@ -16,12 +16,6 @@ from types import FrameType
 
 import typer
 
-from drivers.config import apply_overrides, validate
-from drivers.fri.emulator import EmulatorSettings, FaultSettings, FriEmulator
-from drivers.fri.udp import parse_host_port
-from drivers.netft.emulator import NetFtServer
-from drivers.sim.scene import Scene, load_scene
-from drivers.sim.world import SimWorld
 from ffexp.cli._common import cli_errors
 from ffexp.errors import ConfigError
 
@@ -72,6 +66,14 @@ def emulate(
     ),
 ) -> None:
     """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""
+    # imported here: the other commands need not load the emulator
+    from drivers.config import apply_overrides, validate
+    from drivers.fri.emulator import EmulatorSettings, FaultSettings, FriEmulator
+    from drivers.fri.udp import parse_host_port
+    from drivers.netft.emulator import NetFtServer
+    from drivers.sim.scene import Scene, load_scene
+    from drivers.sim.world import SimWorld
+
     if pacing not in ("realtime", "lockstep"):
         raise ConfigError("--pacing", pacing, "choose realtime or lockstep")
     if not 1 <= cycle_ms <= 100:

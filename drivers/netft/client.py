@@ -29,6 +29,7 @@ clock; host monotonic time if none); later samples are placed by their
 
 from __future__ import annotations
 
+import contextlib
 import select
 import socket
 import time
@@ -259,7 +260,10 @@ class NetFtClient(ForceTorqueSensor):
         now = time.monotonic()
         resend = self.settings.resend_s
         if now - max(self._last_rx, self._last_request) > resend:
-            self._request(self._start_cmd)  # the box was not up yet, or it stopped
+            # the box was not up yet, or it stopped; best effort (the runner's
+            # stale-data watchdog decides when silence is too long)
+            with contextlib.suppress(NotConnectedError):
+                self._request(self._start_cmd)
             self._requests += 1
             self._last_request = now
         if not self._pending:

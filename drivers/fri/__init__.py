@@ -1,4 +1,8 @@
-"""KUKA FRI 1.x (KRC2 LR) back-end: packet codec (:mod:`drivers.fri.codec`).
+"""KUKA FRI 1.x (KRC2 LR) back-end.
 
-The remote-side UDP driver and the controller-side emulator build on the codec.
+:mod:`~drivers.fri.codec` (packets), :mod:`~drivers.fri.convert` (packets <->
+``drivers.base`` objects, the strategy request and lockstep marker),
+:mod:`~drivers.fri.driver` (the remote side over UDP: :class:`FriRobot`,
+:class:`FriEstimateSensor`), :mod:`~drivers.fri.emulator` (the controller side
+over a SimWorld: ``ffexp emulate``), :mod:`~drivers.fri.udp` (addresses, sockets).
 """

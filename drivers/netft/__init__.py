@@ -1,4 +1,6 @@
-"""ATI Net F/T back-end: RDT codec (:mod:`drivers.netft.codec`).
+"""ATI Net F/T back-end.
 
-The UDP client and the sensor emulator build on the codec.
+:mod:`~drivers.netft.codec` (RDT packets, scaling, status bits),
+:mod:`~drivers.netft.client` (the sensor over UDP: :class:`NetFtClient`),
+:mod:`~drivers.netft.emulator` (an emulated box fed by the simulator).
 """

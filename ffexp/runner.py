@@ -117,6 +117,7 @@ class Runner:
         self._t0_ns: int | None = None
         self._tare: list[np.ndarray] = []
         self._hold_pose = np.eye(4)
+        self._last_pose = np.eye(4)
         self._start_pose = np.eye(4)
         self._phase_start_ns = 0
         self._stop_at_ns: int | None = None
@@ -163,6 +164,8 @@ class Runner:
         if phase in (Phase.DONE, Phase.ABORT):
             self.outcome_reason = reason
             self._stop_at_ns = t_ns + int(self.p.run.stop_hold_s * NS)
+            # safe stop: hold where the tool is now, not where the run started
+            self._hold_pose = self._last_pose.copy()
 
     def abort(self, t_ns: int, reason: str) -> None:
         """End the run now with a safe stop."""
@@ -243,6 +246,7 @@ class Runner:
         t_a = clock()
         ft = self.sensor.samples()
         pose = m.msr_cart_pos
+        self._last_pose = pose
         r = pose[:3, :3]
         comp = ft.wrench
         if p.estimation.tool_load.mass_kg > 0.0 and len(ft):
@@ -405,8 +409,6 @@ class Runner:
         cmd.flags = CmdFlags.CARTPOS | CmdFlags.TCPFT | CmdFlags.CARTSTIFF | CmdFlags.CARTDAMP
         cmd.control = ControlMode.CART_IMPEDANCE
         if phase in (Phase.DONE, Phase.ABORT):
-            if self._stop_at_ns is not None and t_ns == self._phase_start_ns:
-                self._hold_pose = m.msr_cart_pos.copy()
             cmd.cart_pos[:] = self._hold_pose
             cmd.add_tcp_ft[:] = 0.0
             cmd.cart_stiffness[:] = krc.hold_stiffness

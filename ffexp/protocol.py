@@ -59,7 +59,12 @@ class KrcSettings(StrictModel):
 class Limits(StrictModel):
     """Safety limits; crossing one ends the run in ABORT with a safe stop."""
 
-    max_force_n: float = Field(30.0, gt=0, description="|f| of any raw F/T sample.")
+    max_force_n: float = Field(
+        60.0,
+        gt=0,
+        description="|f| of any F/T sample (bias removed). The funnels' first slip into "
+        "the seat reaches ~35 N in the simulator; the Mini45 (SI-145-5) reads 145/290 N.",
+    )
     max_torque_nm: float = Field(3.0, gt=0, description="|t| of any raw F/T sample.")
     max_speed_mps: float = Field(0.25, gt=0, description="Tool speed (motion filter).")
     workspace_m: tuple[float, float, float] = Field(

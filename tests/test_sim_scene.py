@@ -48,4 +48,5 @@ def test_stiffness_above_max_rejected(paper_scene_path: Path) -> None:
 def test_explicit_friction_overrides_scale(paper_scene_path: Path) -> None:
     s = load_scene(paper_scene_path, ["arm.coulomb=[1,2,3,4,5,6,7]"])
     assert s.arm.coulomb_friction() == [1, 2, 3, 4, 5, 6, 7]
-    assert s.arm.viscous_friction()[0] == pytest.approx(0.01 * 14.4)
+    # viscous friction still comes from the scale times Jubien's 14.4 N m s/rad (A1)
+    assert s.arm.viscous_friction()[0] == pytest.approx(s.arm.friction_scale * 14.4)

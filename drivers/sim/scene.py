@@ -83,9 +83,11 @@ class ArmSettings(StrictModel):
     q_init: Vec7 = (0.0, -0.3533, 0.0, 1.714, 0.0, 0.4965, 0.0)
     """Initial joint angles [rad]; the paper pose: flange horizontal along
     world +x, flange X up (so TCF X is vertical as in the paper)."""
-    friction_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.01
+    friction_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.001
     """Fraction of Jubien's drive-side friction that remains link-side under
-    the LWR's torque feedback (an assumption, see the issue note)."""
+    the LWR's torque feedback (an assumption). 0.001 puts the TCP breakaway
+    torque about X (~0.01 N m) at the funnel-wedge contact torque, which is
+    what the paper's "no sliding below k_xp = 0.5" implies; see NOTES.md."""
     coulomb: Vec7 | None = None
     """Explicit joint Coulomb friction [N m]; overrides ``friction_scale``."""
     viscous: Vec7 | None = None

@@ -64,7 +64,7 @@ def test_bad_campaign_entry(tmp_path: Path) -> None:
 def test_signal_stops_safely_and_keeps_the_recording(tmp_path: Path, sig: int) -> None:
     proc = subprocess.Popen(
         [sys.executable, "-c", "from ffexp.cli import main; main()", "run",
-         str(ROOT / "protocols/method1_case1.toml"), "--out", str(tmp_path)],
+         str(ROOT / "protocols/method3_impedance.toml"), "--out", str(tmp_path)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     deadline = time.monotonic() + 120

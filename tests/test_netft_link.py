@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import select
 import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -193,6 +194,12 @@ def test_the_fri_emulator_serves_the_simulated_sensor(paper_scene: Scene) -> Non
                                                   pacing="lockstep"), server)
         robot.connect()
         client.start()
+        # the box must have the start request before the first cycle streams (no race
+        # with the emulator thread on a busy machine)
+        ready, _, _ = select.select([server.sock], [], [], 10.0)
+        assert ready
+        server.handle_requests()
+        assert server.client is not None
         emu.start_thread(max_cycles=60)
         got: list[FtSamples] = []
         times = []

@@ -144,7 +144,7 @@ def test_force_spike_aborts_with_safe_stop(tmp_path: Path) -> None:
     def spike(i: int, m: Measurement, ft: FtSamples) -> None:
         m.msr_cart_pos = pose_at(1e-4 * i)  # the tool creeps forward
         if i == 150:
-            ft.wrench[2, :3] = [40.0, 0.0, 0.0]
+            ft.wrench[2, :3] = [80.0, 0.0, 0.0]  # above the 60 N default limit
 
     ms, fts = script(300, extra=spike)
     runner, robot, path = run(tmp_path, ms, fts)

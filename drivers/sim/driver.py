@@ -13,7 +13,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
-from drivers.base.types import Command, FtSamples, Measurement
+from drivers.base.types import Command, FriQuality, FriState, FtSamples, Measurement
 from drivers.errors import NotConnectedError
 from drivers.sim.scene import Scene, load_scene
 from drivers.sim.world import SimWorld
@@ -22,19 +22,36 @@ from drivers.sim.world import SimWorld
 class SimRobot(RobotDriver):
     """LWR4+ over FRI, simulated in lockstep.
 
+    Like a KRL script with ``friOpen``/``friStart`` (and like ``ffexp emulate``
+    in lockstep), the link starts in monitor mode (MON, quality BAD, commands
+    ignored) and enters command mode (CMD, PERFECT) once the remote has
+    answered ``start_cycles`` consecutive cycles; the command of that cycle is
+    the first one applied. ``start_cycles = 0`` starts in CMD.
+
     Args:
         world: the world to step.
         max_cycles: stop yielding after this many cycles (``None``: forever).
+        start_cycles: answered cycles before CMD (100, as a friStart script).
     """
 
-    def __init__(self, world: SimWorld, max_cycles: int | None = None) -> None:
+    def __init__(
+        self, world: SimWorld, max_cycles: int | None = None, start_cycles: int = 100
+    ) -> None:
         self.world = world
         self.max_cycles = max_cycles
+        self.start_cycles = start_cycles
         self._connected = False
         self._command: Command | None = None
+        self._answered = 0
 
     def connect(self) -> None:
         self._connected = True
+        self._answered = 0
+        if self.start_cycles > 0 and self.world.fri_state == FriState.CMD:
+            self.world.fri_state = FriState.MON
+            self.world.fri_quality = FriQuality.BAD
+            m = self.world.last_measurement
+            m.state, m.quality = FriState.MON, FriQuality.BAD
 
     def close(self) -> None:
         self._connected = False
@@ -55,7 +72,12 @@ class SimRobot(RobotDriver):
                 return
             if not self._connected:
                 return
-            m = self.world.step(self._command)
+            self._answered = self._answered + 1 if self._command is not None else 0
+            world = self.world
+            if world.fri_state == FriState.MON and self._answered >= self.start_cycles:
+                world.fri_state = FriState.CMD
+                world.fri_quality = FriQuality.PERFECT
+            m = world.step(self._command)
             self._command = None
 
     def send(self, command: Command) -> None:
@@ -98,9 +120,11 @@ def open_sim(
     seed: int | None = None,
     overrides: Iterable[str] = (),
     max_cycles: int | None = None,
+    start_cycles: int = 100,
 ) -> tuple[SimRobot, SimFtSensor]:
     """Build a world from a scene (object or TOML path) and its robot/sensor pair."""
     if not isinstance(scene, Scene):
         scene = load_scene(Path(scene), overrides)
     world = SimWorld(scene, seed=seed)
-    return SimRobot(world, max_cycles=max_cycles), SimFtSensor(world)
+    robot = SimRobot(world, max_cycles=max_cycles, start_cycles=start_cycles)
+    return robot, SimFtSensor(world)

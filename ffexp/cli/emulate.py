@@ -45,12 +45,12 @@ def emulate(
     pacing: str = typer.Option(
         "realtime", "--pacing", help="realtime (wall clock) or lockstep (step on each answer)."
     ),
-    loss: float = typer.Option(0.0, "--loss", help="Lost datagrams, either direction [%]."),
-    delay_ms: float = typer.Option(0.0, "--delay-ms", help="Added delay of each packet [ms]."),
-    jitter_ms: float = typer.Option(0.0, "--jitter-ms", help="Delay jitter, |N(0, s)| [ms]."),
-    duplicate: float = typer.Option(0.0, "--duplicate", help="Packets sent twice [%]."),
-    reorder: float = typer.Option(0.0, "--reorder", help="Packets overtaken by the next [%]."),
-    corrupt: float = typer.Option(0.0, "--corrupt", help="Packets with damaged bytes [%]."),
+    loss: float = typer.Option(0.0, "--loss", help="Lost datagrams, either direction (%)."),
+    delay_ms: float = typer.Option(0.0, "--delay-ms", help="Added delay of each packet (ms)."),
+    jitter_ms: float = typer.Option(0.0, "--jitter-ms", help="Delay jitter, |N(0, s)| (ms)."),
+    duplicate: float = typer.Option(0.0, "--duplicate", help="Packets sent twice (%)."),
+    reorder: float = typer.Option(0.0, "--reorder", help="Packets overtaken by the next (%)."),
+    corrupt: float = typer.Option(0.0, "--corrupt", help="Packets with damaged bytes (%)."),
     netft_port: int = typer.Option(
         49152, "--netft-port", help="UDP port of the emulated Net F/T box (0 = any, -1 = none)."
     ),
@@ -62,7 +62,7 @@ def emulate(
         1000.0, "--timeout-ms", help="Lockstep: wait this long for a command before a miss."
     ),
     duration: float = typer.Option(
-        0.0, "--duration", help="Stop after this much simulated time [s] (0: until Ctrl-C)."
+        0.0, "--duration", help="Stop after this much simulated time (s) (0: until Ctrl-C)."
     ),
 ) -> None:
     """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""

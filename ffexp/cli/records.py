@@ -11,12 +11,17 @@ from rich.console import Console
 from rich.table import Table
 
 from ffexp.analysis import COMPARE_COLUMNS, compare_rows, metrics, run_info, write_run_figures
-from ffexp.cli._common import cli_errors
+from ffexp.cli._common import cli_errors, plain_table
 from ffexp.errors import InputError
 from ffexp.recording import load, recover
 from ffexp.recording.topics import describe
 
 console = Console(width=170)
+
+
+def compare_table(text_rows: list[list[str]]) -> Table:
+    """The runs side by side, in the layout of the paper's Table (res_par)."""
+    return plain_table("runs", [title for title, _key in COMPARE_COLUMNS], text_rows)
 
 
 def _warn(messages: list[str]) -> None:
@@ -46,14 +51,8 @@ def analyze(
 
 
 def _print_metrics(path: Path, values: dict[str, object]) -> None:
-    table = Table(title=str(path), show_header=False)
-    table.add_column("metric")
-    table.add_column("value", justify="right")
-    for key, value in values.items():
-        if key == "warnings":
-            continue
-        table.add_row(key, _text(value))
-    console.print(table)
+    rows = [(key, _text(value)) for key, value in values.items() if key != "warnings"]
+    console.print(plain_table(str(path), ("metric", "value"), rows, header=False))
 
 
 def _text(v: object) -> str:
@@ -78,12 +77,7 @@ def compare(
         _warn(rec.warnings)
         rows.append((metrics(rec), run_info(rec)))
     text_rows = compare_rows(rows)
-    table = Table(title="runs")
-    for title, _key in COMPARE_COLUMNS:
-        table.add_column(title, justify="right")
-    for row in text_rows:
-        table.add_row(*row)
-    console.print(table)
+    console.print(compare_table(text_rows))
     if csv_path is not None:
         try:
             with csv_path.open("w", newline="") as fh:

@@ -13,8 +13,9 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from ffexp.analysis import COMPARE_COLUMNS, compare_rows, metrics, run_info, write_run_figures
-from ffexp.cli._common import SET_HELP, cli_errors
+from ffexp.analysis import compare_rows, metrics, run_info, write_run_figures
+from ffexp.cli._common import SET_HELP, cli_errors, plain_table
+from ffexp.cli.records import compare_table
 from ffexp.errors import FfexpError
 from ffexp.experiment import DRIVERS, FT_SOURCES, LinkOptions, RunResult, load_campaign, run_file
 from ffexp.recording import load
@@ -73,16 +74,11 @@ def _progress_printer(name: str) -> tuple[Callable[[Progress], None], Callable[[
 
 
 def _summary_table(results: list[RunResult]) -> Table:
-    table = Table(title="runs")
-    for title, _key in COMPARE_COLUMNS:
-        table.add_column(title, justify="right")
     rows = []
     for r in results:
         rec = load(r.path)
         rows.append((metrics(rec), run_info(rec)))
-    for row in compare_rows(rows):
-        table.add_row(*row)
-    return table
+    return compare_table(compare_rows(rows))
 
 
 def _one(
@@ -168,10 +164,9 @@ def campaign(
 
 
 def _paper_table(results: list[RunResult]) -> None:
-    table = Table(title="paper Table res_par vs this run (times since the start of the experiment)")
-    for col in ("run", "f_ref [N]", "k_xp", "k_yp", "paper contact [s]", "ours contact [s]",
-                "paper end [s]", "ours aligned [s]", "ours breaks", "ours end"):
-        table.add_column(col, justify="right")
+    columns = ("run", "f_ref [N]", "k_xp", "k_yp", "paper contact [s]", "ours contact [s]",
+               "paper end [s]", "ours aligned [s]", "ours breaks", "ours end")
+    rows = []
     for r in results:
         paper = r.protocol.paper
         start = paper.get("start_s")
@@ -186,7 +181,7 @@ def _paper_table(results: list[RunResult]) -> None:
 
         k_ri = r.protocol.align.k_ri
         force = r.protocol.method != "impedance"
-        table.add_row(
+        rows.append((
             r.protocol.name,
             f"{r.protocol.align.f_ref[2]:g}" if force else "-",
             f"{k_ri[3]:g}" if force else "-",
@@ -197,8 +192,9 @@ def _paper_table(results: list[RunResult]) -> None:
             "-" if m.alignment_time_s is None else f"{m.alignment_time_s:.1f}",
             str(m.contact_breaks),
             r.outcome.reason or r.outcome.phase.name,
-        )
-    console.print(table)
+        ))
+    title = "paper Table res_par vs this run (times since the start of the experiment)"
+    console.print(plain_table(title, columns, rows))
 
 
 def _campaign_figures(results: list[RunResult], out_dir: Path) -> list[Path]:

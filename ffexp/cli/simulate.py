@@ -7,10 +7,9 @@ from pathlib import Path
 import typer
 from pydantic import ValidationError
 from rich.console import Console
-from rich.table import Table
 
 from drivers.config import load_model
-from ffexp.cli._common import SET_HELP, cli_errors
+from ffexp.cli._common import SET_HELP, cli_errors, plain_table
 from ffexp.contact1dof import ContactParams, Summary, simulate, summarize
 from ffexp.errors import ConfigError
 from ffexp.sweep import SUMMARY_COLUMNS, SweepProtocol, run_sweep, summary_rows, write_outputs
@@ -27,15 +26,15 @@ _D = ContactParams()
 @app.command("contact-1dof")
 @cli_errors
 def contact_1dof(
-    m_ri: float = typer.Option(_D.m_ri, "--m-ri", help="Manipulator mass [kg]."),
-    m_t: float = typer.Option(_D.m_t, "--m-t", help="Target mass [kg]."),
-    k_ri: float = typer.Option(_D.k_ri, "--k-ri", help="Manipulator stiffness [N/m]."),
-    b_ri: float = typer.Option(_D.b_ri, "--b-ri", help="Manipulator damping [N s/m]."),
-    k_c: float = typer.Option(_D.k_c, "--k-c", help="Contact stiffness [N/m]."),
-    b_c: float = typer.Option(_D.b_c, "--b-c", help="Contact damping [N s/m]."),
-    v0: float = typer.Option(_D.v0, "--v0", help="Initial manipulator velocity [m/s]."),
-    duration: float = typer.Option(3.0, "--duration", help="Simulated time [s]."),
-    dt: float = typer.Option(0.001, "--dt", help="Output sample period [s]."),
+    m_ri: float = typer.Option(_D.m_ri, "--m-ri", help="Manipulator mass (kg)."),
+    m_t: float = typer.Option(_D.m_t, "--m-t", help="Target mass (kg)."),
+    k_ri: float = typer.Option(_D.k_ri, "--k-ri", help="Manipulator stiffness (N/m)."),
+    b_ri: float = typer.Option(_D.b_ri, "--b-ri", help="Manipulator damping (N s/m)."),
+    k_c: float = typer.Option(_D.k_c, "--k-c", help="Contact stiffness (N/m)."),
+    b_c: float = typer.Option(_D.b_c, "--b-c", help="Contact damping (N s/m)."),
+    v0: float = typer.Option(_D.v0, "--v0", help="Initial manipulator velocity (m/s)."),
+    duration: float = typer.Option(3.0, "--duration", help="Simulated time (s)."),
+    dt: float = typer.Option(0.001, "--dt", help="Output sample period (s)."),
     unilateral: bool = typer.Option(
         False, "--unilateral", help="Contact only pushes (F_c clamped at 0)."
     ),
@@ -93,11 +92,7 @@ def sweep(
         paths = write_outputs(proto, results, out)
     except OSError as exc:
         raise ConfigError(str(out), "", f"cannot write: {exc.strerror}") from None
-    table = Table(title=f"{proto.name}: {proto.description}".rstrip(": "))
-    for col in SUMMARY_COLUMNS:
-        table.add_column(col, justify="right")
-    for row in summary_rows(results):
-        table.add_row(*row)
-    Console(width=160).print(table)
+    title = f"{proto.name}: {proto.description}".rstrip(": ")
+    Console(width=160).print(plain_table(title, SUMMARY_COLUMNS, summary_rows(results)))
     for path in paths:
         typer.echo(f"wrote {path}")

@@ -108,3 +108,24 @@ def test_method3_impedance_breaks_contact_repeatedly(tmp_path: Path) -> None:
     assert m.first_contact_s is not None
     assert m.contact_breaks >= 2
     assert m.aborted is None
+
+
+def smallest_aligning_f_ref(tmp_path: Path, name: str, grid: list[float]) -> float | None:
+    for f_ref in sorted(grid):
+        path, _ = run_protocol(
+            tmp_path, name, f"align.f_ref=[0,0,{f_ref},0,0,0]", "run.timeout_s=20"
+        )
+        if metrics(load(path)).aligned:
+            return f_ref
+    return None
+
+
+@pytest.mark.slow
+def test_inertia_reduction_aligns_with_less_force(tmp_path: Path) -> None:
+    """The paper's finding: the smallest f_ref that aligns is larger without
+    apparent inertia reduction (Method II) than with it (Method I case I)."""
+    grid = [0.8, 1.2, 1.5]
+    with_ri = smallest_aligning_f_ref(tmp_path, "method1_case1", grid)
+    without = smallest_aligning_f_ref(tmp_path, "method2", grid)
+    assert with_ri is not None
+    assert without is None or without > with_ri

@@ -135,6 +135,7 @@ class Runner:
             protocol.align.f_ref, dtype=np.float64
         )
         self.force_terms: ForceControlTerms | None = None
+        self._no_terms = ForceControlTerms()  # zeros, for cycles without force control
         #: Wall time spent per part of the loop [s] (for the benchmark; cheap).
         self.timings: dict[str, float] = dict.fromkeys(
             ("driver", "sensor", "estimation", "control", "recording"), 0.0
@@ -439,27 +440,7 @@ class Runner:
     ) -> None:
         rec = self.rec
         log_ns = self._log_ns(t_ns)
-        r = rec.record("/robot/measurement")
-        r["msr_jnt_pos"] = m.msr_jnt_pos
-        r["cmd_jnt_pos"] = m.cmd_jnt_pos
-        r["cmd_jnt_pos_fri_offset"] = m.cmd_jnt_pos_fri_offset
-        r["msr_cart_pos"] = m.msr_cart_pos.reshape(-1)
-        r["cmd_cart_pos"] = m.cmd_cart_pos.reshape(-1)
-        r["msr_jnt_trq"] = m.msr_jnt_trq
-        r["est_ext_jnt_trq"] = m.est_ext_jnt_trq
-        r["est_ext_tcp_ft"] = m.est_ext_tcp_ft
-        r["jacobian"] = m.jacobian.reshape(-1)
-        r["mass_matrix"] = m.mass_matrix.reshape(-1)
-        r["gravity"] = m.gravity
-        r["temperature"] = m.temperature
-        r["seq"] = m.seq & 0xFFFFFFFF
-        r["state"] = int(m.state)
-        r["quality"] = int(m.quality)
-        r["control"] = int(m.control)
-        r["power"] = m.power
-        r["error"] = m.error
-        r["warning"] = m.warning
-        rec.write("/robot/measurement", log_ns)
+        rec.write_fields("/robot/measurement", log_ns, m)
 
         r = rec.record("/robot/link")
         r["answer_rate"] = m.answer_rate
@@ -493,19 +474,12 @@ class Runner:
         rec.write("/estimator/state", log_ns)
 
         r = rec.record("/control/terms")
-        terms = self.force_terms
-        if terms is not None:
-            r["p"] = terms.p
-            r["i"] = terms.i
-            r["ri"] = terms.ri
-            r["ff"] = terms.ff
-            r["saturated"] = int(terms.saturated)
-        else:
-            r["p"] = 0.0
-            r["i"] = 0.0
-            r["ri"] = 0.0
-            r["ff"] = 0.0
-            r["saturated"] = 0
+        terms = self.force_terms or self._no_terms
+        r["p"] = terms.p
+        r["i"] = terms.i
+        r["ri"] = terms.ri
+        r["ff"] = terms.ff
+        r["saturated"] = int(terms.saturated)
         r["impedance"] = self._impedance_wrench
         r["total"] = total
         r["f_ref"] = self._f_ref
@@ -513,34 +487,10 @@ class Runner:
         r["phase"] = int(self.phase)
         rec.write("/control/terms", log_ns)
 
-        cmd = self._cmd
-        r = rec.record("/robot/command")
-        r["jnt_pos"] = cmd.jnt_pos
-        r["cart_pos"] = cmd.cart_pos.reshape(-1)
-        r["add_jnt_trq"] = cmd.add_jnt_trq
-        r["add_tcp_ft"] = cmd.add_tcp_ft
-        r["jnt_stiffness"] = cmd.jnt_stiffness
-        r["jnt_damping"] = cmd.jnt_damping
-        r["cart_stiffness"] = cmd.cart_stiffness
-        r["cart_damping"] = cmd.cart_damping
-        r["flags"] = int(cmd.flags)
-        r["control"] = int(cmd.control)
-        rec.write("/robot/command", log_ns)
-
+        rec.write_fields("/robot/command", log_ns, self._cmd)
         truth = m.truth
         if truth is not None:
-            r = rec.record("/sim/truth")
-            r["target_pose"] = truth.target_pose.reshape(-1)
-            r["target_twist"] = truth.target_twist
-            r["contact_wrench"] = truth.contact_wrench
-            r["tcp_twist"] = truth.tcp_twist
-            r["lateral_error"] = truth.lateral_error
-            r["vertical_error"] = truth.vertical_error
-            r["yaw_error"] = truth.yaw_error
-            r["insertion"] = truth.insertion
-            r["seated"] = int(truth.seated)
-            r["in_contact"] = int(truth.in_contact)
-            rec.write("/sim/truth", log_ns)
+            rec.write_fields("/sim/truth", log_ns, truth)
 
         if t_ns >= self._next_tf_ns:
             self._next_tf_ns = t_ns + int(self.p.run.tf_period_s * NS)

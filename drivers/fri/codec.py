@@ -56,6 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from drivers.base.types import CmdFlags, ControlMode, FriQuality, FriState
+from drivers.counters import OutcomeCounts
 from drivers.errors import MalformedPacketError, PacketEncodeError
 
 __all__ = [
@@ -304,46 +305,11 @@ class DecodeStatus(IntEnum):
     WRONG_PACKET_SIZE = 4
 
 
-class DecodeStats:
+class DecodeStats(OutcomeCounts[DecodeStatus]):
     """Counts of decoded datagrams per :class:`DecodeStatus`; for a driver's health report."""
 
-    __slots__ = ("counts",)
-
-    def __init__(self) -> None:
-        self.counts: list[int] = [0] * len(DecodeStatus)
-
-    def add(self, status: DecodeStatus) -> None:
-        """Count one datagram with outcome ``status``."""
-        self.counts[status] += 1
-
-    def __getitem__(self, status: DecodeStatus) -> int:
-        return self.counts[status]
-
-    @property
-    def ok(self) -> int:
-        """Datagrams accepted."""
-        return self.counts[DecodeStatus.OK]
-
-    @property
-    def total(self) -> int:
-        """Datagrams seen."""
-        return sum(self.counts)
-
-    @property
-    def rejected(self) -> int:
-        """Datagrams rejected for any reason."""
-        return self.total - self.ok
-
-    def as_dict(self) -> dict[str, int]:
-        """``{"ok": n, "too_short": n, ...}`` for logs."""
-        return {s.name.lower(): self.counts[s] for s in DecodeStatus}
-
-    def reset(self) -> None:
-        """Set every count to zero."""
-        self.counts[:] = [0] * len(DecodeStatus)
-
-    def __repr__(self) -> str:
-        return f"DecodeStats({self.as_dict()})"
+    __slots__ = ()
+    outcomes = DecodeStatus
 
 
 _OK, _TOO_SHORT, _TOO_LONG = DecodeStatus.OK, DecodeStatus.TOO_SHORT, DecodeStatus.TOO_LONG

@@ -25,6 +25,7 @@ from typing import Final, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from drivers.counters import OutcomeCounts
 from drivers.errors import MalformedPacketError, PacketEncodeError
 
 __all__ = [
@@ -234,13 +235,14 @@ class RdtDecodeStatus(IntEnum):
     TOO_MANY = 3  # more than MAX_RECORDS records
 
 
-class RdtDecodeStats:
+class RdtDecodeStats(OutcomeCounts[RdtDecodeStatus]):
     """Counts of response datagrams per :class:`RdtDecodeStatus`, and of records accepted."""
 
-    __slots__ = ("counts", "records")
+    __slots__ = ("records",)
+    outcomes = RdtDecodeStatus
 
     def __init__(self) -> None:
-        self.counts: list[int] = [0] * len(RdtDecodeStatus)
+        super().__init__()
         self.records = 0
 
     def add(self, status: RdtDecodeStatus, records: int = 0) -> None:
@@ -248,37 +250,14 @@ class RdtDecodeStats:
         self.counts[status] += 1
         self.records += records
 
-    def __getitem__(self, status: RdtDecodeStatus) -> int:
-        return self.counts[status]
-
-    @property
-    def ok(self) -> int:
-        """Datagrams accepted."""
-        return self.counts[RdtDecodeStatus.OK]
-
-    @property
-    def total(self) -> int:
-        """Datagrams seen."""
-        return sum(self.counts)
-
-    @property
-    def rejected(self) -> int:
-        """Datagrams rejected for any reason."""
-        return self.total - self.ok
-
     def as_dict(self) -> dict[str, int]:
         """``{"ok": n, "empty": n, ..., "records": n}`` for logs."""
-        d = {s.name.lower(): self.counts[s] for s in RdtDecodeStatus}
-        d["records"] = self.records
-        return d
+        return {**super().as_dict(), "records": self.records}
 
     def reset(self) -> None:
         """Set every count to zero."""
-        self.counts[:] = [0] * len(RdtDecodeStatus)
+        super().reset()
         self.records = 0
-
-    def __repr__(self) -> str:
-        return f"RdtDecodeStats({self.as_dict()})"
 
 
 def _nbytes(buf: BytesLike) -> int:

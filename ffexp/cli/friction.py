@@ -154,10 +154,25 @@ def estimate(
     ] = None,
 ) -> None:
     """Estimate the friction coefficient from a video of the target sliding freely."""
-    from ffexp.friction.estimate import Scale, estimate_video
+    from ffexp.friction.estimate import FrictionResult, Scale, estimate_video
+    from ffexp.friction.track import ProgressFn
 
     scale = Scale(px_per_m=px_per_m, object_size_m=object_size_m, table_points=table_points)
     show = sys.stderr.isatty() if progress is None else progress
+
+    def run(tick: ProgressFn | None) -> FrictionResult:
+        return estimate_video(
+            video,
+            scale,
+            marker_dict=marker,
+            marker_id=marker_id,
+            start_s=start,
+            end_s=end,
+            fps=fps,
+            confidence=confidence,
+            progress=tick,
+        )
+
     if show:
         from rich.console import Console
         from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -175,28 +190,9 @@ def estimate(
             def tick(done: int, total: int) -> None:
                 bar.update(task, completed=done, total=total or None)
 
-            result = estimate_video(
-                video,
-                scale,
-                marker_dict=marker,
-                marker_id=marker_id,
-                start_s=start,
-                end_s=end,
-                fps=fps,
-                confidence=confidence,
-                progress=tick,
-            )
+            result = run(tick)
     else:
-        result = estimate_video(
-            video,
-            scale,
-            marker_dict=marker,
-            marker_id=marker_id,
-            start_s=start,
-            end_s=end,
-            fps=fps,
-            confidence=confidence,
-        )
+        result = run(None)
     if plot is not None:
         from ffexp.friction.plot import plot_result
 

@@ -88,6 +88,7 @@ class Recorder:
         self._last_flush = clock()
         self._channels: dict[str, int] = {}
         self._records: dict[str, np.ndarray] = {}
+        self._names: dict[str, tuple[str, ...]] = {}
         self._seq: dict[str, int] = {}
         self.message_count = 0
         self.finished = False
@@ -134,6 +135,22 @@ class Recorder:
     def write(self, topic: str, time_ns: int) -> None:
         """Write the current contents of :meth:`record` for ``topic``."""
         self._add(topic, time_ns, self._records[topic].tobytes())
+
+    def write_fields(self, topic: str, time_ns: int, source: object) -> None:
+        """Write a CDR topic whose fields are attributes of ``source`` by the same
+        names (arrays are flattened row-major, e.g. a 4x4 pose into 16 numbers)."""
+        rec = self.record(topic)
+        for name in self._field_names(topic):
+            value = getattr(source, name)
+            rec[name] = value.reshape(-1) if isinstance(value, np.ndarray) else value
+        self.write(topic, time_ns)
+
+    def _field_names(self, topic: str) -> tuple[str, ...]:
+        names = self._names.get(topic)
+        if names is None:
+            names = tuple(f.name for f in CDR_TOPICS[topic].spec.fields)
+            self._names[topic] = names
+        return names
 
     def write_records(self, topic: str, times_ns: np.ndarray, records: np.ndarray) -> None:
         """Write many messages of one CDR topic (e.g. all F/T samples of a cycle)."""

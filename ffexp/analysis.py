@@ -74,10 +74,6 @@ def _json_default(x: object) -> object:
     raise TypeError(type(x).__name__)
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
 @dataclass
 class RunSeries:
     """Per-cycle series of a run, aligned on the controller cycles."""

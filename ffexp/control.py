@@ -46,7 +46,6 @@ FloatArray = NDArray[np.float64]
 Vec6 = tuple[float, float, float, float, float, float]
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
-ZERO6: Vec6 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 class ForceControlConfig(StrictModel):

@@ -1,28 +1,30 @@
-"""Device interfaces and the data types they exchange."""
+"""Robot-neutral device interfaces and the data types they exchange."""
 
 from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
 from drivers.base.types import (
-    CmdFlags,
-    Command,
-    ControlMode,
-    FriQuality,
-    FriState,
+    NS_PER_S,
+    AppliedCommand,
+    ApplyStatus,
+    CartesianCommand,
+    Extras,
     FtSamples,
     FtStatus,
     GroundTruth,
-    Measurement,
+    LinkHealth,
+    RobotState,
 )
 
 __all__ = [
-    "CmdFlags",
-    "Command",
-    "ControlMode",
+    "NS_PER_S",
+    "AppliedCommand",
+    "ApplyStatus",
+    "CartesianCommand",
+    "Extras",
     "ForceTorqueSensor",
-    "FriQuality",
-    "FriState",
     "FtSamples",
     "FtStatus",
     "GroundTruth",
-    "Measurement",
+    "LinkHealth",
     "RobotDriver",
+    "RobotState",
 ]

@@ -1,11 +1,11 @@
-"""The device interfaces the runner uses; every back-end implements these.
+"""The device interfaces the experiment loop uses; every back-end implements these.
 
-The runner's loop, per FRI cycle::
+The loop, per robot cycle (``ffexp/loop.py``)::
 
-    for m in robot.measurements():     # blocks until the next cycle (sim: steps physics)
-        ft = sensor.samples()           # every sample since the last call
+    for state in robot.measurements():  # blocks until the next cycle (sim: steps physics)
+        ft = sensor.samples()            # every sample since the last call
         ...
-        robot.send(cmd)
+        applied = robot.send(cmd)        # what the robot really applies, beside cmd
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ import abc
 from collections.abc import Iterator
 from types import TracebackType
 
-from drivers.base.types import Command, FtSamples, Measurement
+from drivers.base.types import AppliedCommand, CartesianCommand, FtSamples, RobotState
 
 
 class RobotDriver(abc.ABC):
-    """A robot clocked by its controller (FRI): one measurement per cycle, one command back."""
+    """A robot clocked by its controller: one state per cycle, one command back."""
 
     @abc.abstractmethod
     def connect(self) -> None:
@@ -33,8 +33,8 @@ class RobotDriver(abc.ABC):
     def connected(self) -> bool: ...
 
     @abc.abstractmethod
-    def measurements(self) -> Iterator[Measurement]:
-        """Yield one :class:`Measurement` per controller cycle until closed.
+    def measurements(self) -> Iterator[RobotState]:
+        """Yield one :class:`RobotState` per controller cycle until closed.
 
         Raises :class:`~drivers.errors.NotConnectedError` if not connected,
         :class:`~drivers.errors.DriverTimeoutError` if a cycle does not come,
@@ -42,8 +42,15 @@ class RobotDriver(abc.ABC):
         """
 
     @abc.abstractmethod
-    def send(self, command: Command) -> None:
-        """Answer the current cycle. A cycle without an answer repeats the last command."""
+    def send(self, command: CartesianCommand | None) -> AppliedCommand:
+        """Answer the current cycle; return what the robot really gets.
+
+        ``None`` keeps the robot's own set-point (FRI: mirror the commanded
+        position). While the link is not commanding, a driver sends what its
+        protocol requires (FRI mirrors) and says so in the returned status.
+        The driver copies what it keeps: the caller may reuse ``command``.
+        A cycle without an answer repeats the last command.
+        """
 
     def __enter__(self) -> RobotDriver:
         self.connect()

@@ -1,30 +1,32 @@
-"""Data exchanged with the robot and the F/T sensor, in ffexp's conventions.
+"""Robot-neutral data exchanged between the experiment and any device back-end.
 
-Plain dataclasses holding numpy arrays (no validation per cycle). They carry
-the fields of an FRI 1.x measurement / command packet one to one, converted
-to our conventions (``../shared/design/CONVENTIONS.md``):
+Plain dataclasses holding numpy arrays (no validation per cycle), in ffexp's
+conventions (``docs/conventions.md``):
 
-* poses are 4x4 homogeneous matrices (FRI: 12 floats, row-major 3x4);
-* wrenches are ``[fx, fy, fz, tx, ty, tz]`` in the TCF, SI units (FRI sends
-  ``[Fx, Fy, Fz, Tz, Ty, Tx]``);
-* Cartesian stiffness/damping are ``[x, y, z, rx, ry, rz]`` (FRI:
-  ``[x, y, z, A(rz), B(ry), C(rx)]``);
-* the Jacobian is 6x7 with rows ``[vx, vy, vz, wx, wy, wz]`` in the TCF (FRI
-  rows ``[X, Y, Z, RZ, RY, RX]``);
-* a measured wrench is the wrench the environment exerts on the tool.
+* poses are 4x4 homogeneous matrices in the robot's base frame, translation in m;
+* wrenches are ``[fx, fy, fz, tx, ty, tz]`` in the tool frame (TCF) at the TCP,
+  in N and N m; a measured wrench is what the environment exerts on the tool;
+* twists are ``[vx, vy, vz, wx, wy, wz]`` in the TCF, in m/s and rad/s;
+* Cartesian stiffness and damping are per TCF axis ``[x, y, z, rx, ry, rz]``.
 
-The UDP codec (a later issue) does the reordering; nothing else changes.
+Nothing here is specific to one robot or link: what only one back-end has
+(FRI's packet fields, a simulator's ground truth) travels in
+:attr:`RobotState.extras` / :attr:`AppliedCommand.extras`, typed by that
+back-end, or in :attr:`RobotState.truth` (simulators only).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import IntEnum, IntFlag
+from enum import IntFlag
 
 import numpy as np
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
+
+#: Nanoseconds per second: the one definition (log times are integer ns).
+NS_PER_S = 1_000_000_000
 
 
 def _zeros(n: int) -> F64:
@@ -35,50 +37,8 @@ def _eye4() -> F64:
     return np.eye(4, dtype=np.float64)
 
 
-class FriState(IntEnum):
-    """``intf.state`` (friComm FRI_STATE)."""
-
-    INVALID = -1
-    OFF = 0
-    MON = 1
-    CMD = 2
-
-
-class FriQuality(IntEnum):
-    """``intf.quality`` (friComm FRI_QUALITY). BAD, OK and PERFECT allow commanding."""
-
-    INVALID = -1
-    UNACCEPTABLE = 0
-    BAD = 1
-    OK = 2
-    PERFECT = 3
-
-
-class ControlMode(IntEnum):
-    """``robot.control`` (friComm FRI_CTRL); the KRL strategy is 10/20/30 for 1/2/3."""
-
-    OTHER = 0
-    JOINT_POSITION = 1
-    CART_IMPEDANCE = 2
-    JOINT_IMPEDANCE = 3
-
-
-class CmdFlags(IntFlag):
-    """``cmd.cmdFlags``: which command fields the KRC takes this cycle (friComm)."""
-
-    NONE = 0
-    JNTPOS = 0x0001
-    JNTTRQ = 0x0004
-    JNTSTIFF = 0x0010
-    JNTDAMP = 0x0020
-    CARTPOS = 0x0100
-    TCPFT = 0x0400
-    CARTSTIFF = 0x1000
-    CARTDAMP = 0x2000
-
-
 class FtStatus(IntFlag):
-    """Net F/T RDT status word bits (0 = healthy); see the fact sheet."""
+    """Status word of an F/T sample (Net F/T RDT bits; 0 = healthy); see the fact sheet."""
 
     OK = 0
     MONITOR_LATCHED = 0x00010000
@@ -86,26 +46,32 @@ class FtStatus(IntFlag):
     ERROR = 0x80000000
 
 
-#: Bits of :attr:`Measurement.warning` that the simulator sets.
-WARN_STIFFNESS_CLIPPED = 0x0001
-WARN_TORQUE_LIMIT = 0x0002
-WARN_VELOCITY_LIMIT = 0x0004
-WARN_POSITION_LIMIT = 0x0008
+class Extras:
+    """Base of back-end specific data carried beside the neutral fields.
+
+    Each back-end subclasses it (FRI: the whole ``tFriMsrData``; the wire
+    command). The run log records an extras object on the topics it names in
+    :meth:`topics`, filling each topic's fields from same-named attributes.
+    """
+
+    def topics(self) -> tuple[str, ...]:
+        """Recording topics whose fields are attributes of this object."""
+        return ()
 
 
 @dataclass
 class GroundTruth:
-    """What only a simulator knows, attached to a measurement (``None`` on hardware).
+    """What only a simulator knows, attached to a robot state (``None`` on hardware).
 
     World frame: z up, the bed plane is horizontal.
     """
 
     target_pose: F64 = field(default_factory=_eye4)
-    """4x4 pose of the target block's centre in the world frame."""
+    """4x4 pose of the target block's centre in the world frame [m]."""
     target_twist: F64 = field(default_factory=lambda: _zeros(3))
     """``[vx, vy, wz]`` of the target in the world frame [m/s, rad/s]."""
     contact_wrench: F64 = field(default_factory=lambda: _zeros(6))
-    """True wrench the target funnel exerts on the tool, TCF at the TCP."""
+    """True wrench the target funnel exerts on the tool, TCF at the TCP [N, N m]."""
     lateral_error: float = 0.0
     """Tool tip offset from the target funnel axis, horizontal [m] (signed, funnel y)."""
     vertical_error: float = 0.0
@@ -115,86 +81,104 @@ class GroundTruth:
     insertion: float = 0.0
     """Tool tip depth past the funnel mouth along the funnel axis [m]."""
     seated: bool = False
+    """The simulator's own seating test (reported, not used as the verdict)."""
     in_contact: bool = False
     tcp_twist: F64 = field(default_factory=lambda: _zeros(6))
-    """True TCP twist ``[v, w]`` in the TCF."""
+    """True TCP twist ``[v, w]`` in the TCF [m/s, rad/s]."""
 
 
 @dataclass
-class Measurement:
-    """One FRI measurement packet (``tFriMsrData``) in our conventions."""
+class LinkHealth:
+    """The link to the robot as the experiment needs to know it, this cycle."""
 
-    seq: int = 0
-    """``head.sendSeqCount`` (uint16 on the wire, unbounded here)."""
-    time_ns: int = 0
-    """Time of the cycle [ns] (sim time, or KRC ``intf.timestamp``)."""
-    state: FriState = FriState.CMD
-    quality: FriQuality = FriQuality.PERFECT
-    control: ControlMode = ControlMode.CART_IMPEDANCE
-    msr_sample_time: float = 0.005
-    cmd_sample_time: float = 0.005
-    safety_limits: float = 1.0
-    answer_rate: float = 1.0
-    latency: float = 0.0
-    jitter: float = 0.0
-    miss_rate: float = 0.0
-    miss_counter: int = 0
-    power: int = 0x7F
-    error: int = 0
-    warning: int = 0
-    temperature: F64 = field(default_factory=lambda: _zeros(7))
-    msr_jnt_pos: F64 = field(default_factory=lambda: _zeros(7))
-    msr_cart_pos: F64 = field(default_factory=_eye4)
-    cmd_jnt_pos: F64 = field(default_factory=lambda: _zeros(7))
-    cmd_jnt_pos_fri_offset: F64 = field(default_factory=lambda: _zeros(7))
-    cmd_cart_pos: F64 = field(default_factory=_eye4)
-    cmd_cart_pos_fri_offset: F64 = field(default_factory=_eye4)
-    msr_jnt_trq: F64 = field(default_factory=lambda: _zeros(7))
-    est_ext_jnt_trq: F64 = field(default_factory=lambda: _zeros(7))
-    """External joint torques the environment exerts [N m]."""
-    est_ext_tcp_ft: F64 = field(default_factory=lambda: _zeros(6))
-    """External wrench on the tool estimated from joint torques, TCF at the TCP."""
-    jacobian: F64 = field(default_factory=lambda: np.zeros((6, 7)))
-    mass_matrix: F64 = field(default_factory=lambda: np.zeros((7, 7)))
-    gravity: F64 = field(default_factory=lambda: _zeros(7))
-    krl_real: F64 = field(default_factory=lambda: _zeros(16))
-    krl_int: NDArray[np.int32] = field(default_factory=lambda: np.zeros(16, dtype=np.int32))
-    krl_bool: int = 0
-    truth: GroundTruth | None = None
+    commanding: bool = True
+    """The robot applies the commands it receives (FRI: state CMD)."""
+    healthy: bool = True
+    """The link's quality allows commanding (FRI: quality above UNACCEPTABLE)."""
+    cycle: int = 0
+    """The robot's cycle counter (unbounded)."""
+    cycle_s: float = 0.005
+    """The robot's control cycle [s]."""
 
 
 @dataclass
-class Command:
-    """One FRI command packet (``tFriCmdData``) in our conventions.
+class RobotState:
+    """One cycle of a robot, robot-neutral.
 
-    Only the fields selected by :attr:`flags` are taken, as on the KRC; the
-    others keep their previous value. :attr:`control` is the strategy the
-    KRL script switches to (carried in ``krl.intData`` by the UDP codec).
+    ``time_ns`` is the robot's clock (simulated time, or the controller's
+    timestamp); the experiment's log time is derived from it.
     """
 
-    flags: CmdFlags = CmdFlags.NONE
-    control: ControlMode = ControlMode.CART_IMPEDANCE
-    jnt_pos: F64 = field(default_factory=lambda: _zeros(7))
-    cart_pos: F64 = field(default_factory=_eye4)
-    add_jnt_trq: F64 = field(default_factory=lambda: _zeros(7))
-    add_tcp_ft: F64 = field(default_factory=lambda: _zeros(6))
-    jnt_stiffness: F64 = field(default_factory=lambda: _zeros(7))
-    jnt_damping: F64 = field(default_factory=lambda: _zeros(7))
-    cart_stiffness: F64 = field(default_factory=lambda: _zeros(6))
-    cart_damping: F64 = field(default_factory=lambda: _zeros(6))
-    krl_real: F64 = field(default_factory=lambda: _zeros(16))
-    krl_int: NDArray[np.int32] = field(default_factory=lambda: np.zeros(16, dtype=np.int32))
-    krl_bool: int = 0
+    time_ns: int = 0
+    tcp_pose_m: F64 = field(default_factory=_eye4)
+    """Measured TCP pose, 4x4 in the base frame [m]."""
+    joint_pos_rad: F64 = field(default_factory=lambda: _zeros(7))
+    """Measured joint positions, as many as the robot has [rad]."""
+    link: LinkHealth = field(default_factory=LinkHealth)
+    tcp_twist_mps_radps: F64 | None = None
+    """Measured TCP twist in the TCF, when the robot reports one [m/s, rad/s]."""
+    ext_wrench_n_nm: F64 | None = None
+    """The robot's own estimate of the external wrench on the tool, TCF at the TCP,
+    when it has one (FRI: estExtTcpFT) [N, N m]."""
+    truth: GroundTruth | None = None
+    extras: Extras | None = None
+    """Back-end specific data (FRI: the whole measurement packet)."""
 
-    @classmethod
-    def hold(cls, m: Measurement) -> Command:
-        """Mirror the KRC: command where it already is (FRI's rule while not commanding)."""
-        return cls(
-            flags=CmdFlags.JNTPOS | CmdFlags.CARTPOS,
-            control=m.control,
-            jnt_pos=m.cmd_jnt_pos + m.cmd_jnt_pos_fri_offset,
-            cart_pos=m.cmd_cart_pos.copy(),
+
+@dataclass
+class CartesianCommand:
+    """A Cartesian impedance command: a spring-damper towards a set-point plus a wrench.
+
+    The robot's controller applies ``K (pose - x) - D x' + wrench`` at the TCP.
+    ``damping_ratio`` is normalised (0..1, as the KRC takes it). The caller may
+    reuse and change a command after :meth:`RobotDriver.send` returns: a driver
+    copies whatever it keeps.
+    """
+
+    pose_m: F64 = field(default_factory=_eye4)
+    """Set-point, 4x4 in the base frame [m]."""
+    stiffness_npm_nmprad: F64 = field(default_factory=lambda: _zeros(6))
+    """Per TCF axis [N/m, N m/rad]."""
+    damping_ratio: F64 = field(default_factory=lambda: _zeros(6))
+    """Per TCF axis, normalised."""
+    wrench_n_nm: F64 = field(default_factory=lambda: _zeros(6))
+    """Superposed wrench, TCF at the TCP [N, N m]."""
+
+    def copy(self) -> CartesianCommand:
+        return CartesianCommand(
+            self.pose_m.copy(),
+            self.stiffness_npm_nmprad.copy(),
+            self.damping_ratio.copy(),
+            self.wrench_n_nm.copy(),
         )
+
+
+class ApplyStatus(IntFlag):
+    """How a command was applied, beside what was asked."""
+
+    APPLIED = 0
+    HELD = 0x1
+    """No command was given: the robot kept its own set-point."""
+    MIRRORED = 0x2
+    """The robot was not commanding: the driver sent the robot's own set-point back."""
+    CLIPPED = 0x4
+    """A value was beyond the robot's limits and was clipped."""
+    LATE = 0x8
+    """The answer missed its deadline: the robot repeated the previous command."""
+
+
+@dataclass
+class AppliedCommand:
+    """What a driver really sent (or will apply) for one cycle, beside the intent.
+
+    ``command`` holds the values the robot applies after mirroring and
+    clipping; ``status`` says what happened to the intent; ``extras`` is the
+    back-end's own form (FRI: the ``tFriCmdData`` fields).
+    """
+
+    command: CartesianCommand = field(default_factory=CartesianCommand)
+    status: ApplyStatus = ApplyStatus.APPLIED
+    extras: Extras | None = None
 
 
 @dataclass

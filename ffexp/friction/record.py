@@ -1,58 +1,26 @@
-"""Write a friction estimate (track and result) to MCAP, JSON-encoded.
+"""Write a friction estimate (track and result) to MCAP through the run recorder.
 
-Topics:
+The topics and their JSON schemas are registered in
+:mod:`ffexp.recording.topics` like every other topic:
 
 - ``/friction/track``: one message per frame, log time = frame time in ns;
 - ``/friction/result``: one message with :meth:`FrictionResult.to_dict`,
   logged at the end of the fit window.
+
+The video the estimate came from is stored as MCAP metadata ``friction``
+(``{"video": ...}``).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
-from typing import Any
 
-from mcap.writer import Writer
-
-from ffexp.errors import InputError
 from ffexp.friction.estimate import FrictionResult
+from ffexp.recording.recorder import Recorder
 
-_NUM_OR_NULL: dict[str, Any] = {"type": ["number", "null"]}
-
-TRACK_SCHEMA: dict[str, Any] = {
-    "type": "object",
-    "title": "ffexp.friction.TrackSample",
-    "properties": {
-        "frame": {"type": "integer"},
-        "t_s": {"type": "number"},
-        "valid": {"type": "boolean"},
-        "in_window": {"type": "boolean"},
-        "u_px": _NUM_OR_NULL,
-        "v_px": _NUM_OR_NULL,
-        "x_m": _NUM_OR_NULL,
-        "y_m": _NUM_OR_NULL,
-        "s_m": {**_NUM_OR_NULL, "description": "position along the motion direction"},
-    },
-    "required": ["frame", "t_s", "valid"],
-}
-
-RESULT_SCHEMA: dict[str, Any] = {
-    "type": "object",
-    "title": "ffexp.friction.Result",
-    "properties": {
-        "mu": {"type": "number"},
-        "mu_std": {"type": "number"},
-        "mu_upper_bound": {"type": "number"},
-        "significant": {"type": "boolean"},
-        "decel_mps2": {"type": "number"},
-        "v0_mps": {"type": "number"},
-        "window_s": {"type": "number"},
-        "frames_used": {"type": "integer"},
-    },
-    "required": ["mu", "mu_std", "mu_upper_bound", "significant", "decel_mps2"],
-}
+TRACK_TOPIC = "/friction/track"
+RESULT_TOPIC = "/friction/result"
 
 
 def _num(x: float) -> float | None:
@@ -65,41 +33,22 @@ def record_result(result: FrictionResult, out: Path) -> None:
     Raises:
         InputError: ``out`` cannot be written.
     """
-    try:
-        stream = out.open("wb")
-    except OSError as exc:
-        raise InputError(f"{out}: cannot write ({exc.strerror or exc})") from None
-    with stream:
-        writer = Writer(stream)
-        writer.start(profile="", library="ffexp")
-        try:
-            track_schema = writer.register_schema(
-                "ffexp.friction.TrackSample", "jsonschema", json.dumps(TRACK_SCHEMA).encode()
-            )
-            result_schema = writer.register_schema(
-                "ffexp.friction.Result", "jsonschema", json.dumps(RESULT_SCHEMA).encode()
-            )
-            track_ch = writer.register_channel(
-                "/friction/track", "json", track_schema, {"video": result.video}
-            )
-            result_ch = writer.register_channel("/friction/result", "json", result_schema)
-            tr = result.track
-            in_window = set(int(i) for i in result.window_idx)
-            for i, t in enumerate(tr.t_s):
-                ns = round(float(t) * 1e9)
-                msg = {
-                    "frame": i,
-                    "t_s": float(t),
-                    "valid": bool(tr.valid[i]),
-                    "in_window": i in in_window,
-                    "u_px": _num(tr.centre_px[i, 0]),
-                    "v_px": _num(tr.centre_px[i, 1]),
-                    "x_m": _num(result.pos_m[i, 0]),
-                    "y_m": _num(result.pos_m[i, 1]),
-                    "s_m": _num(result.s_m[i]),
-                }
-                writer.add_message(track_ch, ns, json.dumps(msg).encode(), ns, sequence=i)
-            end_ns = round(result.estimate.fit.t_end_s * 1e9)
-            writer.add_message(result_ch, end_ns, json.dumps(result.to_dict()).encode(), end_ns)
-        finally:
-            writer.finish()  # type: ignore[no-untyped-call]
+    with Recorder(out) as rec:
+        rec.metadata("friction", {"video": result.video})
+        tr = result.track
+        in_window = {int(i) for i in result.window_idx}
+        for i, t in enumerate(tr.t_s):
+            msg = {
+                "frame": i,
+                "t_s": float(t),
+                "valid": bool(tr.valid[i]),
+                "in_window": i in in_window,
+                "u_px": _num(tr.centre_px[i, 0]),
+                "v_px": _num(tr.centre_px[i, 1]),
+                "x_m": _num(result.pos_m[i, 0]),
+                "y_m": _num(result.pos_m[i, 1]),
+                "s_m": _num(result.s_m[i]),
+            }
+            rec.write_json(TRACK_TOPIC, round(float(t) * 1e9), msg)
+        end_ns = round(result.estimate.fit.t_end_s * 1e9)
+        rec.write_json(RESULT_TOPIC, end_ns, result.to_dict())

@@ -196,6 +196,41 @@ _QUAT = {
 
 LOG_LEVELS = {"DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
 
+_NUM_OR_NULL: dict[str, Any] = {"type": ["number", "null"]}
+
+FRICTION_TRACK_SCHEMA: dict[str, Any] = {
+    "title": "ffexp.friction.TrackSample",
+    "type": "object",
+    "properties": {
+        "frame": {"type": "integer"},
+        "t_s": {"type": "number"},
+        "valid": {"type": "boolean"},
+        "in_window": {"type": "boolean"},
+        "u_px": _NUM_OR_NULL,
+        "v_px": _NUM_OR_NULL,
+        "x_m": _NUM_OR_NULL,
+        "y_m": _NUM_OR_NULL,
+        "s_m": {**_NUM_OR_NULL, "description": "position along the motion direction"},
+    },
+    "required": ["frame", "t_s", "valid"],
+}
+
+FRICTION_RESULT_SCHEMA: dict[str, Any] = {
+    "title": "ffexp.friction.Result",
+    "type": "object",
+    "properties": {
+        "mu": {"type": "number"},
+        "mu_std": {"type": "number"},
+        "mu_upper_bound": {"type": "number"},
+        "significant": {"type": "boolean"},
+        "decel_mps2": {"type": "number"},
+        "v0_mps": {"type": "number"},
+        "window_s": {"type": "number"},
+        "frames_used": {"type": "integer"},
+    },
+    "required": ["mu", "mu_std", "mu_upper_bound", "significant", "decel_mps2"],
+}
+
 JSON_TOPICS: dict[str, JsonTopic] = {
     t.topic: t
     for t in (
@@ -248,6 +283,21 @@ JSON_TOPICS: dict[str, JsonTopic] = {
             },
             "on phase change",
             "Runner phase: CONNECT, APPROACH, ALIGN, DONE, ABORT.",
+        ),
+        JsonTopic(
+            "/friction/track",
+            "ffexp.friction.TrackSample",
+            FRICTION_TRACK_SCHEMA,
+            "every video frame (friction recordings only)",
+            "Tracked target per frame of `ffexp friction estimate`: pixel centre, "
+            "metric position, position s_m along the motion; log time = frame time.",
+        ),
+        JsonTopic(
+            "/friction/result",
+            "ffexp.friction.Result",
+            FRICTION_RESULT_SCHEMA,
+            "once, at the end of the fit window (friction recordings only)",
+            "The friction estimate: mu, its 1-sigma, the deceleration and the fit window.",
         ),
     )
 }

@@ -1,4 +1,4 @@
-"""State estimation for the runner: wrench and tool-motion Kalman filters
+"""State estimation building blocks (used by :mod:`ffexp.estimator`): wrench and tool-motion Kalman filters
 (filterpy), tool-load compensation and a contact detector. No I/O.
 
 Wrench filter
@@ -62,7 +62,6 @@ class WrenchFilterConfig(StrictModel):
         (0.01, 0.01, 0.01, 0.0005, 0.0005, 0.0005),
         description="Random walk of the bias [unit/sqrt(s)].",
     )
-    tare_samples: int = Field(200, ge=1, description="Free-space samples used by the tare.")
 
     @model_validator(mode="after")
     def _positive(self) -> WrenchFilterConfig:

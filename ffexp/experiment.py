@@ -1,4 +1,4 @@
-"""One run end to end: protocol file -> drivers -> Runner -> one MCAP file.
+"""One run end to end: rig + protocol file -> devices (factory) -> loop -> one MCAP file.
 
 Also the campaign (several protocols in a row). The CLI is a thin layer over
 :func:`run_file` and :func:`run_campaign`.
@@ -16,39 +16,48 @@ from datetime import UTC, datetime
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 
-from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
-from drivers.config import load_model, read_toml
-from drivers.sim.driver import open_sim
-from drivers.sim.scene import load_scene
-from ffexp import __version__
+from drivers.config import apply_overrides, load_model, read_toml, validate
+from drivers.factory import open_devices
+from drivers.rig import Rig, load_rig
+from ffexp import __version__, loop
+from ffexp.contracts import Progress, RunOutcome
 from ffexp.errors import ConfigError
 from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, scene_path
 from ffexp.recording import Recorder
-from ffexp.runner import Progress, Runner, RunOutcome
+from ffexp.runlog import RunLog
 
-DRIVERS = ("sim", "fri")
-#: F/T back-ends: the in-process sim sensor, an ATI Net F/T box (or the
-#: emulator's), or the KRC's estExtTcpFT.
-FT_SOURCES = ("sim", "netft", "fri-estimate")
+#: ``--driver`` shortcuts: the robot back-end of the rig when no ``--rig`` is given.
+DRIVERS = ("sim", "fri", "mock")
+#: ``--ft`` values: the F/T back-end of the rig.
+FT_SOURCES = ("sim", "netft", "fri-estimate", "mock")
 
 
 @dataclass(frozen=True)
-class LinkOptions:
-    """How ``--driver fri`` reaches the robot and the F/T sensor (``ffexp run`` options).
+class RigChoice:
+    """Which rig a run uses: a rig file (or the built-in sim rig) and field overrides.
 
-    Args:
-        robot_ip: the KRC's address (``--robot-ip``); packets from elsewhere are dropped.
-        fri_port: local UDP port (``--fri-port``; FRISOCK in the KRC's dlrrc.ini; 0 = any).
-        ft: ``auto`` (sim for the sim driver, netft for fri), ``sim``, ``netft``, ``fri-estimate``.
-        netft: ``HOST:PORT`` of the Net F/T box (default: the robot's host, port 49152).
-        answer_deadline: FRI answer deadline in cycles (see drivers.fri.driver).
+    ``overrides`` are ``dotted.key=value`` strings on the rig's fields, e.g.
+    ``robot.robot_ip=192.168.0.10``; the CLI turns its device flags into these.
     """
 
-    robot_ip: str | None = None
-    fri_port: int = 49938
-    ft: str = "auto"
-    netft: str | None = None
-    answer_deadline: float = 0.5
+    path: Path | None = None
+    overrides: tuple[str, ...] = ()
+    driver: str | None = None
+    """With no ``path``: the robot back-end of the built-in rig (``sim``, ``fri``, ``mock``)."""
+
+
+def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
+    """The rig and the name its errors use (the file, or ``<built-in DRIVER rig>``)."""
+    if choice.path is not None:
+        return load_rig(choice.path, choice.overrides), str(choice.path)
+    driver = choice.driver or "sim"
+    if driver not in DRIVERS:
+        raise ConfigError("--driver", driver, f"unknown driver; choose one of {', '.join(DRIVERS)}")
+    source = f"<built-in {driver} rig>"
+    robot_type = {"sim": "sim", "fri": "fri1", "mock": "mock"}[driver]
+    ft_type = {"sim": "sim", "fri": "netft", "mock": "mock"}[driver]
+    data = {"robot": {"type": robot_type}, "ft": {"type": ft_type}}
+    return validate(Rig, apply_overrides(data, choice.overrides), source), source
 
 
 @dataclass
@@ -70,77 +79,6 @@ def _versions() -> str:
     return json.dumps(out)
 
 
-def open_drivers(
-    driver: str, protocol_path: Path, protocol: RunProtocol, link: LinkOptions | None = None
-) -> tuple[RobotDriver, ForceTorqueSensor, dict[str, str], list[tuple[str, bytes]]]:
-    """The robot/sensor pair for ``driver``, run metadata about it, files to attach.
-
-    For ``fri`` the UDP ports are bound here, so that a port in use or a bad
-    address is reported before anything is recorded.
-    """
-    link = link if link is not None else LinkOptions()
-    ft = link.ft
-    if ft not in ("auto", *FT_SOURCES):
-        raise ConfigError("--ft", ft, f"unknown F/T source; choose one of {', '.join(FT_SOURCES)}")
-    if driver == "sim" and ft not in ("auto", "sim"):
-        raise ConfigError("--ft", ft, "--driver sim has only the simulated sensor (--ft sim)")
-    if driver == "fri":
-        return _open_fri(link)
-    if driver == "sim":
-        spath = scene_path(protocol_path, protocol)
-        scene = load_scene(spath, protocol.scene.set)
-        robot, sensor = open_sim(scene, seed=protocol.seed)
-        meta = {
-            "driver": "sim",
-            "scene_file": str(spath),
-            "scene_json": scene.model_dump_json(),
-        }
-        return robot, sensor, meta, [(spath.name, spath.read_bytes())]
-    raise ConfigError("--driver", driver, f"unknown driver; choose one of {', '.join(DRIVERS)}")
-
-
-def _open_fri(
-    link: LinkOptions,
-) -> tuple[RobotDriver, ForceTorqueSensor, dict[str, str], list[tuple[str, bytes]]]:
-    from drivers.fri.driver import FriEstimateSensor, FriRobot, FriSettings
-    from drivers.fri.udp import parse_host, parse_host_port
-    from drivers.netft.client import NetFtClient, NetFtSettings
-
-    if not link.robot_ip:
-        raise ConfigError("--robot-ip", "", "required with --driver fri (the KRC's address)")
-    ft = "netft" if link.ft == "auto" else link.ft
-    if ft == "sim":
-        raise ConfigError(
-            "--ft", "sim", "with --driver fri the simulated sensor lives in the emulator: use "
-            "--ft netft (ffexp emulate serves it as a Net F/T box) or --ft fri-estimate",
-        )
-    robot_ip = parse_host("--robot-ip", link.robot_ip)
-    robot = FriRobot(
-        FriSettings(robot_ip=robot_ip, port=link.fri_port, answer_deadline=link.answer_deadline)
-    )
-    host, port = robot.bind()
-    meta = {"driver": "fri", "robot_ip": robot_ip, "fri_port": str(port), "ft": ft}
-    sensor: ForceTorqueSensor
-    if ft == "netft":
-        text = link.netft or f"{robot_ip}:49152"
-        nhost, nport = parse_host_port("--netft", text, default_port=49152)
-        client = NetFtClient(NetFtSettings(host=nhost, port=nport), clock=robot.now_ns)
-        try:
-            client.open()
-        except BaseException:
-            robot.close()
-            raise
-        sensor = client
-        meta["netft"] = f"{nhost}:{nport}"
-    else:
-        sensor = FriEstimateSensor(robot)
-    meta["notice"] = (
-        f"fri: listening on {host}:{port} for the KRC at {robot_ip}"
-        + (f"; Net F/T at {meta['netft']}" if "netft" in meta else "; F/T from estExtTcpFT")
-    )
-    return robot, sensor, meta, []
-
-
 def output_path(out_dir: Path, name: str, start: datetime) -> Path:
     """``out_dir/<name>-<UTC time>.mcap``, never overwriting an existing file."""
     stamp = start.strftime("%Y%m%dT%H%M%S")
@@ -156,23 +94,29 @@ def run_file(
     protocol_path: Path,
     overrides: list[str] | tuple[str, ...] = (),
     *,
-    driver: str = "sim",
+    rig: RigChoice | None = None,
     out_dir: Path = Path("runs"),
     progress: Callable[[Progress], None] | None = None,
     stop_requested: Callable[[], bool] = lambda: False,
-    link: LinkOptions | None = None,
     notice: Callable[[str], None] | None = None,
+    timings: dict[str, float] | None = None,
 ) -> RunResult:
-    """Run one protocol file and record it; the recording is finished even on errors.
+    """Run one protocol file on a rig and record it; the recording is finished even on errors.
 
-    ``link`` configures ``--driver fri``; ``notice`` receives a line about the
-    opened link (where it listens) before the run starts.
+    ``notice`` receives a line about the opened devices (where a link listens)
+    before the run starts; ``timings`` collects wall time per part of the loop.
     """
     protocol = load_run_protocol(protocol_path, overrides)
-    robot, sensor, driver_meta, files = open_drivers(driver, protocol_path, protocol, link)
-    message = driver_meta.pop("notice", None)
-    if message is not None and notice is not None:
-        notice(message)
+    rig_model, rig_source = load_rig_choice(rig or RigChoice())
+    devices = open_devices(
+        rig_model,
+        source=rig_source,
+        scene_file=scene_path(protocol_path, protocol),
+        scene_overrides=protocol.scene.set,
+        seed=protocol.seed,
+    )
+    if devices.notice is not None and notice is not None:
+        notice(devices.notice)
     try:
         start = datetime.now(UTC)
         start_ns = time.time_ns()
@@ -190,22 +134,21 @@ def run_file(
                     "start_utc": start.isoformat(),
                     "versions": _versions(),
                     "host": platform.node(),
-                    **driver_meta,
+                    "rig": rig_source,
+                    "rig_json": rig_model.model_dump_json(),
+                    **devices.metadata,
                 },
             )
             rec.attach(protocol_path.name, protocol_path.read_bytes(), "application/toml", start_ns)
-            for name, data in files:
+            for name, data in devices.attachments:
                 rec.attach(name, data, "application/toml", start_ns)
-            runner = Runner(
-                protocol, robot, sensor, rec, start_utc_ns=start_ns, progress=progress,
-                stop_requested=stop_requested,
+            log = RunLog(rec, start_ns, protocol.run.tf_period_s)
+            outcome = loop.run(
+                protocol, devices.robot, devices.sensor, log, progress=progress,
+                stop_requested=stop_requested, timings=timings,
             )
-            outcome = runner.run()
-    except BaseException:
-        # the runner closes the drivers; this is for failures before it runs
-        sensor.stop()
-        robot.close()
-        raise
+    finally:
+        devices.close()  # the loop closes them too; this covers failures before it runs
     return RunResult(protocol, outcome, path)
 
 

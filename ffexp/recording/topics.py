@@ -123,7 +123,34 @@ COMMAND = MessageSpec(
         F("flags", "uint32", 1, "", "FRI cmdFlags"),
         F("control", "int32", 1, "", "requested control mode"),
     ),
-    "The command sent in answer to each measurement.",
+    "The FRI command packet sent in answer to each measurement (what the KRC takes).",
+)
+
+INTENT = MessageSpec(
+    "ffexp_msgs/msg/CartesianCommand",
+    (
+        F("pose", "float64", 16, "m", "the runner's set-point, 4x4 row-major (0 if not given)"),
+        F("stiffness", "float64", 6, "N/m, N m/rad", "asked, x y z rx ry rz (TCF)"),
+        F("damping", "float64", 6, "", "asked, normalised"),
+        F("wrench", "float64", 6, "N, N m", "asked superposed wrench, TCF"),
+        F("applied_pose", "float64", 16, "m", "what the robot gets, after mirroring/clipping"),
+        F("applied_stiffness", "float64", 6, "N/m, N m/rad"),
+        F("applied_damping", "float64", 6, ""),
+        F("applied_wrench", "float64", 6, "N, N m"),
+        F("status", "uint32", 1, "", "1 held, 2 mirrored, 4 clipped, 8 late (flags)"),
+        F("given", "uint8", 1, "", "0: the runner asked the robot to keep its own set-point"),
+    ),
+    "The runner's intent beside the command the driver really applied, every cycle.",
+)
+
+ADMITTANCE = MessageSpec(
+    "ffexp_msgs/msg/AdmittanceTerms",
+    (
+        F("drive", "float64", 6, "N, N m", "W (F_ref - F_c) + (I - W) w on the admittance axes"),
+        F("velocity", "float64", 6, "m/s, rad/s", "virtual set-point velocity (entry TCF)"),
+        F("displacement", "float64", 6, "m, rad", "virtual set-point offset (entry TCF)"),
+    ),
+    "The admittance method's virtual mass-damper, every cycle in ALIGN.",
 )
 
 TRUTH = MessageSpec(
@@ -171,9 +198,11 @@ class JsonTopic:
 CDR_TOPICS: dict[str, CdrTopic] = {
     t.topic: t
     for t in (
-        CdrTopic("/robot/measurement", MEASUREMENT, "every controller cycle"),
-        CdrTopic("/robot/link", LINK, "every controller cycle"),
-        CdrTopic("/robot/command", COMMAND, "every controller cycle"),
+        CdrTopic("/robot/measurement", MEASUREMENT, "every controller cycle, FRI back-ends"),
+        CdrTopic("/robot/link", LINK, "every controller cycle, FRI back-ends"),
+        CdrTopic("/robot/command", COMMAND, "every controller cycle, FRI back-ends"),
+        CdrTopic("/control/command", INTENT, "every controller cycle"),
+        CdrTopic("/control/admittance", ADMITTANCE, "every cycle in ALIGN, admittance method"),
         CdrTopic("/ft/raw", FT_SAMPLE, "every sensor sample"),
         CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
         CdrTopic("/control/terms", CONTROL, "every controller cycle"),
@@ -277,12 +306,17 @@ JSON_TOPICS: dict[str, JsonTopic] = {
                 "type": "object",
                 "properties": {
                     "phase": {"type": "string"},
-                    "phase_id": {"type": "integer"},
-                    "reason": {"type": "string"},
+                    "phase_id": {"type": "integer", "description": "ffexp.contracts.Phase"},
+                    "reason": {"type": "string", "description": "one line for people"},
+                    "stop_reason": {
+                        "type": "string",
+                        "description": "ffexp.contracts.StopReason value on DONE/ABORT, else ''",
+                    },
+                    "aligned": {"type": "boolean", "description": "the run ended aligned"},
                 },
             },
             "on phase change",
-            "Runner phase: CONNECT, APPROACH, ALIGN, DONE, ABORT.",
+            "Runner phase: CONNECT, APPROACH, ALIGN, DONE, ABORT, with the typed stop reason.",
         ),
         JsonTopic(
             "/friction/track",

@@ -1,0 +1,161 @@
+"""The estimator of the experiment loop: everything done to the sensor signal per cycle.
+
+Per cycle, from the robot state and the F/T samples that arrived since the
+last cycle (pure: no I/O, no clock):
+
+1. tool-load compensation: the tool's weight and, with
+   ``inertial_compensation``, its inertia (mass x the acceleration the motion
+   filter estimated up to the previous cycle) are removed from every sample;
+2. the peak force and torque of the cycle's samples (bias removed once tared)
+   and the sensor's saturation bit, for :class:`ffexp.safety.SafetyMonitor`;
+3. the tool twist from the motion filter (the robot's pose);
+4. before the tare: samples are collected; the tare runs once they cover
+   ``run.tare_s`` of sensor time and the robot is commanding (whatever the
+   sensor's rate); after it: the wrench Kalman filter and the contact detector.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field
+
+from drivers.base.types import FtSamples, FtStatus, RobotState
+from drivers.config import StrictModel
+from ffexp.estimation import (
+    ContactDetector,
+    ContactDetectorConfig,
+    ContactEvent,
+    MotionFilter,
+    MotionFilterConfig,
+    ToolLoad,
+    WrenchFilter,
+    WrenchFilterConfig,
+)
+
+F64 = NDArray[np.float64]
+
+
+class Estimation(StrictModel):
+    """Filters, tool load and contact detection (the protocol's ``[estimation]``)."""
+
+    wrench: WrenchFilterConfig = WrenchFilterConfig()
+    motion: MotionFilterConfig = MotionFilterConfig()
+    tool_load: ToolLoad = ToolLoad()
+    inertial_compensation: bool = Field(
+        True,
+        description="Also remove the tool's inertia (mass x acceleration from the motion "
+        "filter) from the reading; needs tool_load.mass_kg.",
+    )
+    contact: ContactDetectorConfig = ContactDetectorConfig()
+
+
+@dataclass
+class Estimate:
+    """What the estimator says about one cycle (arrays are reused between cycles)."""
+
+    wrench: F64 = field(default_factory=lambda: np.zeros(6))
+    """Filtered contact wrench (environment on tool), bias and tool load removed, TCF."""
+    wrench_std: F64 = field(default_factory=lambda: np.zeros(6))
+    bias: F64 = field(default_factory=lambda: np.zeros(6))
+    twist_tcf: F64 = field(default_factory=lambda: np.zeros(6))
+    f_z: float = 0.0
+    """Contact force along the approach axis, ``-wrench[2]`` [N]."""
+    n_samples: int = 0
+    in_contact: bool = False
+    event: ContactEvent | None = None
+    """Contact made or broken, confirmed this cycle."""
+    tared: bool = False
+    tared_now: bool = False
+    """The tare happened this cycle."""
+    tare_samples: int = 0
+    peak_force_n: float = 0.0
+    """Largest |f| of this cycle's samples (compensated, bias removed once tared)."""
+    peak_torque_nm: float = 0.0
+    saturated: bool = False
+    """A sample of this cycle carried the sensor's saturation bit."""
+    last_sample_ns: int | None = None
+    """Time of the newest sample so far, on the robot's clock [ns]."""
+
+
+class Estimator:
+    """Compensation, tare, wrench and motion filters, contact detection.
+
+    Args:
+        config: the protocol's ``[estimation]``.
+        cycle_s: the robot's control cycle.
+        tare_s: sensor time the tare needs (the protocol's ``run.tare_s``).
+    """
+
+    def __init__(self, config: Estimation, cycle_s: float, tare_s: float) -> None:
+        self.config = config
+        self.cycle_s = cycle_s
+        self.tare_ns = round(tare_s * 1e9)
+        self.wrench_filter = WrenchFilter(config.wrench)
+        self.motion_filter = MotionFilter(config.motion, cycle_s)
+        self.detector = ContactDetector(config.contact)
+        self._tare: list[F64] = []
+        self._tare_first_ns: int | None = None
+        self._compensate = config.tool_load.mass_kg > 0.0
+        self.out = Estimate()
+
+    def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int) -> Estimate:
+        """One cycle. ``t_ns`` is the run time of the cycle, ``t0_ns`` the robot time of
+        the run's start (sample times are on the robot's clock)."""
+        out = self.out
+        cfg = self.config
+        wf, mf = self.wrench_filter, self.motion_filter
+        pose = state.tcp_pose_m
+        n = len(ft)
+        comp = ft.wrench
+        if self._compensate and n:
+            accel = mf.accel_base[:3] if cfg.inertial_compensation else None
+            comp = ft.wrench - cfg.tool_load.wrench(pose[:3, :3], accel)
+        out.n_samples = n
+        out.event = None
+        out.tared_now = False
+        if n:
+            out.last_sample_ns = int(ft.time_ns[-1]) - t0_ns
+            out.saturated = bool(np.any(ft.status & FtStatus.SATURATION))
+            src = comp - wf.bias if wf.tared else ft.wrench
+            out.peak_force_n = float(np.max(np.linalg.norm(src[:, :3], axis=1)))
+            out.peak_torque_nm = float(np.max(np.linalg.norm(src[:, 3:], axis=1)))
+        else:
+            out.saturated = False
+            out.peak_force_n = out.peak_torque_nm = 0.0
+        mf.update(pose)
+        out.twist_tcf = mf.twist_tcf(pose)
+        if not wf.tared:
+            if n:
+                self._tare.append(np.asarray(comp))
+                if self._tare_first_ns is None:
+                    self._tare_first_ns = int(ft.time_ns[0]) - t0_ns
+            self._try_tare(state)
+        else:
+            wf.update(comp, self.cycle_s)
+        out.wrench = wf.wrench
+        if wf.tared and not out.tared_now:
+            out.event = self.detector.update(t_ns, out.wrench)
+        out.in_contact = self.detector.in_contact
+        out.f_z = -float(out.wrench[2])
+        out.wrench_std = wf.wrench_std
+        out.bias = wf.bias
+        out.tared = wf.tared
+        return out
+
+    def _try_tare(self, state: RobotState) -> None:
+        out = self.out
+        first, last = self._tare_first_ns, out.last_sample_ns
+        if first is None or last is None or not state.link.commanding:
+            return
+        # the samples cover [first, last] plus one sample period
+        count = sum(len(x) for x in self._tare)
+        period_ns = (last - first) / max(count - 1, 1)
+        if last - first + period_ns < self.tare_ns:
+            return
+        self.wrench_filter.tare(np.concatenate(self._tare))
+        self._tare = []
+        out.tare_samples = count
+        out.tared_now = True

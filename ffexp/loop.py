@@ -1,0 +1,180 @@
+"""The experiment loop: devices in, one cycle of pure parts, devices and the run log out.
+
+Per robot cycle: the F/T samples since the last cycle -> :class:`~ffexp.estimator.Estimator`
+-> :class:`~ffexp.safety.SafetyMonitor` -> :class:`~ffexp.task.Task` -> the approach law or
+the method's :class:`~ffexp.controllers.Controller` -> a Cartesian impedance command ->
+``robot.send`` -> :class:`~ffexp.runlog.RunLog`. :class:`Cycle` is that step alone (no
+device, no file: tests and benchmarks call it); :func:`run` clocks it by the robot.
+DONE and ABORT end with a safe stop: zero wrench, the hold stiffness, the pose reached.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+import numpy as np
+
+from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
+from drivers.base.types import NS_PER_S, AppliedCommand, CartesianCommand, FtSamples, RobotState
+from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
+from ffexp import controllers
+from ffexp.contracts import Phase, Progress, RunOutcome, Stop, StopReason
+from ffexp.estimator import Estimator
+from ffexp.protocol import RunProtocol
+from ffexp.runlog import RunLog
+from ffexp.safety import SafetyMonitor
+from ffexp.task import PhaseChange, Task
+
+
+class Cycle:
+    """One cycle of the experiment, from a robot state and F/T samples to a command."""
+
+    def __init__(self, protocol: RunProtocol, first: RobotState, log: RunLog) -> None:
+        p = self.p = protocol
+        self.t0_ns = first.time_ns
+        cycle_s = first.link.cycle_s if first.link.cycle_s > 0 else 0.005
+        self.log = log
+        self.estimator = Estimator(p.estimation, cycle_s, p.run.tare_s)
+        self.safety = SafetyMonitor(p.limits)
+        self.task = Task(p.alignment, p.run.timeout_s, p.run.stop_hold_s)
+        self.approach = controllers.Approach(p.approach)
+        self.controller = controllers.build(p.align, controllers.ControlContext(cycle_s, self.approach))
+        self.hold_pose = first.tcp_pose_m.copy()
+        self.cmd = CartesianCommand()
+        self.t_ns = 0
+        log.event(0, "INFO", "phase", f"start: {p.name} ({p.method})")
+        log.phase(0, PhaseChange(Phase.CONNECT, Phase.CONNECT, "start"), announce=False)
+
+    def stop(self, stop: Stop) -> None:
+        """End the run now (unless it has ended) with a safe stop where the tool was last."""
+        self.task.end(self.t_ns, stop)
+        self._notes()
+
+    def _notes(self) -> None:
+        task, t_ns = self.task, self.t_ns
+        for note in task.notes:
+            self.log.note(t_ns, note)
+            if isinstance(note, PhaseChange):
+                self._entered(note.new)
+        task.notes.clear()
+
+    def _entered(self, phase: Phase) -> None:
+        s = self.state
+        if phase == Phase.APPROACH:
+            if self.task.breaks == 0:  # first approach: the tare pose is home
+                self.hold_pose = s.tcp_pose_m.copy()
+                self.safety.set_origin(s.tcp_pose_m)
+            self.approach.start(self.t_ns, s.tcp_pose_m)
+        elif phase == Phase.ALIGN:
+            self.controller.enter(self.t_ns, s, self.estimator.out)
+        elif phase.ended:
+            self.hold_pose = s.tcp_pose_m.copy()
+
+    def step(self, state: RobotState, ft: FtSamples) -> CartesianCommand | None:
+        """Estimate, check, advance the task and command; ``None``: keep the robot's set-point."""
+        self.state = state
+        t_ns = self.t_ns = state.time_ns - self.t0_ns
+        task = self.task
+        est = self.estimator.update(state, ft, t_ns, self.t0_ns)
+        stop = self.safety.check(t_ns, task.phase, state, est)
+        if stop is not None:
+            task.end(t_ns, stop)
+        task.step(t_ns, state, est)
+        self._notes()
+        phase, krc, cmd = task.phase, self.p.krc, self.cmd
+        self.approach_wrench: np.ndarray | None = None
+        if phase == Phase.CONNECT:
+            self.total = np.zeros(6)
+            return None
+        cmd.pose_m[:] = self.hold_pose
+        if phase.ended:
+            cmd.stiffness_npm_nmprad[:] = krc.hold_stiffness
+            cmd.damping_ratio[:] = krc.hold_damping
+            cmd.wrench_n_nm[:] = 0.0
+        else:
+            cmd.stiffness_npm_nmprad[:] = krc.cart_stiffness
+            cmd.damping_ratio[:] = krc.cart_damping
+            if phase == Phase.APPROACH:
+                self.approach_wrench = self.approach.command(t_ns, state.tcp_pose_m, est.twist_tcf)
+                cmd.wrench_n_nm[:] = self.approach_wrench
+            else:
+                cmd.wrench_n_nm[:] = self.controller.update(t_ns, state, est)
+        self.total = cmd.wrench_n_nm.copy()
+        return cmd
+
+    def record(self, state: RobotState, ft: FtSamples, intent: CartesianCommand | None,
+               applied: AppliedCommand) -> None:
+        self.log.cycle(self.t_ns, self.t0_ns, state, ft, self.estimator.out, self.task.phase,
+                       self.controller, self.approach_wrench, self.approach.setpoint,
+                       self.total, intent, applied)
+
+
+def _driver_stop(exc: DriverError) -> Stop:
+    if isinstance(exc, LinkLostError):
+        return Stop(StopReason.LINK_LOST, f"link lost: {exc}")
+    if isinstance(exc, DriverTimeoutError):
+        return Stop(StopReason.ROBOT_TIMEOUT, f"robot timed out: {exc}")
+    return Stop(StopReason.DRIVER_ERROR, f"device error: {exc}")
+
+
+def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, log: RunLog, *,
+        progress: Callable[[Progress], None] | None = None,
+        stop_requested: Callable[[], bool] = lambda: False,
+        timings: dict[str, float] | None = None) -> RunOutcome:
+    """Connect, loop until DONE/ABORT plus the safe-stop hold, close (even on error)."""
+    tm = timings if timings is not None else {}
+    for key in ("driver", "sensor", "step", "send", "recording"):
+        tm.setdefault(key, 0.0)
+    clock = time.perf_counter
+    cycles, cyc, next_progress_ns = 0, None, 0
+    try:
+        robot.connect()
+        sensor.start()
+        t_a = clock()
+        for state in robot.measurements():
+            t_b = clock()
+            ft = sensor.samples()
+            t_c = clock()
+            cyc = cyc or Cycle(protocol, state, log)
+            cycles += 1
+            if stop_requested():
+                cyc.task.end(state.time_ns - cyc.t0_ns,
+                             Stop(StopReason.STOP_REQUESTED, "stop requested (Ctrl-C / SIGTERM)"))
+            intent = cyc.step(state, ft)
+            t_d = clock()
+            applied = robot.send(intent)
+            t_e = clock()
+            cyc.record(state, ft, intent, applied)
+            t_f = clock()
+            for key, dt in zip(tm, (t_b - t_a, t_c - t_b, t_d - t_c, t_e - t_d, t_f - t_e),
+                               strict=True):
+                tm[key] += dt
+            if progress is not None and cyc.t_ns >= next_progress_ns:
+                next_progress_ns = cyc.t_ns + NS_PER_S // 10
+                progress(Progress(cyc.task.phase, cyc.t_ns / NS_PER_S, cyc.estimator.out.f_z,
+                                  cyc.task.contacts, cyc.task.breaks))
+            if cyc.task.finished(cyc.t_ns):
+                break
+            cyc.task.check_timeout(cyc.t_ns)
+            cyc._notes()
+            t_a = clock()
+    except DriverError as exc:
+        if cyc is None:
+            raise
+        cyc.stop(_driver_stop(exc))
+    except KeyboardInterrupt:
+        if cyc is None:
+            raise
+        cyc.stop(Stop(StopReason.STOP_REQUESTED, "interrupted"))
+    finally:
+        try:
+            sensor.stop()
+        finally:
+            robot.close()
+    if cyc is None:
+        raise DriverTimeoutError("the robot sent no state")
+    cyc.stop(Stop(StopReason.ROBOT_STOPPED, "robot stopped sending measurements"))
+    task = cyc.task
+    assert task.stop is not None
+    return RunOutcome(task.phase, task.aligned, task.stop.reason, task.stop.message, cycles,
+                      cyc.t_ns / NS_PER_S, task.contacts, task.breaks, log.events)

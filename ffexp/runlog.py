@@ -1,0 +1,172 @@
+"""What one run writes to its recording, and nothing else: the loop's only I/O sink.
+
+Per cycle (log time = the run's UTC start + run time): the robot state's
+back-end extras on the topics they name (FRI: ``/robot/measurement``,
+``/robot/link``), every F/T sample (``/ft/raw``), the estimate
+(``/estimator/state``), the control terms (``/control/terms``, plus the
+method's own topic if it declares one), the runner's intent beside what the
+driver really applied (``/control/command``; the back-end's own form, e.g.
+``/robot/command``), ground truth when the robot has it (``/sim/truth``) and,
+every ``tf_period_s``, ``/tf``. Events and phase changes as they happen.
+
+Without a :class:`~ffexp.recording.Recorder` (tests, benchmarks) only the
+events are kept, in :attr:`RunLog.events`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.base.types import NS_PER_S, AppliedCommand, CartesianCommand, FtSamples, RobotState
+from ffexp.contracts import Phase, StopReason
+from ffexp.controllers import Controller
+from ffexp.estimator import Estimate
+from ffexp.recording import Recorder
+from ffexp.task import Event, Note, PhaseChange
+
+F64 = NDArray[np.float64]
+_TERMS = ("p", "i", "ri", "ff", "impedance")
+
+
+class RunLog:
+    """Writes a run's cycles and notes through a recorder (or only keeps the events).
+
+    Args:
+        recorder: the open recording, or ``None``.
+        start_utc_ns: log-time origin (run start in UTC).
+        tf_period_s: period of ``/tf``.
+    """
+
+    def __init__(self, recorder: Recorder | None, start_utc_ns: int, tf_period_s: float) -> None:
+        self.rec = recorder
+        self.start_utc_ns = start_utc_ns
+        self.tf_period_ns = round(tf_period_s * NS_PER_S)
+        self.events: list[tuple[float, str, str]] = []
+        """``(run time [s], name, message)`` of every event, for the outcome."""
+        self._next_tf_ns = 0
+        self._zeros = np.zeros(6)
+
+    def note(self, t_ns: int, note: Note) -> None:
+        """An event, or a phase change (``/runner/phase`` and an event)."""
+        if isinstance(note, Event):
+            self.event(t_ns, note.level, note.name, note.message)
+            return
+        self.phase(t_ns, note)
+
+    def event(self, t_ns: int, level: str, name: str, message: str) -> None:
+        self.events.append((t_ns / NS_PER_S, name, message))
+        if self.rec is not None:
+            self.rec.log(self.start_utc_ns + t_ns, level, name, message)
+
+    def phase(self, t_ns: int, change: PhaseChange, *, announce: bool = True) -> None:
+        stop = change.stop
+        if self.rec is not None:
+            self.rec.write_json(
+                "/runner/phase",
+                self.start_utc_ns + t_ns,
+                {
+                    "phase": change.new.name,
+                    "phase_id": int(change.new),
+                    "reason": change.reason,
+                    "stop_reason": stop.value if stop is not None else "",
+                    "aligned": stop is StopReason.ALIGNED,
+                },
+            )
+        if announce:
+            level = "ERROR" if change.new == Phase.ABORT else "INFO"
+            self.event(t_ns, level, "phase", f"{change.old.name} -> {change.new.name}: "
+                       f"{change.reason}")
+
+    def cycle(
+        self,
+        t_ns: int,
+        t0_ns: int,
+        state: RobotState,
+        ft: FtSamples,
+        est: Estimate,
+        phase: Phase,
+        controller: Controller,
+        approach_wrench: F64 | None,
+        setpoint: F64,
+        total: F64,
+        intent: CartesianCommand | None,
+        applied: AppliedCommand,
+    ) -> None:
+        """Everything of one cycle. ``approach_wrench`` is the approach law's output when
+        it acted this cycle; the controller's terms are recorded in ALIGN."""
+        rec = self.rec
+        if rec is None:
+            return
+        log_ns = self.start_utc_ns + t_ns
+        if state.extras is not None:
+            for topic in state.extras.topics():
+                rec.write_fields(topic, log_ns, state.extras)
+        n = len(ft)
+        if n:
+            proto = rec.record("/ft/raw")
+            recs = np.zeros(n, dtype=proto.dtype)
+            recs["_cdr_header"] = proto["_cdr_header"][0]
+            recs["wrench"] = ft.wrench
+            recs["seq"] = ft.seq & 0xFFFFFFFF
+            recs["status"] = ft.status
+            rec.write_records("/ft/raw", ft.time_ns - t0_ns + self.start_utc_ns, recs)
+
+        r = rec.record("/estimator/state")
+        r["wrench"] = est.wrench
+        r["wrench_std"] = est.wrench_std
+        r["bias"] = est.bias
+        r["twist_tcf"] = est.twist_tcf
+        r["f_z"] = est.f_z
+        r["n_samples"] = n
+        r["in_contact"] = int(est.in_contact)
+        rec.write("/estimator/state", log_ns)
+
+        r = rec.record("/control/terms")
+        terms = controller.terms if phase == Phase.ALIGN else None
+        for name in _TERMS:
+            value = getattr(terms, name, None)
+            r[name] = self._zeros if value is None else value
+        if approach_wrench is not None:
+            r["impedance"] = approach_wrench
+        r["saturated"] = int(bool(getattr(terms, "saturated", False)))
+        r["total"] = total
+        r["f_ref"] = controller.f_ref
+        r["setpoint"] = setpoint.reshape(-1)
+        r["phase"] = int(phase)
+        rec.write("/control/terms", log_ns)
+        if phase == Phase.ALIGN and controller.topic is not None:
+            rec.write_fields(controller.topic.topic, log_ns, controller.extra)
+
+        self._command(log_ns, intent, applied)
+        if applied.extras is not None:
+            for topic in applied.extras.topics():
+                rec.write_fields(topic, log_ns, applied.extras)
+        truth = state.truth
+        if truth is not None:
+            rec.write_fields("/sim/truth", log_ns, truth)
+        if t_ns >= self._next_tf_ns:
+            self._next_tf_ns = t_ns + self.tf_period_ns
+            rec.transform(log_ns, "base", "tool", state.tcp_pose_m)
+            if truth is not None:
+                rec.transform(log_ns, "base", "target", truth.target_pose)
+
+    def _command(self, log_ns: int, intent: CartesianCommand | None, applied: AppliedCommand) -> None:
+        assert self.rec is not None
+        r = self.rec.record("/control/command")
+        r["given"] = int(intent is not None)
+        if intent is not None:
+            r["pose"] = intent.pose_m.reshape(-1)
+            r["stiffness"] = intent.stiffness_npm_nmprad
+            r["damping"] = intent.damping_ratio
+            r["wrench"] = intent.wrench_n_nm
+        else:  # the robot keeps its own set-point: nothing was asked
+            for name in ("pose", "stiffness", "damping", "wrench"):
+                r[name] = 0.0
+        a = applied.command
+        r["applied_pose"] = a.pose_m.reshape(-1)
+        r["applied_stiffness"] = a.stiffness_npm_nmprad
+        r["applied_damping"] = a.damping_ratio
+        r["applied_wrench"] = a.wrench_n_nm
+        r["status"] = int(applied.status)
+        self.rec.write("/control/command", log_ns)

@@ -1,0 +1,110 @@
+"""Every abort condition of a run, checked once per cycle: ``check(...) -> Stop | None``.
+
+Pure: no I/O, no clock. The conditions, in the order they are checked (the
+first that holds is the one reported):
+
+1. the F/T sensor's saturation bit on any sample;
+2. the force limit ``limits.max_force_n`` on any sample (bias removed once tared);
+3. the torque limit ``limits.max_torque_nm`` likewise;
+4. stale F/T data: no sample for ``limits.stale_ft_s``;
+5. the link: ``limits.link_lost_cycles`` consecutive cycles with an unhealthy
+   link, or (once past CONNECT) with the robot not commanding;
+6. in APPROACH and ALIGN, the tool speed ``limits.max_speed_mps`` (motion filter);
+7. in APPROACH and ALIGN, the workspace box ``limits.workspace_m`` around the
+   pose where the approach started (half-widths in that pose's TCF).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field
+
+from drivers.base.types import NS_PER_S, RobotState
+from drivers.config import StrictModel
+from ffexp.contracts import Phase, Stop, StopReason
+from ffexp.estimator import Estimate
+
+F64 = NDArray[np.float64]
+
+
+class Limits(StrictModel):
+    """Safety limits; crossing one ends the run in ABORT with a safe stop."""
+
+    max_force_n: float = Field(
+        60.0,
+        gt=0,
+        description="|f| of any F/T sample (bias removed). The funnels' first slip into "
+        "the seat reaches ~35 N in the simulator; the Mini45 (SI-145-5) reads 145/290 N.",
+    )
+    max_torque_nm: float = Field(3.0, gt=0, description="|t| of any raw F/T sample.")
+    max_speed_mps: float = Field(0.25, gt=0, description="Tool speed (motion filter).")
+    workspace_m: tuple[float, float, float] = Field(
+        (0.05, 0.15, 0.35), description="Half-widths of the box around the start pose (TCF)."
+    )
+    stale_ft_s: float = Field(0.05, gt=0, description="Longest gap without F/T samples.")
+    link_lost_cycles: int = Field(
+        10, ge=1, description="Consecutive cycles not commanding or with an unhealthy link."
+    )
+
+
+class SafetyMonitor:
+    """The abort conditions of :class:`Limits`, with the little state they need."""
+
+    def __init__(self, limits: Limits) -> None:
+        self.limits = limits
+        self._workspace = np.asarray(limits.workspace_m, dtype=np.float64)
+        self._bad_link_cycles = 0
+        self._origin: F64 | None = None
+
+    def set_origin(self, pose: F64) -> None:
+        """The pose the workspace box is centred on (where the approach starts)."""
+        self._origin = pose.copy()
+
+    def check(self, t_ns: int, phase: Phase, state: RobotState, est: Estimate) -> Stop | None:
+        """The first condition that holds this cycle, or ``None``."""
+        lim = self.limits
+        if est.n_samples:
+            if est.saturated:
+                return Stop(StopReason.FT_SATURATED, "F/T sensor saturated")
+            if est.peak_force_n > lim.max_force_n:
+                return Stop(
+                    StopReason.FORCE_LIMIT,
+                    f"force limit: |f| = {est.peak_force_n:.1f} N > {lim.max_force_n} N",
+                )
+            if est.peak_torque_nm > lim.max_torque_nm:
+                return Stop(
+                    StopReason.TORQUE_LIMIT,
+                    f"torque limit: |t| = {est.peak_torque_nm:.2f} N m > {lim.max_torque_nm} N m",
+                )
+        since_ns = t_ns - (est.last_sample_ns if est.last_sample_ns is not None else 0)
+        if since_ns > lim.stale_ft_s * NS_PER_S:
+            return Stop(
+                StopReason.FT_STALE,
+                f"stale F/T data: no sample for {since_ns / NS_PER_S * 1e3:.0f} ms",
+            )
+        link = state.link
+        bad = not link.healthy or (phase != Phase.CONNECT and not link.commanding)
+        self._bad_link_cycles = self._bad_link_cycles + 1 if bad else 0
+        if self._bad_link_cycles >= lim.link_lost_cycles:
+            return Stop(
+                StopReason.LINK_BAD,
+                f"link lost: {'' if link.commanding else 'not commanding, '}"
+                f"{'healthy' if link.healthy else 'unhealthy'} for {self._bad_link_cycles} cycles",
+            )
+        if phase in (Phase.APPROACH, Phase.ALIGN):
+            speed = float(np.linalg.norm(est.twist_tcf[:3]))
+            if speed > lim.max_speed_mps:
+                return Stop(
+                    StopReason.SPEED_LIMIT,
+                    f"speed limit: {speed:.3f} m/s > {lim.max_speed_mps} m/s",
+                )
+            if self._origin is not None:
+                o = self._origin
+                offset = o[:3, :3].T @ (state.tcp_pose_m[:3, 3] - o[:3, 3])
+                if np.any(np.abs(offset) > self._workspace):
+                    return Stop(
+                        StopReason.WORKSPACE_LIMIT,
+                        f"workspace limit: offset {np.round(offset, 3).tolist()} m",
+                    )
+        return None

@@ -1,7 +1,7 @@
 """The paper's Section III model: one-DOF contact of a compliant manipulator
 with a free-floating target.
 
-Signs follow ``shared/design/CONVENTIONS.md`` (the paper mixes two):
+Signs follow ``docs/conventions.md`` (the paper mixes two):
 
 - penetration ``p = x_i - x_t`` (manipulator behind the target, moving +x),
 - contact force on the target ``F_c = k_c p + b_c p'``,
@@ -34,6 +34,9 @@ from drivers.config import StrictModel
 from ffexp.errors import SimulationError
 
 FloatArray = NDArray[np.float64]
+
+#: Most output samples :func:`simulate` produces (about 0.6 GB of states).
+MAX_SAMPLES = 20_000_001
 
 #: Column order of :meth:`Trajectory.table` and of the CSV files.
 COLUMNS = ("t", "x_i", "v_i", "x_t", "v_t", "p", "F_c")
@@ -143,12 +146,10 @@ def simulate(params: ContactParams, duration_s: float, dt_s: float) -> Trajector
         SimulationError: the time grid is invalid or the integrator failed.
     """
     if not (duration_s > 0.0 and dt_s > 0.0 and dt_s <= duration_s):
-        raise SimulationError(
-            f"need 0 < dt ({dt_s} s) <= duration ({duration_s} s)"
-        )
+        raise SimulationError(f"need 0 < dt_s ({dt_s} s) <= duration_s ({duration_s} s)")
     n = round(duration_s / dt_s) + 1
-    if n > 20_000_001:
-        raise SimulationError(f"{n} samples is too many: raise --dt or lower --duration")
+    if n > MAX_SAMPLES:
+        raise SimulationError(f"{n} samples is too many: raise dt_s or lower duration_s")
     t = np.arange(n, dtype=np.float64) * dt_s
     s0 = np.array([0.0, params.v0, 0.0, 0.0])
     states = _unilateral(params, s0, t) if params.unilateral else _linear(params, s0, dt_s, n)

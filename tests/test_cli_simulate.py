@@ -68,6 +68,23 @@ def test_contact_1dof_rejects_bad_option() -> None:
     assert "Traceback" not in result.stderr + result.stdout
 
 
+@pytest.mark.parametrize(
+    ("args", "flag"),
+    [
+        (["--dt", "0"], "--dt"),
+        (["--dt", "5"], "--dt"),
+        (["--duration", "-1"], "--duration"),
+        (["--duration", "1000", "--dt", "1e-6"], "--dt"),
+    ],
+)
+def test_contact_1dof_bad_time_grid_names_the_option(args: list[str], flag: str) -> None:
+    result = runner.invoke(app, ["simulate", "contact-1dof", *args])
+    assert result.exit_code == 2
+    assert result.stderr.strip().count("\n") == 0
+    assert result.stderr.startswith(f"error: options: {flag}: ")
+    assert "Traceback" not in result.stderr + result.stdout
+
+
 def test_sweep_writes_figures_and_csv(tmp_path: Path) -> None:
     result = runner.invoke(
         app,

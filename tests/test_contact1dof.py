@@ -190,3 +190,22 @@ def test_unilateral_equals_bilateral_while_pushing() -> None:
     b = simulate(params.model_copy(update={"unilateral": True}), 3.0, 1e-3)
     assert np.max(np.abs(a.p - b.p)) <= 1e-6 * np.max(np.abs(a.p))
     assert np.max(np.abs(a.f_c - b.f_c)) <= 1e-6 * np.max(np.abs(a.f_c))
+
+
+def test_one_simulation_error_class() -> None:
+    """A diverged physics simulation (raised by a driver) is caught as
+    ``ffexp.errors.SimulationError``, and the 1-DOF model raises the same class."""
+    import drivers.errors
+    import ffexp.errors
+
+    assert ffexp.errors.SimulationError is drivers.errors.SimulationError
+    caught: list[str] = []
+    try:
+        raise drivers.errors.SimulationError("physics diverged at t = 0.1230 s")
+    except ffexp.errors.SimulationError as exc:
+        caught.append(str(exc))
+    assert caught == ["physics diverged at t = 0.1230 s"]
+    with pytest.raises(drivers.errors.DriverError, match=r"dt_s \(0.0 s\) <= duration_s"):
+        simulate(ContactParams(), 1.0, 0.0)
+    with pytest.raises(ffexp.errors.SimulationError, match="samples is too many"):
+        simulate(ContactParams(), 1e3, 1e-5)

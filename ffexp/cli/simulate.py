@@ -10,7 +10,7 @@ from rich.console import Console
 
 from drivers.config import load_model
 from ffexp.cli._common import SET_HELP, cli_errors, plain_table
-from ffexp.contact1dof import ContactParams, Summary, simulate, summarize
+from ffexp.contact1dof import MAX_SAMPLES, ContactParams, Summary, simulate, summarize
 from ffexp.errors import ConfigError
 from ffexp.sweep import SUMMARY_COLUMNS, SweepProtocol, run_sweep, summary_rows, write_outputs
 from ffexp.sweep import write_trajectory_csv as write_csv
@@ -52,6 +52,12 @@ def contact_1dof(
         err = exc.errors()[0]
         name = "--" + str(err["loc"][0]).replace("_", "-")
         raise ConfigError("options", name, err["msg"]) from None
+    if not duration > 0.0:
+        raise ConfigError("options", "--duration", f"must be > 0 s, got {duration}")
+    if not 0.0 < dt <= duration:
+        raise ConfigError("options", "--dt", f"must be > 0 s and <= --duration, got {dt}")
+    if round(duration / dt) + 1 > MAX_SAMPLES:
+        raise ConfigError("options", "--dt", f"{duration / dt:.3g} samples is too many: raise it")
     traj = simulate(params, duration, dt)
     if csv_path is not None:
         try:

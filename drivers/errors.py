@@ -100,15 +100,20 @@ class AddressError(DriverError):
     """A network address is malformed, cannot be resolved, or its port cannot be bound.
 
     Args:
-        option: where the address came from (``"--robot-ip"``, ``"--remote"``, ...).
+        where: where the address came from, as the caller names it: a file and
+            field (``"rigs/lab.toml: robot.robot_ip"``) or a settings field
+            (``"FriSettings.robot_ip"``); never a command-line flag from
+            inside :mod:`drivers`.
         address: the address as given.
         message: what is wrong, in one line.
+
+    ``str(err)`` is ``"<where>: <address>: <message>"``.
     """
 
     exit_code = 2
 
-    def __init__(self, option: str, address: str, message: str) -> None:
-        self.option = option
+    def __init__(self, where: str, address: str, message: str) -> None:
+        self.where = where
         self.address = address
         self.message = message
-        super().__init__(f"{option} {address}: {message}")
+        super().__init__(f"{where}: {address}: {message}")

@@ -55,7 +55,7 @@ from typing import Final, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from drivers.base.types import CmdFlags, ControlMode, FriQuality, FriState
+from drivers.fri.types import CmdFlags, ControlMode, FriQuality, FriState
 from drivers.counters import OutcomeCounts
 from drivers.errors import MalformedPacketError, PacketEncodeError
 

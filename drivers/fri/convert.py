@@ -1,9 +1,9 @@
-"""Between :mod:`drivers.base` objects and the codec's packet arrays, both sides of the link.
+"""Between :mod:`drivers.fri.types` objects and the codec's packet arrays, both sides of the link.
 
 The codec (:mod:`drivers.fri.codec`) already converts the wire layout to our
 conventions; this module only copies between its preallocated
 :class:`~drivers.fri.codec.MsrArrays` / :class:`~drivers.fri.codec.CmdArrays`
-and :class:`~drivers.base.types.Measurement` / :class:`~drivers.base.types.Command`.
+and :class:`~drivers.fri.types.FriMeasurement` / :class:`~drivers.fri.types.FriCommand`.
 
 Two conventions of ffexp on top of FRI 1.x live here (README, "Running on a
 real KUKA KRC"):
@@ -25,8 +25,8 @@ from __future__ import annotations
 
 from typing import Final
 
-from drivers.base.types import CmdFlags, Command, ControlMode, Measurement
 from drivers.fri.codec import CmdArrays, MsrArrays
+from drivers.fri.types import CmdFlags, ControlMode, FriCommand, FriMeasurement
 
 __all__ = [
     "LOCKSTEP_INDEX",
@@ -75,7 +75,7 @@ def cycle_ns_from_seconds(seconds: float) -> int:
     return round(float(seconds) * 1e6) * 1000
 
 
-def measurement_to_arrays(m: Measurement, out: MsrArrays) -> None:
+def measurement_to_arrays(m: FriMeasurement, out: MsrArrays) -> None:
     """Fill ``out`` from ``m`` (the emulator side); head counters are left alone."""
     out.krl_real[:] = m.krl_real
     out.krl_int[:] = m.krl_int
@@ -87,8 +87,8 @@ def measurement_to_arrays(m: Measurement, out: MsrArrays) -> None:
     out.cmd_sample_time = m.cmd_sample_time
     out.safety_limits = m.safety_limits
     out.answer_rate = m.answer_rate
-    out.latency = m.latency
-    out.jitter = m.jitter
+    out.latency = m.latency_s
+    out.jitter = m.jitter_s
     out.miss_rate = m.miss_rate
     out.miss_counter = int(m.miss_counter)
     out.power = int(m.power)
@@ -110,13 +110,12 @@ def measurement_to_arrays(m: Measurement, out: MsrArrays) -> None:
     out.gravity[:] = m.gravity
 
 
-def arrays_to_measurement(a: MsrArrays, seq: int, time_ns: int) -> Measurement:
-    """A new :class:`Measurement` (own copies) from decoded arrays (the remote side).
+def arrays_to_measurement(a: MsrArrays, seq: int, time_ns: int) -> FriMeasurement:
+    """A new :class:`FriMeasurement` (own copies) from decoded arrays (the remote side).
 
-    ``seq`` is the unwrapped ``sendSeqCount``, ``time_ns`` the cycle's time;
-    ground truth does not travel over FRI (``truth`` is ``None``).
+    ``seq`` is the unwrapped ``sendSeqCount``, ``time_ns`` the cycle's time.
     """
-    return Measurement(
+    return FriMeasurement(
         seq=seq,
         time_ns=time_ns,
         state=a.state,
@@ -126,8 +125,8 @@ def arrays_to_measurement(a: MsrArrays, seq: int, time_ns: int) -> Measurement:
         cmd_sample_time=a.cmd_sample_time,
         safety_limits=a.safety_limits,
         answer_rate=a.answer_rate,
-        latency=a.latency,
-        jitter=a.jitter,
+        latency_s=a.latency,
+        jitter_s=a.jitter,
         miss_rate=a.miss_rate,
         miss_counter=a.miss_counter,
         power=a.power,
@@ -149,11 +148,10 @@ def arrays_to_measurement(a: MsrArrays, seq: int, time_ns: int) -> Measurement:
         krl_real=a.krl_real.copy(),
         krl_int=a.krl_int.copy(),
         krl_bool=a.krl_bool,
-        truth=None,
     )
 
 
-def command_to_arrays(c: Command, out: CmdArrays) -> None:
+def command_to_arrays(c: FriCommand, out: CmdArrays) -> None:
     """Fill ``out`` from ``c`` (the remote side); the strategy goes to ``krl.intData[0]``."""
     out.cmd_flags = int(c.flags)
     out.jnt_pos[:] = c.jnt_pos
@@ -170,14 +168,14 @@ def command_to_arrays(c: Command, out: CmdArrays) -> None:
     out.krl_bool = int(c.krl_bool) & 0xFFFF
 
 
-def arrays_to_command(a: CmdArrays, current: ControlMode) -> Command:
-    """A new :class:`Command` from a decoded packet (the emulator side).
+def arrays_to_command(a: CmdArrays, current: ControlMode) -> FriCommand:
+    """A new :class:`FriCommand` from a decoded packet (the emulator side).
 
     The control mode is the strategy requested in ``krl.intData[0]``, or
     ``current`` when there is no (valid) request.
     """
     control = control_from_strategy(int(a.krl_int[STRATEGY_INDEX]))
-    return Command(
+    return FriCommand(
         flags=CmdFlags(a.cmd_flags & 0xFFFFFFFF),
         control=current if control is None else control,
         jnt_pos=a.jnt_pos.copy(),

@@ -77,7 +77,7 @@ from drivers.fri.convert import (
     command_to_arrays,
     cycle_ns_from_seconds,
 )
-from drivers.fri.udp import bind_udp, resolve_ipv4
+from drivers.net.udp import bind_udp, resolve_ipv4
 
 __all__ = ["FriEstimateSensor", "FriRobot", "FriSettings", "LinkStats"]
 
@@ -172,7 +172,7 @@ class FriRobot(RobotDriver):
 
     def __init__(self, settings: FriSettings) -> None:
         self.settings = settings
-        self.robot_ip = resolve_ipv4("--robot-ip", settings.robot_ip)
+        self.robot_ip = resolve_ipv4(settings.where("robot_ip"), settings.robot_ip)
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
         self._cond = threading.Condition()
@@ -242,7 +242,7 @@ class FriRobot(RobotDriver):
         """
         if self._sock is None:
             s = self.settings
-            self._sock = bind_udp("--fri-port", s.bind_host, s.port)
+            self._sock = bind_udp(s.where("local_port"), s.local_host, s.local_port)
             self._sock.settimeout(0.05)
         host, port = self._sock.getsockname()[:2]
         return str(host), int(port)

@@ -34,7 +34,7 @@ import select
 import socket
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -42,8 +42,8 @@ from numpy.typing import NDArray
 
 from drivers.base.interfaces import ForceTorqueSensor
 from drivers.base.types import FtSamples
-from drivers.errors import NotConnectedError
-from drivers.fri.udp import bind_udp, resolve_ipv4
+from drivers.errors import ConfigError, NotConnectedError
+from drivers.net.udp import bind_udp, resolve_ipv4
 from drivers.netft.codec import (
     DEFAULT_PORT,
     MAX_RECORDS,
@@ -63,29 +63,53 @@ __all__ = ["NetFtClient", "NetFtSettings", "NetFtStats"]
 
 @dataclass(frozen=True)
 class NetFtSettings:
-    """Where the box is and how it scales.
+    """Where the box is, how it scales and how the client paces its requests.
+
+    A plain dataclass with defaults (the rig-file factory fills it); units in
+    the names.
 
     Args:
-        host: the box's address.
+        host: the box's address (IPv4 or host name).
         port: its RDT port.
-        calibration: counts per unit and units (defaults: 1e6 counts per N and N·m).
+        counts_per_force: counts per force unit (``cfgcpf`` in netftapi2.xml).
+        counts_per_torque: counts per torque unit (``cfgcpt``).
+        force_unit_n: newtons per force unit of the box (1.0 for N; ``scfgfu``).
+        torque_unit_nm: newton metres per torque unit (1.0 for N·m, 0.001 for
+            N·mm; ``scfgtu``).
         sample_rate_hz: the box's internal sample rate (``ft_sequence`` step).
         mode: ``realtime`` (0x0002) or ``buffered`` (0x0003).
-        bind_host, bind_port: local address (port 0: any free port).
+        local_host, local_port: local address (port 0: any free port).
         reanchor_s: re-anchor the time stamps when they drift this far from the clock.
         resend_s: repeat the start request while nothing has come for this long
             (a request sent before the box was up is lost).
+        source: where these settings came from (a rig file and table, e.g.
+            ``"rigs/lab.toml: ft"``); error messages name ``<source>.<field>``.
     """
 
     host: str
     port: int = DEFAULT_PORT
-    calibration: Calibration = field(default_factory=Calibration)
+    counts_per_force: float = 1_000_000.0
+    counts_per_torque: float = 1_000_000.0
+    force_unit_n: float = 1.0
+    torque_unit_nm: float = 1.0
     sample_rate_hz: float = 1000.0
     mode: Literal["realtime", "buffered"] = "realtime"
-    bind_host: str = "0.0.0.0"
-    bind_port: int = 0
+    local_host: str = "0.0.0.0"
+    local_port: int = 0
     reanchor_s: float = 0.1
     resend_s: float = 0.05
+    source: str = "NetFtSettings"
+
+    def where(self, field: str) -> str:
+        """``"<source>.<field>"``: how an error names one of these settings."""
+        return f"{self.source}.{field}"
+
+    @property
+    def calibration(self) -> Calibration:
+        """The scaling of counts to N and N·m (raises ValueError on a non-positive value)."""
+        return Calibration(
+            self.counts_per_force, self.counts_per_torque, self.force_unit_n, self.torque_unit_nm
+        )
 
 
 @dataclass(frozen=True)
@@ -118,8 +142,14 @@ class NetFtClient(ForceTorqueSensor):
         self, settings: NetFtSettings, clock: Callable[[], int | None] | None = None
     ) -> None:
         self.settings = settings
-        self.host = resolve_ipv4("--netft", settings.host)
+        self.host = resolve_ipv4(settings.where("host"), settings.host)
         self.addr = (self.host, int(settings.port))
+        for name in ("counts_per_force", "counts_per_torque", "force_unit_n", "torque_unit_nm",
+                     "sample_rate_hz"):
+            value = getattr(settings, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ConfigError(settings.where(name), "", f"must be positive, got {value}")
+        self._calibration = settings.calibration
         self.clock: Callable[[], int | None] = clock or time.monotonic_ns
         self._sock: socket.socket | None = None
         self._running = False
@@ -148,7 +178,7 @@ class NetFtClient(ForceTorqueSensor):
         """Bind the local socket now (``start`` does it otherwise); returns its address."""
         if self._sock is None:
             s = self.settings
-            self._sock = bind_udp("--netft local port", s.bind_host, s.bind_port)
+            self._sock = bind_udp(s.where("local_port"), s.local_host, s.local_port)
             self._sock.setblocking(False)
         host, port = self._sock.getsockname()[:2]
         return str(host), int(port)
@@ -271,7 +301,7 @@ class NetFtClient(ForceTorqueSensor):
         words = np.concatenate(self._pending) if len(self._pending) > 1 else self._pending[0]
         self._pending = []
         recs = RdtSamples(words, words.shape[0])
-        wrench = counts_to_si(recs.counts, self.settings.calibration)
+        wrench = counts_to_si(recs.counts, self._calibration)
         status = recs.status.copy()
         self._last_status = int(status[-1])
         # unwrap ft_sequence (uint32) into a running count

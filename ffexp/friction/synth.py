@@ -31,6 +31,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ffexp.errors import InputError
 from ffexp.friction.fit import G_MPS2
+from ffexp.friction.marker import aruco_dictionary
 
 Codec = Literal["ffv1", "png", "mjpg"]
 
@@ -192,19 +193,6 @@ def _shift(img: npt.NDArray[np.float32], fu: float, fv: float) -> npt.NDArray[np
     diag = p[:-1, :-1]
     out = (1 - fv) * ((1 - fu) * cur + fu * left) + fv * ((1 - fu) * up + fu * diag)
     return np.asarray(out, np.float32)
-
-
-def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
-    """An OpenCV predefined ArUco/AprilTag dictionary by name (``DICT_4X4_50``, ...)."""
-    key = name.upper()
-    if not key.startswith("DICT_"):
-        key = "DICT_" + key
-    ident = getattr(cv2.aruco, key, None)
-    if not isinstance(ident, int):
-        raise InputError(
-            f"unknown marker dictionary {name!r} (e.g. DICT_4X4_50, DICT_APRILTAG_36h11)"
-        )
-    return cv2.aruco.getPredefinedDictionary(ident)
 
 
 def _illumination(cfg: SynthConfig) -> npt.NDArray[np.float32]:

@@ -1,0 +1,34 @@
+"""Pixels to metres: a uniform scale, or a homography from four or more
+image points with known table coordinates."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from ffexp.friction.video import FloatArray
+
+
+def homography_from_points(image_px: FloatArray, table_m: FloatArray) -> FloatArray:
+    """Homography mapping image pixels to table metres from four (or more) points."""
+    src = np.asarray(image_px, np.float64).reshape(-1, 2)
+    dst = np.asarray(table_m, np.float64).reshape(-1, 2)
+    if src.shape[0] < 4 or src.shape != dst.shape:
+        raise ValueError("need at least four image points and as many table points")
+    hom, _ = cv2.findHomography(src, dst, 0)
+    if hom is None:
+        raise ValueError("the table points are degenerate (three on a line?)")
+    return np.asarray(hom, np.float64)
+
+
+def pixels_to_metres(
+    centre_px: FloatArray, *, px_per_m: float | None = None, homography: FloatArray | None = None
+) -> FloatArray:
+    """Convert (N, 2) pixel positions to metres by a scale or a homography."""
+    pts = np.asarray(centre_px, np.float64)
+    if homography is not None:
+        out = cv2.perspectiveTransform(pts.reshape(-1, 1, 2), homography)
+        return np.asarray(out, np.float64).reshape(-1, 2)
+    if px_per_m is None or px_per_m <= 0:
+        raise ValueError("need a positive px_per_m or a homography")
+    return pts / px_per_m

@@ -21,6 +21,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from drivers.base.types import NS_PER_S as NS
+from ffexp import controllers
+from ffexp.contracts import Phase, StopReason
 from ffexp.errors import InputError
 from ffexp.recording import Recording
 
@@ -28,10 +31,10 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-NS = 1_000_000_000
-PHASES = ("CONNECT", "APPROACH", "ALIGN", "DONE", "ABORT")
-ALIGN = 2
-PHASE_COLOURS = {1: "#dbe9f6", 2: "#e3f1dc", 3: "#eeeeee", 4: "#f8d7d3"}
+ALIGN = Phase.ALIGN
+PHASE_COLOURS = {
+    Phase.APPROACH: "#dbe9f6", Phase.ALIGN: "#e3f1dc", Phase.DONE: "#eeeeee", Phase.ABORT: "#f8d7d3"
+}
 #: f_z tracking is scored after this long in each ALIGN segment.
 SETTLE_S = 1.0
 
@@ -124,9 +127,10 @@ def metrics(rec: Recording) -> RunMetrics:
     aligned_at: float | None = None
     if phases is not None:
         for t_ns, msg in zip(phases.log_time_ns.tolist(), phases.messages, strict=True):
-            if msg.get("phase") == "ABORT":
+            phase = _phase_of(msg)
+            if phase == Phase.ABORT:
                 aborted = str(msg.get("reason", "aborted"))
-            if msg.get("phase") == "DONE" and msg.get("reason") == "aligned":
+            if phase == Phase.DONE and _ended_aligned(msg):
                 aligned_at = (t_ns - t0_ns) / NS
     contact = s.in_contact
     made = np.flatnonzero(~contact[:-1] & contact[1:]) + 1
@@ -145,7 +149,7 @@ def metrics(rec: Recording) -> RunMetrics:
         peak_fz = float(np.max(np.abs(f_z[in_align])))
         mean_w = np.mean(np.abs(s.wrench[in_align]), axis=0).tolist()
         peak_w = np.max(np.abs(s.wrench[in_align]), axis=0).tolist()
-        force_control = info.get("method") != "impedance"
+        force_control = controllers.tracks_force_reference(str(info.get("method", "")))
         f_ref = float(np.median(s.f_ref[in_align, 2])) if force_control else None
         settled = in_align & (_time_in_phase(s) >= SETTLE_S)
         if settled.any() and force_control:
@@ -190,6 +194,22 @@ def metrics(rec: Recording) -> RunMetrics:
         complete=rec.complete,
         warnings=list(rec.warnings),
     )
+
+
+def _phase_of(msg: dict[str, Any]) -> Phase | None:
+    """The phase of a ``/runner/phase`` message (by its id)."""
+    try:
+        return Phase(int(msg.get("phase_id", -1)))
+    except ValueError:
+        return None
+
+
+def _ended_aligned(msg: dict[str, Any]) -> bool:
+    """A DONE message says the run ended aligned (its flag; files before the flag: the
+    reason that the stop reason's value then was)."""
+    if "aligned" in msg:
+        return bool(msg["aligned"])
+    return msg.get("reason") == StopReason.ALIGNED.value
 
 
 def _time_in_phase(s: RunSeries) -> np.ndarray:
@@ -239,13 +259,11 @@ def compare_rows(runs: list[tuple[RunMetrics, dict[str, Any]]]) -> list[list[str
     rows = []
     for m, info in runs:
         proto = info.get("protocol_resolved", {})
-        k_ri = proto.get("align", {}).get("k_ri", [0.0] * 6)
-        method = proto.get("method", m.method)
+        k_ri = proto.get("align", {}).get("k_ri")
         values: dict[str, Any] = asdict(m)
-        if method != "impedance":
-            values["k_xp"], values["k_yp"] = k_ri[3], k_ri[1]
-        else:
-            values["k_xp"] = values["k_yp"] = values["f_ref_n"] = None
+        values["k_xp"], values["k_yp"] = (k_ri[3], k_ri[1]) if k_ri else (None, None)
+        if not controllers.tracks_force_reference(m.method):
+            values["f_ref_n"] = None
         rows.append([_fmt(values.get(key)) for _title, key in COMPARE_COLUMNS])
     return rows
 
@@ -276,7 +294,7 @@ def _legend_phases(ax: Axes) -> None:
     handles, labels = ax.get_legend_handles_labels()
     for pid, colour in PHASE_COLOURS.items():
         handles.append(Patch(color=colour))
-        labels.append(PHASES[pid])
+        labels.append(Phase(pid).name)
     ax.legend(handles, labels, fontsize=7, loc="upper left", ncols=2)
 
 

@@ -1,4 +1,4 @@
-"""State estimation building blocks (used by :mod:`ffexp.estimator`): wrench and tool-motion Kalman filters
+"""State estimation building blocks of :mod:`ffexp.estimator`: wrench and tool-motion Kalman filters
 (filterpy), tool-load compensation and a contact detector. No I/O.
 
 Wrench filter

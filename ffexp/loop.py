@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+
 import numpy as np
 
 from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
@@ -38,7 +39,8 @@ class Cycle:
         self.safety = SafetyMonitor(p.limits)
         self.task = Task(p.alignment, p.run.timeout_s, p.run.stop_hold_s)
         self.approach = controllers.Approach(p.approach)
-        self.controller = controllers.build(p.align, controllers.ControlContext(cycle_s, self.approach))
+        ctx = controllers.ControlContext(cycle_s, self.approach)
+        self.controller = controllers.build(p.align, ctx)
         self.hold_pose = first.tcp_pose_m.copy()
         self.cmd = CartesianCommand()
         self.t_ns = 0

@@ -151,7 +151,9 @@ class RunLog:
             if truth is not None:
                 rec.transform(log_ns, "base", "target", truth.target_pose)
 
-    def _command(self, log_ns: int, intent: CartesianCommand | None, applied: AppliedCommand) -> None:
+    def _command(
+        self, log_ns: int, intent: CartesianCommand | None, applied: AppliedCommand
+    ) -> None:
         assert self.rec is not None
         r = self.rec.record("/control/command")
         r["given"] = int(intent is not None)

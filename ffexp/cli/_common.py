@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import functools
+import signal
 import sys
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from types import FrameType
 from typing import ParamSpec, TypeVar
 
 import typer
@@ -48,3 +51,38 @@ def plain_table(
     for row in rows:
         table.add_row(*(Text(cell) for cell in row))
     return table
+
+
+class StopFlag:
+    """Set by SIGINT/SIGTERM (see :func:`stop_signals`); a loop polls it and stops safely.
+
+    A second signal raises KeyboardInterrupt: the user gave up waiting.
+    """
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+    def __call__(self) -> bool:
+        return self.signum is not None
+
+    def handle(self, signum: int, _frame: FrameType | None) -> None:
+        if self.signum is not None:
+            raise KeyboardInterrupt
+        self.signum = signum
+
+    def exit_code(self) -> int | None:
+        """128 + the signal's number once one came (the shell's convention), else None."""
+        return None if self.signum is None else 128 + self.signum
+
+
+@contextmanager
+def stop_signals(flag: StopFlag) -> Iterator[StopFlag]:
+    """SIGINT and SIGTERM set ``flag`` inside the block; the old handlers come back after."""
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    for s in old:
+        signal.signal(s, flag.handle)
+    try:
+        yield flag
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)

@@ -2,53 +2,24 @@
 
 from __future__ import annotations
 
-import signal
 import sys
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
-from types import FrameType
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
+from ffexp import controllers
 from ffexp.analysis import compare_rows, metrics, run_info, write_run_figures
-from ffexp.cli._common import SET_HELP, cli_errors, plain_table
+from ffexp.cli._common import SET_HELP, StopFlag, cli_errors, plain_table, stop_signals
 from ffexp.cli.records import compare_table
+from ffexp.contracts import Phase, Progress
 from ffexp.errors import FfexpError
-from ffexp.experiment import DRIVERS, FT_SOURCES, LinkOptions, RunResult, load_campaign, run_file
+from ffexp.experiment import DRIVERS, FT_SOURCES, RigChoice, RunResult, load_campaign, run_file
 from ffexp.recording import load
-from ffexp.runner import Phase, Progress
 
 console = Console(width=170)
-
-
-class _StopFlag:
-    """Set by SIGINT/SIGTERM; the runner polls it and stops safely."""
-
-    def __init__(self) -> None:
-        self.signum: int | None = None
-
-    def __call__(self) -> bool:
-        return self.signum is not None
-
-    def handle(self, signum: int, _frame: FrameType | None) -> None:
-        if self.signum is not None:  # second signal: give up waiting
-            raise KeyboardInterrupt
-        self.signum = signum
-
-
-@contextmanager
-def _signals(flag: _StopFlag) -> Iterator[None]:
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    for s in old:
-        signal.signal(s, flag.handle)
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 def _progress_printer(name: str) -> tuple[Callable[[Progress], None], Callable[[], None]]:
@@ -82,8 +53,7 @@ def _summary_table(results: list[RunResult]) -> Table:
 
 
 def _one(
-    protocol: Path, set_: list[str], driver: str, out: Path, flag: _StopFlag,
-    link: LinkOptions | None = None,
+    protocol: Path, set_: list[str], rig: RigChoice, out: Path, flag: StopFlag
 ) -> RunResult:
     show, done = _progress_printer(protocol.stem)
 
@@ -92,8 +62,8 @@ def _one(
 
     try:
         result = run_file(
-            protocol, set_, driver=driver, out_dir=out, progress=show, stop_requested=flag,
-            link=link, notice=notice,
+            protocol, set_, rig=rig, out_dir=out, progress=show, stop_requested=flag,
+            notice=notice,
         )
     finally:
         done()
@@ -104,34 +74,55 @@ def _one(
     return result
 
 
+RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardware number."
+RIG_SET_HELP = "Override a rig field, e.g. --rig-set robot.port=49939 (repeatable)."
+
+
+def rig_choice(
+    rig: Path | None, driver: str, rig_set: list[str], robot_ip: str = "",
+    fri_port: int | None = None, ft: str = "", netft: str = "",
+) -> RigChoice:
+    """The rig of a command line: the device flags become overrides of rig fields."""
+    overrides = list(rig_set)
+    if robot_ip:
+        overrides.append(f"robot.robot_ip={robot_ip!r}")
+    if fri_port is not None:
+        overrides.append(f"robot.port={fri_port}")
+    if ft:
+        overrides.append(f"ft.type={ft!r}")
+    if netft:
+        host, _, port = netft.rpartition(":") if ":" in netft else (netft, "", "")
+        overrides.append(f"ft.host={host!r}")
+        if port:
+            overrides.append(f"ft.port={port}")
+    return RigChoice(path=rig, overrides=tuple(overrides), driver=None if rig else driver)
+
+
 @cli_errors
 def run(
     protocol: Path = typer.Argument(..., help="Run protocol TOML (protocols/method*.toml)."),
-    driver: str = typer.Option("sim", "--driver", help=f"Robot back-end: {', '.join(DRIVERS)}."),
+    rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
+    driver: str = typer.Option(
+        "sim", "--driver", help=f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
+    ),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
+    rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(Path("runs"), "--out", help="Directory for the MCAP recording."),
-    fri_port: int = typer.Option(
-        49938, "--fri-port", help="--driver fri: local UDP port (FRISOCK on the KRC; 0 = any)."
+    fri_port: int | None = typer.Option(
+        None, "--fri-port", help="Rig robot.port: local UDP port for FRI (0 = any)."
     ),
-    robot_ip: str = typer.Option(
-        "", "--robot-ip", help="--driver fri: the KRC's address; other senders are ignored."
-    ),
-    ft: str = typer.Option(
-        "auto", "--ft",
-        help=f"F/T source: {', '.join(FT_SOURCES)} (auto: sim for --driver sim, netft for fri).",
-    ),
-    netft: str = typer.Option(
-        "", "--netft", help="--ft netft: the box as HOST:PORT (default ROBOT_IP:49152)."
-    ),
+    robot_ip: str = typer.Option("", "--robot-ip", help="Rig robot.robot_ip: the KRC's address."),
+    ft: str = typer.Option("", "--ft", help=f"Rig ft.type: {', '.join(FT_SOURCES)}."),
+    netft: str = typer.Option("", "--netft", help="Rig ft.host and ft.port as HOST[:PORT]."),
 ) -> None:
     """Run one experiment; print a summary and the path of its recording."""
-    flag = _StopFlag()
-    link = LinkOptions(robot_ip=robot_ip or None, fri_port=fri_port, ft=ft, netft=netft or None)
-    with _signals(flag):
-        result = _one(protocol, set_, driver, out, flag, link)
+    choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft)
+    with stop_signals(StopFlag()) as flag:
+        result = _one(protocol, set_, choice, out, flag)
     console.print(_summary_table([result]))
-    if flag.signum is not None:
-        raise typer.Exit(128 + flag.signum)
+    code = flag.exit_code()
+    if code is not None:
+        raise typer.Exit(code)
     if result.outcome.phase == Phase.ABORT:
         raise typer.Exit(3)
 
@@ -139,28 +130,33 @@ def run(
 @cli_errors
 def campaign(
     campaign_file: Path = typer.Argument(..., help="Campaign TOML (protocols/paper.toml)."),
-    driver: str = typer.Option("sim", "--driver", help=f"Robot back-end: {', '.join(DRIVERS)}."),
+    rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
+    driver: str = typer.Option(
+        "sim", "--driver", help=f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
+    ),
     set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol."),
+    rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(Path("runs"), "--out", help="Directory for recordings and figures."),
 ) -> None:
     """Run several protocols and compare them with the paper's Table (res_par)."""
     camp = load_campaign(campaign_file)
-    flag = _StopFlag()
+    choice = rig_choice(rig, driver, rig_set)
     results: list[RunResult] = []
-    with _signals(flag):
+    with stop_signals(StopFlag()) as flag:
         for entry in camp.runs:
             if flag():
                 break
             results.append(
-                _one(campaign_file.parent / entry.protocol, [*entry.set, *set_], driver, out, flag)
+                _one(campaign_file.parent / entry.protocol, [*entry.set, *set_], choice, out, flag)
             )
     _paper_table(results)
     console.print(_summary_table(results))
     figures = _campaign_figures(results, out / f"{camp.name}-figures")
     for path in figures:
         typer.echo(f"figure: {path}")
-    if flag.signum is not None:
-        raise typer.Exit(128 + flag.signum)
+    code = flag.exit_code()
+    if code is not None:
+        raise typer.Exit(code)
 
 
 def _paper_table(results: list[RunResult]) -> None:
@@ -179,13 +175,15 @@ def _paper_table(results: list[RunResult]) -> None:
                 return f"{v - start:.1f}"
             return "-" if v is None else str(v)
 
-        k_ri = r.protocol.align.k_ri
-        force = r.protocol.method != "impedance"
+        align = r.protocol.align
+        k_ri = getattr(align, "k_ri", None)
+        f_ref = getattr(align, "f_ref", None)
+        force = controllers.tracks_force_reference(r.protocol.method)
         rows.append((
             r.protocol.name,
-            f"{r.protocol.align.f_ref[2]:g}" if force else "-",
-            f"{k_ri[3]:g}" if force else "-",
-            f"{k_ri[1]:g}" if force else "-",
+            f"{f_ref[2]:g}" if force and f_ref is not None else "-",
+            f"{k_ri[3]:g}" if k_ri is not None else "-",
+            f"{k_ri[1]:g}" if k_ri is not None else "-",
             rel("contact_s"),
             "-" if m.first_contact_s is None else f"{m.first_contact_s:.1f}",
             rel("end_s"),

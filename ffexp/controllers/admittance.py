@@ -31,7 +31,7 @@ from drivers.config import StrictModel
 from ffexp.control import AXES, Vec6, pose_error_tcf
 from ffexp.controllers.base import F64, ControlContext, Controller
 from ffexp.estimator import Estimate
-from ffexp.recording.topics import CDR_TOPICS, CdrTopic
+from ffexp.recording.topics import CDR_TOPICS
 
 Bool6 = tuple[bool, bool, bool, bool, bool, bool]
 
@@ -117,7 +117,7 @@ class Admittance(Controller):
     name = "admittance"
     label = "Admittance control (virtual mass-damper)"
     tracks_force_reference = True
-    topic: CdrTopic | None = CDR_TOPICS["/control/admittance"]
+    topic = CDR_TOPICS["/control/admittance"]
 
     def __init__(self, config: AdmittanceConfig, ctx: ControlContext) -> None:
         super().__init__(config, ctx)

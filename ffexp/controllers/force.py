@@ -10,10 +10,10 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import model_validator
+from pydantic import Field, model_validator
 
 from drivers.base.types import RobotState
-from ffexp.control import ForceControlConfig, ForceController, ForceControlTerms
+from ffexp.control import ForceControlConfig, ForceController, ForceControlTerms, Vec6
 from ffexp.controllers.base import F64, ControlContext, Controller
 from ffexp.estimator import Estimate
 
@@ -28,6 +28,7 @@ class ForceConfig(ForceControlConfig):
     """``[align] method = "force"``: Method II, the PI force loop alone."""
 
     method: Literal["force"] = "force"
+    k_ri: Vec6 = Field((0.0,) * 6, description="Must stay zero: Method II has no K_RI.")
 
     @model_validator(mode="after")
     def _no_inertia_reduction(self) -> ForceConfig:

@@ -37,13 +37,12 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
+from drivers.base.types import F64, Vec6
 from drivers.config import StrictModel
 
-FloatArray = NDArray[np.float64]
-Vec6 = tuple[float, float, float, float, float, float]
+FloatArray = F64  # the project's alias (drivers.base.types)
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
 

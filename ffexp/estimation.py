@@ -31,15 +31,13 @@ from typing import Literal
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
-from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
+from drivers.base.types import F64, Vec3, Vec6
 from drivers.config import StrictModel
 from ffexp.control import rotation_log
 
-FloatArray = NDArray[np.float64]
-Vec3 = tuple[float, float, float]
-Vec6 = tuple[float, float, float, float, float, float]
+FloatArray = F64  # the project's alias (drivers.base.types)
 
 GRAVITY_BASE_MPS2: FloatArray = np.array([0.0, 0.0, -9.81])
 """Gravity in the robot base frame (base Z up). In the paper's TCF it is along -X."""

@@ -19,10 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 from pydantic import Field
 
-from drivers.base.types import FtSamples, FtStatus, RobotState
+from drivers.base.types import F64, FtSamples, FtStatus, RobotState
 from drivers.config import StrictModel
 from ffexp.estimation import (
     ContactDetector,
@@ -34,8 +33,6 @@ from ffexp.estimation import (
     WrenchFilter,
     WrenchFilterConfig,
 )
-
-F64 = NDArray[np.float64]
 
 
 class Estimation(StrictModel):

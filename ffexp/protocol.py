@@ -12,8 +12,9 @@ from typing import Any
 
 from pydantic import Field, model_validator
 
+from drivers.base.types import Vec6
 from drivers.config import StrictModel, load_model
-from ffexp.control import ImpedanceConfig, Vec6
+from ffexp.control import ImpedanceConfig
 from ffexp.controllers import AlignConfig
 from ffexp.controllers.force import ForceRiConfig
 from ffexp.estimator import Estimation

@@ -16,16 +16,21 @@ events are kept, in :attr:`RunLog.events`.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
-from drivers.base.types import NS_PER_S, AppliedCommand, CartesianCommand, FtSamples, RobotState
+from drivers.base.types import (
+    F64,
+    NS_PER_S,
+    AppliedCommand,
+    CartesianCommand,
+    FtSamples,
+    RobotState,
+)
 from ffexp.contracts import Phase, StopReason
 from ffexp.controllers import Controller
 from ffexp.estimator import Estimate
 from ffexp.recording import Recorder
 from ffexp.task import Event, Note, PhaseChange
 
-F64 = NDArray[np.float64]
 _TERMS = ("p", "i", "ri", "ff", "impedance")
 
 

@@ -17,15 +17,12 @@ first that holds is the one reported):
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 from pydantic import Field
 
-from drivers.base.types import NS_PER_S, RobotState
+from drivers.base.types import F64, NS_PER_S, RobotState
 from drivers.config import StrictModel
 from ffexp.contracts import Phase, Stop, StopReason
 from ffexp.estimator import Estimate
-
-F64 = NDArray[np.float64]
 
 
 class Limits(StrictModel):

@@ -26,10 +26,10 @@ import numpy as np
 from pydantic import Field, model_validator
 from scipy.spatial.transform import Rotation
 
-from drivers.base.types import RobotState
+from drivers.base.types import F64, RobotState, Vec6
 from drivers.config import StrictModel
-from ffexp.control import AXES, Vec6, pose_error_tcf
-from ffexp.controllers.base import F64, ControlContext, Controller
+from ffexp.control import AXES, pose_error_tcf
+from ffexp.controllers.base import ControlContext, Controller
 from ffexp.estimator import Estimate
 from ffexp.recording.topics import CDR_TOPICS
 

@@ -16,15 +16,12 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numpy.typing import NDArray
 
-from drivers.base.types import NS_PER_S, RobotState
+from drivers.base.types import F64, NS_PER_S, RobotState
 from drivers.config import StrictModel
 from ffexp.control import ImpedanceConfig, ImpedanceController
 from ffexp.estimator import Estimate
 from ffexp.recording.topics import CdrTopic
-
-F64 = NDArray[np.float64]
 
 
 class Approach:

@@ -12,9 +12,9 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from drivers.base.types import RobotState
-from ffexp.control import ForceControlConfig, ForceController, ForceControlTerms, Vec6
-from ffexp.controllers.base import F64, ControlContext, Controller
+from drivers.base.types import F64, RobotState, Vec6
+from ffexp.control import ForceControlConfig, ForceController, ForceControlTerms
+from ffexp.controllers.base import ControlContext, Controller
 from ffexp.estimator import Estimate
 
 

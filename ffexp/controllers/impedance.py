@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from drivers.base.types import RobotState
+from drivers.base.types import F64, RobotState
 from drivers.config import StrictModel
-from ffexp.controllers.base import F64, Controller
+from ffexp.controllers.base import Controller
 from ffexp.estimator import Estimate
 
 

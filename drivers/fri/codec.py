@@ -55,9 +55,9 @@ from typing import Final, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from drivers.fri.types import CmdFlags, ControlMode, FriQuality, FriState
 from drivers.counters import OutcomeCounts
 from drivers.errors import MalformedPacketError, PacketEncodeError
+from drivers.fri.types import CmdFlags, ControlMode, FriQuality, FriState
 
 __all__ = [
     "CMD_ARRAY_FIELDS",

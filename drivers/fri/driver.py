@@ -10,22 +10,27 @@ a dedicated I/O thread that
   reason) and tracks the sequence counter: gaps (lost measurements),
   duplicates (answered again with the same reply, not passed on) and
   reordered/stale packets (dropped);
-* hands the measurement to the runner (``measurements()``) and answers it:
-  **as soon as the runner has sent its command for this cycle**, or at the
-  latest ``answer_deadline`` cycles after the packet arrived (default half a
-  cycle). A runner that is late therefore never stalls the KRC link: at the
-  deadline the I/O thread repeats the last command the runner sent (counted
-  in :attr:`LinkStats.deadline_answers`); the late command is not sent for
-  the past cycle but becomes the latest command for the next one. With
-  ``answer_deadline = 0`` every measurement is answered on arrival with the
-  latest command (the Stanford FRI library's scheme: one cycle more delay,
-  always prompt). A lockstep emulator marks its packets (see
-  :mod:`drivers.fri.convert`); the driver then waits for the runner's command
-  of each cycle (up to ``runner_timeout_s``), so lockstep runs do not depend
-  on thread timing;
-* mirrors the KRC while it is not commanding (state not CMD or drives off):
-  ``jntPos = cmdJntPos + cmdJntPosFriOffset`` and ``cartPos = cmdCartPos``
-  replace the runner's targets, so entering command mode cannot jump;
+* hands the measurement to the runner (``measurements()``, as a
+  :class:`~drivers.base.types.RobotState` whose ``extras`` is the
+  :class:`~drivers.fri.types.FriMeasurement`) and answers it: **as soon as
+  the runner has sent its command for this cycle**, or at the latest
+  ``answer_deadline_cycles`` after the packet arrived (default half a cycle).
+  A runner that is late therefore never stalls the KRC link: at the deadline
+  the I/O thread answers with the last command the runner sent (counted in
+  :attr:`LinkStats.deadline_answers`); the late command is not sent for the
+  past cycle but becomes the latest command for the next one, and
+  ``send()`` says so (:attr:`~drivers.base.types.ApplyStatus.LATE`). With
+  ``answer_deadline_cycles = 0`` every measurement is answered on arrival
+  with the latest command (the Stanford FRI library's scheme: one cycle more
+  delay, always prompt; not flagged LATE). A lockstep emulator marks its
+  packets (see :mod:`drivers.fri.convert`); the driver then waits for the
+  runner's command of each cycle (up to ``runner_timeout_s``), so lockstep
+  runs do not depend on thread timing;
+* turns every answer into the FRI command with
+  :func:`~drivers.fri.command.to_fri_command` against the cycle's own
+  measurement: while the KRC is not commanding (state not CMD or drives off)
+  it mirrors ``jntPos = cmdJntPos + cmdJntPosFriOffset`` and ``cartPos =
+  cmdCartPos``, so entering command mode cannot jump;
 * stamps each measurement with the KRC's cycle time: unwrapped
   ``sendSeqCount`` times ``desiredMsrSampleTime`` (the float32
   ``intf.timestamp`` is too coarse for nanoseconds), so lost cycles still
@@ -43,22 +48,15 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
-from typing import Final
 
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
-from drivers.base.types import Command, FriQuality, FriState, FtSamples, Measurement
-from drivers.errors import (
-    DriverError,
-    DriverTimeoutError,
-    LinkLostError,
-    NotConnectedError,
-)
+from drivers.base.guards import requires_open
+from drivers.base.interfaces import RobotDriver
+from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
+from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
 from drivers.fri.codec import (
-    DEFAULT_PORT,
     CmdArrays,
     DecodeStats,
     DecodeStatus,
@@ -70,6 +68,7 @@ from drivers.fri.codec import (
     new_cmd_buffer,
     seq_next,
 )
+from drivers.fri.command import applied_from_fri, robot_state_from_fri, to_fri_command
 from drivers.fri.convert import (
     LOCKSTEP_INDEX,
     LOCKSTEP_MARKER,
@@ -77,97 +76,49 @@ from drivers.fri.convert import (
     command_to_arrays,
     cycle_ns_from_seconds,
 )
+from drivers.fri.estimate import FriEstimateSensor
+from drivers.fri.settings import FriSettings
+from drivers.fri.stats import LinkCounters, LinkStats
+from drivers.fri.types import FriCommand, FriMeasurement
 from drivers.net.udp import bind_udp, resolve_ipv4
 
 __all__ = ["FriEstimateSensor", "FriRobot", "FriSettings", "LinkStats"]
 
-#: Plausible ``desiredMsrSampleTime`` [s]: friOpen takes 1..100 ms.
-MIN_CYCLE_S: Final = 0.0009
-MAX_CYCLE_S: Final = 0.101
-#: A measurement older than this many cycles is taken as a KRC restart, not as reordering.
-RESTART_SEQ_JUMP: Final = 100
-_TURNAROUND_CAPACITY: Final = 1 << 17
+_WHAT = "FRI robot"
 
 
-@dataclass(frozen=True)
-class FriSettings:
-    """Where the KRC is and how to answer it.
-
-    Args:
-        robot_ip: the KRC's address; packets from anywhere else are dropped.
-        port: local UDP port (``FRISOCK`` in the KRC's dlrrc.ini; 0 = any free port).
-        bind_host: local address to bind (default all interfaces).
-        robot_port: if set, also require this source port.
-        answer_deadline: latest answer, in cycles after the packet arrived;
-            0 answers on arrival with the latest command.
-        follow_lockstep_marker: wait for the runner when the emulator says lockstep.
-        connect_timeout_s: longest wait for the first measurement.
-        cycle_timeout_s: longest gap between measurements before the link is lost.
-        runner_timeout_s: in lockstep, longest wait for the runner's command.
-    """
-
-    robot_ip: str
-    port: int = DEFAULT_PORT
-    bind_host: str = "0.0.0.0"
-    robot_port: int | None = None
-    answer_deadline: float = 0.5
-    follow_lockstep_marker: bool = True
-    connect_timeout_s: float = 10.0
-    cycle_timeout_s: float = 1.0
-    runner_timeout_s: float = 5.0
+def copy_fri_command(src: FriCommand, dst: FriCommand) -> None:
+    """Copy every field of ``src`` into ``dst`` (no allocation)."""
+    dst.flags = src.flags
+    dst.control = src.control
+    dst.jnt_pos[:] = src.jnt_pos
+    dst.cart_pos[:] = src.cart_pos
+    dst.add_jnt_trq[:] = src.add_jnt_trq
+    dst.add_tcp_ft[:] = src.add_tcp_ft
+    dst.jnt_stiffness[:] = src.jnt_stiffness
+    dst.jnt_damping[:] = src.jnt_damping
+    dst.cart_stiffness[:] = src.cart_stiffness
+    dst.cart_damping[:] = src.cart_damping
+    dst.krl_real[:] = src.krl_real
+    dst.krl_int[:] = src.krl_int
+    dst.krl_bool = src.krl_bool
 
 
-@dataclass(frozen=True)
-class LinkStats:
-    """A snapshot of the link, for logs (driver counters and the KRC's own view)."""
-
-    received: int
-    """Datagrams received on the port (any source)."""
-    foreign: int
-    """Datagrams from an address other than the robot's, dropped."""
-    decode: dict[str, int]
-    """Codec outcome counts of the robot's datagrams (ok, too_short, wrong_id, ...)."""
-    accepted: int
-    """Measurements accepted (new sequence numbers)."""
-    duplicates: int
-    stale: int
-    """Reordered (older) measurements, dropped."""
-    lost: int
-    """Measurements missing in the sequence (gaps)."""
-    restarts: int
-    implausible: int
-    """Measurements with a header but impossible contents (sample time, NaN), dropped."""
-    answers: int
-    """Command datagrams sent (including re-answers of duplicates)."""
-    runner_answers: int
-    """Cycles answered with the runner's command for that very cycle."""
-    deadline_answers: int
-    """Cycles answered at the deadline with the previous command (runner late)."""
-    runner_late: int
-    """Runner commands that came after their cycle had been answered."""
-    skipped: int
-    """Measurements the runner never saw (it fell behind by a cycle or more)."""
-    turnaround_last_s: float
-    """Packet received -> answer sent, last cycle."""
-    turnaround_max_s: float
-    state: FriState
-    quality: FriQuality
-    answer_rate: float
-    latency_s: float
-    jitter_s: float
-    miss_rate: float
-    miss_counter: int
-    fallbacks: int
-    """Times the KRC left command mode."""
-    link_lost: bool
-    """The KRC left command mode (or quality is UNACCEPTABLE) after having commanded."""
+def _copy_cartesian(src: CartesianCommand, dst: CartesianCommand) -> None:
+    dst.pose_m[:] = src.pose_m
+    dst.stiffness_npm_nmprad[:] = src.stiffness_npm_nmprad
+    dst.damping_ratio[:] = src.damping_ratio
+    dst.wrench_n_nm[:] = src.wrench_n_nm
 
 
 class FriRobot(RobotDriver):
     """The remote side of FRI 1.x over UDP (see the module docstring).
 
     Args:
-        settings: addresses and answer policy.
+        settings: addresses, answer policy and timeouts.
+
+    Raises:
+        AddressError: ``settings.robot_ip`` is not an address.
     """
 
     def __init__(self, settings: FriSettings) -> None:
@@ -179,54 +130,34 @@ class FriRobot(RobotDriver):
         self._stop = False
         self._connected = False
         self._error: DriverError | None = None
-        self._listeners: list[Callable[[Measurement], None]] = []
+        self._listeners: list[Callable[[FriMeasurement], None]] = []
         # cycle hand-over (guarded by _cond)
-        self._pending: Measurement | None = None
+        self._pending: FriMeasurement | None = None
+        self._msr: FriMeasurement | None = None
         self._cycle = 0
         self._runner_cycle = -1
         self._answered = True
         self._reply_addr: tuple[str, int] | None = None
         self._reply_refl = 0
-        self._mirror = True
-        self._mirror_jnt = np.zeros(7)
-        self._mirror_cart = np.eye(4)
-        self._have_user = False
         self._lockstep = False
         self._t_rx = 0
         self._last_rx_ns = 0
         self._last_time_ns = 0
         self._last_cycle_ns = 5_000_000
-        # commands
-        self._user = CmdArrays()
-        self._staged = CmdArrays()
+        # commands: the runner's last intent (a copy), the wire command, the runner's view
+        self._user = CartesianCommand()
+        self._have_user = False
+        self._fri = FriCommand()
         self._wire = CmdArrays()
         self._pb = new_cmd_buffer()
+        self._check = CmdArrays()
         self._check_pb = new_cmd_buffer()
+        self._check_fri = FriCommand()
+        self._applied_fri = FriCommand()
+        self._applied = AppliedCommand(extras=self._applied_fri)
         self._send_seq = 0
         self._last_reply: bytes | None = None
-        # counters
-        self.decode_stats = DecodeStats()
-        self._received = 0
-        self._foreign = 0
-        self._accepted = 0
-        self._duplicates = 0
-        self._stale = 0
-        self._lost = 0
-        self._restarts = 0
-        self._implausible = 0
-        self._answers = 0
-        self._runner_answers = 0
-        self._deadline_answers = 0
-        self._runner_late = 0
-        self._skipped = 0
-        self._fallbacks = 0
-        self._was_cmd = False
-        self._turn = np.zeros(_TURNAROUND_CAPACITY, dtype=np.int64)
-        self._turn_n = 0
-        self._turn_max = 0
-        self._last_state = FriState.OFF
-        self._last_quality = FriQuality.INVALID
-        self._krc_stats = (0.0, 0.0, 0.0, 0.0, 0)
+        self._n = LinkCounters()
         # sequence
         self._last_seq: int | None = None
         self._unwrapped = 0
@@ -243,7 +174,7 @@ class FriRobot(RobotDriver):
         if self._sock is None:
             s = self.settings
             self._sock = bind_udp(s.where("local_port"), s.local_host, s.local_port)
-            self._sock.settimeout(0.05)
+            self._sock.settimeout(s.poll_s)
         host, port = self._sock.getsockname()[:2]
         return str(host), int(port)
 
@@ -279,18 +210,30 @@ class FriRobot(RobotDriver):
     def connected(self) -> bool:
         return self._connected
 
-    def add_listener(self, callback: Callable[[Measurement], None]) -> None:
+    @property
+    def is_open(self) -> bool:
+        return self._connected
+
+    @property
+    def decode_stats(self) -> DecodeStats:
+        """Codec outcome counts of the robot's datagrams (live object)."""
+        return self._n.decode
+
+    def add_listener(self, callback: Callable[[FriMeasurement], None]) -> None:
         """Call ``callback(m)`` from the I/O thread for every accepted measurement."""
         self._listeners.append(callback)
 
     # ------------------------------------------------------------ runner side
-    def measurements(self) -> Iterator[Measurement]:
-        if not self._connected:
-            raise NotConnectedError(f"FRI robot {self.robot_ip}: measurements() before connect()")
+    @requires_open(_WHAT)
+    def measurements(self) -> Iterator[RobotState]:
+        """One :class:`RobotState` per KRC cycle (``extras``: the :class:`FriMeasurement`)."""
+        return self._measurements()
+
+    def _measurements(self) -> Iterator[RobotState]:
         s = self.settings
         while True:
             with self._cond:
-                first = self._accepted == 0
+                first = self._n.accepted == 0
                 limit = s.connect_timeout_s if first else s.cycle_timeout_s
                 end = time.monotonic() + limit
                 while self._pending is None and not self._stop and self._error is None:
@@ -307,10 +250,10 @@ class FriRobot(RobotDriver):
                     raise self._timeout_error(first, limit)
                 self._pending = None
                 self._runner_cycle = self._cycle
-            yield m
+            yield robot_state_from_fri(m)
 
     def _timeout_error(self, first: bool, limit: float) -> DriverError:
-        port = self._sock.getsockname()[1] if self._sock is not None else self.settings.port
+        port = self._sock.getsockname()[1] if self._sock is not None else self.settings.local_port
         if first:
             return DriverTimeoutError(
                 f"no FRI packet from {self.robot_ip} on UDP port {port} within {limit:g} s "
@@ -320,25 +263,56 @@ class FriRobot(RobotDriver):
             f"FRI link to {self.robot_ip} lost: no packet on UDP port {port} for {limit:g} s"
         )
 
-    def send(self, command: Command) -> None:
-        if not self._connected:
-            raise NotConnectedError(f"FRI robot {self.robot_ip}: send() before connect()")
-        staged = self._staged
-        command_to_arrays(command, staged)
-        encode_cmd(staged, self._check_pb)  # PacketEncodeError: never put NaN on the wire
+    @requires_open(_WHAT)
+    def send(self, command: CartesianCommand | None) -> AppliedCommand:
+        """Answer the current cycle with ``command`` (``None``: hold); see the module docstring.
+
+        Returns what the KRC gets, valid until the next ``send()`` (the
+        driver reuses the object; copy it to keep it). ``command`` is copied.
+
+        Raises:
+            PacketEncodeError: ``command`` holds NaN or infinite values
+                (nothing is sent; the previous command stays in force).
+        """
+        check = self._check_fri
         with self._cond:
-            user = self._user
-            user.floats[:] = staged.floats
-            user.krl_int[:] = staged.krl_int
-            user.krl_bool = staged.krl_bool
-            user.cmd_flags = staged.cmd_flags
-            self._have_user = True
+            msr = self._msr
+            copy_fri_command(self._fri, check)
+        if msr is not None:
+            # validate on a private copy first: never put NaN on the wire
+            to_fri_command(command, msr, check)
+            command_to_arrays(check, self._check)
+            encode_cmd(self._check, self._check_pb)
+        applied, out = self._applied, self._applied_fri
+        with self._cond:
+            if command is None:
+                self._have_user = False
+            else:
+                _copy_cartesian(command, self._user)
+                self._have_user = True
+            msr = self._msr
+            if msr is None:  # before the first measurement: the command waits for it
+                copy_fri_command(self._fri, out)
+                status = ApplyStatus.LATE | (
+                    ApplyStatus.HELD if command is None else ApplyStatus.APPLIED
+                )
+                applied_from_fri(out, status, applied)
+                if command is not None:
+                    _copy_cartesian(command, applied.command)
+                return applied
+            status = to_fri_command(self._intent(), msr, self._fri)
             if self._runner_cycle == self._cycle and not self._answered:
                 self._answer_locked()
-                self._runner_answers += 1
+                self._n.runner_answers += 1
                 self._cond.notify_all()
-            elif self.settings.answer_deadline > 0.0 or self._lockstep:
-                self._runner_late += 1
+            elif self.settings.answer_deadline_cycles > 0.0 or self._lockstep:
+                self._n.runner_late += 1
+                status |= ApplyStatus.LATE
+            copy_fri_command(self._fri, out)
+        return applied_from_fri(out, status, applied)
+
+    def _intent(self) -> CartesianCommand | None:
+        return self._user if self._have_user else None
 
     # ------------------------------------------------------------ clock & stats
     def now_ns(self) -> int | None:
@@ -348,7 +322,7 @@ class FriRobot(RobotDriver):
         the estimate stays sane in lockstep, where wall time means nothing).
         """
         with self._cond:
-            if self._accepted == 0:
+            if self._n.accepted == 0:
                 return None
             since = time.perf_counter_ns() - self._last_rx_ns
             return self._last_time_ns + min(max(since, 0), self._last_cycle_ns)
@@ -356,47 +330,12 @@ class FriRobot(RobotDriver):
     def turnarounds_ns(self) -> NDArray[np.int64]:
         """Receive -> answer times of the answered cycles so far (up to the last 131072)."""
         with self._cond:
-            n = self._turn_n
-            if n <= _TURNAROUND_CAPACITY:
-                return self._turn[:n].copy()
-            k = n % _TURNAROUND_CAPACITY
-            return np.concatenate([self._turn[k:], self._turn[:k]])
+            return self._n.turnarounds_ns()
 
     @property
     def stats(self) -> LinkStats:
         with self._cond:
-            ar, lat, jit, mr, mc = self._krc_stats
-            last = self._turn[(self._turn_n - 1) % _TURNAROUND_CAPACITY] if self._turn_n else 0
-            lost = self._was_cmd and (
-                self._last_state != FriState.CMD or self._last_quality == FriQuality.UNACCEPTABLE
-            )
-            return LinkStats(
-                received=self._received,
-                foreign=self._foreign,
-                decode=self.decode_stats.as_dict(),
-                accepted=self._accepted,
-                duplicates=self._duplicates,
-                stale=self._stale,
-                lost=self._lost,
-                restarts=self._restarts,
-                implausible=self._implausible,
-                answers=self._answers,
-                runner_answers=self._runner_answers,
-                deadline_answers=self._deadline_answers,
-                runner_late=self._runner_late,
-                skipped=self._skipped,
-                turnaround_last_s=int(last) * 1e-9,
-                turnaround_max_s=self._turn_max * 1e-9,
-                state=self._last_state,
-                quality=self._last_quality,
-                answer_rate=ar,
-                latency_s=lat,
-                jitter_s=jit,
-                miss_rate=mr,
-                miss_counter=mc,
-                fallbacks=self._fallbacks,
-                link_lost=lost,
-            )
+            return self._n.snapshot()
 
     # ------------------------------------------------------------ I/O thread
     def _io_loop(self) -> None:
@@ -412,9 +351,10 @@ class FriRobot(RobotDriver):
         msr = MsrArrays()
         robot_ip, robot_port = self.robot_ip, self.settings.robot_port
         clock = time.perf_counter_ns
+        n = self._n
         while not self._stop:
             try:
-                n, addr = sock.recvfrom_into(buf)
+                size, addr = sock.recvfrom_into(buf)
             except TimeoutError:
                 continue
             except OSError as exc:
@@ -424,11 +364,11 @@ class FriRobot(RobotDriver):
                         self._cond.notify_all()
                 return
             t_rx = clock()
-            self._received += 1
+            n.received += 1
             if addr[0] != robot_ip or (robot_port is not None and addr[1] != robot_port):
-                self._foreign += 1
+                n.foreign += 1
                 continue
-            if decode_msr_into(view[:n], msr, stats=self.decode_stats) is not DecodeStatus.OK:
+            if decode_msr_into(view[:size], msr, stats=n.decode) is not DecodeStatus.OK:
                 continue
             try:
                 self._on_measurement(msr, addr, t_rx)
@@ -438,7 +378,9 @@ class FriRobot(RobotDriver):
                     self._cond.notify_all()
                 return
 
-    def _on_measurement(self, msr: MsrArrays, addr: tuple[str, int], t_rx: int) -> None:
+    def _accept_seq(self, msr: MsrArrays, addr: tuple[str, int]) -> bool:
+        """Track ``sendSeqCount``; False: a duplicate (re-answered), stale or implausible packet."""
+        n, s = self._n, self.settings
         seq = msr.send_seq
         first = self._last_seq is None
         delta = 1
@@ -446,36 +388,40 @@ class FriRobot(RobotDriver):
         if self._last_seq is not None:
             event, delta = classify_seq(seq, self._last_seq)
             if event is SeqEvent.DUPLICATE:
-                self._duplicates += 1
+                n.duplicates += 1
                 if self._last_reply is not None and self._sock is not None:
                     self._sock.sendto(self._last_reply, addr)
-                    self._answers += 1
-                return
+                    n.answers += 1
+                return False
             if event is SeqEvent.STALE:
-                if -delta <= RESTART_SEQ_JUMP:
-                    self._stale += 1
-                    return
-                self._restarts += 1
+                if -delta <= s.restart_seq_jump:
+                    n.stale += 1
+                    return False
+                n.restarts += 1
                 delta = 1
-        sample_time = msr.msr_sample_time
         if not (
-            MIN_CYCLE_S <= sample_time <= MAX_CYCLE_S
+            s.min_cycle_s <= msr.msr_sample_time <= s.max_cycle_s
             and np.isfinite(msr.cmd_jnt_pos).all()
             and np.isfinite(msr.cmd_jnt_pos_fri_offset).all()
             and np.isfinite(msr.cmd_cart_pos).all()
         ):
             # a KRC never sends this; the packet cannot be mirrored or timed
-            self._implausible += 1
-            return
+            n.implausible += 1
+            return False
         self._last_seq = seq
         if first:
             self._unwrapped = seq
             self._time_base_seq = seq
         else:
             if event is SeqEvent.GAP:
-                self._lost += delta - 1
+                n.lost += delta - 1
             self._unwrapped += delta
-        cycle_ns = cycle_ns_from_seconds(sample_time)
+        return True
+
+    def _on_measurement(self, msr: MsrArrays, addr: tuple[str, int], t_rx: int) -> None:
+        if not self._accept_seq(msr, addr):
+            return
+        cycle_ns = cycle_ns_from_seconds(msr.msr_sample_time)
         if cycle_ns != self._last_cycle_ns:
             self._time_base_ns = self._time_ns(self._last_cycle_ns)
             self._time_base_seq = self._unwrapped
@@ -484,41 +430,28 @@ class FriRobot(RobotDriver):
         m = arrays_to_measurement(msr, self._unwrapped, time_ns)
         for listener in self._listeners:
             listener(m)
+        s = self.settings
         lockstep = self._lockstep = (
-            self.settings.follow_lockstep_marker
-            and int(msr.krl_int[LOCKSTEP_INDEX]) == LOCKSTEP_MARKER
+            s.follow_lockstep_marker and int(msr.krl_int[LOCKSTEP_INDEX]) == LOCKSTEP_MARKER
         )
-        state = m.state
         with self._cond:
-            self._accepted += 1
+            self._n.on_measurement(m)
             self._last_rx_ns = t_rx
             self._last_time_ns = time_ns
-            if state == FriState.CMD:
-                self._was_cmd = True
-            elif self._last_state == FriState.CMD:
-                self._fallbacks += 1
-            self._last_state = state
-            self._last_quality = m.quality
-            self._krc_stats = (m.answer_rate, m.latency, m.jitter, m.miss_rate, m.miss_counter)
             if self._pending is not None:
-                self._skipped += 1
+                self._n.skipped += 1
             self._pending = m
+            self._msr = m
             self._cycle += 1
             self._answered = False
             self._reply_addr = addr
-            self._reply_refl = seq
+            self._reply_refl = msr.send_seq
             self._t_rx = t_rx
-            self._mirror = state != FriState.CMD or m.power == 0
-            self._mirror_jnt[:] = m.cmd_jnt_pos + m.cmd_jnt_pos_fri_offset
-            self._mirror_cart[:] = m.cmd_cart_pos
-            if not self._have_user:
-                command_to_arrays(Command.hold(m), self._user)
             self._cond.notify_all()
-            deadline = self.settings.answer_deadline
             if lockstep:
-                wait_s = self.settings.runner_timeout_s
+                wait_s = s.runner_timeout_s
             else:
-                wait_s = deadline * cycle_ns * 1e-9
+                wait_s = s.answer_deadline_cycles * cycle_ns * 1e-9
             if wait_s > 0.0:
                 end = time.monotonic() + wait_s
                 while not self._answered and not self._stop:
@@ -527,101 +460,27 @@ class FriRobot(RobotDriver):
                         break
                     self._cond.wait(remaining)
             if not self._answered and not self._stop:
+                # the runner's last intent, against this cycle's measurement
+                to_fri_command(self._intent(), m, self._fri)
                 self._answer_locked()
                 if wait_s > 0.0:
-                    self._deadline_answers += 1
+                    self._n.deadline_answers += 1
 
     def _time_ns(self, cycle_ns: int) -> int:
         return self._time_base_ns + (self._unwrapped - self._time_base_seq) * cycle_ns
 
     def _answer_locked(self) -> None:
-        """Send the answer of the current cycle (caller holds ``_cond``)."""
+        """Send :attr:`_fri` as the answer of the current cycle (caller holds ``_cond``)."""
         sock, addr = self._sock, self._reply_addr
         if sock is None or addr is None:
             return
-        wire, user = self._wire, self._user
-        wire.floats[:] = user.floats
-        wire.krl_int[:] = user.krl_int
-        wire.krl_bool = user.krl_bool
-        wire.cmd_flags = user.cmd_flags
-        if self._mirror:
-            wire.jnt_pos[:] = self._mirror_jnt
-            wire.cart_pos[:] = self._mirror_cart
+        wire = self._wire
+        command_to_arrays(self._fri, wire)
         wire.send_seq = self._send_seq
         wire.refl_seq = self._reply_refl
         data = encode_cmd(wire, self._pb)
         sock.sendto(data, addr)
-        turn = time.perf_counter_ns() - self._t_rx
-        self._turn[self._turn_n % _TURNAROUND_CAPACITY] = turn
-        self._turn_n += 1
-        self._turn_max = max(self._turn_max, turn)
+        self._n.on_answer(time.perf_counter_ns() - self._t_rx)
         self._send_seq = seq_next(self._send_seq)
         self._last_reply = data
-        self._answers += 1
         self._answered = True
-
-
-class FriEstimateSensor(ForceTorqueSensor):
-    """The KRC's ``estExtTcpFT`` (from joint torques) read like an F/T sensor.
-
-    One sample per FRI cycle, stamped with the cycle's time; the wrench is
-    already in our convention (environment on the tool, TCF at the TCP).
-    ``tare`` subtracts the last sample from then on (like Net F/T 0x0042).
-    """
-
-    def __init__(self, robot: FriRobot) -> None:
-        self.robot = robot
-        self._lock = threading.Lock()
-        self._time: list[int] = []
-        self._seq: list[int] = []
-        self._wrench: list[NDArray[np.float64]] = []
-        self._running = False
-        self._bias = np.zeros(6)
-        self._last: NDArray[np.float64] | None = None
-        robot.add_listener(self._on_measurement)
-
-    def _on_measurement(self, m: Measurement) -> None:
-        if not self._running:
-            return
-        with self._lock:
-            self._time.append(m.time_ns)
-            self._seq.append(m.seq)
-            self._wrench.append(m.est_ext_tcp_ft)
-
-    def start(self) -> None:
-        with self._lock:
-            self._time.clear()
-            self._seq.clear()
-            self._wrench.clear()
-        self._running = True
-
-    def stop(self) -> None:
-        self._running = False
-
-    @property
-    def running(self) -> bool:
-        return self._running
-
-    def samples(self) -> FtSamples:
-        if not self._running:
-            raise NotConnectedError("fri-estimate F/T: samples() before start()")
-        with self._lock:
-            t, s, w = self._time, self._seq, self._wrench
-            self._time, self._seq, self._wrench = [], [], []
-        if not t:
-            return FtSamples()
-        wrench = np.array(w, dtype=np.float64).reshape(-1, 6) - self._bias
-        self._last = wrench[-1] + self._bias
-        return FtSamples(
-            time_ns=np.array(t, dtype=np.int64),
-            seq=np.array(s, dtype=np.int64),
-            wrench=wrench,
-            status=np.zeros(len(t), dtype=np.uint32),
-        )
-
-    def tare(self) -> None:
-        if not self._running:
-            raise NotConnectedError("fri-estimate F/T: tare() before start()")
-        if self._last is not None:
-            self._bias = self._last.copy()
-

@@ -6,23 +6,31 @@ import select
 import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
-from drivers.base.types import CmdFlags, Command, FtSamples, FtStatus
-from drivers.errors import AddressError, NotConnectedError
-from drivers.fri.driver import FriRobot, FriSettings
-from drivers.fri.emulator import EmulatorSettings, FriEmulator
+from drivers.base.types import FtSamples, FtStatus
+from drivers.errors import AddressError, ConfigError, NotConnectedError
 from drivers.netft.client import NetFtClient, NetFtSettings
 from drivers.netft.codec import Calibration, RdtCommand, encode_rdt, encode_request
 from drivers.netft.emulator import NetFtServer
-from drivers.sim.scene import Scene
-from drivers.sim.world import SimWorld
+
+if TYPE_CHECKING:
+    from drivers.sim.scene import Scene
 
 LOCAL = "127.0.0.1"
 #: N and N·mm, as many boxes are configured: 1e6 counts/N, 1000 counts/N·mm.
 CAL = Calibration.from_unit_codes(1_000_000, 1_000, 2, 4)
+
+
+def settings(port: int, cal: Calibration = CAL, **kw: object) -> NetFtSettings:
+    return NetFtSettings(
+        host=LOCAL, port=port, counts_per_force=cal.counts_per_force,
+        counts_per_torque=cal.counts_per_torque, force_unit_n=cal.force_unit,
+        torque_unit_nm=cal.torque_unit, local_host=LOCAL, **kw,  # type: ignore[arg-type]
+    )
 
 
 @contextmanager
@@ -35,9 +43,8 @@ def box_and_client(
     client: NetFtClient | None = None
     try:
         client = NetFtClient(
-            NetFtSettings(host=LOCAL, port=server.address[1], calibration=calibration,
-                          mode="buffered" if mode == "buffered" else "realtime",
-                          bind_host=LOCAL),
+            settings(server.address[1], calibration,
+                     mode="buffered" if mode == "buffered" else "realtime"),
             clock=lambda: 1_000_000_000,
         )
         client.start()
@@ -99,8 +106,7 @@ def test_units_matter_n_mm_read_as_n_m_is_a_thousand_times_too_big() -> None:
     server_cal = CAL
     wrong = Calibration.from_unit_codes(1_000_000, 1_000, 2, 3)  # N·m instead of N·mm
     server = NetFtServer.open(LOCAL, 0, calibration=server_cal)
-    client = NetFtClient(NetFtSettings(host=LOCAL, port=server.address[1], calibration=wrong,
-                                       bind_host=LOCAL))
+    client = NetFtClient(settings(server.address[1], wrong))
     try:
         client.start()
         assert wait_for(server.sock)
@@ -177,17 +183,23 @@ def test_client_errors() -> None:
         c.samples()
     with pytest.raises(NotConnectedError):
         c.tare()
-    with pytest.raises(AddressError, match="--netft"):
-        NetFtClient(NetFtSettings(host="999.1.1.1"))
+    with pytest.raises(AddressError, match=r"^rigs/lab\.toml: ft\.host: 999\.1\.1\.1: "):
+        NetFtClient(NetFtSettings(host="999.1.1.1", source="rigs/lab.toml: ft"))
+    with pytest.raises(ConfigError, match=r"^NetFtSettings\.counts_per_torque: must be positive"):
+        NetFtClient(NetFtSettings(host=LOCAL, counts_per_torque=0.0))
 
 
 def test_the_fri_emulator_serves_the_simulated_sensor(paper_scene: Scene) -> None:
+    # the emulator and the simulator are imported here: the client tests above need neither
+    from drivers.fri.driver import FriRobot, FriSettings
+    from drivers.fri.emulator import EmulatorSettings, FriEmulator
+    from drivers.sim.world import SimWorld
+
     world = SimWorld(paper_scene, seed=4)
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, port=0, bind_host=LOCAL))
+    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL))
     server = NetFtServer.open(LOCAL, 0, on_bias=world.tare_ft)
     emu: FriEmulator | None = None
-    client = NetFtClient(NetFtSettings(host=LOCAL, port=server.address[1], bind_host=LOCAL),
-                         clock=robot.now_ns)
+    client = NetFtClient(settings(server.address[1], Calibration()), clock=robot.now_ns)
     try:
         _, port = robot.bind()
         emu = FriEmulator(world, EmulatorSettings(remote=(LOCAL, port), bind_host=LOCAL,
@@ -206,7 +218,7 @@ def test_the_fri_emulator_serves_the_simulated_sensor(paper_scene: Scene) -> Non
         for m in robot.measurements():
             got.append(client.samples())
             times.append(m.time_ns)
-            robot.send(Command(flags=CmdFlags.NONE))
+            robot.send(None)
             if len(times) == 60:
                 break
         emu.join(timeout=30.0)

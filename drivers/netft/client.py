@@ -40,6 +40,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from drivers.base.guards import requires_open
 from drivers.base.interfaces import ForceTorqueSensor
 from drivers.base.types import FtSamples
 from drivers.errors import ConfigError, NotConnectedError
@@ -224,10 +225,13 @@ class NetFtClient(ForceTorqueSensor):
     def running(self) -> bool:
         return self._running
 
+    @property
+    def is_open(self) -> bool:
+        return self._running and self._sock is not None
+
+    @requires_open("Net F/T")
     def tare(self) -> None:
         """Ask the box for a software bias (0x0042)."""
-        if not self._running:
-            raise NotConnectedError(f"Net F/T {self.host}: tare() before start()")
         self._request(RdtCommand.SET_BIAS)
 
     def wait(self, timeout_s: float) -> bool:
@@ -283,9 +287,8 @@ class NetFtClient(ForceTorqueSensor):
             self._last_rx = time.monotonic()
             self._pending.append(rec.words[: rec.n].copy())
 
+    @requires_open("Net F/T")
     def samples(self) -> FtSamples:
-        if not self._running or self._sock is None:
-            raise NotConnectedError(f"Net F/T {self.host}: samples() before start()")
         self._drain()
         now = time.monotonic()
         resend = self.settings.resend_s

@@ -1,6 +1,7 @@
 """ffexp: force-control experiments on free-floating objects.
 
-See README.md for the quick start and ../shared/design for the architecture.
+See README.md for the quick start, docs/architecture.md for the architecture and
+docs/conventions.md for frames, signs and units.
 """
 
 __version__ = "0.1.0"

@@ -2,7 +2,7 @@
 
 All wrenches are ``[fx, fy, fz, tx, ty, tz]`` in the tool frame (TCF). The
 measured wrench ``w`` is what the environment exerts ON the tool
-(``shared/design/CONVENTIONS.md``), so the contact wrench the tool applies is
+(``docs/conventions.md``), so the contact wrench the tool applies is
 ``-w``; along the approach axis Z the contact force is ``f_z = -w[2]``.
 
 The paper's eq. (9), written with our signs, over all six axes:

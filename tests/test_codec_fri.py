@@ -228,11 +228,27 @@ def test_enum_values() -> None:
     }
 
 
-def test_enums_are_the_shared_ones_of_drivers_base() -> None:
-    from drivers.base import types as t
+def test_enums_are_the_ones_of_drivers_fri_types() -> None:
+    from drivers.fri import types as t
 
     assert c.FriState is t.FriState and c.FriQuality is t.FriQuality
     assert c.ControlMode is t.ControlMode and c.CmdFlags is t.CmdFlags
+
+
+def test_the_split_codec_modules_are_one_api() -> None:
+    """codec.py re-exports every public name of its parts, and they stay small."""
+    from pathlib import Path
+
+    from drivers.fri import codec_arrays, codec_fields, codec_layout, codec_seq
+
+    for mod in (codec_arrays, codec_fields, codec_layout, codec_seq):
+        public = [n for n in vars(mod) if not n.startswith("_") and n.isidentifier()]
+        for name in public:
+            obj = getattr(mod, name)
+            if getattr(obj, "__module__", mod.__name__) == mod.__name__ and name in c.__all__:
+                assert getattr(c, name) is obj, name
+        assert len(Path(mod.__file__ or "").read_text().splitlines()) <= 600
+    assert set(c.__all__) <= set(vars(c))
 
 
 def test_invalid_is_0xffff_on_the_wire_and_unknown_values_read_as_invalid() -> None:

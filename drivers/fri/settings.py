@@ -8,12 +8,10 @@ address error reads ``"rigs/lab.toml: robot.robot_ip: 10.0.0: not a valid ..."``
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Final
+
+from drivers.fri.codec_layout import DEFAULT_PORT
 
 __all__ = ["DEFAULT_PORT", "FriSettings"]
-
-#: FRI's default UDP port (``FRISOCK`` in the KRC's dlrrc.ini).
-DEFAULT_PORT: Final = 49938
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
     python benchmarks/bench_sim.py [--cycles N] [--repeats R] [--scene PATH]
 
-Prints medians over the repeats: FRI cycles/s of ``SimWorld.step`` (with the
+Prints medians over the repeats: control cycles/s of ``SimWorld.step`` (with the
 runner's F/T read each cycle), the physics steps/s that implies, bare
 ``mujoco.mj_step`` steps/s of the very same compiled model, the ratio of
 the two, and the real-time factor.
@@ -18,14 +18,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from drivers.base import CmdFlags, Command
-from drivers.sim import SimWorld, load_scene
+from drivers.sim import ArmCommand, SimWorld, load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def bench_world(world: SimWorld, cycles: int, force: float) -> float:
-    cmd = Command(flags=CmdFlags.TCPFT, add_tcp_ft=np.array([0.0, 0.0, force, 0.0, 0.0, 0.0]))
+    cmd = ArmCommand(tcp_wrench_n_nm=np.array([0.0, 0.0, force, 0.0, 0.0, 0.0]))
     t0 = time.perf_counter()
     for _ in range(cycles):
         world.step(cmd)

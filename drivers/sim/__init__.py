@@ -1,7 +1,22 @@
-"""MuJoCo world: LWR4+ with its KRC impedance law, air-bed target, funnels, F/T sensor."""
+"""MuJoCo world: LWR4+ with its KRC impedance law, air-bed target, funnels, F/T sensor.
 
-from drivers.sim.driver import SimFtSensor, SimRobot, open_sim
+A physics world only (:class:`SimWorld`: arm commands in, arm states out,
+see :mod:`drivers.sim.arm`) and the sensor that reads it
+(:class:`SimFtSensor`). The FRI link in front of it is :mod:`drivers.emulate`.
+"""
+
+from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
+from drivers.sim.driver import SimFtSensor
 from drivers.sim.scene import Scene, load_scene
 from drivers.sim.world import SimWorld
 
-__all__ = ["Scene", "SimFtSensor", "SimRobot", "SimWorld", "load_scene", "open_sim"]
+__all__ = [
+    "ArmCommand",
+    "ArmMode",
+    "ArmState",
+    "ArmWarning",
+    "Scene",
+    "SimFtSensor",
+    "SimWorld",
+    "load_scene",
+]

@@ -1,7 +1,10 @@
 """The simulated rig: LWR4+ with its KRC impedance controller, air-bed target, F/T sensor.
 
-:class:`SimWorld` is lockstep and in-process: ``step(command)`` runs one FRI
-cycle of physics and returns the measurement the KRC would send at its end.
+:class:`SimWorld` is a physics world only: ``step(command)`` latches an
+:class:`~drivers.sim.arm.ArmCommand` (if given), runs one control cycle of
+physics and returns the :class:`~drivers.sim.arm.ArmState` at its end. It
+knows no link protocol: how FRI's flags select fields, when the link takes
+commands (MON/CMD) and its quality are the emulator's (:mod:`drivers.emulate`).
 
 How the KRC is modelled (see :mod:`drivers.sim.controller` for the laws):
 
@@ -25,8 +28,7 @@ the TCF and its exact rotational error metric is not public (here: the
 commanded frame's axes, MuJoCo's rotation-vector metric; the two agree to
 first order in the pose error); no null-space stiffness is modelled (the
 redundant elbow is held by joint friction only); estimated external
-torques/wrench are exact (no torque-sensor noise or model error); FRI
-quality is always PERFECT.
+torques/wrench are exact (no torque-sensor noise or model error).
 """
 
 from __future__ import annotations
@@ -38,22 +40,10 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.base.types import (
-    WARN_POSITION_LIMIT,
-    WARN_STIFFNESS_CLIPPED,
-    WARN_TORQUE_LIMIT,
-    WARN_VELOCITY_LIMIT,
-    CmdFlags,
-    Command,
-    ControlMode,
-    FriQuality,
-    FriState,
-    FtSamples,
-    GroundTruth,
-    Measurement,
-)
-from drivers.errors import InvalidCommandError, SimulationError
+from drivers.base.types import FtSamples, GroundTruth
+from drivers.errors import ConfigError, InvalidCommandError, SimulationError
 from drivers.sim import mjcf
+from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
 from drivers.sim.controller import clip_cart_stiffness, normalized_damping
 from drivers.sim.ftsensor import FtSensorModel
 from drivers.sim.scene import Scene
@@ -69,14 +59,15 @@ SEAT_LATERAL_TOL = 0.0025
 SEAT_YAW_TOL = math.radians(3.0)
 
 _N_ARM = 7
-_CARTPOS = int(CmdFlags.CARTPOS)
-_CARTSTIFF = int(CmdFlags.CARTSTIFF)
-_CARTDAMP = int(CmdFlags.CARTDAMP)
-_TCPFT = int(CmdFlags.TCPFT)
-_JNTPOS = int(CmdFlags.JNTPOS)
-_JNTTRQ = int(CmdFlags.JNTTRQ)
-_JNTSTIFF = int(CmdFlags.JNTSTIFF)
-_JNTDAMP = int(CmdFlags.JNTDAMP)
+_WARN_CLIPPED = int(ArmWarning.STIFFNESS_CLIPPED)
+_WARN_TORQUE = int(ArmWarning.TORQUE_LIMIT)
+_WARN_VELOCITY = int(ArmWarning.VELOCITY_LIMIT)
+_WARN_POSITION = int(ArmWarning.POSITION_LIMIT)
+_MODES = {
+    "cart_impedance": ArmMode.CART_IMPEDANCE,
+    "joint_position": ArmMode.JOINT_POSITION,
+    "joint_impedance": ArmMode.JOINT_IMPEDANCE,
+}
 
 
 def _pose(pos: F64, mat9: F64) -> F64:
@@ -100,12 +91,12 @@ class ContactInfo:
 
 
 class SimWorld:
-    """The physics world, stepped one FRI cycle at a time.
+    """The physics world, stepped one control cycle (``scene.fri.cycle``) at a time.
 
     Args:
         scene: the rig.
         seed: overrides ``scene.seed``; same seed and same commands give
-            bit-identical measurements and F/T samples.
+            bit-identical states and F/T samples.
     """
 
     def __init__(self, scene: Scene, seed: int | None = None) -> None:
@@ -181,9 +172,7 @@ class SimWorld:
         self.contact_info = self._configure_contact()
 
         # Initial command: hold the start pose with the scene's impedance.
-        self.control = ControlMode(
-            {"cart_impedance": 2, "joint_position": 1, "joint_impedance": 3}[scene.fri.control]
-        )
+        self.mode = _MODES[scene.fri.control]
         ctl = scene.controller
         self._cart_pos = self.tcp_pose.copy()
         self._cart_stiff = np.asarray(ctl.cart_stiffness, dtype=np.float64)
@@ -213,12 +202,8 @@ class SimWorld:
         self._ft_pending: list[FtSamples] = []
         self.cycle = 0
         self._step_count = 0
-        #: FRI interface state and quality the measurements report. The sim
-        #: starts commanding (CMD, PERFECT); an emulator may set MON, in which
-        #: the KRC ignores commands and holds the last ones, as the real one does.
-        self.fri_state = FriState.CMD
-        self.fri_quality = FriQuality.PERFECT
-        self.last_measurement = self._measure()
+        #: The state at the end of the last cycle (the start state before the first).
+        self.last_state = self._measure()
 
     # ------------------------------------------------------------------ setup
     def _configure_contact(self) -> ContactInfo:
@@ -238,8 +223,6 @@ class SimWorld:
         k = ct.stiffness * (1.0 - dimp) / (dimp * m_eff)
         limit = 1.0 / (2.0 * self.dt) ** 2
         if k > limit:
-            from drivers.errors import ConfigError
-
             raise ConfigError(
                 self.scene.name, "contact.stiffness",
                 f"{ct.stiffness:g} N/m maps to solref stiffness {k:.3g} > 1/(2h)^2 = {limit:.3g}; "
@@ -284,7 +267,7 @@ class SimWorld:
         ctrl = d.ctrl
         cart = self._act_cart
         jnt = self._act_jnt
-        if self.control == ControlMode.CART_IMPEDANCE:
+        if self.mode == ArmMode.CART_IMPEDANCE:
             d.mocap_pos[self._cmd_mocap] = self._cart_pos[:3, 3]
             mujoco.mju_mat2Quat(self._quat, self._cart_pos[:3, :3].ravel())
             d.mocap_quat[self._cmd_mocap] = self._quat
@@ -300,7 +283,7 @@ class SimWorld:
             bias[cart, 1] = 0.0
             bias[cart, 2] = 0.0
             ctrl[self._act_ft] = 0.0
-            if self.control == ControlMode.JOINT_POSITION:
+            if self.mode == ArmMode.JOINT_POSITION:
                 k = np.full(7, self.scene.controller.jnt_position_stiffness)
                 dd = np.full(7, self.scene.controller.jnt_position_damping)
             else:
@@ -314,46 +297,47 @@ class SimWorld:
         # f_dyn: Coriolis/centrifugal (gravity is compensated inside every step).
         d.qfrc_applied[:_N_ARM] = d.qfrc_bias[:_N_ARM] - d.qfrc_gravcomp[:_N_ARM]
 
-    def _take(self, cmd: Command) -> None:
-        """Latch the fields of ``cmd`` its flags select (the KRC's rule)."""
-        f = int(cmd.flags)
-        if cmd.control != self.control:
-            if cmd.control not in (ControlMode.CART_IMPEDANCE, ControlMode.JOINT_POSITION,
-                                   ControlMode.JOINT_IMPEDANCE):
-                raise InvalidCommandError(f"control mode {cmd.control!r} not supported")
-            self.control = ControlMode(cmd.control)
+    def _take(self, cmd: ArmCommand) -> None:
+        """Latch the fields ``cmd`` gives (the others keep their values)."""
+        if cmd.mode is not None and cmd.mode != self.mode:
+            if cmd.mode not in (ArmMode.CART_IMPEDANCE, ArmMode.JOINT_POSITION,
+                                ArmMode.JOINT_IMPEDANCE):
+                raise InvalidCommandError(f"control mode {cmd.mode!r} not supported")
+            self.mode = ArmMode(cmd.mode)
             self._cart_pos = self.tcp_pose.copy()
             self._jnt_pos = self.data.qpos[:_N_ARM].copy()
         self._warning = 0
-        if f & _CARTPOS:
-            p = np.asarray(cmd.cart_pos, dtype=np.float64)
+        if cmd.cart_pose_m is not None:
+            p = np.asarray(cmd.cart_pose_m, dtype=np.float64)
             if p.shape != (4, 4) or not np.all(np.isfinite(p)):
                 raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
             self._cart_pos = p.copy()
-        if f & _CARTSTIFF:
-            k = np.asarray(cmd.cart_stiffness, dtype=np.float64)
+        if cmd.cart_stiffness_npm_nmprad is not None:
+            k = np.asarray(cmd.cart_stiffness_npm_nmprad, dtype=np.float64)
             if k.shape != (6,) or not np.all(np.isfinite(k)):
                 raise InvalidCommandError("cart_stiffness must be 6 finite values")
             mx = self.scene.controller.cart_stiffness_max
             self._cart_stiff, clipped = clip_cart_stiffness(k, mx[0], mx[1])
             if clipped:
-                self._warning |= WARN_STIFFNESS_CLIPPED
-        if f & _CARTDAMP:
-            self._cart_damp = np.clip(self._finite(cmd.cart_damping, 6, "cart_damping"), 0.0, 1.0)
-        if f & _TCPFT:
-            self._tcp_ft = self._finite(cmd.add_tcp_ft, 6, "add_tcp_ft")
-        if f & _JNTPOS:
-            self._jnt_pos = np.clip(self._finite(cmd.jnt_pos, 7, "jnt_pos"),
+                self._warning |= _WARN_CLIPPED
+        if cmd.cart_damping_ratio is not None:
+            self._cart_damp = np.clip(
+                self._finite(cmd.cart_damping_ratio, 6, "cart_damping"), 0.0, 1.0)
+        if cmd.tcp_wrench_n_nm is not None:
+            self._tcp_ft = self._finite(cmd.tcp_wrench_n_nm, 6, "add_tcp_ft")
+        if cmd.jnt_pos_rad is not None:
+            self._jnt_pos = np.clip(self._finite(cmd.jnt_pos_rad, 7, "jnt_pos"),
                                     -self._pos_limits, self._pos_limits)
-        if f & _JNTTRQ:
-            self._jnt_trq = self._finite(cmd.add_jnt_trq, 7, "add_jnt_trq")
-        if f & _JNTSTIFF:
-            k = self._finite(cmd.jnt_stiffness, 7, "jnt_stiffness")
+        if cmd.jnt_trq_nm is not None:
+            self._jnt_trq = self._finite(cmd.jnt_trq_nm, 7, "add_jnt_trq")
+        if cmd.jnt_stiffness_nmprad is not None:
+            k = self._finite(cmd.jnt_stiffness_nmprad, 7, "jnt_stiffness")
             self._jnt_stiff = np.clip(k, 0.0, self.scene.controller.jnt_stiffness_max)
             if np.any(self._jnt_stiff != k):
-                self._warning |= WARN_STIFFNESS_CLIPPED
-        if f & _JNTDAMP:
-            self._jnt_damp = np.clip(self._finite(cmd.jnt_damping, 7, "jnt_damping"), 0.0, 1.0)
+                self._warning |= _WARN_CLIPPED
+        if cmd.jnt_damping_ratio is not None:
+            self._jnt_damp = np.clip(
+                self._finite(cmd.jnt_damping_ratio, 7, "jnt_damping"), 0.0, 1.0)
 
     @staticmethod
     def _finite(v: F64, n: int, name: str) -> F64:
@@ -362,12 +346,14 @@ class SimWorld:
             raise InvalidCommandError(f"{name} must be {n} finite values")
         return a.copy()
 
-    def step(self, command: Command | None = None) -> Measurement:
-        """Run one FRI cycle with ``command`` held (``None``: keep the last one).
+    def step(self, command: ArmCommand | None = None) -> ArmState:
+        """Latch ``command`` (``None``: keep everything), run one cycle, return its end state.
 
-        Commands are taken only in :attr:`fri_state` CMD (monitor mode ignores them).
+        Raises:
+            InvalidCommandError: a given field is not finite or has the wrong
+                shape; fields before it in :class:`ArmCommand` order were latched.
         """
-        if command is not None and self.fri_state == FriState.CMD:
+        if command is not None:
             self._take(command)
         self._apply()
         m, d = self.model, self.data
@@ -392,8 +378,8 @@ class SimWorld:
         self._step_count += self.substeps
         self.cycle += 1
         self._update_kinematics()
-        self.last_measurement = self._measure()
-        return self.last_measurement
+        self.last_state = self._measure()
+        return self.last_state
 
     def ft_samples(self) -> FtSamples:
         """Every F/T sample produced since the last call."""
@@ -478,7 +464,7 @@ class SimWorld:
             tcp_twist=tcp_twist,
         )
 
-    def _measure(self) -> Measurement:
+    def _measure(self) -> ArmState:
         d = self.data
         q = d.qpos[:_N_ARM].copy()
         qd = d.qvel[:_N_ARM]
@@ -490,35 +476,35 @@ class SimWorld:
         tau_msr = self.mass_matrix @ d.qacc[:_N_ARM] + d.qfrc_bias[:_N_ARM] - tau_ext
         warning = self._warning
         if np.any(np.abs(qd) > self._vel_limits):
-            warning |= WARN_VELOCITY_LIMIT
+            warning |= _WARN_VELOCITY
         if np.any(np.abs(q) > self._pos_limits - 1e-3):
-            warning |= WARN_POSITION_LIMIT
+            warning |= _WARN_POSITION
         if np.any(np.abs(d.qfrc_actuator[:_N_ARM]) >= self._torque_limits - 1e-9):
-            warning |= WARN_TORQUE_LIMIT
-        cart = self.control == ControlMode.CART_IMPEDANCE
+            warning |= _WARN_TORQUE
+        cart = self.mode == ArmMode.CART_IMPEDANCE
         tcp_twist = jac @ qd
-        return Measurement(
-            seq=self.cycle,
+        return ArmState(
+            cycle=self.cycle,
             time_ns=self.cycle * self.cycle_ns,
-            state=self.fri_state,
-            quality=self.fri_quality,
-            control=self.control,
-            msr_sample_time=self.scene.fri.cycle,
-            cmd_sample_time=self.scene.fri.cycle,
-            warning=warning,
-            temperature=np.full(7, 30.0),
-            msr_jnt_pos=q,
-            msr_cart_pos=self.tcp_pose.copy(),
-            cmd_jnt_pos=q.copy() if cart else self._jnt_pos.copy(),
-            cmd_cart_pos=self._cart_pos.copy() if cart else self.tcp_pose.copy(),
-            msr_jnt_trq=tau_msr,
-            est_ext_jnt_trq=tau_ext,
-            est_ext_tcp_ft=contact.copy(),
+            mode=self.mode,
+            jnt_pos_rad=q,
+            tcp_pose_m=self.tcp_pose.copy(),
+            cmd_jnt_pos_rad=q.copy() if cart else self._jnt_pos.copy(),
+            cmd_cart_pose_m=self._cart_pos.copy() if cart else self.tcp_pose.copy(),
+            jnt_trq_nm=tau_msr,
+            ext_jnt_trq_nm=tau_ext,
+            ext_wrench_n_nm=contact.copy(),
             jacobian=jac.copy(),
             mass_matrix=self.mass_matrix.copy(),
-            gravity=gravity,
+            gravity_nm=gravity,
+            warning=ArmWarning(warning),
             truth=self._truth(contact, touching, tcp_twist),
         )
+
+    @property
+    def cycle_s(self) -> float:
+        """The control cycle [s]."""
+        return float(self.scene.fri.cycle)
 
     @property
     def time(self) -> float:

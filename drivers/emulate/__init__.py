@@ -1,0 +1,6 @@
+"""Emulated devices served from the simulated world: the KRC (FRI 1.x), the Net F/T box,
+and the in-process lockstep robot.
+
+This package combines back-ends (:mod:`drivers.sim`, :mod:`drivers.fri`,
+:mod:`drivers.netft`, :mod:`drivers.net`); no back-end imports it.
+"""

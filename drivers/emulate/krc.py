@@ -1,0 +1,200 @@
+"""The KRC between FRI and the simulated arm: which command fields it takes, what it reports.
+
+Pure functions, no I/O. The FRI emulator over UDP and the in-process lockstep
+robot both use them, so the world sees the same arm command for the same FRI
+command, and the remote sees the same measurement for the same world state.
+
+* :func:`arm_command_from_fri`: the KRC takes the fields ``cmdFlags`` selects
+  (the others keep their previous values) and switches to the requested
+  strategy;
+* :func:`stop_command`: what the KRC does when it leaves command mode: hold
+  the measured pose, no superposed wrench or torque;
+* :func:`fri_measurement`: the ``tFriMsrData`` of a world state, with the
+  link's state, quality and statistics;
+* :func:`plausible_command`: values a KRC would take (beyond them it leaves
+  command mode).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+
+from drivers.errors import InvalidCommandError
+from drivers.fri.types import (
+    WARN_POSITION_LIMIT,
+    WARN_STIFFNESS_CLIPPED,
+    WARN_TORQUE_LIMIT,
+    WARN_VELOCITY_LIMIT,
+    CmdFlags,
+    ControlMode,
+    FriCommand,
+    FriMeasurement,
+    FriQuality,
+    FriState,
+)
+from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
+
+__all__ = [
+    "MAX_DAMPING",
+    "MAX_JNT_TRQ_NM",
+    "MAX_REACH_M",
+    "MAX_STIFFNESS",
+    "MAX_TCP_FORCE_N",
+    "MAX_TCP_TORQUE_NM",
+    "arm_command_from_fri",
+    "arm_mode",
+    "control_mode",
+    "fri_measurement",
+    "fri_warning",
+    "plausible_command",
+    "stop_command",
+]
+
+_TO_ARM: Final = {
+    ControlMode.JOINT_POSITION: ArmMode.JOINT_POSITION,
+    ControlMode.CART_IMPEDANCE: ArmMode.CART_IMPEDANCE,
+    ControlMode.JOINT_IMPEDANCE: ArmMode.JOINT_IMPEDANCE,
+}
+_TO_FRI: Final = {v: k for k, v in _TO_ARM.items()}
+_WARNINGS: Final = (
+    (int(ArmWarning.STIFFNESS_CLIPPED), WARN_STIFFNESS_CLIPPED),
+    (int(ArmWarning.TORQUE_LIMIT), WARN_TORQUE_LIMIT),
+    (int(ArmWarning.VELOCITY_LIMIT), WARN_VELOCITY_LIMIT),
+    (int(ArmWarning.POSITION_LIMIT), WARN_POSITION_LIMIT),
+)
+#: Temperature the emulated drives report [deg C].
+DRIVE_TEMPERATURE_C: Final = 30.0
+
+
+def arm_mode(control: ControlMode) -> ArmMode:
+    """The arm mode of an FRI control mode; OTHER is refused (:class:`InvalidCommandError`)."""
+    mode = _TO_ARM.get(control)
+    if mode is None:
+        raise InvalidCommandError(f"control mode {control!r} not supported")
+    return mode
+
+
+def control_mode(mode: ArmMode) -> ControlMode:
+    """The FRI control mode an arm mode reports."""
+    return _TO_FRI[mode]
+
+
+def fri_warning(warning: ArmWarning) -> int:
+    """The FRI warning bits of the arm's warnings."""
+    w = int(warning)
+    out = 0
+    for arm_bit, fri_bit in _WARNINGS:
+        if w & arm_bit:
+            out |= fri_bit
+    return out
+
+
+def arm_command_from_fri(cmd: FriCommand, current: ArmMode) -> ArmCommand:
+    """The fields of ``cmd`` its flags select, as an arm command (arrays shared, not copied).
+
+    ``current`` is the arm's running mode: a request of another mode is a
+    switch; OTHER is refused with :class:`InvalidCommandError`.
+    """
+    f = int(cmd.flags)
+    mode = current if cmd.control == control_mode(current) else arm_mode(cmd.control)
+    return ArmCommand(
+        mode=mode,
+        cart_pose_m=cmd.cart_pos if f & CmdFlags.CARTPOS else None,
+        cart_stiffness_npm_nmprad=cmd.cart_stiffness if f & CmdFlags.CARTSTIFF else None,
+        cart_damping_ratio=cmd.cart_damping if f & CmdFlags.CARTDAMP else None,
+        tcp_wrench_n_nm=cmd.add_tcp_ft if f & CmdFlags.TCPFT else None,
+        jnt_pos_rad=cmd.jnt_pos if f & CmdFlags.JNTPOS else None,
+        jnt_trq_nm=cmd.add_jnt_trq if f & CmdFlags.JNTTRQ else None,
+        jnt_stiffness_nmprad=cmd.jnt_stiffness if f & CmdFlags.JNTSTIFF else None,
+        jnt_damping_ratio=cmd.jnt_damping if f & CmdFlags.JNTDAMP else None,
+    )
+
+
+def stop_command(state: ArmState) -> ArmCommand:
+    """Leaving command mode: hold the measured pose and joints, no superposed wrench or torque."""
+    return ArmCommand(
+        mode=state.mode,
+        cart_pose_m=state.tcp_pose_m.copy(),
+        tcp_wrench_n_nm=np.zeros(6),
+        jnt_pos_rad=state.jnt_pos_rad.copy(),
+        jnt_trq_nm=np.zeros(7),
+    )
+
+
+def fri_measurement(
+    s: ArmState,
+    cycle_s: float,
+    state: FriState,
+    quality: FriQuality,
+) -> FriMeasurement:
+    """The measurement packet of a world state (arrays shared with ``s``, not copied).
+
+    Link statistics (answer rate, latency, ...) are left at their defaults;
+    the UDP emulator fills them from its window.
+    """
+    return FriMeasurement(
+        seq=s.cycle,
+        time_ns=s.time_ns,
+        state=state,
+        quality=quality,
+        control=control_mode(s.mode),
+        msr_sample_time=cycle_s,
+        cmd_sample_time=cycle_s,
+        warning=fri_warning(s.warning),
+        temperature=np.full(7, DRIVE_TEMPERATURE_C),
+        msr_jnt_pos=s.jnt_pos_rad,
+        msr_cart_pos=s.tcp_pose_m,
+        cmd_jnt_pos=s.cmd_jnt_pos_rad,
+        cmd_cart_pos=s.cmd_cart_pose_m,
+        msr_jnt_trq=s.jnt_trq_nm,
+        est_ext_jnt_trq=s.ext_jnt_trq_nm,
+        est_ext_tcp_ft=s.ext_wrench_n_nm,
+        jacobian=s.jacobian,
+        mass_matrix=s.mass_matrix,
+        gravity=s.gravity_nm,
+    )
+
+
+#: Largest command values the emulated KRC takes (beyond them it leaves command mode).
+MAX_TCP_FORCE_N: Final = 1000.0
+MAX_TCP_TORQUE_NM: Final = 200.0
+MAX_JNT_TRQ_NM: Final = 500.0
+MAX_REACH_M: Final = 2.0
+MAX_STIFFNESS: Final = 1.0e5
+MAX_DAMPING: Final = 10.0
+
+
+def plausible_command(c: FriCommand) -> bool:
+    """Whether the fields ``c.flags`` selects are values a KRC would take.
+
+    Finite, forces/torques and stiffnesses within generous bounds, a proper
+    rotation in ``cart_pos`` within reach, joint angles within a turn.
+    """
+    f = int(c.flags)
+    if f & CmdFlags.CARTPOS:
+        p = c.cart_pos
+        r = p[:3, :3]
+        if not (np.isfinite(p).all() and np.abs(p[:3, 3]).max() <= MAX_REACH_M
+                and np.abs(r.T @ r - np.eye(3)).max() <= 1e-3):
+            return False
+    if f & CmdFlags.JNTPOS and not (np.abs(c.jnt_pos) <= 2.0 * math.pi).all():
+        return False
+    if f & CmdFlags.TCPFT and not (
+        (np.abs(c.add_tcp_ft[:3]) <= MAX_TCP_FORCE_N).all()
+        and (np.abs(c.add_tcp_ft[3:]) <= MAX_TCP_TORQUE_NM).all()
+    ):
+        return False
+    if f & CmdFlags.JNTTRQ and not (np.abs(c.add_jnt_trq) <= MAX_JNT_TRQ_NM).all():
+        return False
+    for flag, gains, top in (
+        (CmdFlags.CARTSTIFF, c.cart_stiffness, MAX_STIFFNESS),
+        (CmdFlags.JNTSTIFF, c.jnt_stiffness, MAX_STIFFNESS),
+        (CmdFlags.CARTDAMP, c.cart_damping, MAX_DAMPING),
+        (CmdFlags.JNTDAMP, c.jnt_damping, MAX_DAMPING),
+    ):
+        if f & flag and not ((gains >= 0.0) & (gains <= top)).all():
+            return False
+    return True

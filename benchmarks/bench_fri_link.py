@@ -29,8 +29,9 @@ import time
 
 import numpy as np
 
-from drivers.base.types import CmdFlags, Command
+from drivers.base.types import CartesianCommand
 from drivers.fri.driver import FriRobot, FriSettings
+from drivers.fri.types import FriMeasurement
 
 
 def ffexp_exe() -> str:
@@ -40,8 +41,8 @@ def ffexp_exe() -> str:
 
 def bench(mode: str, seconds: float, cycle_ms: int) -> dict[str, float]:
     deadline = 0.0 if mode == "immediate" else 0.5
-    robot = FriRobot(FriSettings(robot_ip="127.0.0.1", port=0, bind_host="127.0.0.1",
-                                 answer_deadline=deadline, connect_timeout_s=30.0))
+    robot = FriRobot(FriSettings(robot_ip="127.0.0.1", local_port=0, local_host="127.0.0.1",
+                                 answer_deadline_cycles=deadline, connect_timeout_s=30.0))
     _, port = robot.bind()
     warmup = 500  # the link settles (friStart needs 100 answered cycles at PERFECT quality)
     n = int(seconds * 1000 / cycle_ms)
@@ -51,9 +52,9 @@ def bench(mode: str, seconds: float, cycle_ms: int) -> dict[str, float]:
          "--duration", str((warmup + n) * cycle_ms / 1000 + 5.0)],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
     )
-    cmd = Command(flags=CmdFlags.TCPFT | CmdFlags.CARTSTIFF | CmdFlags.CARTDAMP,
-                  add_tcp_ft=np.zeros(6), cart_stiffness=np.full(6, 1000.0),
-                  cart_damping=np.full(6, 0.7))
+    # hold the first measured pose with a constant impedance (set on the first cycle)
+    cmd = CartesianCommand(stiffness_npm_nmprad=np.full(6, 1000.0),
+                           damping_ratio=np.full(6, 0.7))
     lat: list[float] = []
     states: dict[str, int] = {}
     qualities: dict[str, int] = {}
@@ -61,7 +62,11 @@ def bench(mode: str, seconds: float, cycle_ms: int) -> dict[str, float]:
         robot.connect()
         k = 0
         start_turn = start_miss = start_lost = start_deadline = 0
-        for m in robot.measurements():
+        for state in robot.measurements():
+            m = state.extras
+            assert isinstance(m, FriMeasurement)
+            if k == 0:
+                cmd.pose_m[:] = state.tcp_pose_m
             robot.send(cmd)
             k += 1
             if k == warmup:
@@ -71,7 +76,7 @@ def bench(mode: str, seconds: float, cycle_ms: int) -> dict[str, float]:
                 start_deadline = st.deadline_answers
                 t0 = time.perf_counter()
             elif k > warmup:
-                lat.append(m.latency)
+                lat.append(m.latency_s)
                 states[m.state.name] = states.get(m.state.name, 0) + 1
                 qualities[m.quality.name] = qualities.get(m.quality.name, 0) + 1
                 if k >= warmup + n:
@@ -79,7 +84,7 @@ def bench(mode: str, seconds: float, cycle_ms: int) -> dict[str, float]:
         wall = time.perf_counter() - t0
         st = robot.stats
         turn = robot.turnarounds_ns()[start_turn:] * 1e-3  # us
-        end_miss = m.miss_counter
+        end_miss = st.miss_counter  # the KRC's counter of the last measurement
     finally:
         robot.close()
         emu.send_signal(signal.SIGTERM)

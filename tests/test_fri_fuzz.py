@@ -14,17 +14,18 @@ from __future__ import annotations
 
 import socket
 from collections import Counter
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
-from drivers.base.types import CmdFlags, Command, FriState, Measurement
 from drivers.fri import codec
 from drivers.fri.convert import command_to_arrays, measurement_to_arrays
 from drivers.fri.driver import FriRobot, FriSettings
-from drivers.fri.emulator import EmulatorSettings, FriEmulator
-from drivers.sim.scene import Scene
-from drivers.sim.world import SimWorld
+from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement, FriState
+
+if TYPE_CHECKING:
+    from drivers.sim.scene import Scene
 
 LOCAL = "127.0.0.1"
 FOREIGN = "127.0.0.2"
@@ -82,14 +83,16 @@ def hostile(
 @pytest.mark.slow
 def test_driver_survives_and_counts_100k_hostile_datagrams() -> None:
     rng = np.random.default_rng(1)
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, port=0, bind_host=LOCAL, answer_deadline=0.0))
+    robot = FriRobot(
+        FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL, answer_deadline_cycles=0.0)
+    )
     krc, foreign = udp(LOCAL), udp(FOREIGN)
     try:
         _, port = robot.bind()
         dest = (LOCAL, port)
         robot.connect()
         arrays = codec.MsrArrays()
-        measurement_to_arrays(Measurement(state=FriState.MON), arrays)
+        measurement_to_arrays(FriMeasurement(state=FriState.MON), arrays)
         expected: Counter[codec.DecodeStatus] = Counter()
         sent = n_foreign = syncs = 0
         seq = 1000
@@ -140,6 +143,10 @@ def test_driver_survives_and_counts_100k_hostile_datagrams() -> None:
 
 @pytest.mark.slow
 def test_emulator_survives_and_counts_100k_hostile_datagrams(paper_scene: Scene) -> None:
+    # imported here: the driver test above needs neither the emulator nor the simulator
+    from drivers.fri.emulator import EmulatorSettings, FriEmulator
+    from drivers.sim.world import SimWorld
+
     rng = np.random.default_rng(2)
     remote, foreign = udp(LOCAL), udp(LOCAL)
     other = udp(FOREIGN)
@@ -160,7 +167,7 @@ def test_emulator_survives_and_counts_100k_hostile_datagrams(paper_scene: Scene)
             data, _ = remote.recvfrom(2048)  # the emulator's packet of this cycle
             assert codec.decode_msr_into(data, msr) is codec.DecodeStatus.OK
             command_to_arrays(
-                Command(flags=CmdFlags.CARTPOS, cart_pos=msr.cmd_cart_pos.copy()), cmd
+                FriCommand(flags=CmdFlags.CARTPOS, cart_pos=msr.cmd_cart_pos.copy()), cmd
             )
             cmd.refl_seq = msr.send_seq
             cmd.send_seq = send_seq

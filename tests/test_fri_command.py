@@ -9,6 +9,7 @@ from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, Ro
 from drivers.fri.codec import CmdArrays, encode_cmd
 from drivers.fri.command import (
     applied_from_fri,
+    copy_fri_command,
     robot_state_from_fri,
     to_fri_command,
 )
@@ -163,3 +164,14 @@ def test_robot_state_fields_and_reuse() -> None:
     assert s.link.cycle_s == 0.002
     m.cmd_sample_time = 0.0
     assert robot_state_from_fri(m).link.cycle_s == 0.004
+
+
+def test_copy_fri_command_copies_every_field_into_its_own_arrays() -> None:
+    src, dst = FriCommand(), FriCommand()
+    to_fri_command(_cmd(), _msr(), src)
+    src.krl_int[3], src.krl_real[2], src.krl_bool = 7, 1.5, 3
+    src.jnt_stiffness[:] = 42.0
+    copy_fri_command(src, dst)
+    assert _wire(dst) == _wire(src)
+    src.cart_pos[0, 3] = -1.0
+    assert dst.cart_pos[0, 3] == 0.5 and dst.krl_int[3] == 7 and dst.krl_bool == 3

@@ -50,6 +50,7 @@ __all__ = [
     "MIRROR_FLAGS",
     "applied_from_fri",
     "commanding",
+    "copy_fri_command",
     "mirror_into",
     "robot_state_from_fri",
     "to_fri_command",
@@ -120,6 +121,23 @@ def applied_from_fri(out: FriCommand, status: ApplyStatus, dst: AppliedCommand) 
     dst.status = status
     dst.extras = out
     return dst
+
+
+def copy_fri_command(src: FriCommand, dst: FriCommand) -> None:
+    """Copy every field of ``src`` into ``dst`` (no allocation)."""
+    dst.flags = src.flags
+    dst.control = src.control
+    dst.jnt_pos[:] = src.jnt_pos
+    dst.cart_pos[:] = src.cart_pos
+    dst.add_jnt_trq[:] = src.add_jnt_trq
+    dst.add_tcp_ft[:] = src.add_tcp_ft
+    dst.jnt_stiffness[:] = src.jnt_stiffness
+    dst.jnt_damping[:] = src.jnt_damping
+    dst.cart_stiffness[:] = src.cart_stiffness
+    dst.cart_damping[:] = src.cart_damping
+    dst.krl_real[:] = src.krl_real
+    dst.krl_int[:] = src.krl_int
+    dst.krl_bool = src.krl_bool
 
 
 def robot_state_from_fri(m: FriMeasurement, dst: RobotState | None = None) -> RobotState:

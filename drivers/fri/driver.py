@@ -68,7 +68,12 @@ from drivers.fri.codec import (
     new_cmd_buffer,
     seq_next,
 )
-from drivers.fri.command import applied_from_fri, robot_state_from_fri, to_fri_command
+from drivers.fri.command import (
+    applied_from_fri,
+    copy_fri_command,
+    robot_state_from_fri,
+    to_fri_command,
+)
 from drivers.fri.convert import (
     LOCKSTEP_INDEX,
     LOCKSTEP_MARKER,
@@ -85,23 +90,6 @@ from drivers.net.udp import bind_udp, resolve_ipv4
 __all__ = ["FriEstimateSensor", "FriRobot", "FriSettings", "LinkStats"]
 
 _WHAT = "FRI robot"
-
-
-def copy_fri_command(src: FriCommand, dst: FriCommand) -> None:
-    """Copy every field of ``src`` into ``dst`` (no allocation)."""
-    dst.flags = src.flags
-    dst.control = src.control
-    dst.jnt_pos[:] = src.jnt_pos
-    dst.cart_pos[:] = src.cart_pos
-    dst.add_jnt_trq[:] = src.add_jnt_trq
-    dst.add_tcp_ft[:] = src.add_tcp_ft
-    dst.jnt_stiffness[:] = src.jnt_stiffness
-    dst.jnt_damping[:] = src.jnt_damping
-    dst.cart_stiffness[:] = src.cart_stiffness
-    dst.cart_damping[:] = src.cart_damping
-    dst.krl_real[:] = src.krl_real
-    dst.krl_int[:] = src.krl_int
-    dst.krl_bool = src.krl_bool
 
 
 def _copy_cartesian(src: CartesianCommand, dst: CartesianCommand) -> None:

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from drivers.base.types import FtSamples, FtStatus
+from drivers.emulate.netft_box import NetFtServer
 from drivers.errors import AddressError, ConfigError, NotConnectedError
 from drivers.netft.client import NetFtClient, NetFtSettings
 from drivers.netft.codec import Calibration, RdtCommand, encode_rdt, encode_request
-from drivers.netft.emulator import NetFtServer
 
 if TYPE_CHECKING:
     from drivers.sim.scene import Scene
@@ -191,8 +191,8 @@ def test_client_errors() -> None:
 
 def test_the_fri_emulator_serves_the_simulated_sensor(paper_scene: Scene) -> None:
     # the emulator and the simulator are imported here: the client tests above need neither
+    from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
     from drivers.fri.driver import FriRobot, FriSettings
-    from drivers.fri.emulator import EmulatorSettings, FriEmulator
     from drivers.sim.world import SimWorld
 
     world = SimWorld(paper_scene, seed=4)

@@ -16,9 +16,10 @@ from datetime import UTC, datetime
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 
-from drivers.config import apply_overrides, load_model, read_toml, validate
 from drivers.factory import open_devices
 from drivers.rig import Rig, load_rig
+
+from drivers.config import apply_overrides, load_model, read_toml, validate
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
 from ffexp.errors import ConfigError

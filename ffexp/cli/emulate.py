@@ -2,7 +2,7 @@
 
 The controller side of the link, wrapping the MuJoCo rig: it sends FRI
 measurement packets to ``--remote`` every cycle and steps the world with the
-commands that come back (see :mod:`drivers.fri.emulator`), and serves the
+commands that come back (see :mod:`drivers.emulate.fri_server`), and serves the
 simulated Mini45 as an ATI Net F/T box on ``--netft-port``.
 """
 
@@ -68,9 +68,10 @@ def emulate(
     """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""
     # imported here: the other commands need not load the emulator
     from drivers.config import apply_overrides, validate
-    from drivers.fri.emulator import EmulatorSettings, FaultSettings, FriEmulator
-    from drivers.fri.udp import parse_host_port
-    from drivers.netft.emulator import NetFtServer
+    from drivers.emulate.faults import FaultSettings
+    from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
+    from drivers.emulate.netft_box import NetFtServer
+    from drivers.net.udp import parse_host_port
     from drivers.sim.scene import Scene, load_scene
     from drivers.sim.world import SimWorld
 
@@ -96,13 +97,15 @@ def emulate(
     world = SimWorld(sc, seed=seed)
     netft: NetFtServer | None = None
     if netft_port >= 0:
-        netft = NetFtServer.open("0.0.0.0", netft_port, on_bias=world.tare_ft)
+        netft = NetFtServer.open("0.0.0.0", netft_port, on_bias=world.tare_ft,
+                                 field="--netft-port")
     try:
         emulator = FriEmulator(
             world,
             EmulatorSettings(
                 remote=remote_addr,
                 port=port,
+                port_field="--port",
                 pacing="lockstep" if pacing == "lockstep" else "realtime",
                 lockstep_timeout_s=_ms("--timeout-ms", timeout_ms),
                 faults=faults,

@@ -1,6 +1,6 @@
 """An emulated ATI Net F/T box: answers RDT requests and streams given samples.
 
-The owner (``ffexp emulate``) calls :meth:`NetFtServer.handle_requests` when
+The owner (the FRI emulator of ``ffexp emulate``) calls :meth:`NetFtServer.handle_requests` when
 the socket is readable and :meth:`NetFtServer.publish` with the samples its
 sensor model produced each FRI cycle; there is no thread of its own.
 
@@ -23,7 +23,7 @@ import numpy as np
 
 from drivers.base.types import FtSamples
 from drivers.errors import MalformedPacketError
-from drivers.fri.udp import bind_udp
+from drivers.net.udp import bind_udp
 from drivers.netft.codec import (
     MAX_RECORDS,
     Calibration,
@@ -80,9 +80,13 @@ class NetFtServer:
         calibration: Calibration | None = None,
         buffer_size: int = 10,
         on_bias: Callable[[], None] | None = None,
+        field: str = "Net F/T box port",
     ) -> NetFtServer:
-        """Bind ``host:port`` (0: any free port) and serve there."""
-        return cls(bind_udp("--netft-port", host, port), calibration, buffer_size, on_bias)
+        """Bind ``host:port`` (0: any free port) and serve there.
+
+        ``field`` names the port's origin in an :class:`~drivers.errors.AddressError`.
+        """
+        return cls(bind_udp(field, host, port), calibration, buffer_size, on_bias)
 
     @property
     def address(self) -> tuple[str, int]:

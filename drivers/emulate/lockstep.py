@@ -1,0 +1,182 @@
+"""The simulated LWR4+ in-process: the KRC of :mod:`drivers.emulate.krc` in lockstep, no sockets.
+
+``SimRobot.measurements()`` yields the state of the current cycle; when the
+caller asks for the next one, the world runs one cycle with the arm command
+the KRC takes from the last :meth:`SimRobot.send` (none: the world holds the
+last one). The link is the same state machine as the UDP emulator's
+(:class:`~drivers.fri.link.KrcLink`, every cycle answered unless the caller
+skips a ``send``): MON until ``start_cycles`` answered cycles with PERFECT
+quality (the 100th answer at the earliest), then CMD; the command of that
+cycle is the first one applied. ``start_cycles = 0`` starts in CMD.
+
+Commands go through :func:`~drivers.fri.command.to_fri_command` like on the
+wire (a mirror while MON, HELD for ``None``), so the recordings
+(``/robot/measurement``, ``/robot/link``, ``/robot/command``) are those of an
+FRI robot; only the float32 rounding of the wire is missing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from drivers.base.guards import requires_open
+from drivers.base.interfaces import RobotDriver
+from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
+from drivers.emulate.krc import arm_command_from_fri, fri_measurement, stop_command
+from drivers.fri.command import applied_from_fri, robot_state_from_fri, to_fri_command
+from drivers.fri.link import KrcLink, LinkEvent
+from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement
+from drivers.sim.arm import ArmCommand
+from drivers.sim.controller import clip_cart_stiffness
+from drivers.sim.driver import SimFtSensor
+from drivers.sim.scene import Scene, load_scene
+from drivers.sim.world import SimWorld
+
+__all__ = ["SimRobot", "open_sim"]
+
+_WHAT = "sim robot"
+
+
+class SimRobot(RobotDriver):
+    """LWR4+ over FRI, simulated in lockstep (module docstring).
+
+    Args:
+        world: the world to step.
+        max_cycles: stop yielding after this many cycles (``None``: forever).
+        start_cycles: answered cycles before CMD (100, as a friStart script).
+        max_consecutive_misses: cycles without ``send`` in a row that end CMD.
+    """
+
+    def __init__(
+        self,
+        world: SimWorld,
+        max_cycles: int | None = None,
+        start_cycles: int = 100,
+        max_consecutive_misses: int = 5,
+    ) -> None:
+        self.world = world
+        self.max_cycles = max_cycles
+        self.start_cycles = start_cycles
+        self.max_consecutive_misses = max_consecutive_misses
+        self.link = self._new_link()
+        self._open = False
+        self._answered = False
+        self._fri = FriCommand()
+        self._applied = AppliedCommand()
+        self._msr = self._measurement()
+
+    def _new_link(self) -> KrcLink:
+        return KrcLink(
+            self.world.cycle_s,
+            start_cycles=self.start_cycles,
+            max_consecutive_misses=self.max_consecutive_misses,
+            timing=False,
+        )
+
+    def _measurement(self) -> FriMeasurement:
+        link = self.link
+        m = fri_measurement(self.world.last_state, self.world.cycle_s, link.state, link.quality)
+        m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = link.rates()
+        m.miss_counter = link.missed
+        return m
+
+    def _robot_state(self) -> RobotState:
+        state = robot_state_from_fri(self._msr)
+        state.truth = self.world.last_state.truth
+        return state
+
+    # ------------------------------------------------------------ lifecycle
+    def connect(self) -> None:
+        """Open the link: a fresh KRC link state (MON unless ``start_cycles`` is 0)."""
+        self.link = self._new_link()
+        self._answered = False
+        self._msr = self._measurement()
+        self._open = True
+
+    def close(self) -> None:
+        self._open = False
+
+    @property
+    def connected(self) -> bool:
+        return self._open
+
+    @property
+    def is_open(self) -> bool:
+        return self._open
+
+    @property
+    def measurement(self) -> FriMeasurement:
+        """The FRI measurement of the current cycle."""
+        return self._msr
+
+    # ------------------------------------------------------------ cycles
+    @requires_open(_WHAT)
+    def measurements(self) -> Iterator[RobotState]:
+        return self._measurements()
+
+    def _measurements(self) -> Iterator[RobotState]:
+        n = 0
+        while self._open:
+            yield self._robot_state()
+            n += 1
+            if self.max_cycles is not None and n >= self.max_cycles:
+                return
+            if not self._open:
+                return
+            self._advance()
+
+    def _advance(self) -> None:
+        """One KRC cycle: account the answer, step the world with what the KRC takes."""
+        world = self.world
+        event = self.link.cycle(self._answered, 0.0)
+        arm: ArmCommand | None = None
+        if event is LinkEvent.FALLBACK:
+            arm = stop_command(world.last_state)
+        elif self._answered and self.link.commanding:
+            arm = arm_command_from_fri(self._fri, world.mode)
+        self._answered = False
+        world.step(arm)
+        self._msr = self._measurement()
+
+    @requires_open(_WHAT)
+    def send(self, command: CartesianCommand | None) -> AppliedCommand:
+        """Answer this cycle (``None``: hold); returns what the KRC takes.
+
+        The returned object is reused by the next ``send()`` (copy it to keep
+        it); ``command`` is copied. CLIPPED: the world will clip the stiffness
+        (beyond the arm's limits) or the damping (outside 0..1); the returned
+        command holds the clipped values.
+
+        Raises:
+            InvalidCommandError: on the next cycle, if ``command`` holds
+                non-finite values (the world refuses them).
+        """
+        status = to_fri_command(command, self._msr, self._fri)
+        self._answered = True
+        applied = applied_from_fri(self._fri, status, self._applied)
+        if self._fri.flags & CmdFlags.CARTSTIFF:
+            mx = self.world.scene.controller.cart_stiffness_max
+            k, clipped = clip_cart_stiffness(self._fri.cart_stiffness, mx[0], mx[1])
+            d = np.clip(self._fri.cart_damping, 0.0, 1.0)
+            if clipped or bool(np.any(d != self._fri.cart_damping)):
+                applied.status |= ApplyStatus.CLIPPED
+                applied.command.stiffness_npm_nmprad[:] = k
+                applied.command.damping_ratio[:] = d
+        return applied
+
+
+def open_sim(
+    scene: Scene | Path | str,
+    seed: int | None = None,
+    overrides: Iterable[str] = (),
+    max_cycles: int | None = None,
+    start_cycles: int = 100,
+) -> tuple[SimRobot, SimFtSensor]:
+    """Build a world from a scene (object or TOML path) and its robot/sensor pair."""
+    if not isinstance(scene, Scene):
+        scene = load_scene(Path(scene), overrides)
+    world = SimWorld(scene, seed=seed)
+    return SimRobot(world, max_cycles=max_cycles, start_cycles=start_cycles), SimFtSensor(world)

@@ -1,4 +1,4 @@
-"""The in-process sim robot (drivers.emulate.lockstep) and sensor, driven the way the loop drives them."""
+"""The in-process sim robot (drivers.emulate.lockstep) and sensor, driven like the loop does."""
 
 from __future__ import annotations
 

@@ -1,16 +1,20 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from drivers.base import CmdFlags, Command, ControlMode, FtSamples, Measurement
+from drivers.base import CartesianCommand, FtSamples
+from drivers.base.guards import requires_open
+from drivers.errors import NotConnectedError
+from drivers.fri.types import CmdFlags, ControlMode, FriCommand, FriMeasurement
 
 
 def test_hold_mirrors_the_krc() -> None:
-    m = Measurement(control=ControlMode.CART_IMPEDANCE)
+    m = FriMeasurement(control=ControlMode.CART_IMPEDANCE)
     m.cmd_jnt_pos[:] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]
     m.cmd_jnt_pos_fri_offset[:] = 0.01
     m.cmd_cart_pos[:3, 3] = [0.6, 0.0, 0.5]
-    c = Command.hold(m)
+    c = FriCommand.hold(m)
     assert c.flags == CmdFlags.JNTPOS | CmdFlags.CARTPOS
     np.testing.assert_allclose(c.jnt_pos, m.cmd_jnt_pos + 0.01)
     np.testing.assert_array_equal(c.cart_pos, m.cmd_cart_pos)
@@ -24,7 +28,7 @@ def test_flag_values_match_fricomm() -> None:
 
 
 def test_default_arrays_are_not_shared() -> None:
-    a, b = Command(), Command()
+    a, b = FriCommand(), FriCommand()
     a.add_tcp_ft[2] = 1.0
     assert b.add_tcp_ft[2] == 0.0
 
@@ -39,3 +43,28 @@ def test_ft_samples_concat() -> None:
     assert list(c.time_ns) == [1, 2, 3]
     assert c.status[2] == 0x20000
     assert len(FtSamples.concat([])) == 0
+
+
+def test_cartesian_command_copy_is_deep() -> None:
+    a = CartesianCommand()
+    b = a.copy()
+    for name in ("pose_m", "stiffness_npm_nmprad", "damping_ratio", "wrench_n_nm"):
+        assert getattr(a, name) is not getattr(b, name)
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+class _Device:
+    def __init__(self) -> None:
+        self.is_open = False
+
+    @requires_open("test device")
+    def read(self, x: int) -> int:
+        return x + 1
+
+
+def test_requires_open_names_device_and_method() -> None:
+    d = _Device()
+    with pytest.raises(NotConnectedError, match=r"^test device: read\(\) before connect/start$"):
+        d.read(1)
+    d.is_open = True
+    assert d.read(1) == 2

@@ -1,5 +1,5 @@
 """Scripted back-ends for tests and dry runs: replay states, record commands."""
 
-from drivers.mock.driver import MockFtSensor, MockRobot, NoisyFtSensor, stationary_robot
+from .driver import MockFtSensor, MockRobot, NoisyFtSensor, stationary_robot
 
 __all__ = ["MockFtSensor", "MockRobot", "NoisyFtSensor", "stationary_robot"]

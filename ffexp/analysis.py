@@ -283,7 +283,7 @@ def _shade_phases(ax: Axes, s: RunSeries) -> None:
     starts = np.flatnonzero(np.concatenate([[True], s.phase[1:] != s.phase[:-1]]))
     ends = np.concatenate([starts[1:], [len(s.phase) - 1]])
     for a, b in zip(starts, ends, strict=True):
-        colour = PHASE_COLOURS.get(int(s.phase[a]))
+        colour = PHASE_COLOURS.get(Phase(int(s.phase[a])))
         if colour:
             ax.axvspan(s.t_s[a], s.t_s[b], color=colour, lw=0, zorder=0)
 

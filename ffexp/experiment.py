@@ -16,10 +16,9 @@ from datetime import UTC, datetime
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 
+from drivers.config import apply_overrides, load_model, read_toml
 from drivers.factory import open_devices
-from drivers.rig import Rig, load_rig
-
-from drivers.config import apply_overrides, load_model, read_toml, validate
+from drivers.rig import Rig, load_rig, validate_rig
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
 from ffexp.errors import ConfigError
@@ -58,7 +57,7 @@ def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
     robot_type = {"sim": "sim", "fri": "fri1", "mock": "mock"}[driver]
     ft_type = {"sim": "sim", "fri": "netft", "mock": "mock"}[driver]
     data = {"robot": {"type": robot_type}, "ft": {"type": ft_type}}
-    return validate(Rig, apply_overrides(data, choice.overrides), source), source
+    return validate_rig(apply_overrides(data, choice.overrides), source), source
 
 
 @dataclass

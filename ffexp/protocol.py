@@ -15,8 +15,9 @@ from pydantic import Field, model_validator
 from drivers.base.types import Vec6
 from drivers.config import StrictModel, load_model
 from ffexp.control import ImpedanceConfig
-from ffexp.controllers import AlignConfig
+from ffexp.controllers import REGISTRY, AlignConfig
 from ffexp.controllers.force import ForceRiConfig
+from ffexp.errors import ConfigError
 from ffexp.estimator import Estimation
 from ffexp.safety import Limits
 from ffexp.task import Alignment
@@ -113,8 +114,16 @@ class CampaignProtocol(StrictModel):
 
 
 def load_run_protocol(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> RunProtocol:
-    """Read a run protocol with ``--set`` overrides (one-line errors)."""
-    return load_model(RunProtocol, path, overrides)
+    """Read a run protocol with ``--set`` overrides (one-line errors naming the field as
+    written in the file: ``align.k_ri``, not pydantic's ``align.force.k_ri``)."""
+    try:
+        return load_model(RunProtocol, path, overrides)
+    except ConfigError as exc:
+        parts = exc.field.split(".")
+        if len(parts) >= 2 and parts[0] == "align" and parts[1] in REGISTRY:
+            del parts[1]
+            raise ConfigError(exc.source, ".".join(parts), exc.message) from None
+        raise
 
 
 def scene_path(protocol_path: Path, protocol: RunProtocol) -> Path:

@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
 
 
+@pytest.mark.slow
 def test_campaign_prints_the_papers_table_and_writes_figures(tmp_path: Path) -> None:
     result = runner.invoke(
         app,
@@ -38,6 +39,8 @@ def test_campaign_prints_the_papers_table_and_writes_figures(tmp_path: Path) -> 
         ('name = "x"\nmethod = "force_ri"\ncolour = 1\n', "colour"),
         ('name = "x"\nmethod = "telepathy"\n', "method"),
         ('name = "x"\nmethod = "force"\n[align]\nk_ri = [0, 1, 0, 0, 0, 0]\n', "k_ri"),
+        ('name = "x"\n[align]\nmethod = "force"\nkp = "high"\n', "align.kp"),
+        ('name = "x"\n[align]\nmethod = "admittance"\nmass = [1, 0, 1, 1, 1, 1]\n', "mass"),
         ('name = "x"\nmethod = "force_ri"\n[scene]\nfile = "nope.toml"\n', "nope.toml"),
     ],
 )
@@ -83,3 +86,41 @@ def test_signal_stops_safely_and_keeps_the_recording(tmp_path: Path, sig: int) -
     cmd = rec.topic("/robot/command")
     assert (cmd["add_tcp_ft"][-1] == 0.0).all()
     assert "Traceback" not in err
+
+
+def test_a_rig_file_selects_the_mock_robot(tmp_path: Path) -> None:
+    result = runner.invoke(
+        app, ["run", str(ROOT / "protocols/method1_case1.toml"), "--rig",
+              str(ROOT / "rigs/mock.toml"), "--set", "run.timeout_s=1", "--out", str(tmp_path)],
+    )
+    assert result.exit_code == 0, result.stderr
+    (path,) = tmp_path.glob("*.mcap")
+    rec = load(path)
+    assert rec.metadata["run"]["rig"].endswith("rigs/mock.toml")
+    assert "/robot/measurement" not in rec.topics  # no FRI back-end, no FRI packets
+    intent = rec.topic("/control/command")
+    assert intent["given"][0] == 0 and intent["given"][-1] == 1  # CONNECT holds, then commands
+    phases = [m["phase"] for m in rec.json["/runner/phase"].messages]
+    assert phases == ["CONNECT", "APPROACH", "DONE"]
+    assert rec.json["/runner/phase"].messages[-1]["stop_reason"] == "timeout"
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--rig", "nope.toml"], ["nope.toml", "not found"]),
+        (["--rig", "RIG", "--rig-set", "robot.cycles=-1"], ["mock.toml", "robot.cycles"]),
+        (["--rig", "RIG", "--rig-set", "robot.type=warp"], ["mock.toml", "robot"]),
+        (["--driver", "warp"], ["--driver", "warp"]),
+        (["--driver", "fri"], ["robot.robot_ip", "required"]),
+    ],
+)
+def test_bad_rig_is_one_line_exit_2(tmp_path: Path, args: list[str], needles: list[str]) -> None:
+    args = [str(ROOT / "rigs/mock.toml") if a == "RIG" else a for a in args]
+    result = runner.invoke(
+        app, ["run", str(ROOT / "protocols/method2.toml"), "--out", str(tmp_path), *args]
+    )
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and all(n in lines[0] for n in needles), result.stderr
+    assert not list(tmp_path.glob("*.mcap"))

@@ -14,18 +14,19 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from drivers.sim.driver import open_sim
+from drivers.emulate.lockstep import open_sim
+from ffexp import loop
 from ffexp.cli import app
 from ffexp.protocol import load_run_protocol, scene_path
 from ffexp.recording import Recorder, load
-from ffexp.runner import Runner
+from ffexp.runlog import RunLog
 
 ROOT = Path(__file__).resolve().parents[1]
 START_NS = 1_750_000_000 * 10**9
 
 
 class CapturingRecorder(Recorder):
-    """Keeps a copy of every CDR record the runner writes."""
+    """Keeps a copy of every CDR record the run log writes."""
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
@@ -47,7 +48,7 @@ def test_recording_round_trip_of_a_sim_run(tmp_path: Path) -> None:
     robot, sensor = open_sim(scene_path(ppath, protocol), seed=protocol.seed)
     path = tmp_path / "run.mcap"
     with CapturingRecorder(path) as rec:
-        Runner(protocol, robot, sensor, rec, start_utc_ns=START_NS).run()
+        loop.run(protocol, robot, sensor, RunLog(rec, START_NS, protocol.run.tf_period_s))
     loaded = load(path)
     assert loaded.complete and not loaded.warnings
     for topic, items in rec.captured.items():
@@ -57,6 +58,13 @@ def test_recording_round_trip_of_a_sim_run(tmp_path: Path) -> None:
         for name in data.fields:
             np.testing.assert_array_equal(data[name], records[name], err_msg=f"{topic}.{name}")
     assert len(loaded.topic("/robot/measurement")) == 1 + round(1.5 / 0.005) + round(0.1 / 0.005)
+    # the intent beside what was applied: CONNECT keeps the robot's set-point (mirrored),
+    # then the same Cartesian command as asked
+    intent = loaded.topic("/control/command")
+    given = intent["given"].astype(bool)
+    assert not given[0] and given[-1]
+    np.testing.assert_array_equal(intent["wrench"][given], intent["applied_wrench"][given])
+    assert np.all(intent["status"][~given] == 1)  # HELD
 
 
 @pytest.mark.slow

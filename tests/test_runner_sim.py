@@ -1,4 +1,4 @@
-"""The runner's control on the simulated rig: apparent inertia, the paper's methods."""
+"""The experiment's control on the simulated rig: apparent inertia, the paper's methods."""
 
 from __future__ import annotations
 
@@ -8,77 +8,62 @@ import mujoco
 import numpy as np
 import pytest
 
-from drivers.base.types import CmdFlags, Command
-from drivers.sim.driver import open_sim
+from drivers.emulate.lockstep import open_sim
 from drivers.sim.scene import load_scene
-from drivers.sim.world import SimWorld
 from ffexp.analysis import metrics
-from ffexp.control import ForceControlConfig, ForceController
-from ffexp.estimation import (
-    MotionFilter,
-    MotionFilterConfig,
-    ToolLoad,
-    WrenchFilter,
-    WrenchFilterConfig,
-)
-from ffexp.protocol import load_run_protocol, scene_path
-from ffexp.recording import Recorder, load
-from ffexp.runner import Runner
+from ffexp.contracts import Phase
+from ffexp.experiment import run_file
+from ffexp.loop import Cycle
+from ffexp.protocol import RunProtocol
+from ffexp.recording import load
+from ffexp.runlog import RunLog
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "data/scenes/paper.toml"
-CYCLE_S = 0.005
 
 
 def free_tool_acceleration(k: float, force_n: float = 4.0) -> float:
-    """Acceleration along TCF Y of the free tool pushed by an external force on
-    the tool body, with the runner's estimation and K_RI feedback ``k`` on Y.
+    """Acceleration along TCF Y of the free tool pushed by an external force on the
+    tool body, through the experiment's own cycle (estimator, contact detection, the
+    force_ri controller with K_RI ``k`` on Y only).
 
-    Joint friction off, the target out of reach, K = 0 on Y in the KRC.
+    Joint friction off, the target out of reach, K = 0 on Y in the robot's impedance.
     """
+    protocol = RunProtocol.model_validate({
+        "name": "free-tool",
+        "approach": {"speed_mps": 0.0, "stiffness": [0.0] * 6},
+        "align": {"method": "force_ri", "force_axes": [False] * 6, "f_ref": [0.0] * 6,
+                  "kp": [0.0] * 6, "ki": [0.0] * 6, "k_ri": [0.0, k, 0.0, 0.0, 0.0, 0.0]},
+        "krc": {"cart_stiffness": [5000.0, 0.0, 5000.0, 300.0, 300.0, 300.0],
+                "cart_damping": [0.7, 0.0, 0.7, 0.7, 0.7, 0.7]},
+        "estimation": {"tool_load": {"mass_kg": 0.25}},
+        "limits": {"max_speed_mps": 10.0, "workspace_m": [1.0, 1.0, 1.0]},
+    })
     scene = load_scene(SCENE, ["arm.friction_scale=0", "target.distance=0.3"])
-    world = SimWorld(scene, seed=0)
-    pose0 = world.last_measurement.msr_cart_pos.copy()
-    y_axis = pose0[:3, 1].copy()
+    robot, sensor = open_sim(scene, seed=0, start_cycles=0)
+    world = robot.world
     tool = mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_BODY, "tool")
-    load_ = ToolLoad(mass_kg=scene.tool.mass)
-    ctl = ForceController(
-        ForceControlConfig(
-            force_axes=(False,) * 6, f_ref=(0.0,) * 6, kp=(0.0,) * 6, ki=(0.0,) * 6,
-            k_ri=(0.0, k, 0.0, 0.0, 0.0, 0.0),
-        ),
-        CYCLE_S,
-    )
-    cmd = Command(
-        flags=CmdFlags.TCPFT | CmdFlags.CARTPOS | CmdFlags.CARTSTIFF | CmdFlags.CARTDAMP,
-        cart_pos=pose0,
-        cart_stiffness=np.array([5000.0, 0.0, 5000.0, 300.0, 300.0, 300.0]),
-        cart_damping=np.array([0.7, 0.0, 0.7, 0.7, 0.7, 0.7]),
-    )
-    wf = WrenchFilter(WrenchFilterConfig())
-    mf = MotionFilter(MotionFilterConfig(), CYCLE_S)
-    tare = []
-    m = world.last_measurement
-    for _ in range(50):
-        m = world.step(cmd)
-        mf.update(m.msr_cart_pos)
-        tare.append(world.ft_samples().wrench - load_.wrench(m.msr_cart_pos[:3, :3]))
-    wf.tare(np.concatenate(tare))
-    p0 = m.msr_cart_pos[:3, 3].copy()
-    world.data.xfrc_applied[tool, :3] = force_n * y_axis  # the "environment" pushes
+    robot.connect()
+    sensor.start()
+    cyc: Cycle | None = None
     ts, ys = [], []
-    t0 = world.time
-    for _ in range(60):
-        samples = world.ft_samples()
-        r = m.msr_cart_pos[:3, :3]
-        wf.update(samples.wrench - load_.wrench(r, mf.accel_base[:3]), CYCLE_S)
-        cmd.add_tcp_ft[:] = ctl.update(wf.wrench).total
-        m = world.step(cmd)
-        mf.update(m.msr_cart_pos)
-        ts.append(world.time - t0)
-        ys.append(float(y_axis @ (m.msr_cart_pos[:3, 3] - p0)))
+    y_axis = p0 = np.zeros(3)
+    for i, state in enumerate(robot.measurements()):
+        cyc = cyc or Cycle(protocol, state, RunLog(None, 0, 0.02))
+        robot.send(cyc.step(state, sensor.samples()))
+        if i == 80:  # tared at 0.25 s, in APPROACH: the "environment" pushes
+            assert cyc.task.phase is Phase.APPROACH
+            y_axis, p0 = state.tcp_pose_m[:3, 1].copy(), state.tcp_pose_m[:3, 3].copy()
+            world.data.xfrc_applied[tool, :3] = force_n * y_axis
+            t0 = cyc.t_ns
+        elif i > 80:
+            ts.append((cyc.t_ns - t0) / 1e9)
+            ys.append(float(y_axis @ (state.tcp_pose_m[:3, 3] - p0)))
+        if i == 141:
+            break
+    assert cyc is not None and cyc.task.phase is Phase.ALIGN  # the push was taken for contact
     t, y = np.array(ts), np.array(ys)
-    late = t > 0.05  # past the filter's settling
+    late = t > 0.05  # past contact detection and the filter's settling
     return float(2.0 * np.polyfit(t[late], y[late], 2)[0])
 
 
@@ -92,13 +77,8 @@ def test_apparent_inertia_reduction_on_the_simulated_arm() -> None:
 
 
 def run_protocol(tmp_path: Path, name: str, *overrides: str) -> tuple[Path, object]:
-    ppath = ROOT / f"protocols/{name}.toml"
-    protocol = load_run_protocol(ppath, list(overrides))
-    robot, sensor = open_sim(scene_path(ppath, protocol), seed=protocol.seed)
-    path = tmp_path / f"{name}.mcap"
-    with Recorder(path) as rec:
-        outcome = Runner(protocol, robot, sensor, rec, start_utc_ns=1_750_000_000 * 10**9).run()
-    return path, outcome
+    result = run_file(ROOT / f"protocols/{name}.toml", list(overrides), out_dir=tmp_path)
+    return result.path, result.outcome
 
 
 @pytest.mark.slow

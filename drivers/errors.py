@@ -101,7 +101,7 @@ class AddressError(DriverError):
 
     Args:
         where: where the address came from, as the caller names it: a file and
-            field (``"rigs/lab.toml: robot.robot_ip"``) or a settings field
+            field (``"rigs/lwr4-lab.toml: robot.robot_ip"``) or a settings field
             (``"FriSettings.robot_ip"``); never a command-line flag from
             inside :mod:`drivers`.
         address: the address as given.

@@ -4,7 +4,7 @@
 the FRI port at once (a port in use is reported before anything is
 recorded) and describes the devices for the recording (``metadata``,
 ``attachments``) and for the user (``notice``). Errors name the rig file and
-field (``rigs/lab.toml: robot.port: ...``).
+field (``rigs/lwr4-lab.toml: robot.port: ...``).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ A rig has two tables, each discriminated by ``type``::
 Addresses, ports, counts per unit, timeouts, the answer deadline and the
 cycle limits live here; command-line flags only override these fields
 (``robot.port=49939``). Errors name the file and the field
-(``rigs/lab.toml: robot.port: ...``). Cross-checks: the simulated sensor
+(``rigs/lwr4-lab.toml: robot.port: ...``). Cross-checks: the simulated sensor
 only with the simulated robot; the F/T estimate only with an FRI robot.
 
 Pure configuration: building devices from a rig is :mod:`drivers.factory`.

@@ -108,7 +108,7 @@ class EmulatorSettings:
     Args:
         remote: the remote's address (``FRIHOST``, ``FRISOCK``).
         port: local UDP port the KRC sends from (0: any free port).
-        port_field: how an error names ``port`` (e.g. ``"rigs/x.toml: robot.port"``).
+        port_field: how an error names ``port`` (e.g. ``"rigs/emulator.toml: robot.port"``).
         bind_host: local address.
         pacing: ``realtime`` (wall clock) or ``lockstep`` (advance on each answer).
         lockstep_timeout_s: lockstep: wait this long for an answer, then count a miss.

@@ -2,7 +2,7 @@
 
 A plain dataclass with defaults (the rig-file factory fills it); units in the
 names. :attr:`FriSettings.source` names where the values came from, so that an
-address error reads ``"rigs/lab.toml: robot.robot_ip: 10.0.0: not a valid ..."``.
+address error reads ``"rigs/lwr4-lab.toml: robot.robot_ip: 10.0.0: not a valid ..."``.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ class FriSettings:
         min_cycle_s, max_cycle_s: plausible ``desiredMsrSampleTime`` (friOpen
             takes 1..100 ms); packets outside are dropped as implausible.
         source: where these settings came from (a rig file and table, e.g.
-            ``"rigs/lab.toml: robot"``); error messages name ``<source>.<field>``.
+            ``"rigs/lwr4-lab.toml: robot"``); error messages name ``<source>.<field>``.
     """
 
     robot_ip: str

@@ -4,7 +4,7 @@ Every failure a user can cause (a malformed or unresolvable address, a port
 out of range or in use, an address that is not local) becomes one
 :class:`~drivers.errors.AddressError` line. Each function takes ``field``:
 the caller's name for where the address came from (a rig file and field such
-as ``"rigs/lab.toml: robot.robot_ip"``, or a settings field such as
+as ``"rigs/lwr4-lab.toml: robot.robot_ip"``, or a settings field such as
 ``"FriSettings.robot_ip"``); the message starts with it. Nothing here knows
 command-line flags.
 """

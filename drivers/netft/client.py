@@ -84,7 +84,7 @@ class NetFtSettings:
         resend_s: repeat the start request while nothing has come for this long
             (a request sent before the box was up is lost).
         source: where these settings came from (a rig file and table, e.g.
-            ``"rigs/lab.toml: ft"``); error messages name ``<source>.<field>``.
+            ``"rigs/lwr4-lab.toml: ft"``); error messages name ``<source>.<field>``.
     """
 
     host: str

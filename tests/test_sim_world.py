@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 
+import ffexp.errors
 from drivers.base.types import FtStatus
-from drivers.errors import InvalidCommandError
+from drivers.errors import InvalidCommandError, SimulationError
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
 from drivers.sim.controller import cart_impedance_torque, cartesian_mobility, normalized_damping
 from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld
+
+_N_ARM = 7
 
 G = 9.81
 STIFF = np.array([5000.0, 5000.0, 5000.0, 300.0, 300.0, 300.0])
@@ -407,3 +411,31 @@ def test_joint_impedance_deflects_by_tau_over_k() -> None:
         m = w.step(cmd)
     assert m.mode == ArmMode.JOINT_IMPEDANCE
     assert m.jnt_pos_rad[0] - q0[0] == pytest.approx(8.0 / 800.0, rel=0.02)
+
+
+def test_divergence_raises_instead_of_a_silent_reset(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A blown-up state raises SimulationError (MuJoCo would reset to t = 0 and log to a file)."""
+    monkeypatch.chdir(tmp_path)
+    w = SimWorld(scene(target=far_target()))
+    for _ in range(3):
+        w.step()
+    t = w.data.time
+    w.data.qvel[:_N_ARM] = 1e300
+    end = f"{t + w.cycle_ns * 1e-9:.4f}".replace(".", r"\.")
+    with pytest.raises(ffexp.errors.SimulationError,
+                       match=rf"^physics diverged at t = {end} s: .*qvel") as info:
+        w.step()
+    assert isinstance(info.value, SimulationError)  # one class, re-exported by ffexp
+    assert w.data.time > t  # not reset to 0
+    assert list(tmp_path.iterdir()) == []  # no MUJOCO_LOG.TXT
+
+
+def test_a_healthy_run_leaves_the_warning_counters_alone() -> None:
+    w = SimWorld(scene(target=far_target()))
+    for _ in range(20):
+        w.step(push(fz=5.0))
+    assert [w.data.warning[i].number for i in (
+        mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
+        mujoco.mjtWarning.mjWARN_BADQVEL)] == [1, 1, 1]

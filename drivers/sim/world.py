@@ -59,6 +59,31 @@ SEAT_LATERAL_TOL = 0.0025
 SEAT_YAW_TOL = math.radians(3.0)
 
 _N_ARM = 7
+
+#: MuJoCo's bad-state warnings: (what went bad, index into ``mjData.warning``).
+_BAD_STATE_WARNINGS = (
+    ("qacc", int(mujoco.mjtWarning.mjWARN_BADQACC)),
+    ("qpos", int(mujoco.mjtWarning.mjWARN_BADQPOS)),
+    ("qvel", int(mujoco.mjtWarning.mjWARN_BADQVEL)),
+)
+_SEEN = 1
+
+
+def _arm_divergence_check(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    """Make a diverging state visible and quiet.
+
+    By default MuJoCo answers a NaN/huge ``qpos``/``qvel``/``qacc`` by
+    resetting the data (``mj_resetData``: time jumps back to 0, the state to
+    the model's) and writing the first warning of each kind to stderr and
+    ``MUJOCO_LOG.TXT`` in the working directory. Here auto-reset is disabled
+    (so the bad state stays and the step keeps its time) and the three
+    warning counters start at 1 (MuJoCo writes a warning only when its
+    counter is 0); :meth:`SimWorld._check_divergence` raises when a counter
+    moved. Neither changes the physics of a run that does not diverge.
+    """
+    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+    for _, i in _BAD_STATE_WARNINGS:
+        d.warning[i].number = _SEEN
 _WARN_CLIPPED = int(ArmWarning.STIFFNESS_CLIPPED)
 _WARN_TORQUE = int(ArmWarning.TORQUE_LIMIT)
 _WARN_VELOCITY = int(ArmWarning.VELOCITY_LIMIT)
@@ -120,6 +145,7 @@ class SimWorld:
         self.xml = mjcf.build_xml(scene, self.layout)
         self.model = m = mujoco.MjModel.from_xml_string(self.xml)
         self.data = d = mujoco.MjData(m)
+        _arm_divergence_check(m, d)
         self._tcp = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tcp")
         self._ft_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "ft_site")
         self._mouth = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "funnel_mouth")
@@ -188,6 +214,7 @@ class SimWorld:
         # Let the target settle on its pads, then start the clock.
         for _ in range(round(scene.physics.settle_time / self.dt)):
             mujoco.mj_step(m, d)
+        self._check_divergence()
         d.time = 0.0
         vx, vy, wz = scene.target.velocity
         self.set_target_velocity(vx, vy, wz)
@@ -346,12 +373,30 @@ class SimWorld:
             raise InvalidCommandError(f"{name} must be {n} finite values")
         return a.copy()
 
+    def _check_divergence(self) -> None:
+        """Raise if MuJoCo flagged a bad state since the last check (:func:`_arm_divergence_check`).
+
+        Raises:
+            SimulationError: naming the simulated time and the bad quantities.
+        """
+        w = self.data.warning
+        bad = [name for name, i in _BAD_STATE_WARNINGS if w[i].number != _SEEN]
+        if bad:
+            for _, i in _BAD_STATE_WARNINGS:
+                w[i].number = _SEEN
+            raise SimulationError(
+                f"physics diverged at t = {self.data.time:.4f} s: "
+                f"{', '.join(bad)} not finite or huge (MuJoCo warnings)"
+            )
+
     def step(self, command: ArmCommand | None = None) -> ArmState:
         """Latch ``command`` (``None``: keep everything), run one cycle, return its end state.
 
         Raises:
             InvalidCommandError: a given field is not finite or has the wrong
                 shape; fields before it in :class:`ArmCommand` order were latched.
+            SimulationError: the physics diverged during the cycle (the
+                world's state is then not usable).
         """
         if command is not None:
             self._take(command)
@@ -368,8 +413,7 @@ class SimWorld:
         # step, 1 physics step before the cycle's end); mj_step1 would redo collisions.
         self._contact, self._touching = self.contact_wrench()
         mujoco.mj_step1(m, d)
-        if not np.all(np.isfinite(d.qpos)):
-            raise SimulationError(f"physics diverged at t = {d.time:.4f} s")
+        self._check_divergence()
         t0 = self.cycle * self.cycle_ns
         first = (-self._step_count) % self._ft_decim
         rows = raw[first::self._ft_decim]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 
 import mujoco
@@ -23,7 +24,7 @@ G = 9.81
 STIFF = np.array([5000.0, 5000.0, 5000.0, 300.0, 300.0, 300.0])
 
 
-def scene(**sections: dict[str, object]) -> Scene:
+def scene(**sections: Mapping[str, object]) -> Scene:
     return Scene.model_validate(sections)
 
 

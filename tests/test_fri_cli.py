@@ -89,9 +89,9 @@ def test_run_port_in_use_is_one_line(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("args", "needles"),
     [
-        (["--remote", "127.0.0.1"], ["--remote 127.0.0.1", "HOST:PORT"]),
-        (["--remote", "1.2.3:5"], ["--remote 1.2.3"]),
-        (["--remote", "127.0.0.1:0"], ["port 0"]),
+        (["--remote", "127.0.0.1"], ["--remote: 127.0.0.1: expected HOST:PORT"]),
+        (["--remote", "1.2.3:5"], ["--remote: 1.2.3: not a valid IPv4"]),
+        (["--remote", "127.0.0.1:0"], ["--remote: 127.0.0.1:0: port 0"]),
         (["--remote", "127.0.0.1:5", "--pacing", "fast"], ["--pacing"]),
         (["--remote", "127.0.0.1:5", "--loss", "120"], ["--loss"]),
         (["--remote", "127.0.0.1:5", "--cycle-ms", "0"], ["--cycle-ms"]),
@@ -115,7 +115,31 @@ def test_emulate_port_in_use_is_one_line() -> None:
     finally:
         busy.close()
     assert result.exit_code == 2
-    one_error_line(result, f"--netft-port 0.0.0.0:{port}")
+    one_error_line(result, f"--netft-port: 0.0.0.0:{port}: cannot bind")
+
+
+def test_emulate_stops_on_sigterm_while_waiting_for_the_remote() -> None:
+    """Lockstep with nobody answering: SIGTERM ends it at once, counters printed, exit 0."""
+    emulator = subprocess.Popen(
+        [str(FFEXP), "emulate", "--remote", f"127.0.0.1:{free_udp_port()}", "--pacing",
+         "lockstep", "--netft-port", "-1", "--timeout-ms", "50"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        assert emulator.stderr is not None
+        first = emulator.stderr.readline()  # printed once the KRC's socket is bound
+        assert first.startswith("ffexp emulate: KRC on 0.0.0.0:"), first
+        emulator.send_signal(signal.SIGTERM)
+        _out, err = emulator.communicate(timeout=10)
+    finally:
+        if emulator.poll() is None:
+            emulator.kill()
+            emulator.communicate()
+    assert emulator.returncode == 0, err
+    assert "Traceback" not in err
+    # it never got an answer: the first packet was re-sent, the world never stepped
+    assert re.search(r"^ffexp emulate: cycles 0, sent 1, answered 0, ", err, re.M), err
 
 
 @pytest.mark.slow

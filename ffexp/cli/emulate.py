@@ -4,19 +4,23 @@ The controller side of the link, wrapping the MuJoCo rig: it sends FRI
 measurement packets to ``--remote`` every cycle and steps the world with the
 commands that come back (see :mod:`drivers.emulate.fri_server`), and serves the
 simulated Mini45 as an ATI Net F/T box on ``--netft-port``.
+
+It serves until ``--duration`` of simulated time or a SIGINT/SIGTERM (then
+the current cycle ends, the counters are printed and the exit code is 0: a
+signal is how an emulator is meant to end); a second signal gives up at
+once (exit 130).
 """
 
 from __future__ import annotations
 
-import signal
 import sys
+import threading
 import time
 from pathlib import Path
-from types import FrameType
 
 import typer
 
-from ffexp.cli._common import cli_errors
+from ffexp.cli._common import StopFlag, cli_errors, stop_signals
 from ffexp.errors import ConfigError
 
 
@@ -124,12 +128,6 @@ def emulate(
         file=sys.stderr, flush=True,
     )
 
-    def handle(_signum: int, _frame: FrameType | None) -> None:
-        emulator.stop()
-
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    for s in old:
-        signal.signal(s, handle)
     max_cycles = round(duration / sc.fri.cycle) if duration > 0 else None
     last = [time.monotonic()]
 
@@ -144,10 +142,32 @@ def emulate(
                 file=sys.stderr, flush=True,
             )
 
+    # The emulator serves in its own thread; this (main) thread gets the
+    # signals and stops it, also while it waits for the remote's first answer.
+    failure: list[BaseException] = []
+
+    def serve() -> None:
+        try:
+            emulator.run(max_cycles=max_cycles, on_cycle=status)
+        except BaseException as exc:  # re-raised below, in the main thread
+            failure.append(exc)
+
+    flag = StopFlag()
+    thread = threading.Thread(target=serve, name="fri-emulator", daemon=True)
     try:
-        stats = emulator.run(max_cycles=max_cycles, on_cycle=status)
+        with stop_signals(flag):
+            thread.start()
+            while thread.is_alive():
+                if flag():
+                    emulator.stop()
+                thread.join(0.1)
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+        emulator.stop()
+        if thread.is_alive():
+            thread.join(5.0)
         emulator.close()
+    if failure:
+        raise failure[0]
+    stats = emulator.stats
+    stats.state, stats.quality = emulator.state, emulator.quality
     print(f"ffexp emulate: {stats.summary()}", file=sys.stderr, flush=True)

@@ -2,7 +2,8 @@
 
 Written by us from published numbers; no third-party model file is copied.
 
-Sources of the numbers (see ``../shared/research/lwr_mujoco.md``):
+Sources of the numbers (public; the choices made where they are silent are
+listed in ``drivers/sim/NOTES.md``):
 
 * Kinematics (joint offsets 0.11 / 0.2005 / 0.20 / 0.20 / 0.20 / 0.19 /
   0.078 m, axes +z -y +z +y +z -y +z, position limits 170/120 deg,

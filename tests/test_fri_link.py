@@ -22,9 +22,14 @@ from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.errors import AddressError, DriverTimeoutError, LinkLostError, NotConnectedError
 from drivers.fri import codec
 from drivers.fri.command import MIRROR_FLAGS, copy_fri_command
-from drivers.fri.convert import STRATEGY_INDEX, measurement_to_arrays
+from drivers.fri.convert import (
+    STRATEGY_INDEX,
+    arrays_to_command,
+    command_to_arrays,
+    measurement_to_arrays,
+)
 from drivers.fri.driver import FriEstimateSensor, FriRobot, FriSettings
-from drivers.fri.types import FriCommand, FriMeasurement, FriQuality, FriState
+from drivers.fri.types import ControlMode, FriCommand, FriMeasurement, FriQuality, FriState
 from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld
 
@@ -167,6 +172,20 @@ def test_mirror_while_monitoring_then_the_command(paper_scene: Scene) -> None:
         else:
             assert np.array_equal(c.cart_pos, far)
             assert np.array_equal(c.cart_stiffness, f32(PAPER_K))
+
+
+def test_strategy_index_round_trip() -> None:
+    """krl.intData[0] carries the strategy 10/20/30; 0 keeps the running one."""
+    for mode, code in ((ControlMode.JOINT_POSITION, 10), (ControlMode.CART_IMPEDANCE, 20),
+                       (ControlMode.JOINT_IMPEDANCE, 30)):
+        a = codec.CmdArrays()
+        command_to_arrays(FriCommand(control=mode), a)
+        b = codec.CmdArrays()
+        assert codec.decode_cmd_into(codec.encode_cmd(a), b) is codec.DecodeStatus.OK
+        assert int(b.krl_int[STRATEGY_INDEX]) == code
+        assert arrays_to_command(b, ControlMode.OTHER).control is mode
+    b = codec.CmdArrays()
+    assert arrays_to_command(b, ControlMode.JOINT_IMPEDANCE).control is ControlMode.JOINT_IMPEDANCE
 
 
 @pytest.mark.slow

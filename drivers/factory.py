@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
+from drivers.errors import AddressError
 from drivers.rig import (
     FriEstimateFt,
     FriRobotConfig,
@@ -121,6 +122,10 @@ def _open_sim(
     return Devices(robot, sensor, meta, [(path.name, path.read_bytes())], None)
 
 
+#: Rig fields of the fri1 robot whose FriSettings field has another name.
+_FRI_FIELDS = {"port": "local_port", "bind_host": "local_host"}
+
+
 def _open_fri(
     cfg: FriRobotConfig,
     ft_cfg: SimFt | NetFtConfig | FriEstimateFt | MockFt,
@@ -148,7 +153,13 @@ def _open_fri(
     )
     robot = FriRobot(settings)
     try:
-        host, port = robot.bind()
+        try:
+            host, port = robot.bind()
+        except AddressError as exc:  # name the rig's field, not the settings' one
+            where = exc.where
+            for ours, theirs in _FRI_FIELDS.items():
+                where = where.replace(f": robot.{theirs}", f": robot.{ours}")
+            raise AddressError(where, exc.address, exc.message) from None
         meta = {"driver": "fri1", "robot_ip": robot.robot_ip, "fri_port": str(port),
                 "ft": ft_cfg.type}
         sensor: ForceTorqueSensor

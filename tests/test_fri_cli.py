@@ -52,24 +52,31 @@ def one_error_line(result: object, *needles: str) -> None:
         assert n in lines[0], lines[0]
 
 
+BUILTIN = "<built-in fri rig>"
+
+
 @pytest.mark.parametrize(
     ("args", "needles"),
     [
-        (["--driver", "fri"], ["--robot-ip", "required"]),
-        (["--driver", "fri", "--robot-ip", "10.0.0"], ["--robot-ip 10.0.0", "IPv4"]),
-        (["--driver", "fri", "--robot-ip", "no such.host"], ["--robot-ip no such.host"]),
-        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--ft", "sim"], ["--ft", "emulator"]),
-        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--ft", "magic"], ["--ft", "magic"]),
-        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--fri-port", "70000"], ["70000"]),
+        (["--driver", "fri"], [BUILTIN, "robot.robot_ip", "required"]),
+        (["--driver", "fri", "--robot-ip", "10.0.0"], ["robot.robot_ip: 10.0.0", "IPv4"]),
+        (["--driver", "fri", "--robot-ip", "no such.host"], ["robot.robot_ip: no such.host"]),
+        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--ft", "sim"], ["ft.type", "emulator"]),
+        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--ft", "magic"], ["ft", "magic"]),
+        (["--driver", "fri", "--robot-ip", "127.0.0.1", "--fri-port", "70000"],
+         ["robot.port", "65535"]),
         (["--driver", "fri", "--robot-ip", "127.0.0.1", "--fri-port", "0",
-          "--netft", "127.0.0.1:x"], ["--netft 127.0.0.1:x", "port"]),
-        (["--ft", "netft"], ["--ft", "--driver sim"]),
+          "--netft", "127.0.0.1:x"], ["ft.port", "integer"]),
+        (["--ft", "netft"], ["<built-in sim rig>", "ft.host", "fri1"]),
+        (["--rig", str(ROOT / "rigs/emulator.toml"), "--rig-set", "robot.robot_ip='1.2.3'"],
+         ["rigs/emulator.toml: robot.robot_ip: 1.2.3"]),
     ],
 )
 def test_run_bad_link_options(args: list[str], needles: list[str], tmp_path: Path) -> None:
     result = runner.invoke(app, ["run", str(PROTOCOL), "--out", str(tmp_path), *args])
     assert result.exit_code == 2
     one_error_line(result, *needles)
+    assert not list(tmp_path.iterdir())  # nothing recorded
 
 
 def test_run_port_in_use_is_one_line(tmp_path: Path) -> None:
@@ -82,7 +89,7 @@ def test_run_port_in_use_is_one_line(tmp_path: Path) -> None:
     finally:
         busy.close()
     assert result.exit_code == 2
-    one_error_line(result, f"--fri-port 0.0.0.0:{port}", "cannot bind")
+    one_error_line(result, f"robot.port: 0.0.0.0:{port}", "cannot bind")
     assert not list(tmp_path.iterdir())  # nothing recorded
 
 
@@ -155,8 +162,8 @@ def test_a_paper_protocol_over_the_cli_matches_the_in_process_run(tmp_path: Path
     )
     try:
         run = subprocess.run(
-            [str(FFEXP), "run", str(PROTOCOL), "--driver", "fri", "--fri-port", str(fri_port),
-             "--robot-ip", "127.0.0.1", "--ft", "netft", "--netft", f"127.0.0.1:{netft_port}",
+            [str(FFEXP), "run", str(PROTOCOL), "--rig", str(ROOT / "rigs/emulator.toml"),
+             "--fri-port", str(fri_port), "--netft", f"127.0.0.1:{netft_port}",
              "--out", str(tmp_path / "fri")],
             capture_output=True, text=True, timeout=240, env=env,
         )
@@ -177,8 +184,7 @@ def test_a_paper_protocol_over_the_cli_matches_the_in_process_run(tmp_path: Path
     over_udp = metrics(load(Path(match.group(1))))
     assert "DONE (aligned)" in run.stdout
 
-    local = run_file(PROTOCOL, ["alignment.source=settings"], driver="sim",
-                     out_dir=tmp_path / "sim")
+    local = run_file(PROTOCOL, ["alignment.source=settings"], out_dir=tmp_path / "sim")
     assert local.outcome.aligned
     assert local.outcome.breaks == over_udp.contact_breaks
 

@@ -32,6 +32,11 @@ class RobotDriver(abc.ABC):
     @abc.abstractmethod
     def connected(self) -> bool: ...
 
+    @property
+    def is_open(self) -> bool:
+        """What :func:`~drivers.base.guards.requires_open` checks (default: connected)."""
+        return self.connected
+
     @abc.abstractmethod
     def measurements(self) -> Iterator[RobotState]:
         """Yield one :class:`RobotState` per controller cycle until closed.
@@ -79,6 +84,11 @@ class ForceTorqueSensor(abc.ABC):
     @property
     @abc.abstractmethod
     def running(self) -> bool: ...
+
+    @property
+    def is_open(self) -> bool:
+        """What :func:`~drivers.base.guards.requires_open` checks (default: running)."""
+        return self.running
 
     @abc.abstractmethod
     def samples(self) -> FtSamples:

@@ -104,10 +104,6 @@ class SimRobot(RobotDriver):
         return self._open
 
     @property
-    def is_open(self) -> bool:
-        return self._open
-
-    @property
     def measurement(self) -> FriMeasurement:
         """The FRI measurement of the current cycle."""
         return self._msr

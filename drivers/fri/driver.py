@@ -199,10 +199,6 @@ class FriRobot(RobotDriver):
         return self._connected
 
     @property
-    def is_open(self) -> bool:
-        return self._connected
-
-    @property
     def decode_stats(self) -> DecodeStats:
         """Codec outcome counts of the robot's datagrams (live object)."""
         return self._n.decode

@@ -67,10 +67,6 @@ class FriEstimateSensor(ForceTorqueSensor):
     def running(self) -> bool:
         return self._running
 
-    @property
-    def is_open(self) -> bool:
-        return self._running
-
     @requires_open("FRI estimate F/T")
     def samples(self) -> FtSamples:
         with self._lock:

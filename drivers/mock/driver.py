@@ -72,10 +72,6 @@ class MockRobot(RobotDriver):
     def connected(self) -> bool:
         return self._open
 
-    @property
-    def is_open(self) -> bool:
-        return self._open
-
     def now_ns(self) -> int | None:
         """The time of the current state (``None`` before the first)."""
         return None if self._current is None else self._current.time_ns
@@ -162,10 +158,6 @@ class MockFtSensor(ForceTorqueSensor):
     def running(self) -> bool:
         return self._running
 
-    @property
-    def is_open(self) -> bool:
-        return self._running
-
     @requires_open("mock F/T sensor")
     def samples(self) -> FtSamples:
         if self._i >= len(self.script):
@@ -229,10 +221,6 @@ class NoisyFtSensor(ForceTorqueSensor):
 
     @property
     def running(self) -> bool:
-        return self._running
-
-    @property
-    def is_open(self) -> bool:
         return self._running
 
     @requires_open("mock F/T sensor")

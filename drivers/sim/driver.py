@@ -32,10 +32,6 @@ class SimFtSensor(ForceTorqueSensor):
     def running(self) -> bool:
         return self._running
 
-    @property
-    def is_open(self) -> bool:
-        return self._running
-
     @requires_open("sim F/T sensor")
     def samples(self) -> FtSamples:
         return self.world.ft_samples()

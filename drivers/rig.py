@@ -28,6 +28,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
+from drivers.base.types import Vec3, Vec6
 from drivers.config import StrictModel, apply_overrides, read_toml, validate
 from drivers.errors import ConfigError
 
@@ -50,8 +51,6 @@ _TAGS = {"robot": ("sim", "fri1", "mock"), "ft": ("sim", "netft", "fri-estimate"
 Port = Annotated[int, Field(ge=0, le=65535)]
 PosFloat = Annotated[float, Field(gt=0.0)]
 NonNeg = Annotated[float, Field(ge=0.0)]
-Vec3 = tuple[float, float, float]
-Vec6 = tuple[float, float, float, float, float, float]
 
 
 class SimRobotConfig(StrictModel):

@@ -26,14 +26,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from pydantic import Field
 from scipy.linalg import expm
 
+from drivers.base.types import F64 as FloatArray
 from drivers.config import StrictModel
 from ffexp.errors import SimulationError
-
-FloatArray = NDArray[np.float64]
 
 #: Most output samples :func:`simulate` produces (about 0.6 GB of states).
 MAX_SAMPLES = 20_000_001

@@ -24,9 +24,7 @@ from enum import IntEnum, IntFlag
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.base.types import Extras
-
-F64 = NDArray[np.float64]
+from drivers.base.types import F64, Extras
 
 
 def _zeros(n: int) -> F64:

@@ -14,11 +14,8 @@ from dataclasses import dataclass, field
 from enum import IntEnum, IntFlag
 
 import numpy as np
-from numpy.typing import NDArray
 
-from drivers.base.types import GroundTruth
-
-F64 = NDArray[np.float64]
+from drivers.base.types import F64, GroundTruth
 
 __all__ = ["ArmCommand", "ArmMode", "ArmState", "ArmWarning"]
 

@@ -21,9 +21,8 @@ gains once per FRI cycle.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
-F64 = NDArray[np.float64]
+from drivers.base.types import F64
 
 
 def cartesian_inertia(jac: F64, mass: F64) -> F64:

@@ -21,12 +21,9 @@ are processed in blocks (one block per FRI cycle) without Python loops.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
-from drivers.base.types import FtSamples, FtStatus
+from drivers.base.types import F64, FtSamples, FtStatus
 from drivers.sim.scene import FtSensorSettings
-
-F64 = NDArray[np.float64]
 
 
 class FtSensorModel:

@@ -38,17 +38,14 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from numpy.typing import NDArray
 
-from drivers.base.types import FtSamples, GroundTruth
+from drivers.base.types import F64, FtSamples, GroundTruth
 from drivers.errors import ConfigError, InvalidCommandError, SimulationError
 from drivers.sim import mjcf
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
 from drivers.sim.controller import clip_cart_stiffness, normalized_damping
 from drivers.sim.ftsensor import FtSensorModel
 from drivers.sim.scene import Scene
-
-F64 = NDArray[np.float64]
 
 #: Seated: tool tip within this of the (estimated) seat depth [m] ...
 SEAT_DEPTH_TOL = 0.005

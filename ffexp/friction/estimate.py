@@ -16,12 +16,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from drivers.base.types import F64 as FloatArray
 from ffexp.errors import InputError
 from ffexp.friction.fit import (
     G_MPS2,
     MIN_FIT_FRAMES,
     FitError,
-    FloatArray,
     FrictionEstimate,
     SlidingInterval,
     estimate_friction,

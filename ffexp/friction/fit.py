@@ -26,7 +26,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy import stats
 
-FloatArray = npt.NDArray[np.float64]
+from drivers.base.types import F64 as FloatArray
+
 BoolArray = npt.NDArray[np.bool_]
 
 #: Standard gravity (m/s²).

@@ -6,7 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ffexp.friction.video import FloatArray
+from drivers.base.types import F64 as FloatArray
 
 
 def homography_from_points(image_px: FloatArray, table_m: FloatArray) -> FloatArray:

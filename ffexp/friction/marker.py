@@ -8,8 +8,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from drivers.base.types import F64 as FloatArray
 from ffexp.errors import InputError
-from ffexp.friction.video import FloatArray, Frame, to_grey
+from ffexp.friction.video import Frame, to_grey
 
 
 def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:

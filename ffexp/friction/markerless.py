@@ -24,9 +24,9 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from drivers.base.types import F64 as FloatArray
 from ffexp.errors import InputError
 from ffexp.friction.video import (
-    FloatArray,
     Frame,
     Grey8,
     GreyF,

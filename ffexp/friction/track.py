@@ -27,12 +27,12 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from drivers.base.types import F64 as FloatArray
 from ffexp.errors import InputError
 from ffexp.friction.homography import homography_from_points, pixels_to_metres
 from ffexp.friction.marker import MarkerTracker, aruco_dictionary, diagonal_centre
 from ffexp.friction.markerless import BackgroundTracker, fill_smooth
 from ffexp.friction.video import (
-    FloatArray,
     Frame,
     Grey8,
     GreyF,

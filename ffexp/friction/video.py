@@ -20,7 +20,6 @@ import numpy.typing as npt
 
 from ffexp.errors import InputError
 
-FloatArray = npt.NDArray[np.float64]
 GreyF = npt.NDArray[np.float32]
 Grey8 = npt.NDArray[np.uint8]
 #: A decoded frame: BGR (h, w, 3) or grey (h, w).

@@ -21,6 +21,7 @@ from typing import IO, Any
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
+from drivers.base.types import NS_PER_S
 from ffexp.errors import InputError
 from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS, LOG_LEVELS
 
@@ -29,7 +30,8 @@ PROFILE = "ffexp"
 
 
 def _stamp(time_ns: int) -> dict[str, int]:
-    return {"sec": time_ns // 1_000_000_000, "nsec": time_ns % 1_000_000_000}
+    sec, nsec = divmod(time_ns, NS_PER_S)
+    return {"sec": sec, "nsec": nsec}
 
 
 def pose_to_transform(pose: np.ndarray) -> tuple[dict[str, float], dict[str, float]]:
@@ -187,7 +189,7 @@ class Recorder:
         t, q = pose_to_transform(pose)
         if not all(math.isfinite(v) for v in (*t.values(), *q.values())):
             raise ValueError(f"/tf: {child} pose is not finite")
-        sec, nsec = divmod(time_ns, 1_000_000_000)
+        sec, nsec = divmod(time_ns, NS_PER_S)
         text = (
             f'{{"timestamp":{{"sec":{sec},"nsec":{nsec}}},'
             f'"parent_frame_id":{json.dumps(parent)},"child_frame_id":{json.dumps(child)},'

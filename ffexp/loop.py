@@ -50,9 +50,10 @@ class Cycle:
     def stop(self, stop: Stop) -> None:
         """End the run now (unless it has ended) with a safe stop where the tool was last."""
         self.task.end(self.t_ns, stop)
-        self._notes()
+        self.flush_notes()
 
-    def _notes(self) -> None:
+    def flush_notes(self) -> None:
+        """Hand the task's notes of this cycle to the run log, reacting to phase changes."""
         task, t_ns = self.task, self.t_ns
         for note in task.notes:
             self.log.note(t_ns, note)
@@ -82,7 +83,7 @@ class Cycle:
         if stop is not None:
             task.end(t_ns, stop)
         task.step(t_ns, state, est)
-        self._notes()
+        self.flush_notes()
         phase, krc, cmd = task.phase, self.p.krc, self.cmd
         self.approach_wrench: np.ndarray | None = None
         if phase == Phase.CONNECT:
@@ -111,6 +112,11 @@ class Cycle:
                        self.total, intent, applied)
 
 
+#: Where a cycle's wall time goes (``timings`` of :func:`run`): waiting for the robot
+#: (in-process: physics), reading the sensor, the pure step, sending, recording.
+_PARTS = ("driver", "sensor", "step", "send", "recording")
+
+
 def _driver_stop(exc: DriverError) -> Stop:
     if isinstance(exc, LinkLostError):
         return Stop(StopReason.LINK_LOST, f"link lost: {exc}")
@@ -125,7 +131,7 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
         timings: dict[str, float] | None = None) -> RunOutcome:
     """Connect, loop until DONE/ABORT plus the safe-stop hold, close (even on error)."""
     tm = timings if timings is not None else {}
-    for key in ("driver", "sensor", "step", "send", "recording"):
+    for key in _PARTS:
         tm.setdefault(key, 0.0)
     clock = time.perf_counter
     cycles, cyc, next_progress_ns = 0, None, 0
@@ -148,7 +154,7 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             t_e = clock()
             cyc.record(state, ft, intent, applied)
             t_f = clock()
-            for key, dt in zip(tm, (t_b - t_a, t_c - t_b, t_d - t_c, t_e - t_d, t_f - t_e),
+            for key, dt in zip(_PARTS, (t_b - t_a, t_c - t_b, t_d - t_c, t_e - t_d, t_f - t_e),
                                strict=True):
                 tm[key] += dt
             if progress is not None and cyc.t_ns >= next_progress_ns:
@@ -158,7 +164,7 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             if cyc.task.finished(cyc.t_ns):
                 break
             cyc.task.check_timeout(cyc.t_ns)
-            cyc._notes()
+            cyc.flush_notes()
             t_a = clock()
     except DriverError as exc:
         if cyc is None:

@@ -86,8 +86,10 @@ class LinkWindow:
         self.latency = np.zeros(size)
         self.n = 0
         self.i = 0
+        self._rates: tuple[float, float, float, float] | None = None
 
     def add(self, answered: bool, latency_s: float) -> None:
+        self._rates = None
         self.answered[self.i] = answered
         self.latency[self.i] = latency_s if answered else 0.0
         self.i = (self.i + 1) % self.size
@@ -95,17 +97,27 @@ class LinkWindow:
 
     def fill(self) -> None:
         """A full window of prompt answers (a link that is up already)."""
+        self._rates = None
         self.answered[:] = True
         self.latency[:] = 0.0
         self.n = self.size
         self.i = 0
 
     def reset(self) -> None:
+        self._rates = None
         self.n = 0
         self.i = 0
 
     def rates(self) -> tuple[float, float, float, float]:
-        """``(answer_rate, latency_s, jitter_s, miss_rate)``; zeros for an empty window."""
+        """``(answer_rate, latency_s, jitter_s, miss_rate)``; zeros for an empty window.
+
+        Computed once per change of the window (the KRC rates and reports it every cycle).
+        """
+        if self._rates is None:
+            self._rates = self._compute()
+        return self._rates
+
+    def _compute(self) -> tuple[float, float, float, float]:
         n = self.n
         if n == 0:
             return 0.0, 0.0, 0.0, 0.0

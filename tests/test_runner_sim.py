@@ -109,3 +109,27 @@ def test_inertia_reduction_aligns_with_less_force(tmp_path: Path) -> None:
     without = smallest_aligning_f_ref(tmp_path, "method2", grid)
     assert with_ri is not None
     assert without is None or without > with_ri
+
+
+@pytest.mark.slow
+def test_admittance_runs_closed_loop_and_records_its_own_terms(tmp_path: Path) -> None:
+    """The method the paper does not have, through the registry on the simulated rig."""
+    path, _ = run_protocol(tmp_path, "admittance", "run.timeout_s=6")
+    rec = load(path)
+    terms = rec.topic("/control/admittance")
+    phase = rec.topic("/control/terms")["phase"]
+    assert len(terms) == int(np.sum(phase == Phase.ALIGN))  # written in ALIGN only
+    # the virtual set-point integrates its velocity (x_k = x_{k-1} + dt v_k) within each ALIGN
+    # segment, and starts from rest at each entry
+    align = np.flatnonzero(phase == Phase.ALIGN)
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(align) != 1) + 1])
+    x, v = terms["displacement"][:, 2], terms["velocity"][:, 2]
+    for a, b in zip(starts, [*starts[1:], len(align)], strict=True):
+        np.testing.assert_allclose(x[a], 0.005 * v[a], rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(np.diff(x[a:b]), 0.005 * v[a + 1:b], rtol=1e-9, atol=1e-15)
+    assert len(starts) >= 1 and np.max(np.abs(x)) > 1e-4  # it moved
+    # and the command it sent is what the robot was asked for
+    total = rec.topic("/control/terms")["total"][phase == Phase.ALIGN]
+    intent = rec.topic("/control/command")["wrench"][phase == Phase.ALIGN]
+    np.testing.assert_array_equal(total, intent)
+    assert metrics(rec).first_contact_s is not None

@@ -93,16 +93,19 @@ def series(rec: Recording) -> RunSeries:
     """The per-cycle signals the metrics and figures use."""
     est = rec.topic("/estimator/state")
     ctl = rec.topic("/control/terms")
-    if len(est) == 0 or len(est) != len(ctl):
+    # a cut file (killed run, recovered) may end between a cycle's two messages:
+    # keep the cycles both topics have
+    times, ie, ic = np.intersect1d(est.log_time_ns, ctl.log_time_ns, return_indices=True)
+    if len(times) == 0:
         raise InputError(f"{rec.path}: no controller cycles recorded")
-    t0 = int(est.log_time_ns[0])
+    t0 = int(times[0])
     return RunSeries(
-        t_s=(est.log_time_ns - t0) / NS,
-        phase=ctl["phase"],
-        wrench=est["wrench"],
-        applied=ctl["total"],
-        f_ref=ctl["f_ref"],
-        in_contact=est["in_contact"].astype(bool),
+        t_s=(times - t0) / NS,
+        phase=ctl["phase"][ic],
+        wrench=est["wrench"][ie],
+        applied=ctl["total"][ic],
+        f_ref=ctl["f_ref"][ic],
+        in_contact=est["in_contact"][ie].astype(bool),
     )
 
 

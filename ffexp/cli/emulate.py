@@ -122,11 +122,6 @@ def emulate(
         raise
     host, lport = emulator.address
     ft_line = f"Net F/T on 0.0.0.0:{netft.address[1]}" if netft is not None else "no Net F/T"
-    print(
-        f"ffexp emulate: KRC on {host}:{lport} -> remote {remote_addr[0]}:{remote_addr[1]}, "
-        f"{ft_line}, cycle {cycle_ms} ms, {pacing}",
-        file=sys.stderr, flush=True,
-    )
 
     max_cycles = round(duration / sc.fri.cycle) if duration > 0 else None
     last = [time.monotonic()]
@@ -156,6 +151,13 @@ def emulate(
     thread = threading.Thread(target=serve, name="fri-emulator", daemon=True)
     try:
         with stop_signals(flag):
+            # the ready line comes once the handlers are in place: a signal sent on
+            # reading it stops the emulator cleanly
+            print(
+                f"ffexp emulate: KRC on {host}:{lport} -> remote {remote_addr[0]}:"
+                f"{remote_addr[1]}, {ft_line}, cycle {cycle_ms} ms, {pacing}",
+                file=sys.stderr, flush=True,
+            )
             thread.start()
             while thread.is_alive():
                 if flag():

@@ -43,6 +43,7 @@ class Cycle:
         self.controller = controllers.build(p.align, ctx)
         self.hold_pose = first.tcp_pose_m.copy()
         self.cmd = CartesianCommand()
+        self.total = np.zeros(6)  # the wrench sent this cycle (reused)
         self.t_ns = 0
         log.event(0, "INFO", "phase", f"start: {p.name} ({p.method})")
         log.phase(0, PhaseChange(Phase.CONNECT, Phase.CONNECT, "start"), announce=False)
@@ -58,13 +59,14 @@ class Cycle:
         for note in task.notes:
             self.log.note(t_ns, note)
             if isinstance(note, PhaseChange):
-                self._entered(note.new)
+                self._entered(note)
         task.notes.clear()
 
-    def _entered(self, phase: Phase) -> None:
+    def _entered(self, change: PhaseChange) -> None:
+        phase = change.new
         s = self.state
         if phase == Phase.APPROACH:
-            if self.task.breaks == 0:  # first approach: the tare pose is home
+            if change.old == Phase.CONNECT:  # the first approach: the tare pose is home
                 self.hold_pose = s.tcp_pose_m.copy()
                 self.safety.set_origin(s.tcp_pose_m)
             self.approach.start(self.t_ns, s.tcp_pose_m)
@@ -87,7 +89,7 @@ class Cycle:
         phase, krc, cmd = task.phase, self.p.krc, self.cmd
         self.approach_wrench: np.ndarray | None = None
         if phase == Phase.CONNECT:
-            self.total = np.zeros(6)
+            self.total[:] = 0.0
             return None
         cmd.pose_m[:] = self.hold_pose
         if phase.ended:
@@ -102,7 +104,7 @@ class Cycle:
                 cmd.wrench_n_nm[:] = self.approach_wrench
             else:
                 cmd.wrench_n_nm[:] = self.controller.update(t_ns, state, est)
-        self.total = cmd.wrench_n_nm.copy()
+        self.total[:] = cmd.wrench_n_nm
         return cmd
 
     def record(self, state: RobotState, ft: FtSamples, intent: CartesianCommand | None,

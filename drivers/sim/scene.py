@@ -17,9 +17,11 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field, model_validator
 
 from drivers.config import StrictModel, load_model
+from drivers.sim.friction import JointFriction
 
 Vec7 = Annotated[tuple[float, ...], Field(min_length=7, max_length=7)]
 Vec6 = Annotated[tuple[float, ...], Field(min_length=6, max_length=6)]
@@ -106,6 +108,16 @@ class ArmSettings(StrictModel):
         if self.viscous is not None:
             return list(self.viscous)
         return [self.friction_scale * v for v in JUBIEN_VISCOUS]
+
+    def joint_friction(self) -> JointFriction:
+        """The arm's joint friction model (:mod:`drivers.sim.friction`)."""
+        coulomb = self.coulomb_friction()
+        return JointFriction(
+            static_nm=np.asarray(coulomb),
+            coulomb_nm=np.asarray(coulomb),
+            viscous_nmsprad=np.asarray(self.viscous_friction()),
+            stribeck_radps=np.full(7, 0.01),
+        )
 
 
 class FunnelGeometry(StrictModel):

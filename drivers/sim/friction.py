@@ -1,0 +1,77 @@
+"""Joint friction of the simulated LWR4+: a Stribeck curve on top of MuJoCo's dry friction.
+
+Per joint, the friction torque that opposes a joint speed ``v`` is
+
+    tau_f(v) = tau_c + (tau_s - tau_c) * exp(-(|v| / v_s) ** delta) + b * |v|
+
+(static level ``tau_s`` at rest, falling smoothly to the Coulomb level
+``tau_c`` above the Stribeck speed ``v_s``, plus viscous ``b``). MuJoCo holds
+the dry part as a ``frictionloss`` constraint (a soft, regularised Coulomb
+friction that sticks below its level and saturates at it) and the viscous
+part as joint ``damping`` (integrated implicitly). :class:`JointFriction`
+sets the constraint's level from the joint speed once per control cycle, so
+a joint at rest must be pushed past ``tau_s`` to break away and then slides
+against the lower ``tau_c``; the level is a continuous function of speed,
+not a switch.
+
+Pure maths and a write into the model's ``dof_frictionloss``; no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from drivers.base.types import F64
+
+__all__ = ["JointFriction"]
+
+
+@dataclass
+class JointFriction:
+    """Stribeck friction of the first ``n`` joints (the arm's, DOF addresses 0..n-1).
+
+    Attributes:
+        static_nm: breakaway (static) level per joint [N m].
+        coulomb_nm: sliding (Coulomb) level per joint [N m].
+        viscous_nmsprad: viscous coefficient per joint [N m s/rad].
+        stribeck_radps: Stribeck speed per joint [rad/s].
+        shape: Stribeck exponent (2: Gaussian; 1: exponential).
+    """
+
+    static_nm: F64
+    coulomb_nm: F64
+    viscous_nmsprad: F64
+    stribeck_radps: F64
+    shape: float = 2.0
+
+    def __post_init__(self) -> None:
+        self.static_nm = np.asarray(self.static_nm, dtype=np.float64)
+        self.coulomb_nm = np.asarray(self.coulomb_nm, dtype=np.float64)
+        self.viscous_nmsprad = np.asarray(self.viscous_nmsprad, dtype=np.float64)
+        self.stribeck_radps = np.maximum(np.asarray(self.stribeck_radps, dtype=np.float64), 1e-12)
+        self._excess = self.static_nm - self.coulomb_nm
+        self._n = int(self.static_nm.shape[0])
+
+    def dry_level_nm(self, speed_radps: F64) -> F64:
+        """The dry (static-to-Coulomb) level at joint speed ``speed_radps`` [N m]."""
+        v = np.abs(np.asarray(speed_radps, dtype=np.float64)) / self.stribeck_radps
+        return self.coulomb_nm + self._excess * np.exp(-(v**self.shape))
+
+    def torque_nm(self, speed_radps: F64) -> F64:
+        """Magnitude of the whole friction torque at a steady joint speed [N m]."""
+        v = np.abs(np.asarray(speed_radps, dtype=np.float64))
+        return self.dry_level_nm(v) + self.viscous_nmsprad * v
+
+    def install(self, model: mujoco.MjModel) -> None:
+        """Write the viscous part and the level at rest into a compiled model."""
+        n = self._n
+        model.dof_damping[:n] = self.viscous_nmsprad
+        model.dof_frictionloss[:n] = self.static_nm
+
+    def apply(self, model: mujoco.MjModel, qvel: F64) -> None:
+        """Set the dry level from the current joint speeds (call once per control cycle)."""
+        n = self._n
+        model.dof_frictionloss[:n] = self.dry_level_nm(qvel[:n])

@@ -10,7 +10,7 @@ from __future__ import annotations
 import typer
 
 from ffexp import __version__
-from ffexp.cli import emulate, friction, records, simulate
+from ffexp.cli import emulate, friction, records, simulate, sweeps
 from ffexp.cli import run as run_cli
 
 app = typer.Typer(
@@ -29,6 +29,9 @@ app.command("compare")(records.compare)
 app.command("recover")(records.recover_cmd)
 app.command("topics")(records.topics)
 app.command("emulate")(emulate.emulate)
+app.command("sweep")(sweeps.sweep)
+app.command("limits")(sweeps.limits)
+app.command("reproduce")(sweeps.reproduce)
 
 
 def _version(value: bool) -> None:

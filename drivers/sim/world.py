@@ -143,6 +143,8 @@ class SimWorld:
         self.model = m = mujoco.MjModel.from_xml_string(self.xml)
         self.data = d = mujoco.MjData(m)
         _arm_divergence_check(m, d)
+        self._friction = scene.arm.joint_friction()
+        self._friction.install(m)
         self._tcp = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tcp")
         self._ft_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "ft_site")
         self._mouth = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "funnel_mouth")
@@ -399,6 +401,7 @@ class SimWorld:
             self._take(command)
         self._apply()
         m, d = self.model, self.data
+        self._friction.apply(m, d.qvel)
         raw = self._ft_raw
         sd = self._sensordata
         a = self._ft_adr

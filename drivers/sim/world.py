@@ -142,6 +142,7 @@ class SimWorld:
         self.xml = mjcf.build_xml(scene, self.layout)
         self.model = m = mujoco.MjModel.from_xml_string(self.xml)
         self.data = d = mujoco.MjData(m)
+        self._ready = False
         _arm_divergence_check(m, d)
         self._friction = scene.arm.joint_friction()
         self._friction.install(m)
@@ -220,6 +221,7 @@ class SimWorld:
         mujoco.mj_forward(m, d)
         self._contact, self._touching = self.contact_wrench()
         self._update_kinematics()
+        self._state: ArmState | None = None
 
         self.ft_model = FtSensorModel(
             scene.ft_sensor, self.rng, np.array([0.0, 0.0, -mjcf.tool_tip_offset(scene)])
@@ -228,8 +230,7 @@ class SimWorld:
         self._ft_pending: list[FtSamples] = []
         self.cycle = 0
         self._step_count = 0
-        #: The state at the end of the last cycle (the start state before the first).
-        self.last_state = self._measure()
+        self._ready = True
 
     # ------------------------------------------------------------------ setup
     def _configure_contact(self) -> ContactInfo:
@@ -263,6 +264,8 @@ class SimWorld:
 
     def set_target_velocity(self, vx: float, vy: float, wz: float) -> None:
         """Give the target a twist in the bed plane (world frame) [m/s, rad/s]."""
+        if self._ready:
+            _ = self.last_state  # keep the end state of this cycle as it was
         v = self.data.qvel
         v[self._t_vadr[0]] = vx
         v[self._t_vadr[1]] = vy
@@ -391,14 +394,42 @@ class SimWorld:
     def step(self, command: ArmCommand | None = None) -> ArmState:
         """Latch ``command`` (``None``: keep everything), run one cycle, return its end state.
 
+        The same as :meth:`advance` followed by :attr:`last_state`.
+
         Raises:
             InvalidCommandError: a given field is not finite or has the wrong
                 shape; fields before it in :class:`ArmCommand` order were latched.
             SimulationError: the physics diverged during the cycle (the
                 world's state is then not usable).
         """
+        self.advance(command)
+        return self.last_state
+
+    @property
+    def last_state(self) -> ArmState:
+        """The state at the end of the last cycle (the start state before the first).
+
+        Built on first access in a cycle and kept until the next one (a cycle
+        nobody reads costs no measurement).
+        """
+        state = self._state
+        if state is None:
+            state = self._state = self._measure()
+        return state
+
+    def advance(self, command: ArmCommand | None = None) -> None:
+        """Latch ``command`` and run one cycle, without building its :class:`ArmState`.
+
+        What the cycle's end state needs is kept: the contact wrench of the
+        last physics step, the F/T samples, and the kinematics, mass matrix and
+        Cartesian inertia of the end state (the next cycle's damping needs them).
+
+        Raises:
+            InvalidCommandError, SimulationError: as :meth:`step`.
+        """
         if command is not None:
             self._take(command)
+        self._state = None
         self._apply()
         m, d = self.model, self.data
         self._friction.apply(m, d.qvel)
@@ -410,9 +441,9 @@ class SimWorld:
             step(m, d)
             raw[i] = sd[a:a + 6]
         # Contacts and constraint forces are consistent now (state of the last
-        # step, 1 physics step before the cycle's end); mj_step1 would redo collisions.
+        # step, 1 physics step before the cycle's end).
         self._contact, self._touching = self.contact_wrench()
-        mujoco.mj_step1(m, d)
+        self._end_state_dynamics()
         self._check_divergence()
         t0 = self.cycle * self.cycle_ns
         first = (-self._step_count) % self._ft_decim
@@ -422,8 +453,22 @@ class SimWorld:
         self._step_count += self.substeps
         self.cycle += 1
         self._update_kinematics()
-        self.last_state = self._measure()
-        return self.last_state
+
+    def _end_state_dynamics(self) -> None:
+        """Kinematics, mass matrix (factorised) and bias forces of the end state.
+
+        The parts of ``mj_step1`` the measurement and the next cycle's command
+        read, without its collision detection and constraint set-up (the next
+        ``mj_step`` redoes both); the values are bit-identical to ``mj_step1``'s.
+        """
+        m, d = self.model, self.data
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_makeM(m, d)
+        mujoco.mj_factorM(m, d)
+        mujoco.mj_comVel(m, d)
+        mujoco.mj_passive(m, d)  # qfrc_gravcomp
+        mujoco.mj_rne(m, d, 0, d.qfrc_bias)
 
     def ft_samples(self) -> FtSamples:
         """Every F/T sample produced since the last call."""
@@ -442,42 +487,38 @@ class SimWorld:
         """True wrench the target exerts on the tool (TCF at the TCP), and whether touching.
 
         Valid only right after ``mj_step``/``mj_forward`` (contacts and
-        constraint forces must come from the same collision pass).
+        constraint forces must come from the same collision pass). Touching:
+        a tool geom is in the contact list (within the margin counts); the
+        wrench sums the contacts with a constraint row (pressing), vectorised
+        over them (``mj_contactForce`` per pressing contact, usually a few).
         """
         m, d = self.model, self.data
         if d.ncon == 0:
             return np.zeros(6), False
-        hits = np.flatnonzero(self._is_tool_geom[d.contact.geom].any(axis=1))
-        if hits.size == 0:
-            return np.zeros(6), False
+        con = d.contact
+        geom = con.geom
         tool = self._is_tool_geom
-        cx, cy, cz = d.site_xpos[self._tcp].tolist()
-        fx = fy = fz = tx = ty = tz = 0.0
-        cf = self._cforce
-        for i in hits.tolist():
-            c = d.contact[i]
-            if c.efc_address < 0:  # within the touch margin, not yet pressing
-                continue
-            mujoco.mj_contactForce(m, d, i, cf)
-            n0, n1, n2 = cf[:3].tolist()
-            r = c.frame.tolist()  # rows: normal, tangent 1, tangent 2
-            # mj_contactForce gives the force geom1 exerts on geom2.
-            sgn = -1.0 if tool[c.geom[0]] else 1.0
-            ax = sgn * (n0 * r[0] + n1 * r[3] + n2 * r[6])
-            ay = sgn * (n0 * r[1] + n1 * r[4] + n2 * r[7])
-            az = sgn * (n0 * r[2] + n1 * r[5] + n2 * r[8])
-            px, py, pz = c.pos.tolist()
-            px, py, pz = px - cx, py - cy, pz - cz
-            fx += ax
-            fy += ay
-            fz += az
-            tx += py * az - pz * ay
-            ty += pz * ax - px * az
-            tz += px * ay - py * ax
+        tool0 = tool[geom[:, 0]]
+        sel = tool0 | tool[geom[:, 1]]
+        if not sel.any():
+            return np.zeros(6), False
+        adr = con.efc_address
+        idx = np.flatnonzero(sel & (adr >= 0))
+        out = np.zeros(6)
+        if idx.size == 0:
+            return out, True
+        local = np.empty((idx.size, 6))
+        for k, i in enumerate(idx.tolist()):
+            mujoco.mj_contactForce(m, d, i, local[k])
+        # rows of frame: normal, tangent 1, tangent 2; mj_contactForce gives the
+        # force geom1 exerts on geom2 (minus when the tool is geom1)
+        frame = con.frame[idx].reshape(-1, 3, 3)
+        f = np.einsum("ki,kij->kj", local[:, :3], frame)
+        f[tool0[idx]] *= -1.0
+        r = con.pos[idx] - d.site_xpos[self._tcp]
         rot = d.site_xmat[self._tcp].reshape(3, 3)
-        out = np.empty(6)
-        out[:3] = rot.T @ np.array([fx, fy, fz])
-        out[3:] = rot.T @ np.array([tx, ty, tz])
+        out[:3] = f.sum(axis=0) @ rot
+        out[3:] = np.cross(r, f).sum(axis=0) @ rot
         return out, True
 
     def _truth(self, contact: F64, touching: bool, tcp_twist: F64) -> GroundTruth:

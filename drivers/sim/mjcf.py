@@ -42,7 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.sim.scene import FunnelGeometry, Scene
+from drivers.sim import funnels
+from drivers.sim.scene import Scene
 
 #: Joint-origin offsets along the parent z axis [m] (CentroEPiaggio URDF).
 LWR_OFFSETS = (0.11, 0.2005, 0.20, 0.20, 0.20, 0.19, 0.078)
@@ -122,69 +123,9 @@ def tool_tip_offset(scene: Scene) -> float:
     return scene.tool.shaft_length + scene.tool.funnel.depth
 
 
-def male_cone(scene: Scene) -> tuple[float, float, float]:
-    """Tool cone: (capsule-axis radius at the nose end, at the base, surface offset c_m).
-
-    The tool's cone surface has radius ``c_m + s tan(theta)`` at distance s
-    behind the tip.
-    """
-    f = scene.tool.funnel
-    t = math.tan(f.half_angle)
-    a2 = f.opening - f.capsule_radius
-    a1 = max(0.0, a2 - (f.depth - scene.tool.nose_radius) * t)
-    c_m = a1 + f.capsule_radius - scene.tool.nose_radius * t
-    return a1, a2, c_m
-
-
 def seat_depth(scene: Scene) -> float:
     """Insertion depth of the tool tip past the target funnel's mouth when seated."""
-    _, _, c_m = male_cone(scene)
-    f = scene.target.funnel
-    # Equal half-angles assumed for the estimate; the tool's own angle is used.
-    t = math.tan(scene.tool.funnel.half_angle)
-    return min((f.opening - c_m) / t, f.depth)
-
-
-def _tool_geoms(scene: Scene, tip_z: float) -> str:
-    f = scene.tool.funnel
-    a1, a2, _ = male_cone(scene)
-    r = f.capsule_radius
-    nose = scene.tool.nose_radius
-    z1 = tip_z - nose
-    z2 = tip_z - f.depth
-    out = [
-        f'<geom name="tool_nose" type="sphere" size="{_f(nose)}" pos="0 0 {_f(z1)}" '
-        f'{_TOOL} class="funnel"/>',
-        f'<geom name="tool_shaft" type="capsule" size="0.012" '
-        f'fromto="0 0 0 0 0 {_f(max(z2, 0.001))}" {_VISUAL} mass="0" rgba="0.6 0.6 0.6 1"/>',
-    ]
-    for k in range(f.generators):
-        phi = (k + 0.5) * 2.0 * math.pi / f.generators
-        c, s = math.cos(phi), math.sin(phi)
-        out.append(
-            f'<geom name="tool_gen{k}" type="capsule" size="{_f(r)}" '
-            f'fromto="{_f(a1 * c)} {_f(a1 * s)} {_f(z1)} {_f(a2 * c)} {_f(a2 * s)} {_f(z2)}" '
-            f'{_TOOL} class="funnel"/>'
-        )
-    return "\n".join(out)
-
-
-def _target_funnel_geoms(f: FunnelGeometry) -> str:
-    """Female cone along +x from the mouth at the origin (capsule axes outside the surface)."""
-    t = math.tan(f.half_angle)
-    r = f.capsule_radius
-    r1 = f.opening + r
-    r2 = max(f.opening - f.depth * t, 0.0) + r
-    out = []
-    for k in range(f.generators):
-        phi = k * 2.0 * math.pi / f.generators
-        c, s = math.cos(phi), math.sin(phi)
-        out.append(
-            f'<geom name="target_gen{k}" type="capsule" size="{_f(r)}" '
-            f'fromto="0 {_f(r1 * c)} {_f(r1 * s)} {_f(f.depth)} {_f(r2 * c)} {_f(r2 * s)}" '
-            f'{_TARGET} class="funnel"/>'
-        )
-    return "\n".join(out)
+    return funnels.seat_depth(scene)
 
 
 def arm_xml(scene: Scene) -> str:
@@ -216,7 +157,10 @@ def arm_xml(scene: Scene) -> str:
         f'<inertial pos="0 0 {_f(L / 2)}" mass="{_f(tool.mass)}" diaginertia="{_vec(i_tool)}"/>\n'
         f'<site name="ft_site" pos="0 0 0" quat="0 0 0 1"/>\n'
         f'<site name="tcp" pos="0 0 {_f(tip)}" quat="0 0 0 1"/>\n'
-        f"{_tool_geoms(scene, tip)}\n"
+        f'<geom name="tool_body" type="capsule" size="0.012" '
+        f'fromto="0 0 0 0 0 {_f(max(tip - tool.funnel.depth, 0.001))}" {_VISUAL} mass="0" '
+        f'rgba="0.6 0.6 0.6 1"/>\n'
+        f"{funnels.tool_funnel_geoms(scene, tip, 'funnel')}\n"
         f"</body>\n</body>"
     )
     for i in reversed(range(7)):
@@ -281,7 +225,7 @@ def target_xml(scene: Scene, layout: Layout) -> str:
         + "\n".join(pads)
         + f'\n<body name="target_funnel" pos="{_vec(layout.funnel_in_target)}">\n'
         f'<site name="funnel_mouth" pos="0 0 0"/>\n'
-        f"{_target_funnel_geoms(tg.funnel)}\n</body>\n</body>"
+        f"{funnels.target_funnel_geoms(tg.funnel, 'funnel')}\n</body>\n</body>"
     )
 
 

@@ -94,6 +94,12 @@ class ArmSettings(StrictModel):
     """Explicit joint Coulomb friction [N m]; overrides ``friction_scale``."""
     viscous: Vec7 | None = None
     """Explicit joint viscous friction [N m s/rad]; overrides ``friction_scale``."""
+    static_ratio: Annotated[float, Field(ge=1.0, le=5.0)] = 1.3
+    """Breakaway (static) over Coulomb friction (Stribeck curve, :mod:`drivers.sim.friction`).
+    No published value for the LWR4+ was found: an assumption of the order
+    reported for harmonic-drive joints."""
+    stribeck_speed: Annotated[float, Field(gt=0.0, le=1.0)] = 0.02
+    """Joint speed [rad/s] over which friction falls from static to Coulomb (assumption)."""
     armature_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.05
     """Fraction of Jubien's reflected rotor inertia seen link-side (assumption)."""
     torque_limits: Vec7 = (176.0, 176.0, 100.0, 100.0, 100.0, 38.0, 38.0)
@@ -111,24 +117,38 @@ class ArmSettings(StrictModel):
 
     def joint_friction(self) -> JointFriction:
         """The arm's joint friction model (:mod:`drivers.sim.friction`)."""
-        coulomb = self.coulomb_friction()
+        coulomb = np.asarray(self.coulomb_friction())
         return JointFriction(
-            static_nm=np.asarray(coulomb),
-            coulomb_nm=np.asarray(coulomb),
+            static_nm=self.static_ratio * coulomb,
+            coulomb_nm=coulomb,
             viscous_nmsprad=np.asarray(self.viscous_friction()),
-            stribeck_radps=np.full(7, 0.01),
+            stribeck_radps=np.full(7, self.stribeck_speed),
         )
 
 
 class FunnelGeometry(StrictModel):
-    """A funnel: a cone of capsules (target) or a cone of capsules on a nose sphere (tool)."""
+    """A funnel: a hollow cone (target) or a solid cone on a nose sphere (tool).
+
+    ``surface = "smooth"`` (see :mod:`drivers.sim.funnels`): the target is
+    ``panels`` flat panels tangent to the cone, the tool a stack of spheres
+    inscribed in its cone, axial scallops below ``scallop``. ``"capsules"``:
+    the earlier faceted funnels, ``generators`` capsules of ``capsule_radius``.
+    """
 
     half_angle_deg: Annotated[float, Field(gt=5.0, lt=80.0)] = 30.0
     depth: PosFloat = 0.065
     """Axial length of the cone [m]."""
     opening: PosFloat = 0.04
     """Radius of the cone's mouth (target) or base (tool) [m]."""
+    surface: Literal["smooth", "capsules"] = "smooth"
+    panels: Annotated[int, Field(ge=6, le=128)] = 32
+    """Target, smooth: number of flat panels (creases turn by 360/panels deg)."""
+    wall: Annotated[float, Field(gt=0.0, le=0.02)] = 0.004
+    """Target, smooth: panel thickness [m]."""
+    scallop: Annotated[float, Field(gt=0.0, le=0.005)] = 2e-4
+    """Tool, smooth: largest dip of the sphere stack below the cone [m]."""
     generators: Annotated[int, Field(ge=3, le=32)] = 16
+    """Capsules: number of generator capsules."""
     capsule_radius: PosFloat = 0.003
 
     @property

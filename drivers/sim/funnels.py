@@ -1,0 +1,189 @@
+"""Funnel contact geometry: smooth cones from MuJoCo primitives.
+
+MuJoCo collides convex shapes only, and the target's funnel is a hollow cone.
+Two surfaces are built so that the contact normal varies smoothly with where
+the tool lands:
+
+* **Target (hollow cone): flat panels.** ``panels`` thin boxes whose inner
+  faces are the planes tangent to the cone along ``panels`` generators (a
+  polygonal cone circumscribing the true one). Neighbouring faces meet at
+  creases that turn by only ``360 / panels`` degrees, and a sphere never sits
+  in a groove (the old 16-capsule funnel had 10 mm gaps between 6 mm ridges).
+* **Tool (solid cone on a nose): spheres on its axis.** A sphere centred on the
+  axis of a cone and inscribed in it touches the cone along a whole circle, so
+  a stack of such spheres is the cone up to shallow axial scallops whose depth
+  is bounded by ``scallop`` (chosen per sphere from its radius); around the
+  axis it is exactly round. The first sphere is the nose.
+
+Sphere-box is one of MuJoCo's primitive collision pairs (one contact per pair,
+no iterative CCD). The old capsule generators remain selectable
+(``surface = "capsules"``) to compare against.
+
+Frames: the target funnel's mouth centre is the origin of body
+``target_funnel``, its axis +x (into the target); the tool's tip is at
+``z = tip_z`` of body ``tool``, its axis +z (toward the tip).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from drivers.sim.scene import FunnelGeometry, Scene
+
+__all__ = ["seat_depth", "target_funnel_geoms", "tool_cone_spheres", "tool_funnel_geoms"]
+
+_TOOL = 'contype="1" conaffinity="2"'
+_TARGET = 'contype="2" conaffinity="1"'
+
+
+def _f(v: float) -> str:
+    return f"{v:.9g}"
+
+
+def _vec(v: object) -> str:
+    return " ".join(_f(float(x)) for x in v)  # type: ignore[attr-defined]
+
+
+# ----------------------------------------------------------------- the tool
+def tool_cone_spheres(scene: Scene) -> list[tuple[float, float]]:
+    """(distance of the centre behind the tip, radius) of every tool sphere [m].
+
+    The tool cone has half-angle ``theta``, is tangent to the nose sphere
+    (radius ``r_n``, centre ``r_n`` behind the tip) and ends ``depth`` behind
+    the tip or where its radius reaches ``opening``, whichever comes first.
+    A sphere whose centre lies ``a`` behind the tip is inscribed in the cone
+    with radius ``(a - a_apex) sin(theta)``, where the cone's apex lies
+    ``a_apex = r_n - r_n / sin(theta)`` behind the tip
+    (ahead of it: negative). Between two inscribed spheres touching the
+    generator ``ds`` apart, the surface dips by about ``ds^2 / (8 r)``; the
+    spacing keeps that below ``scallop``.
+    """
+    f = scene.tool.funnel
+    th = f.half_angle
+    s, c = math.sin(th), math.cos(th)
+    r_n = scene.tool.nose_radius
+    a_apex = r_n - r_n / s
+    # The last sphere's circle of tangency (radius rho cos(theta), at
+    # a_apex + rho cos^2(theta) / sin(theta) behind the tip) is the cone's base.
+    rho_last = min(f.opening / c, (f.depth - a_apex) * s / (c * c))
+    out = [(r_n, r_n)]
+    rho = r_n
+    while rho < rho_last - 1e-9:
+        ds = math.sqrt(8.0 * rho * f.scallop)  # spacing of tangency circles along the generator
+        rho = min(rho + ds * math.tan(th), rho_last)
+        out.append((a_apex + rho / s, rho))
+    return out
+
+
+def tool_funnel_geoms(scene: Scene, tip_z: float, funnel_class: str) -> str:
+    """The tool's colliding geoms (and none of its visual ones)."""
+    f = scene.tool.funnel
+    if f.surface == "capsules":
+        return _tool_capsules(scene, tip_z, funnel_class)
+    out = []
+    for k, (a, rho) in enumerate(tool_cone_spheres(scene)):
+        name = "tool_nose" if k == 0 else f"tool_sphere{k}"
+        out.append(
+            f'<geom name="{name}" type="sphere" size="{_f(rho)}" pos="0 0 {_f(tip_z - a)}" '
+            f'{_TOOL} class="{funnel_class}"/>'
+        )
+    return "\n".join(out)
+
+
+def _male_cone_capsules(scene: Scene) -> tuple[float, float, float]:
+    """Capsule tool: (axis radius at the nose end, at the base, surface offset c_m)."""
+    f = scene.tool.funnel
+    t = math.tan(f.half_angle)
+    a2 = f.opening - f.capsule_radius
+    a1 = max(0.0, a2 - (f.depth - scene.tool.nose_radius) * t)
+    c_m = a1 + f.capsule_radius - scene.tool.nose_radius * t
+    return a1, a2, c_m
+
+
+def _tool_capsules(scene: Scene, tip_z: float, funnel_class: str) -> str:
+    f = scene.tool.funnel
+    a1, a2, _ = _male_cone_capsules(scene)
+    nose = scene.tool.nose_radius
+    z1 = tip_z - nose
+    z2 = tip_z - f.depth
+    out = [
+        f'<geom name="tool_nose" type="sphere" size="{_f(nose)}" pos="0 0 {_f(z1)}" '
+        f'{_TOOL} class="{funnel_class}"/>'
+    ]
+    for k in range(f.generators):
+        phi = (k + 0.5) * 2.0 * math.pi / f.generators
+        c, s = math.cos(phi), math.sin(phi)
+        out.append(
+            f'<geom name="tool_gen{k}" type="capsule" size="{_f(f.capsule_radius)}" '
+            f'fromto="{_f(a1 * c)} {_f(a1 * s)} {_f(z1)} {_f(a2 * c)} {_f(a2 * s)} {_f(z2)}" '
+            f'{_TOOL} class="{funnel_class}"/>'
+        )
+    return "\n".join(out)
+
+
+# --------------------------------------------------------------- the target
+def target_funnel_geoms(f: FunnelGeometry, funnel_class: str) -> str:
+    """The hollow cone along +x from the mouth at the origin."""
+    if f.surface == "capsules":
+        return _target_capsules(f, funnel_class)
+    th = f.half_angle
+    s, c = math.sin(th), math.cos(th)
+    n = f.panels
+    half_len = f.depth / c / 2.0
+    half_width = f.opening * math.tan(math.pi / n)  # the polygon's side at the mouth
+    half_thick = f.wall / 2.0
+    r_mid = f.opening - f.depth / 2.0 * math.tan(th)
+    out = []
+    for k in range(n):
+        phi = k * 2.0 * math.pi / n
+        e_r = np.array([0.0, math.cos(phi), math.sin(phi)])
+        e_phi = np.array([0.0, -math.sin(phi), math.cos(phi)])
+        along = np.array([c, 0.0, 0.0]) - s * e_r  # down the generator, toward the apex
+        outward = np.array([s, 0.0, 0.0]) + c * e_r  # into the wall
+        centre = np.array([f.depth / 2.0, 0.0, 0.0]) + r_mid * e_r + half_thick * outward
+        out.append(
+            f'<geom name="target_panel{k}" type="box" '
+            f'size="{_f(half_len)} {_f(half_width)} {_f(half_thick)}" pos="{_vec(centre)}" '
+            f'xyaxes="{_vec(along)} {_vec(e_phi)}" {_TARGET} class="{funnel_class}"/>'
+        )
+    return "\n".join(out)
+
+
+def _target_capsules(f: FunnelGeometry, funnel_class: str) -> str:
+    t = math.tan(f.half_angle)
+    r = f.capsule_radius
+    r1 = f.opening + r
+    r2 = max(f.opening - f.depth * t, 0.0) + r
+    out = []
+    for k in range(f.generators):
+        phi = k * 2.0 * math.pi / f.generators
+        c, s = math.cos(phi), math.sin(phi)
+        out.append(
+            f'<geom name="target_gen{k}" type="capsule" size="{_f(r)}" '
+            f'fromto="0 {_f(r1 * c)} {_f(r1 * s)} {_f(f.depth)} {_f(r2 * c)} {_f(r2 * s)}" '
+            f'{_TARGET} class="{funnel_class}"/>'
+        )
+    return "\n".join(out)
+
+
+# ------------------------------------------------------------------ the seat
+def seat_depth(scene: Scene) -> float:
+    """Insertion of the tool tip past the target's mouth when the funnels are seated [m].
+
+    The coaxial tool slid into the target cone until it first touches it,
+    capped at the funnel's depth. Smooth tool: a sphere of radius ``rho``
+    centred ``a`` behind the tip touches the cone (half-angle ``theta``,
+    mouth radius ``R``) when its centre is at depth
+    ``(R - rho / cos(theta)) / tan(theta)``. Capsule tool: its cone surface
+    ``c_m + s tan(theta)`` (equal half-angles assumed, as before).
+    """
+    tf = scene.target.funnel
+    t = math.tan(tf.half_angle)
+    if scene.tool.funnel.surface == "capsules":
+        _, _, c_m = _male_cone_capsules(scene)
+        return min((tf.opening - c_m) / math.tan(scene.tool.funnel.half_angle), tf.depth)
+    c = math.cos(tf.half_angle)
+    tips = [(tf.opening - rho / c) / t + a for a, rho in tool_cone_spheres(scene)]
+    return min(min(tips), tf.depth)

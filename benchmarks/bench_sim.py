@@ -2,17 +2,28 @@
 
     python benchmarks/bench_sim.py [--cycles N] [--repeats R] [--scene PATH]
 
-Prints medians over the repeats: control cycles/s of ``SimWorld.step`` (with the
-runner's F/T read each cycle), the physics steps/s that implies, bare
-``mujoco.mj_step`` steps/s of the very same compiled model, the ratio of
-the two, and the real-time factor.
+Two states: free motion (target out of reach) and pressing into the funnel
+(the set-point 45 mm past the tool, reached after a warm-up). For each, in
+interleaved repeats on copies of the same ``MjData``, medians of:
+
+* ``SimWorld.advance`` + the F/T read: one FRI cycle of physics with the
+  KRC's per-cycle work (command, damping from the Cartesian inertia, joint
+  friction level, F/T samples, the end state's kinematics), no state built;
+* ``SimWorld.step`` + the F/T read: the same plus the whole ``ArmState``
+  (Jacobian, mass matrix, torques, ground truth), what the lockstep KRC reads;
+* bare ``mujoco.mj_step`` of the very same compiled model and state, the
+  same number of physics steps.
+
+Prints each as physics steps/s, its real-time factor and the ratio to bare.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import statistics
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -23,59 +34,69 @@ from drivers.sim import ArmCommand, SimWorld, load_scene
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def bench_world(world: SimWorld, cycles: int, force: float) -> float:
-    cmd = ArmCommand(tcp_wrench_n_nm=np.array([0.0, 0.0, force, 0.0, 0.0, 0.0]))
+def _world_rate(world: SimWorld, cmd: ArmCommand, cycles: int, measure: bool) -> float:
+    run: Callable[[ArmCommand], object] = world.step if measure else world.advance
     t0 = time.perf_counter()
     for _ in range(cycles):
-        world.step(cmd)
+        run(cmd)
         world.ft_samples()
-    return cycles / (time.perf_counter() - t0)
+    return cycles * world.substeps / (time.perf_counter() - t0)
 
 
-def bench_bare(world: SimWorld, steps: int) -> float:
-    m = world.model
-    d = mujoco.MjData(m)
-    d.qpos[:] = world.data.qpos
-    d.qvel[:] = world.data.qvel
-    d.ctrl[:] = world.data.ctrl
-    d.mocap_pos[:] = world.data.mocap_pos
-    d.mocap_quat[:] = world.data.mocap_quat
+def _bare_rate(m: mujoco.MjModel, d: mujoco.MjData, steps: int) -> float:
+    step = mujoco.mj_step
     t0 = time.perf_counter()
     for _ in range(steps):
-        mujoco.mj_step(m, d)
+        step(m, d)
     return steps / (time.perf_counter() - t0)
 
 
+def bench_case(scene_path: Path, overrides: list[str], push_m: float, warmup: int,
+               cycles: int, repeats: int) -> dict[str, float]:
+    """Median physics steps/s of advance, step and bare mj_step (interleaved)."""
+    world = SimWorld(load_scene(scene_path, overrides))
+    pose = world.last_state.tcp_pose_m.copy()
+    pose[:3, 3] += push_m * pose[:3, 2]
+    cmd = ArmCommand(cart_pose_m=pose, tcp_wrench_n_nm=np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
+    for _ in range(warmup):
+        world.advance(cmd)
+        world.ft_samples()
+    start = copy.copy(world.data)
+    rates: dict[str, list[float]] = {"advance": [], "step": [], "bare": []}
+    for _ in range(repeats):
+        for key in rates:
+            mujoco.mj_copyData(world.data, world.model, start)
+            if key == "bare":
+                d = copy.copy(start)
+                rates[key].append(_bare_rate(world.model, d, cycles * world.substeps))
+            else:
+                rates[key].append(_world_rate(world, cmd, cycles, key == "step"))
+    return {k: statistics.median(v) for k, v in rates.items()}
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--cycles", type=int, default=1000, help="FRI cycles per repeat")
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    ap.add_argument("--cycles", type=int, default=500, help="FRI cycles per repeat")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--scene", type=Path, default=ROOT / "data" / "scenes" / "paper.toml")
     args = ap.parse_args()
     base = load_scene(args.scene)
+    dt = base.physics.timestep
     cases = [
-        ("free motion (target out of reach)", ["target.distance=0.5"], 0.5),
-        ("push into the target (2 N)", [], 2.0),
+        ("free motion (target out of reach)", ["target.distance=0.5"], 0.0, 10),
+        ("pressing into the funnel", [], 0.045, 600),
     ]
-    print(f"scene {args.scene.name}: physics dt {base.physics.timestep * 1e3:g} ms, "
-          f"FRI cycle {base.fri.cycle * 1e3:g} ms ({base.substeps} steps/cycle), "
-          f"{args.repeats} x {args.cycles} cycles per case, medians")
-    for label, overrides, force in cases:
-        scene = load_scene(args.scene, overrides)
-        world_rates, bare_rates = [], []
-        for _ in range(args.repeats):
-            world = SimWorld(scene)
-            world_rates.append(bench_world(world, args.cycles, force))
-            bare_rates.append(bench_bare(world, args.cycles * world.substeps))
-        cyc = statistics.median(world_rates)
-        phys = cyc * scene.substeps
-        bare = statistics.median(bare_rates)
+    print(f"scene {args.scene.name}: physics dt {dt * 1e3:g} ms, FRI cycle "
+          f"{base.fri.cycle * 1e3:g} ms ({base.substeps} steps/cycle), {args.repeats} x "
+          f"{args.cycles} cycles per case, interleaved, medians")
+    for label, overrides, push_m, warmup in cases:
+        r = bench_case(args.scene, overrides, push_m, warmup, args.cycles, args.repeats)
+        bare = r["bare"]
         print(f"{label}:")
-        print(f"  world: {cyc:8.0f} cycles/s = {phys:8.0f} physics steps/s "
-              f"(real-time factor {cyc * scene.fri.cycle:5.1f}x)")
-        print(f"  bare:  {bare:8.0f} mj_step/s of the same model and state "
-              f"(real-time factor {bare * scene.physics.timestep:5.1f}x)")
-        print(f"  ratio world/bare (physics steps/s): {phys / bare:.2f}")
+        print(f"  bare mj_step:       {bare:8.0f} steps/s  real-time factor {bare * dt:6.1f}x")
+        for key, what in (("advance", "advance + F/T"), ("step", "step + F/T (state)")):
+            print(f"  {what:<19} {r[key]:8.0f} steps/s  real-time factor {r[key] * dt:6.1f}x"
+                  f"  ratio to bare {r[key] / bare:.2f}")
 
 
 if __name__ == "__main__":

@@ -158,12 +158,12 @@ ARM_1PCT = {"friction_scale": 0.01}
 
 
 def test_joint_friction_breakaway_matches_closed_form() -> None:
-    """The tool stays put while every |J^T F|_i is below joint i's Coulomb friction."""
+    """The tool stays put while every |J^T F|_i is below joint i's static (breakaway) friction."""
     w0 = SimWorld(scene(arm=ARM_1PCT, target=far_target()))
     m0 = w0.last_state
-    coulomb = np.array(w0.scene.arm.coulomb_friction())
+    static = w0.scene.arm.joint_friction().static_nm
     e_y = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
-    breakaway = 1.0 / float(np.max(np.abs(m0.jacobian.T @ e_y) / coulomb))
+    breakaway = 1.0 / float(np.max(np.abs(m0.jacobian.T @ e_y) / static))
 
     def moved(force: float) -> float:
         w = SimWorld(scene(arm=ARM_1PCT, target=far_target()))

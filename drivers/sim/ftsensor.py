@@ -60,11 +60,19 @@ class FtSensorModel:
         self._xform[:3, 3:] = np.array([[0.0, -rz, ry], [rz, 0.0, -rx], [-ry, rx, 0.0]]).T
         self._scale = np.concatenate([self._drift_step, self._noise])
         self._inv_res = 1.0 / self._res
+        self._min_range = float(self._range.min())
+        self._offsets_ns = np.zeros(0, dtype=np.int64)
+        self._counts = np.zeros(0, dtype=np.int64)
         self.seq = 0
         self.last_wrench: F64 | None = None
 
     def process(self, raw_parent_on_child: F64, t0_ns: int) -> FtSamples:
-        """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``."""
+        """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``.
+
+        The per-block work is a fixed handful of array operations (a block is
+        one FRI cycle's samples); the saturation test and clip run only when
+        some value exceeds the smallest range.
+        """
         n = raw_parent_on_child.shape[0]
         if n == 0:
             return FtSamples()
@@ -77,9 +85,12 @@ class FtSensorModel:
         w = gauss[:, 6:] - raw_parent_on_child
         w += drift
         w += self.bias
-        over = (np.abs(w) > self._range).any(axis=1)
-        np.clip(w, -self._range, self._range, out=w)
-        status = np.where(over, np.uint32(FtStatus.SATURATION), np.uint32(0)).astype(np.uint32)
+        if np.abs(w).max() > self._min_range:
+            over = (np.abs(w) > self._range).any(axis=1)
+            np.clip(w, -self._range, self._range, out=w)
+            status = np.where(over, np.uint32(FtStatus.SATURATION), np.uint32(0)).astype(np.uint32)
+        else:
+            status = np.zeros(n, dtype=np.uint32)
         # tool transform (torque about the TCP = torque about the sensing point + r x f),
         # software bias, then the counts' resolution
         w = w @ self._xform
@@ -88,7 +99,10 @@ class FtSensorModel:
         np.rint(w, out=w)
         w *= self._res
         self.last_wrench = w[-1].copy()
-        t = t0_ns + self.period_ns * np.arange(n, dtype=np.int64)
-        seq = self.seq + np.arange(n, dtype=np.int64)
+        if self._offsets_ns.shape[0] < n:
+            self._counts = np.arange(n, dtype=np.int64)
+            self._offsets_ns = self.period_ns * self._counts
+        t = self._offsets_ns[:n] + t0_ns
+        seq = self._counts[:n] + self.seq
         self.seq += n
         return FtSamples(time_ns=t, seq=seq, wrench=w, status=status)

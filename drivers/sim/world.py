@@ -64,6 +64,7 @@ _BAD_STATE_WARNINGS = (
     ("qvel", int(mujoco.mjtWarning.mjWARN_BADQVEL)),
 )
 _SEEN = 1
+_I_QACC, _I_QPOS, _I_QVEL = (i for _, i in _BAD_STATE_WARNINGS)
 
 
 def _arm_divergence_check(m: mujoco.MjModel, d: mujoco.MjData) -> None:
@@ -92,8 +93,11 @@ _MODES = {
 }
 
 
+_EYE4 = np.eye(4)
+
+
 def _pose(pos: F64, mat9: F64) -> F64:
-    out = np.eye(4)
+    out = _EYE4.copy()
     out[:3, :3] = mat9.reshape(3, 3)
     out[:3, 3] = pos
     return out
@@ -209,6 +213,7 @@ class SimWorld:
         self._jnt_stiff = np.full(7, ctl.jnt_position_stiffness)
         self._jnt_damp = np.full(7, ctl.jnt_position_damping)
         self._warning = 0
+        self._latched = True
         self._apply()
 
         # Let the target settle on its pads, then start the clock.
@@ -271,6 +276,16 @@ class SimWorld:
         v[self._t_vadr[1]] = vy
         v[self._t_vadr[3]] = wz
 
+    @property
+    def jacobian(self) -> F64:
+        """TCP Jacobian of the arm's joints at the current state, TCF rows (a copy)."""
+        return self._jfull[:, :_N_ARM].copy()
+
+    @property
+    def mass_matrix(self) -> F64:
+        """The arm's joint-space inertia at the current state (a copy)."""
+        return self._mfull[:_N_ARM, :_N_ARM].copy()
+
     # -------------------------------------------------------------- per cycle
     def _update_kinematics(self) -> None:
         """TCP pose, Jacobian (TCF), mass matrix, Cartesian inertia at the current state."""
@@ -281,9 +296,7 @@ class SimWorld:
         jfull = self._jfull
         np.matmul(r.T, self._jacp, out=jfull[:3])
         np.matmul(r.T, self._jacr, out=jfull[3:])
-        self.jacobian = jfull[:, :_N_ARM].copy()
         mujoco.mj_fullM(m, d, self._mfull)
-        self.mass_matrix = self._mfull[:_N_ARM, :_N_ARM].copy()
         # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M.
         mujoco.mj_solveM(m, d, self._minv_jt, jfull)
         self.cart_inertia = np.linalg.inv(jfull @ self._minv_jt.T)
@@ -297,18 +310,21 @@ class SimWorld:
         cart = self._act_cart
         jnt = self._act_jnt
         if self.mode == ArmMode.CART_IMPEDANCE:
-            d.mocap_pos[self._cmd_mocap] = self._cart_pos[:3, 3]
-            mujoco.mju_mat2Quat(self._quat, self._cart_pos[:3, :3].ravel())
-            d.mocap_quat[self._cmd_mocap] = self._quat
             damp = normalized_damping(self._cart_stiff, self._cart_damp, np.diag(self.cart_inertia))
-            bias[cart, 1] = -self._cart_stiff
             bias[cart, 2] = -damp
-            ctrl[self._act_ft] = self._tcp_ft
-            gain[jnt, 0] = 0.0
-            bias[jnt, 0] = self._jnt_trq
-            bias[jnt, 1] = 0.0
-            bias[jnt, 2] = 0.0
+            if self._latched:  # the rest changes only with a command
+                self._latched = False
+                d.mocap_pos[self._cmd_mocap] = self._cart_pos[:3, 3]
+                mujoco.mju_mat2Quat(self._quat, self._cart_pos[:3, :3].ravel())
+                d.mocap_quat[self._cmd_mocap] = self._quat
+                bias[cart, 1] = -self._cart_stiff
+                ctrl[self._act_ft] = self._tcp_ft
+                gain[jnt, 0] = 0.0
+                bias[jnt, 0] = self._jnt_trq
+                bias[jnt, 1] = 0.0
+                bias[jnt, 2] = 0.0
         else:
+            self._latched = True
             bias[cart, 1] = 0.0
             bias[cart, 2] = 0.0
             ctrl[self._act_ft] = 0.0
@@ -324,10 +340,11 @@ class SimWorld:
             bias[jnt, 2] = -damp
             ctrl[jnt] = self._jnt_pos
         # f_dyn: Coriolis/centrifugal (gravity is compensated inside every step).
-        d.qfrc_applied[:_N_ARM] = d.qfrc_bias[:_N_ARM] - d.qfrc_gravcomp[:_N_ARM]
+        np.subtract(d.qfrc_bias[:_N_ARM], d.qfrc_gravcomp[:_N_ARM], out=d.qfrc_applied[:_N_ARM])
 
     def _take(self, cmd: ArmCommand) -> None:
         """Latch the fields ``cmd`` gives (the others keep their values)."""
+        self._latched = True
         if cmd.mode is not None and cmd.mode != self.mode:
             if cmd.mode not in (ArmMode.CART_IMPEDANCE, ArmMode.JOINT_POSITION,
                                 ArmMode.JOINT_IMPEDANCE):
@@ -382,7 +399,10 @@ class SimWorld:
             SimulationError: naming the simulated time and the bad quantities.
         """
         w = self.data.warning
-        bad = [name for name, i in _BAD_STATE_WARNINGS if w[i].number != _SEEN]
+        number = w.number
+        if number[_I_QACC] == _SEEN and number[_I_QPOS] == _SEEN and number[_I_QVEL] == _SEEN:
+            return
+        bad = [name for name, i in _BAD_STATE_WARNINGS if number[i] != _SEEN]
         if bad:
             for _, i in _BAD_STATE_WARNINGS:
                 w[i].number = _SEEN
@@ -554,11 +574,12 @@ class SimWorld:
         q = d.qpos[:_N_ARM].copy()
         qd = d.qvel[:_N_ARM]
         jac = self.jacobian
+        mass = self.mass_matrix
         contact, touching = self._contact, self._touching
         tau_ext = jac.T @ contact
         gravity = d.qfrc_gravcomp[:_N_ARM].copy()
         # Link-side torque sensors: M qdd + c + g = tau_msr + tau_ext.
-        tau_msr = self.mass_matrix @ d.qacc[:_N_ARM] + d.qfrc_bias[:_N_ARM] - tau_ext
+        tau_msr = mass @ d.qacc[:_N_ARM] + d.qfrc_bias[:_N_ARM] - tau_ext
         warning = self._warning
         if np.any(np.abs(qd) > self._vel_limits):
             warning |= _WARN_VELOCITY
@@ -573,14 +594,14 @@ class SimWorld:
             time_ns=self.cycle * self.cycle_ns,
             mode=self.mode,
             jnt_pos_rad=q,
-            tcp_pose_m=self.tcp_pose.copy(),
+            tcp_pose_m=self.tcp_pose,
             cmd_jnt_pos_rad=q.copy() if cart else self._jnt_pos.copy(),
             cmd_cart_pose_m=self._cart_pos.copy() if cart else self.tcp_pose.copy(),
             jnt_trq_nm=tau_msr,
             ext_jnt_trq_nm=tau_ext,
             ext_wrench_n_nm=contact.copy(),
-            jacobian=jac.copy(),
-            mass_matrix=self.mass_matrix.copy(),
+            jacobian=jac,
+            mass_matrix=mass,
             gravity_nm=gravity,
             warning=ArmWarning(warning),
             truth=self._truth(contact, touching, tcp_twist),

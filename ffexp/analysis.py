@@ -1,4 +1,4 @@
-"""Metrics, tables and the paper's figures, from run recordings.
+"""Metrics and table rows from run recordings (the figures: :mod:`ffexp.figures`).
 
 Everything here reads a :class:`~ffexp.recording.Recording`; a run's numbers
 are never taken from anywhere else, so ``ffexp run``, ``ffexp analyze`` and
@@ -16,8 +16,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -27,14 +26,7 @@ from ffexp.contracts import Phase, StopReason
 from ffexp.errors import InputError
 from ffexp.recording import Recording
 
-if TYPE_CHECKING:
-    from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
-
 ALIGN = Phase.ALIGN
-PHASE_COLOURS = {
-    Phase.APPROACH: "#dbe9f6", Phase.ALIGN: "#e3f1dc", Phase.DONE: "#eeeeee", Phase.ABORT: "#f8d7d3"
-}
 #: f_z tracking is scored after this long in each ALIGN segment.
 SETTLE_S = 1.0
 
@@ -240,167 +232,111 @@ def _link_summary(rec: Recording) -> dict[str, float]:
 
 
 # -- tables ----------------------------------------------------------------------
-COMPARE_COLUMNS = (
-    ("protocol", "protocol"),
-    ("method", "method"),
-    ("f_ref [N]", "f_ref_n"),
-    ("k_xp", "k_xp"),
-    ("k_yp", "k_yp"),
-    ("contact [s]", "first_contact_s"),
-    ("aligned [s]", "alignment_time_s"),
-    ("breaks", "contact_breaks"),
-    ("mean f_z [N]", "mean_fz_align_n"),
-    ("peak |f_z| [N]", "peak_abs_fz_n"),
-    ("f_z rmse [N]", "fz_tracking_rmse_n"),
-    ("target v [m/s]", "target_speed_after_contact_mps"),
-    ("aborted", "aborted"),
+#: The comparison table: (title, key, priority). Priority 0 is always shown; a
+#: narrow terminal drops the highest numbers first (``--wide`` shows all).
+COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
+    ("run", "run", 0),
+    ("protocol", "protocol", 9),
+    ("method", "method", 8),
+    ("f_ref [N]", "f_ref_n", 3),
+    ("k_xp", "k_xp", 6),
+    ("k_yp", "k_yp", 6),
+    ("contact [s]", "first_contact_s", 2),
+    ("aligned [s]", "alignment_time_s", 0),
+    ("breaks", "contact_breaks", 1),
+    ("mean f_z [N]", "mean_fz_align_n", 4),
+    ("peak |f_z| [N]", "peak_abs_fz_n", 7),
+    ("f_z rmse [N]", "fz_tracking_rmse_n", 5),
+    ("target v [m/s]", "target_speed_after_contact_mps", 7),
+    ("end", "end", 0),
+    ("complete", "complete", 1),
+)
+#: Keys of a comparison row as data (``compare --csv/--json``), in column order.
+COMPARE_KEYS: tuple[str, ...] = (
+    "file", "run", "complete", "protocol", "method", "overrides", "f_ref_n", "k_xp", "k_yp",
+    "aligned", "first_contact_s", "alignment_time_s", "contact_breaks", "mean_fz_align_n",
+    "peak_abs_fz_n", "fz_tracking_rmse_n", "target_speed_after_contact_mps",
+    "target_max_speed_mps", "target_displacement_m", "final_lateral_error_m",
+    "final_yaw_error_deg", "duration_s", "end", "aborted", "source_revision",
 )
 
 
-def compare_rows(runs: list[tuple[RunMetrics, dict[str, Any]]]) -> list[list[str]]:
-    """One text row per run in :data:`COMPARE_COLUMNS` order."""
-    rows = []
-    for m, info in runs:
-        proto = info.get("protocol_resolved", {})
-        k_ri = proto.get("align", {}).get("k_ri")
-        values: dict[str, Any] = asdict(m)
-        values["k_xp"], values["k_yp"] = (k_ri[3], k_ri[1]) if k_ri else (None, None)
-        if not controllers.tracks_force_reference(m.method):
-            values["f_ref_n"] = None
-        rows.append([_fmt(values.get(key)) for _title, key in COMPARE_COLUMNS])
-    return rows
+def run_name(rec: Recording) -> str:
+    """The run's name: the one it was recorded under (metadata), else the file's stem."""
+    return str(rec.metadata.get("run", {}).get("run_name") or rec.path.stem)
 
 
-def _fmt(x: object) -> str:
-    if x is None:
-        return "-"
-    if isinstance(x, bool):
-        return "yes" if x else "no"
-    if isinstance(x, float):
-        return f"{x:.3g}"
-    return str(x)
+def end_label(m: RunMetrics) -> str:
+    """How the run ended, in one word or reason: aligned, timeout, or the abort reason."""
+    if m.aligned:
+        return "aligned"
+    if m.aborted is not None:
+        return m.aborted
+    return "timeout" if m.complete else "cut"
 
 
-# -- figures ---------------------------------------------------------------------
-def _shade_phases(ax: Axes, s: RunSeries) -> None:
-    starts = np.flatnonzero(np.concatenate([[True], s.phase[1:] != s.phase[:-1]]))
-    ends = np.concatenate([starts[1:], [len(s.phase) - 1]])
-    for a, b in zip(starts, ends, strict=True):
-        colour = PHASE_COLOURS.get(Phase(int(s.phase[a])))
-        if colour:
-            ax.axvspan(s.t_s[a], s.t_s[b], color=colour, lw=0, zorder=0)
+def compare_row(rec: Recording, m: RunMetrics | None = None) -> dict[str, Any]:
+    """One run's row (keys :data:`COMPARE_KEYS`); missing values are None."""
+    m = metrics(rec) if m is None else m
+    info = run_info(rec)
+    proto = info.get("protocol_resolved", {})
+    k_ri = proto.get("align", {}).get("k_ri")
+    values: dict[str, Any] = asdict(m)
+    values["k_xp"], values["k_yp"] = (k_ri[3], k_ri[1]) if k_ri else (None, None)
+    if not controllers.tracks_force_reference(m.method):
+        values["f_ref_n"] = None
+    try:
+        overrides = json.loads(info.get("overrides", "[]"))
+    except json.JSONDecodeError:
+        overrides = []
+    values.update(
+        file=str(rec.path),
+        run=run_name(rec),
+        overrides=" ".join(str(o) for o in overrides),
+        end=end_label(m),
+        source_revision=info.get("source_revision"),
+    )
+    return {key: values.get(key) for key in COMPARE_KEYS}
 
 
-def _legend_phases(ax: Axes) -> None:
-    from matplotlib.patches import Patch
-
-    handles, labels = ax.get_legend_handles_labels()
-    for pid, colour in PHASE_COLOURS.items():
-        handles.append(Patch(color=colour))
-        labels.append(Phase(pid).name)
-    ax.legend(handles, labels, fontsize=7, loc="upper left", ncols=2)
-
-
-def wrench_figure(rec: Recording, title: str) -> Figure:
-    """Contact wrench over time with f_ref and the phases (the paper's exp_all_wrench)."""
-    from matplotlib.figure import Figure
-
-    s = series(rec)
-    fig = Figure(figsize=(7.5, 6.0), layout="constrained")
-    axes = fig.subplots(3, 1, sharex=True)
-    ax = axes[0]
-    _shade_phases(ax, s)
-    ax.plot(s.t_s, -s.wrench[:, 2], lw=0.9, label="f_z = -w_z (contact, pushing > 0)")
-    if np.any(s.f_ref[:, 2]):
-        ref = np.where(s.phase == ALIGN, s.f_ref[:, 2], np.nan)
-        ax.plot(s.t_s, ref, "k--", lw=0.9, label="f_z ref")
-    ax.set_ylabel("force Z [N]")
-    _legend_phases(ax)
-    ax = axes[1]
-    _shade_phases(ax, s)
-    ax.plot(s.t_s, s.wrench[:, 1], lw=0.9, color="tab:orange", label="w_y")
-    ax.plot(s.t_s, s.wrench[:, 0], lw=0.7, color="tab:gray", label="w_x (vertical)")
-    ax.set_ylabel("force [N]")
-    ax.legend(fontsize=7, loc="upper left")
-    ax = axes[2]
-    _shade_phases(ax, s)
-    ax.plot(s.t_s, s.wrench[:, 3], lw=0.9, color="tab:green", label="t_x")
-    ax.set_ylabel("torque X [N m]")
-    ax.set_xlabel("time since start [s]")
-    ax.legend(fontsize=7, loc="upper left")
-    for a in axes:
-        a.grid(True, ls=":", color="gray")
-    fig.suptitle(f"{title}: measured contact wrench (TCF, environment on tool)", fontsize=10)
-    return fig
+#: The paper's Table res_par beside ours: (title, key, priority).
+PAPER_COLUMNS: tuple[tuple[str, str, int], ...] = (
+    ("run", "run", 0), ("f_ref [N]", "f_ref_n", 3), ("k_xp", "k_xp", 4), ("k_yp", "k_yp", 4),
+    ("paper contact [s]", "paper_contact_s", 0), ("ours contact [s]", "contact_s", 0),
+    ("paper end [s]", "paper_end_s", 0), ("ours aligned [s]", "aligned_s", 0),
+    ("ours breaks", "breaks", 1), ("ours end", "end", 2),
+)
 
 
-def applied_figure(rec: Recording, title: str) -> Figure:
-    """f_z; contact vs applied force along Y; contact vs applied torque about X
-    (the paper's exp_fc_tri, exp_fc_ti_1 and exp_fc)."""
-    from matplotlib.figure import Figure
+def paper_row(rec: Recording, m: RunMetrics | None = None) -> dict[str, Any] | None:
+    """The paper's values for this run beside ours (times since the start of the
+    experiment), from the recorded protocol's ``paper`` table; None without one."""
+    m = metrics(rec) if m is None else m
+    proto = run_info(rec).get("protocol_resolved", {})
+    paper = proto.get("paper") or {}
+    if not paper:
+        return None
+    start = paper.get("start_s")
 
-    s = series(rec)
-    fig = Figure(figsize=(12.0, 3.6), layout="constrained")
-    axes = fig.subplots(1, 3)
-    panels = [
-        ("(a) contact force along Z", -s.wrench[:, 2], s.applied[:, 2], "f_z [N]", "F*_z applied"),
-        ("(b) force along Y", s.wrench[:, 1], s.applied[:, 1], "f_y [N]", "F*_y applied"),
-        ("(c) torque about X", s.wrench[:, 3], s.applied[:, 3], "t_x [N m]", "T*_x applied"),
-    ]
-    for ax, (name, contact, applied, unit, applied_label) in zip(axes, panels, strict=True):
-        _shade_phases(ax, s)
-        ax.plot(s.t_s, contact, lw=0.9, label="contact (measured)")
-        ax.plot(s.t_s, applied, lw=0.9, label=applied_label)
-        if name.startswith("(a)") and np.any(s.f_ref[:, 2]):
-            ax.plot(s.t_s, np.where(s.phase == ALIGN, s.f_ref[:, 2], np.nan), "k--", lw=0.9,
-                    label="f_z ref")
-        ax.set_title(name, fontsize=9)
-        ax.set_xlabel("time since start [s]")
-        ax.set_ylabel(unit)
-        ax.grid(True, ls=":", color="gray")
-        ax.legend(fontsize=7, loc="upper left")
-    fig.suptitle(f"{title}: contact and applied wrench", fontsize=10)
-    return fig
+    def rel(key: str) -> object:
+        v = paper.get(key)
+        if isinstance(v, int | float) and isinstance(start, int | float):
+            return float(v) - float(start)
+        return v
 
-
-def campaign_figure(recs: list[tuple[str, Recording]]) -> Figure:
-    """All runs' contact force along Z in one grid (the paper's exp_all_wrench)."""
-    from matplotlib.figure import Figure
-
-    n = len(recs)
-    cols = 2 if n > 1 else 1
-    rows = (n + cols - 1) // cols
-    fig = Figure(figsize=(6.0 * cols, 3.0 * rows), layout="constrained")
-    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
-    for ax, (title, rec) in zip(axes, recs, strict=False):
-        s = series(rec)
-        _shade_phases(ax, s)
-        ax.plot(s.t_s, -s.wrench[:, 2], lw=0.8, label="f_z")
-        ax.plot(s.t_s, s.wrench[:, 1], lw=0.8, label="w_y")
-        ax.plot(s.t_s, s.wrench[:, 3], lw=0.8, label="t_x [N m]")
-        if np.any(s.f_ref[:, 2]):
-            ax.plot(s.t_s, np.where(s.phase == ALIGN, s.f_ref[:, 2], np.nan), "k--", lw=0.8,
-                    label="f_z ref")
-        ax.set_title(title, fontsize=9)
-        ax.set_xlabel("time since start [s]")
-        ax.set_ylabel("[N], [N m]")
-        ax.grid(True, ls=":", color="gray")
-        ax.legend(fontsize=7, loc="upper left")
-    for ax in axes[n:]:
-        ax.set_visible(False)
-    fig.suptitle("Contact wrench per method (TCF; f_z = -w_z pushing > 0)", fontsize=10)
-    return fig
-
-
-def write_run_figures(rec: Recording, out_dir: Path, name: str) -> list[Path]:
-    """The per-run figures as PNG into ``out_dir``."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for suffix, fig in (
-        ("wrench", wrench_figure(rec, name)),
-        ("applied", applied_figure(rec, name)),
-    ):
-        path = out_dir / f"{name}_{suffix}.png"
-        fig.savefig(path, dpi=130)
-        paths.append(path)
-    return paths
+    align = proto.get("align", {})
+    k_ri = align.get("k_ri")
+    f_ref = align.get("f_ref")
+    force = controllers.tracks_force_reference(m.method)
+    return {
+        "run": run_name(rec),
+        "f_ref_n": f_ref[2] if force and f_ref else None,
+        "k_xp": k_ri[3] if k_ri else None,
+        "k_yp": k_ri[1] if k_ri else None,
+        "paper_contact_s": rel("contact_s"),
+        "contact_s": m.first_contact_s,
+        "paper_end_s": rel("end_s"),
+        "aligned_s": m.alignment_time_s,
+        "breaks": m.contact_breaks,
+        "end": end_label(m),
+    }

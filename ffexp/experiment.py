@@ -21,29 +21,18 @@ from drivers.factory import open_devices
 from drivers.rig import Rig, load_rig, validate_rig
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
-from ffexp.errors import ConfigError
+from ffexp.errors import ConfigError, InputError
+from ffexp.naming import overrides_id, reserve, run_stem
 from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, scene_path
 from ffexp.recording import Recorder
+from ffexp.revision import source_revision
+from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
 from ffexp.runlog import RunLog
 
-#: ``--driver`` shortcuts: the robot back-end of the rig when no ``--rig`` is given.
-DRIVERS = ("sim", "fri", "mock")
-#: ``--ft`` values: the F/T back-end of the rig.
-FT_SOURCES = ("sim", "netft", "fri-estimate", "mock")
-
-
-@dataclass(frozen=True)
-class RigChoice:
-    """Which rig a run uses: a rig file (or the built-in sim rig) and field overrides.
-
-    ``overrides`` are ``dotted.key=value`` strings on the rig's fields, e.g.
-    ``robot.robot_ip=192.168.0.10``; the CLI turns its device flags into these.
-    """
-
-    path: Path | None = None
-    overrides: tuple[str, ...] = ()
-    driver: str | None = None
-    """With no ``path``: the robot back-end of the built-in rig (``sim``, ``fri``, ``mock``)."""
+__all__ = [
+    "DRIVERS", "FT_SOURCES", "RigChoice", "RunResult", "load_campaign", "load_rig_choice",
+    "output_path", "run_file",
+]
 
 
 def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
@@ -70,7 +59,10 @@ class RunResult:
 
 
 def _versions() -> str:
-    out = {"ffexp": __version__, "python": sys.version.split()[0]}
+    out = {
+        "ffexp": __version__, "source_revision": source_revision(),
+        "python": sys.version.split()[0],
+    }
     for dist in ("numpy", "mujoco", "mcap", "filterpy", "pydantic", "scipy"):
         try:
             out[dist] = importlib_metadata.version(dist)
@@ -79,15 +71,12 @@ def _versions() -> str:
     return json.dumps(out)
 
 
-def output_path(out_dir: Path, name: str, start: datetime) -> Path:
-    """``out_dir/<name>-<UTC time>.mcap``, never overwriting an existing file."""
-    stamp = start.strftime("%Y%m%dT%H%M%S")
-    path = out_dir / f"{name}-{stamp}.mcap"
-    k = 1
-    while path.exists():
-        path = out_dir / f"{name}-{stamp}-{k}.mcap"
-        k += 1
-    return path
+def output_path(
+    out_dir: Path, name: str, start: datetime, overrides: list[str] | tuple[str, ...] = ()
+) -> Path:
+    """``out_dir/<name>-<overrides id>-<UTC time>.mcap`` (:mod:`ffexp.naming`), created
+    empty and exclusively: never an existing file, never one another process took."""
+    return reserve(out_dir, run_stem(name, overrides, start), ".mcap")
 
 
 def run_file(
@@ -120,7 +109,11 @@ def run_file(
     try:
         start = datetime.now(UTC)
         start_ns = time.time_ns()
-        path = output_path(out_dir, protocol.name, start)
+        all_overrides = [*overrides, *(f"rig:{o}" for o in (rig or RigChoice()).overrides)]
+        try:
+            path = output_path(out_dir, protocol.name, start, all_overrides)
+        except OSError as exc:
+            raise InputError(f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None
         with Recorder(path) as rec:
             rec.metadata(
                 "run",
@@ -130,6 +123,9 @@ def run_file(
                     "protocol_file": str(protocol_path),
                     "protocol_json": protocol.model_dump_json(),
                     "overrides": json.dumps(list(overrides)),
+                    "overrides_id": overrides_id(all_overrides),
+                    "run_name": path.stem,
+                    "source_revision": source_revision(),
                     "seed": str(protocol.seed),
                     "start_utc": start.isoformat(),
                     "versions": _versions(),

@@ -172,10 +172,17 @@ def write_trajectory_csv(path: Path, traj: Trajectory) -> None:
 
 def write_outputs(protocol: SweepProtocol, results: list[SweepResult], out_dir: Path) -> list[Path]:
     """Write ``<name>.csv`` (all runs, long format), ``<name>_summary.csv``,
-    ``<name>.png`` and ``<name>.svg`` into ``out_dir``; return the paths."""
+    ``<name>.png`` and ``<name>.svg`` into ``out_dir``; return the paths.
+
+    Never overwrites: if any of the four names is taken, all four get the
+    first free ``-1``, ``-2``, ... (:func:`ffexp.naming.unique_stem`).
+    """
+    from ffexp import figures
+    from ffexp.naming import unique_stem
+
     out_dir.mkdir(parents=True, exist_ok=True)
-    base = out_dir / protocol.name
-    data_csv = base.with_suffix(".csv")
+    stem = unique_stem(out_dir, protocol.name, (".csv", "_summary.csv", ".png", ".svg"))
+    data_csv = out_dir / f"{stem}.csv"
     with data_csv.open("w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow([protocol.sweep.parameter, *COLUMNS])
@@ -183,28 +190,27 @@ def write_outputs(protocol: SweepProtocol, results: list[SweepResult], out_dir: 
             table = r.trajectory.table()
             for row in table:
                 writer.writerow([f"{r.value:g}", *(f"{x:.10g}" for x in row)])
-    summary_csv = out_dir / f"{protocol.name}_summary.csv"
+    summary_csv = out_dir / f"{stem}_summary.csv"
     with summary_csv.open("w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(SUMMARY_COLUMNS)
         writer.writerows(summary_rows(results))
-    fig = plot_sweep(protocol, results)
-    png, svg = base.with_suffix(".png"), base.with_suffix(".svg")
-    fig.savefig(png, dpi=150)
-    fig.savefig(svg)
+    with figures.style():
+        png, svg = figures.save(plot_sweep(protocol, results), out_dir, stem)
     return [png, svg, data_csv, summary_csv]
 
 
 def plot_sweep(protocol: SweepProtocol, results: list[SweepResult]) -> Figure:
-    """F_c(t) per swept value, with the zero line that marks a contact break."""
-    from matplotlib.figure import Figure  # imported here: slow, and only plots need it
+    """F_c(t) per swept value, with the zero line that marks a contact break
+    (call inside :func:`ffexp.figures.style`)."""
+    from ffexp.figures import new_figure  # matplotlib: slow, and only plots need it
 
-    fig = Figure(figsize=(7.0, 4.2), layout="constrained")
+    fig = new_figure(7.0, 4.2)
     ax = fig.add_subplot()
     for r in results:
         label = value_label(protocol.sweep.parameter, r.value)
         ax.plot(r.trajectory.t_s, r.trajectory.f_c, label=label)
-    ax.axhline(0.0, color="black", linewidth=0.8, linestyle="--")
+    ax.axhline(0.0, color="black", linewidth=0.8, linestyle="--", label="F_c = 0 (break below)")
     ax.set_xlabel("time t [s]")
     ax.set_ylabel("contact force F_c [N]")
     fixed = ", ".join(
@@ -212,9 +218,8 @@ def plot_sweep(protocol: SweepProtocol, results: list[SweepResult]) -> Figure:
         for k in ("m_t", "m_ri", "k_ri", "b_ri", "k_c", "b_c", "v0")
         if not _varies(results, k)
     )
-    ax.set_title(f"{protocol.name}: F_c(t)\n{fixed}", fontsize=9)
-    ax.grid(True, linestyle=":", color="gray")
-    ax.legend(fontsize=8)
+    ax.set_title(f"{protocol.name}: F_c(t)\n{fixed}")
+    ax.legend(title=_SYMBOLS[protocol.sweep.parameter])
     return fig
 
 

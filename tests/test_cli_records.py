@@ -24,7 +24,7 @@ def run_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
         ["run", str(ROOT / "protocols/method1_case2.toml"), "--set", "run.timeout_s=1.0",
          "--out", str(out)],
     )
-    assert result.exit_code == 0, result.stderr
+    assert result.exit_code == 4, result.stderr  # timed out without aligning
     (path,) = out.glob("*.mcap")
     assert f"recording: {path}" in result.stdout
     return path
@@ -41,8 +41,11 @@ def test_analyze_json_has_the_documented_keys(run_file: Path, tmp_path: Path) ->
     assert m["protocol"] == "method1_case2" and m["method"] == "force_ri"
     assert isinstance(m["aligned"], bool) and isinstance(m["contact_breaks"], int)
     assert m["aborted"] is None
-    for name in ("method1_case2_wrench.png", "method1_case2_applied.png"):
-        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+    assert m["file"] == str(run_file) and m["complete"] is True
+    assert m["run"] == run_file.stem and run_file.stem.startswith("method1_case2-")
+    for kind in ("wrench", "applied"):
+        assert (tmp_path / f"{run_file.stem}_{kind}.png").read_bytes()[:4] == b"\x89PNG"
+        assert b"<svg" in (tmp_path / f"{run_file.stem}_{kind}.svg").read_bytes()[:400]
 
 
 def test_compare_writes_csv(run_file: Path, tmp_path: Path) -> None:
@@ -51,7 +54,8 @@ def test_compare_writes_csv(run_file: Path, tmp_path: Path) -> None:
     assert result.exit_code == 0, result.stderr
     rows = list(csv.DictReader(out.open()))
     assert len(rows) == 2 and rows[0]["protocol"] == "method1_case2"
-    assert rows[0]["k_yp"] == "1" and rows[0]["k_xp"] == "0"
+    assert float(rows[0]["k_yp"]) == 1.0 and float(rows[0]["k_xp"]) == 0.0
+    assert rows[0]["file"] == str(run_file) and rows[0]["complete"] == "True"
 
 
 def test_recover_of_a_finished_file(run_file: Path, tmp_path: Path) -> None:
@@ -112,6 +116,32 @@ def test_truncated_recording_gives_partial_results_with_a_warning(
 
 
 def test_topics_lists_every_topic() -> None:
-    result = runner.invoke(app, ["topics"])
+    from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS
+
+    result = runner.invoke(app, ["topics", "--wide"])
     assert result.exit_code == 0
-    assert "/robot/measurement" in result.stdout and "foxglove.FrameTransform" in result.stdout
+    for topic in [*CDR_TOPICS, *JSON_TOPICS]:
+        assert topic in result.stdout
+    assert "foxglove.FrameTransform" in result.stdout
+    assert "Every topic of an ffexp run recording" not in result.stdout  # no docstring
+
+
+def test_topics_fits_80_columns_and_lists_fields() -> None:
+    result = runner.invoke(app, ["topics", "--fields"])
+    assert result.exit_code == 0
+    assert max(len(line) for line in result.stdout.splitlines()) <= 80
+    assert "msr_cart_pos" in result.stdout and "/runner/phase" in result.stdout
+
+
+def test_topics_of_a_file_counts_its_messages(run_file: Path) -> None:
+    from ffexp.recording import load
+
+    rec = load(run_file)
+    result = runner.invoke(app, ["topics", str(run_file), "--wide"])
+    assert result.exit_code == 0, result.stderr
+    assert "complete" in result.stdout
+    lines = {line.split("│")[1].strip(): line for line in result.stdout.splitlines()
+             if line.count("│") > 2}
+    for topic, data in rec.topics.items():
+        count = int(lines[topic].split("│")[2])
+        assert count == len(data), topic

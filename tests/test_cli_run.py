@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import sys
@@ -27,10 +28,17 @@ def test_campaign_prints_the_papers_table_and_writes_figures(tmp_path: Path) -> 
     )
     assert result.exit_code == 0, result.stderr
     assert "paper Table res_par" in result.stdout
+    (camp,) = tmp_path.glob("paper-*")
     for name in ("method1_case1", "method1_case2", "method2", "method3_impedance"):
         assert name in result.stdout
-        assert len(list(tmp_path.glob(f"{name}-*.mcap"))) == 1
-    assert (tmp_path / "paper-figures/exp_all_wrench.png").read_bytes()[:4] == b"\x89PNG"
+        (rec,) = camp.glob(f"{name}-*.mcap")
+        for kind in ("wrench", "applied"):
+            assert (camp / "figures" / f"{rec.stem}_{kind}.png").read_bytes()[:4] == b"\x89PNG"
+            assert (camp / "figures" / f"{rec.stem}_{kind}.svg").is_file()
+    assert (camp / "figures/paper_all_wrench.png").read_bytes()[:4] == b"\x89PNG"
+    manifest = json.loads((camp / "campaign.json").read_text())
+    assert [r["protocol"] for r in manifest["runs"]] == [
+        "method1_case1", "method1_case2", "method2", "method3_impedance"]
 
 
 @pytest.mark.parametrize(
@@ -93,10 +101,12 @@ def test_a_rig_file_selects_the_mock_robot(tmp_path: Path) -> None:
         app, ["run", str(ROOT / "protocols/method1_case1.toml"), "--rig",
               str(ROOT / "rigs/mock.toml"), "--set", "run.timeout_s=1", "--out", str(tmp_path)],
     )
-    assert result.exit_code == 0, result.stderr
+    assert result.exit_code == 4, result.stderr  # DONE at the timeout, not aligned
     (path,) = tmp_path.glob("*.mcap")
     rec = load(path)
     assert rec.metadata["run"]["rig"].endswith("rigs/mock.toml")
+    assert rec.metadata["run"]["run_name"] == path.stem
+    assert rec.metadata["run"]["source_revision"]
     assert "/robot/measurement" not in rec.topics  # no FRI back-end, no FRI packets
     intent = rec.topic("/control/command")
     assert intent["given"][0] == 0 and intent["given"][-1] == 1  # CONNECT holds, then commands

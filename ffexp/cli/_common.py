@@ -1,56 +1,103 @@
-"""Shared pieces of the CLI: error handling and common options."""
+"""Shared pieces of the CLI: exit codes, error handling, signals.
+
+Imports only the standard library, typer and :mod:`ffexp.errors` at module
+level: every command module imports this, and ``ffexp --help`` must stay fast
+(no numpy, mujoco, OpenCV, matplotlib, scipy or filterpy; see
+``tests/test_fast_start.py``).
+"""
 
 from __future__ import annotations
 
 import functools
+import os
 import signal
 import sys
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import FrameType
 from typing import ParamSpec, TypeVar
 
 import typer
-from rich.table import Table
-from rich.text import Text
 
 from ffexp.errors import FfexpError
 
 P = ParamSpec("P")
 R = TypeVar("R")
 
+# -- exit codes (README "Exit codes"; tests/test_bad_input.py checks them) -------
+EXIT_OK = 0
+"""The command did what it was asked; a run ended DONE and aligned."""
+EXIT_FAILURE = 1
+"""A run-time failure the input did not cause: a device, link or simulation error."""
+EXIT_BAD_INPUT = 2
+"""Bad input: a file, field, address or option (typer's usage errors too)."""
+EXIT_ABORTED = 3
+"""A run (or a campaign's run) ended ABORT: a safety limit, a lost link, a stop."""
+EXIT_TIMED_OUT = 4
+"""A run ended DONE at its timeout without aligning."""
+EXIT_SIGNAL_BASE = 128
+"""128 + N after signal N: 130 Ctrl-C (SIGINT), 143 SIGTERM."""
+
 #: ``--set dotted.key=value``, repeatable, on every command that takes a protocol.
 SET_HELP = "Override a protocol field, e.g. --set sweep.values=[1,2] (repeatable)."
+#: Environment variable that makes an unexpected error print its traceback.
+TRACEBACK_ENV = "FFEXP_TRACEBACK"
+
+#: typer settings shared by every command group: ``-h`` is ``--help``.
+CONTEXT_SETTINGS = {"help_option_names": ["-h", "--help"]}
+
+
+def fail(message: str, code: int = EXIT_BAD_INPUT) -> typer.Exit:
+    """Print ``error: message`` on stderr and return the Exit to raise."""
+    print(f"error: {message}", file=sys.stderr, flush=True)
+    return typer.Exit(code)
 
 
 def cli_errors(func: Callable[P, R]) -> Callable[P, R]:
-    """Turn any :class:`FfexpError` into one line on stderr and its exit code."""
+    """Turn every failure into one line on stderr and a documented exit code.
+
+    :class:`FfexpError`: its message and its ``exit_code``; an ``OSError`` on a
+    named file: the file and the reason, exit 2; Ctrl-C: exit 130; anything
+    else is a bug: one line naming it, exit 1, and the traceback only when
+    ``FFEXP_TRACEBACK=1``.
+    """
 
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
             return func(*args, **kwargs)
+        except (typer.Exit, typer.Abort, SystemExit):
+            raise
         except FfexpError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            raise typer.Exit(exc.exit_code) from None
+            raise fail(str(exc), exc.exit_code) from None
         except KeyboardInterrupt:
-            print("error: interrupted", file=sys.stderr)
-            raise typer.Exit(130) from None
+            raise fail("interrupted", EXIT_SIGNAL_BASE + signal.SIGINT) from None
+        except OSError as exc:
+            if exc.filename is None:
+                raise fail(f"{exc.strerror or exc}", EXIT_FAILURE) from None
+            raise fail(f"{exc.filename}: {exc.strerror or exc}", EXIT_BAD_INPUT) from None
+        except Exception as exc:
+            if os.environ.get(TRACEBACK_ENV):
+                raise
+            raise fail(
+                f"internal error ({type(exc).__name__}: {exc}); set {TRACEBACK_ENV}=1 "
+                "for the traceback",
+                EXIT_FAILURE,
+            ) from None
 
     return wrapper
 
 
-def plain_table(
-    title: str, columns: Sequence[str], rows: Iterable[Sequence[str]], *, header: bool = True
-) -> Table:
-    """A rich table whose texts are shown as they are: unit brackets such as
-    ``[s]`` or ``[m/s]`` would otherwise be taken for rich markup and vanish."""
-    table = Table(title=Text(title), show_header=header)
-    for i, col in enumerate(columns):
-        table.add_column(Text(col), justify="left" if i == 0 and not header else "right")
-    for row in rows:
-        table.add_row(*(Text(cell) for cell in row))
-    return table
+def positive(option: str, value: float | None, *, allow_zero: bool = False) -> None:
+    """Raise a ConfigError naming ``option`` unless ``value`` is finite and > 0 (>= 0)."""
+    from ffexp.errors import ConfigError
+
+    if value is None:
+        return
+    ok = value >= 0.0 if allow_zero else value > 0.0
+    if not (ok and value < float("inf")):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ConfigError(option, str(value), f"must be finite and {bound}")
 
 
 class StopFlag:
@@ -72,7 +119,7 @@ class StopFlag:
 
     def exit_code(self) -> int | None:
         """128 + the signal's number once one came (the shell's convention), else None."""
-        return None if self.signum is None else 128 + self.signum
+        return None if self.signum is None else EXIT_SIGNAL_BASE + self.signum
 
 
 @contextmanager

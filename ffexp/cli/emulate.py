@@ -20,7 +20,7 @@ from pathlib import Path
 
 import typer
 
-from ffexp.cli._common import StopFlag, cli_errors, stop_signals
+from ffexp.cli._common import StopFlag, cli_errors, positive, stop_signals
 from ffexp.errors import ConfigError
 
 
@@ -79,6 +79,12 @@ def emulate(
     from drivers.sim.scene import Scene, load_scene
     from drivers.sim.world import SimWorld
 
+    positive("--duration", duration, allow_zero=True)
+    positive("--timeout-ms", timeout_ms)
+    for option, value in (("--port", port), ("--netft-port", netft_port)):
+        low = -1 if option == "--netft-port" else 0
+        if not low <= value <= 65535:
+            raise ConfigError(option, str(value), f"a UDP port is {low}..65535")
     if pacing not in ("realtime", "lockstep"):
         raise ConfigError("--pacing", pacing, "choose realtime or lockstep")
     if not 1 <= cycle_ms <= 100:

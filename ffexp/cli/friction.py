@@ -5,19 +5,49 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
-from pydantic import ValidationError
 
-from ffexp.cli._common import cli_errors
+from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors
 from ffexp.errors import InputError
+from ffexp.numfmt import fixed as _fixed
+from ffexp.numfmt import pm
+
+if TYPE_CHECKING:
+    from ffexp.friction.estimate import FrictionResult
 
 app = typer.Typer(
     help="Residual friction of the air-bed target from video.",
     no_args_is_help=True,
+    context_settings=CONTEXT_SETTINGS,
 )
+
+
+def summary(result: FrictionResult) -> str:
+    """The estimate in two lines, every number to the precision its uncertainty allows."""
+    e = result.estimate
+    f = e.fit
+    pct = round(100 * e.confidence)
+    if e.significant:
+        head = (
+            f"mu = {pm(e.mu, e.mu_std)} ({pct}%: [{_fixed(e.mu_low, e.mu_std)}, "
+            f"{_fixed(e.mu_high, e.mu_std)}])"
+        )
+    else:
+        head = (
+            f"mu < {_fixed(e.mu_upper_bound, e.mu_std)} ({pct}% upper bound; a is not "
+            f"significant: mu = {pm(e.mu, e.mu_std)})"
+        )
+    tail = (
+        f"decel {pm(f.decel_mps2, f.decel_std_mps2)} m/s², v0 {f.v_start_mps:.4f} m/s, "
+        f"{f.n_frames} frames over {f.window_s:.3f} s "
+        f"[{f.t_start_s:.3f}, {f.t_end_s:.3f}] s, ended: {result.interval.end_reason}, "
+        f"residual {f.residual_std_m * 1e6:.2g} µm, detectable mu {e.mu_detect_limit:.2g}"
+    )
+    if e.mu_high < 0.0:
+        tail += "\nwarning: the target speeds up (a tilted table or a push?)"
+    return head + "\n" + tail
 
 
 def _parse_size(text: str) -> tuple[int, int]:
@@ -63,6 +93,10 @@ def synth(
     ] = None,
 ) -> None:
     """Render a synthetic top-view video of a block sliding with known friction."""
+    import numpy as np
+    from pydantic import ValidationError
+
+    from ffexp.cli.progress import Steps
     from ffexp.friction.synth import FOURCC, SynthConfig, write_video
 
     width, height = _parse_size(size)
@@ -99,13 +133,14 @@ def synth(
         where = ".".join(str(p) for p in err["loc"]) or "parameters"
         raise InputError(f"synth: {where}: {err['msg']}") from None
     try:
-        result = write_video(
-            cfg,
-            out,
-            np.random.default_rng(seed),
-            codec=codec,  # type: ignore[arg-type]
-            truth_path=truth,
-        )
+        with Steps() as steps, steps.step(f"rendering {cfg.n_frames} frames"):
+            result = write_video(
+                cfg,
+                out,
+                np.random.default_rng(seed),
+                codec=codec,  # type: ignore[arg-type]
+                truth_path=truth,
+            )
     except ValueError as exc:
         raise InputError(f"{out}: {exc}") from None
     except OSError as exc:
@@ -154,7 +189,7 @@ def estimate(
     ] = None,
 ) -> None:
     """Estimate the friction coefficient from a video of the target sliding freely."""
-    from ffexp.friction.estimate import FrictionResult, Scale, estimate_video
+    from ffexp.friction.estimate import Scale, estimate_video
     from ffexp.friction.track import ProgressFn
 
     scale = Scale(px_per_m=px_per_m, object_size_m=object_size_m, table_points=table_points)
@@ -196,7 +231,8 @@ def estimate(
     if plot is not None:
         from ffexp.friction.plot import plot_result
 
-        plot_result(result, plot)
+        for path in plot_result(result, plot):
+            print(f"figure: {path}", file=sys.stderr if as_json else sys.stdout)
     if record is not None:
         from ffexp.friction.record import record_result
 
@@ -204,4 +240,4 @@ def estimate(
     if as_json:
         typer.echo(json.dumps(result.to_dict()))
     else:
-        typer.echo(result.summary())
+        typer.echo(summary(result))

@@ -1,27 +1,25 @@
-"""``ffexp analyze``, ``compare``, ``recover`` and ``topics``: working with recordings."""
+"""``ffexp analyze``, ``compare``, ``recover`` and ``topics``: working with recordings.
+
+Imports only typer, the standard library and light ffexp modules at module
+level; numpy, mcap and matplotlib load inside the commands.
+"""
 
 from __future__ import annotations
 
-import csv
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 import typer
-from rich.console import Console
-from rich.table import Table
 
-from ffexp.analysis import COMPARE_COLUMNS, compare_rows, metrics, run_info, write_run_figures
-from ffexp.cli._common import cli_errors, plain_table
-from ffexp.errors import InputError
-from ffexp.recording import load, recover
-from ffexp.recording.topics import describe
+from ffexp.cli._common import EXIT_BAD_INPUT, cli_errors, fail
+from ffexp.cli.progress import Steps
+from ffexp.cli.run import WIDE_HELP
 
-console = Console(width=170)
-
-
-def compare_table(text_rows: list[list[str]]) -> Table:
-    """The runs side by side, in the layout of the paper's Table (res_par)."""
-    return plain_table("runs", [title for title, _key in COMPARE_COLUMNS], text_rows)
+PLOTS_HELP = (
+    "Write each run's figures (PNG and SVG) into this directory; existing files are "
+    "kept (a taken name gets -1, -2, ...)."
+)
 
 
 def _warn(messages: list[str]) -> None:
@@ -29,64 +27,85 @@ def _warn(messages: list[str]) -> None:
         print(f"warning: {w}", file=sys.stderr)
 
 
+def _check_plots_dir(plots: Path | None) -> None:
+    from ffexp.errors import ConfigError
+
+    if plots is not None and plots.exists() and not plots.is_dir():
+        raise ConfigError("--plots", str(plots), "exists and is not a directory")
+
+
 @cli_errors
 def analyze(
     recordings: list[Path] = typer.Argument(..., help="Run recordings (.mcap)."),
-    as_json: bool = typer.Option(False, "--json", help="One JSON object per run on stdout."),
-    plots: Path | None = typer.Option(None, "--plots", help="Write the run's figures here."),
+    as_json: bool = typer.Option(
+        False, "--json", help="One JSON object per run on stdout (with file and complete)."
+    ),
+    plots: Path | None = typer.Option(None, "--plots", help=PLOTS_HELP),
 ) -> None:
     """Metrics of a run from its recording (and the paper's figures with --plots)."""
+    from ffexp import figures
+    from ffexp.analysis import metrics, run_name
+    from ffexp.cli.tables import console, json_line, key_value_table
+    from ffexp.recording import load
+
+    _check_plots_dir(plots)
+    con = console()
     for path in recordings:
         rec = load(path)
         _warn(rec.warnings)
         m = metrics(rec)
+        values = {"file": str(path), "run": run_name(rec), **asdict(m)}
+        values.pop("warnings")
         if as_json:
-            typer.echo(m.to_json())
+            typer.echo(json_line({**values, "warnings": m.warnings}))
         else:
-            _print_metrics(path, m.__dict__)
+            con.print(key_value_table(run_name(rec), values))
         if plots is not None:
-            name = str(run_info(rec).get("protocol", path.stem))
-            for fig in write_run_figures(rec, plots, name):
+            with Steps() as steps, steps.step(f"drawing the figures of {path.name}"):
+                written = figures.write_run_figures(rec, plots, run_name(rec))
+            for fig in written:
                 print(f"figure: {fig}", file=sys.stderr if as_json else sys.stdout)
-
-
-def _print_metrics(path: Path, values: dict[str, object]) -> None:
-    rows = [(key, _text(value)) for key, value in values.items() if key != "warnings"]
-    console.print(plain_table(str(path), ("metric", "value"), rows, header=False))
-
-
-def _text(v: object) -> str:
-    if isinstance(v, float):
-        return f"{v:.4g}"
-    if isinstance(v, list):
-        return "[" + ", ".join(_text(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return ", ".join(f"{k}={_text(x)}" for k, x in v.items())
-    return "-" if v is None else str(v)
 
 
 @cli_errors
 def compare(
     recordings: list[Path] = typer.Argument(..., help="Run recordings (.mcap)."),
-    csv_path: Path | None = typer.Option(None, "--csv", help="Also write the table as CSV."),
+    csv_path: Path | None = typer.Option(
+        None, "--csv", help="Also write the table as CSV data (full precision, every column)."
+    ),
+    as_json: bool = typer.Option(
+        False, "--json", help="Print one JSON object per run instead of the table."
+    ),
+    wide: bool = typer.Option(False, "--wide", help=WIDE_HELP),
 ) -> None:
-    """One table across runs: the paper's Table (res_par) layout plus our metrics."""
+    """One table across runs: the paper's Table (res_par) layout plus our metrics.
+
+    A run cut short (a killed run, read up to its last complete chunk) shows
+    complete = no.
+    """
+    from ffexp.analysis import COMPARE_COLUMNS, COMPARE_KEYS, compare_row
+    from ffexp.cli.tables import Column, console, fitted_table, json_line, write_csv
+    from ffexp.recording import load
+
+    if csv_path is not None and csv_path.is_dir():
+        raise fail(f"--csv: {csv_path}: is a directory, expected a file name", EXIT_BAD_INPUT)
     rows = []
-    for path in recordings:
-        rec = load(path)
-        _warn(rec.warnings)
-        rows.append((metrics(rec), run_info(rec)))
-    text_rows = compare_rows(rows)
-    console.print(compare_table(text_rows))
+    with Steps() as steps, steps.step("loading recordings", total=len(recordings)) as advance:
+        for path in recordings:
+            rec = load(path)
+            _warn(rec.warnings)
+            rows.append(compare_row(rec))
+            advance()
+    if as_json:
+        for row in rows:
+            typer.echo(json_line(row))
+    else:
+        con = console(wide=wide)
+        cols = [Column(t, k, p) for t, k, p in COMPARE_COLUMNS]
+        con.print(fitted_table(con, "runs", cols, rows))
     if csv_path is not None:
-        try:
-            with csv_path.open("w", newline="") as fh:
-                writer = csv.writer(fh)
-                writer.writerow([key for _t, key in COMPARE_COLUMNS])
-                writer.writerows(text_rows)
-        except OSError as exc:
-            raise InputError(f"{csv_path}: cannot write: {exc.strerror}") from None
-        typer.echo(f"wrote {csv_path}")
+        write_csv(csv_path, COMPARE_KEYS, rows)
+        print(f"wrote {csv_path}", file=sys.stderr if as_json else sys.stdout)
 
 
 @cli_errors
@@ -96,16 +115,58 @@ def recover_cmd(
         None, "-o", "--output", help="Default: <name>.recovered.mcap beside the input."
     ),
 ) -> None:
-    """Rewrite every complete chunk of an unfinished recording as a valid, indexed file."""
+    """Rewrite every complete chunk of an unfinished recording as a valid, indexed file.
+
+    Exit code 2 when the file holds no complete message to recover.
+    """
+    from ffexp.recording import recover
+
     dst = output or recording.with_suffix(".recovered.mcap")
     result = recover(recording, dst)
     state = "complete file" if result.complete else "unfinished file"
-    typer.echo(
+    line = (
         f"{recording}: {state}; recovered {result.messages} messages on {result.channels} "
         f"channels into {dst}"
     )
+    if result.messages == 0:
+        dst.unlink(missing_ok=True)
+        raise fail(f"{recording}: no complete message to recover ({state}); nothing written")
+    typer.echo(line)
 
 
-def topics() -> None:
-    """List every topic and field of a run recording."""
-    typer.echo(describe())
+@cli_errors
+def topics(
+    recording: Path | None = typer.Argument(
+        None, help="A recording: what it holds (topics, counts, rates, time span)."
+    ),
+    fields: bool = typer.Option(False, "--fields", help="Also list every field of each topic."),
+    wide: bool = typer.Option(False, "--wide", help=WIDE_HELP),
+) -> None:
+    """The topics of a run recording: all that ffexp writes, or what FILE holds."""
+    from ffexp.cli.tables import Column, console, fitted_table
+
+    con = console(wide=wide)
+    if recording is None:
+        from ffexp.recording.topics import field_rows, topic_rows
+
+        cols = [Column("topic", "topic"), Column("type", "type", 3, no_wrap=True, left=True),
+                Column("encoding", "encoding", 4, left=True),
+                Column("rate", "rate", 2, left=True), Column("what", "doc", 1, left=True)]
+        con.print(fitted_table(con, "topics of a run recording", cols, topic_rows()))
+        if fields:
+            fcols = [Column("topic", "topic"), Column("field", "field", no_wrap=True, left=True),
+                     Column("type", "type", 2, no_wrap=True, left=True),
+                     Column("unit", "unit", 1, no_wrap=True, left=True),
+                     Column("what", "doc", 3, left=True)]
+            con.print(fitted_table(con, "fields", fcols, field_rows()))
+        return
+    from ffexp.recording.reader import contents
+
+    summary = contents(recording)
+    _warn(summary.warnings)
+    cols = [Column("topic", "topic"), Column("messages", "messages"),
+            Column("rate [1/s]", "rate_hz"), Column("first [s]", "first_s", 2),
+            Column("last [s]", "last_s", 2), Column("type", "schema", 3, no_wrap=True, left=True)]
+    state = "complete" if summary.complete else "incomplete (cut)"
+    span = f"{summary.span_s:.3f} s" if summary.span_s is not None else "no messages"
+    con.print(fitted_table(con, f"{recording}: {state}, {span}", cols, summary.rows))

@@ -1,81 +1,67 @@
-"""``ffexp run`` and ``ffexp campaign``: the paper's experiments."""
+"""``ffexp run`` and ``ffexp campaign``: the paper's experiments.
+
+Imports only typer, the standard library and light ffexp modules at module
+level; the simulator, the analysis and matplotlib load inside the commands.
+"""
 
 from __future__ import annotations
 
-import sys
-from collections.abc import Callable
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
-from rich.console import Console
-from rich.table import Table
 
-from ffexp import controllers
-from ffexp.analysis import compare_rows, metrics, run_info, write_run_figures
-from ffexp.cli._common import SET_HELP, StopFlag, cli_errors, plain_table, stop_signals
-from ffexp.cli.records import compare_table
-from ffexp.contracts import Phase, Progress
-from ffexp.errors import FfexpError
-from ffexp.experiment import DRIVERS, FT_SOURCES, RigChoice, RunResult, load_campaign, run_file
-from ffexp.recording import load
+from ffexp.cli._common import (
+    EXIT_ABORTED,
+    EXIT_OK,
+    EXIT_TIMED_OUT,
+    SET_HELP,
+    StopFlag,
+    cli_errors,
+    stop_signals,
+)
+from ffexp.cli.progress import Steps
+from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
 
-console = Console(width=170)
-
-
-def _progress_printer(name: str) -> tuple[Callable[[Progress], None], Callable[[], None]]:
-    tty = sys.stderr.isatty()
-    last = [-1.0]
-
-    def show(p: Progress) -> None:
-        line = (
-            f"{name}: {p.phase.name:<8} t={p.time_s:6.2f} s  f_z={p.f_z_n:+6.2f} N  "
-            f"contacts={p.contacts} breaks={p.breaks}"
-        )
-        if tty:
-            print("\r" + line, end="", file=sys.stderr, flush=True)
-        elif p.time_s - last[0] >= 5.0:
-            last[0] = p.time_s
-            print(line, file=sys.stderr, flush=True)
-
-    def done() -> None:
-        if tty:
-            print(file=sys.stderr)
-
-    return show, done
-
-
-def _summary_table(results: list[RunResult]) -> Table:
-    rows = []
-    for r in results:
-        rec = load(r.path)
-        rows.append((metrics(rec), run_info(rec)))
-    return compare_table(compare_rows(rows))
-
-
-def _one(
-    protocol: Path, set_: list[str], rig: RigChoice, out: Path, flag: StopFlag
-) -> RunResult:
-    show, done = _progress_printer(protocol.stem)
-
-    def notice(line: str) -> None:
-        print(line, file=sys.stderr, flush=True)
-
-    try:
-        result = run_file(
-            protocol, set_, rig=rig, out_dir=out, progress=show, stop_requested=flag,
-            notice=notice,
-        )
-    finally:
-        done()
-    o = result.outcome
-    status = "aligned" if o.aligned else o.reason
-    typer.echo(f"{result.protocol.name}: {o.phase.name} ({status}) after {o.duration_s:.2f} s")
-    typer.echo(f"recording: {result.path}")
-    return result
-
+if TYPE_CHECKING:
+    from ffexp.contracts import RunOutcome
+    from ffexp.experiment import RunResult
+    from ffexp.recording import Recording
 
 RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardware number."
 RIG_SET_HELP = "Override a rig field, e.g. --rig-set robot.port=49939 (repeatable)."
+DRIVER_HELP = f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
+WIDE_HELP = "Show every table column (default: as many as fit the terminal)."
+
+
+def outcome_exit_code(outcome: RunOutcome) -> int:
+    """0 aligned, 4 timed out without aligning, 3 aborted (README "Exit codes")."""
+    from ffexp.contracts import Phase
+
+    if outcome.phase == Phase.ABORT:
+        return EXIT_ABORTED
+    return EXIT_OK if outcome.aligned else EXIT_TIMED_OUT
+
+
+def _one(
+    steps: Steps, protocol: Path, set_: Sequence[str], rig: RigChoice, out: Path,
+    flag: StopFlag, label: str,
+) -> RunResult:
+    from ffexp.experiment import run_file
+    from ffexp.protocol import load_run_protocol
+
+    timeout_s = load_run_protocol(protocol, list(set_)).run.timeout_s
+    with steps.run(label, timeout_s) as show:
+        result = run_file(
+            protocol, list(set_), rig=rig, out_dir=out, progress=show, stop_requested=flag,
+            notice=steps.note,
+        )
+    o = result.outcome
+    status = "aligned" if o.aligned else (o.reason or o.stop_reason.value)
+    typer.echo(f"{result.path.stem}: {o.phase.name} ({status}) after {o.duration_s:.2f} s")
+    typer.echo(f"recording: {result.path}")
+    return result
 
 
 def rig_choice(
@@ -98,13 +84,18 @@ def rig_choice(
     return RigChoice(path=rig, overrides=tuple(overrides), driver=None if rig else driver)
 
 
+def _check_out(out: Path) -> None:
+    from ffexp.errors import ConfigError
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError("--out", str(out), "exists and is not a directory")
+
+
 @cli_errors
 def run(
     protocol: Path = typer.Argument(..., help="Run protocol TOML (protocols/method*.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
-    driver: str = typer.Option(
-        "sim", "--driver", help=f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
-    ),
+    driver: str = typer.Option("sim", "--driver", help=DRIVER_HELP),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(Path("runs"), "--out", help="Directory for the MCAP recording."),
@@ -114,102 +105,186 @@ def run(
     robot_ip: str = typer.Option("", "--robot-ip", help="Rig robot.robot_ip: the KRC's address."),
     ft: str = typer.Option("", "--ft", help=f"Rig ft.type: {', '.join(FT_SOURCES)}."),
     netft: str = typer.Option("", "--netft", help="Rig ft.host and ft.port as HOST[:PORT]."),
+    wide: bool = typer.Option(False, "--wide", help=WIDE_HELP),
 ) -> None:
-    """Run one experiment; print a summary and the path of its recording."""
+    """Run one experiment; print a summary and the path of its recording.
+
+    Exit code: 0 aligned, 4 timed out without aligning, 3 aborted, 2 bad input,
+    1 a device or simulation failure, 128+N on signal N.
+    """
+    _check_out(out)
     choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft)
-    with stop_signals(StopFlag()) as flag:
-        result = _one(protocol, set_, choice, out, flag)
-    console.print(_summary_table([result]))
+    with stop_signals(StopFlag()) as flag, Steps() as steps:
+        result = _one(steps, protocol, set_, choice, out, flag, protocol.stem)
+        with steps.step("loading the recording"):
+            recs = [_load(result.path)]
+    _print_runs(recs, wide)
     code = flag.exit_code()
-    if code is not None:
-        raise typer.Exit(code)
-    if result.outcome.phase == Phase.ABORT:
-        raise typer.Exit(3)
+    raise typer.Exit(code if code is not None else outcome_exit_code(result.outcome))
+
+
+def _load(path: Path) -> Recording:
+    from ffexp.recording import load
+
+    return load(path)
+
+
+def _print_runs(recs: Sequence[Recording], wide: bool) -> None:
+    from ffexp.analysis import COMPARE_COLUMNS, compare_row
+    from ffexp.cli.tables import Column, console, fitted_table
+
+    con = console(wide=wide)
+    cols = [Column(t, k, p) for t, k, p in COMPARE_COLUMNS]
+    con.print(fitted_table(con, "runs", cols, [compare_row(r) for r in recs]))
 
 
 @cli_errors
 def campaign(
     campaign_file: Path = typer.Argument(..., help="Campaign TOML (protocols/paper.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
-    driver: str = typer.Option(
-        "sim", "--driver", help=f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
-    ),
+    driver: str = typer.Option("sim", "--driver", help=DRIVER_HELP),
     set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol."),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
-    out: Path = typer.Option(Path("runs"), "--out", help="Directory for recordings and figures."),
+    out: Path = typer.Option(
+        Path("runs"), "--out",
+        help="Parent directory: the campaign writes into OUT/<campaign>-<time>/.",
+    ),
+    wide: bool = typer.Option(False, "--wide", help=WIDE_HELP),
 ) -> None:
-    """Run several protocols and compare them with the paper's Table (res_par)."""
+    """Run several protocols and compare them with the paper's Table (res_par).
+
+    Everything goes into one campaign directory OUT/<campaign>-<time>/: the
+    recordings, the figures (PNG and SVG) and campaign.json, which
+    `ffexp report` reads. Exit code: 0 when every run ran to its end (aligned
+    or not), 2 bad input, 128+N on signal N.
+    """
+    from datetime import UTC, datetime
+
+    from ffexp.experiment import load_campaign
+    from ffexp.naming import stamp
+
+    _check_out(out)
     camp = load_campaign(campaign_file)
     choice = rig_choice(rig, driver, rig_set)
+    camp_dir = _new_dir(out, f"{camp.name}-{stamp(datetime.now(UTC))}")
     results: list[RunResult] = []
-    with stop_signals(StopFlag()) as flag:
-        for entry in camp.runs:
-            if flag():
-                break
-            results.append(
-                _one(campaign_file.parent / entry.protocol, [*entry.set, *set_], choice, out, flag)
-            )
-    _paper_table(results)
-    console.print(_summary_table(results))
-    figures = _campaign_figures(results, out / f"{camp.name}-figures")
+    with stop_signals(StopFlag()) as flag, Steps() as steps:
+        with steps.step(f"campaign {camp.name}", total=len(camp.runs)) as advance:
+            for i, entry in enumerate(camp.runs):
+                if flag():
+                    break
+                label = f"{i + 1}/{len(camp.runs)} {Path(entry.protocol).stem}"
+                results.append(_one(
+                    steps, campaign_file.parent / entry.protocol, [*entry.set, *set_], choice,
+                    camp_dir, flag, label,
+                ))
+                advance()
+        with steps.step("loading the recordings", total=len(results)) as advance:
+            recs = []
+            for r in results:
+                recs.append(_load(r.path))
+                advance()
+        _write_manifest(camp_dir, campaign_file, camp.name, results)
+        _paper_table(recs, wide)
+        _print_runs(recs, wide)
+        figures = _campaign_figures(steps, camp.name, recs, camp_dir / "figures")
     for path in figures:
         typer.echo(f"figure: {path}")
+    typer.echo(f"campaign: {camp_dir} (ffexp report {camp_dir})")
     code = flag.exit_code()
-    if code is not None:
-        raise typer.Exit(code)
+    raise typer.Exit(code if code is not None else EXIT_OK)
 
 
-def _paper_table(results: list[RunResult]) -> None:
-    columns = ("run", "f_ref [N]", "k_xp", "k_yp", "paper contact [s]", "ours contact [s]",
-               "paper end [s]", "ours aligned [s]", "ours breaks", "ours end")
-    rows = []
-    for r in results:
-        paper = r.protocol.paper
-        start = paper.get("start_s")
-        rec = load(r.path)
-        m = metrics(rec)
+def _new_dir(parent: Path, name: str) -> Path:
+    """A new directory ``parent/name`` (or ``name-1``, ...), never an existing one."""
+    from ffexp.errors import InputError
 
-        def rel(key: str, paper: dict[str, float | str] = paper, start: object = start) -> str:
-            v = paper.get(key)
-            if isinstance(v, float) and isinstance(start, float):
-                return f"{v - start:.1f}"
-            return "-" if v is None else str(v)
+    k = 0
+    while True:
+        path = parent / (name if k == 0 else f"{name}-{k}")
+        try:
+            path.mkdir(parents=True)
+        except FileExistsError:
+            k += 1
+            continue
+        except OSError as exc:
+            raise InputError(f"{parent}: cannot create a directory: {exc.strerror}") from None
+        return path
 
-        align = r.protocol.align
-        k_ri = getattr(align, "k_ri", None)
-        f_ref = getattr(align, "f_ref", None)
-        force = controllers.tracks_force_reference(r.protocol.method)
-        rows.append((
-            r.protocol.name,
-            f"{f_ref[2]:g}" if force and f_ref is not None else "-",
-            f"{k_ri[3]:g}" if k_ri is not None else "-",
-            f"{k_ri[1]:g}" if k_ri is not None else "-",
-            rel("contact_s"),
-            "-" if m.first_contact_s is None else f"{m.first_contact_s:.1f}",
-            rel("end_s"),
-            "-" if m.alignment_time_s is None else f"{m.alignment_time_s:.1f}",
-            str(m.contact_breaks),
-            r.outcome.reason or r.outcome.phase.name,
-        ))
+
+def _write_manifest(
+    camp_dir: Path, campaign_file: Path, name: str, results: Sequence[RunResult]
+) -> None:
+    """``campaign.json``: the campaign file, its text and the runs (for ``ffexp report``)."""
+    import json
+
+    from ffexp.revision import source_revision
+
+    manifest = {
+        "kind": "campaign",
+        "name": name,
+        "campaign_file": str(campaign_file),
+        "campaign_toml": campaign_file.read_text(),
+        "source_revision": source_revision(),
+        "runs": [
+            {
+                "recording": r.path.name,
+                "protocol": r.protocol.name,
+                "aligned": r.outcome.aligned,
+                "end": r.outcome.stop_reason.value,
+            }
+            for r in results
+        ],
+    }
+    (camp_dir / "campaign.json").write_text(json.dumps(manifest, indent=2) + "\n")
+
+
+def _paper_table(recs: Sequence[Recording], wide: bool) -> None:
+    from ffexp.analysis import PAPER_COLUMNS, paper_row
+    from ffexp.cli.tables import Column, console, fitted_table
+
+    con = console(wide=wide)
+    cols = [Column(t, k, p, digits=2) for t, k, p in PAPER_COLUMNS]
+    rows = [row for row in (paper_row(r) for r in recs) if row is not None]
     title = "paper Table res_par vs this run (times since the start of the experiment)"
-    console.print(plain_table(title, columns, rows))
+    con.print(fitted_table(con, title, cols, rows))
 
 
-def _campaign_figures(results: list[RunResult], out_dir: Path) -> list[Path]:
-    from ffexp.analysis import campaign_figure
+def _campaign_figures(
+    steps: Steps, name: str, recs: Sequence[Recording], out_dir: Path
+) -> list[Path]:
+    from ffexp import figures
+    from ffexp.analysis import run_name
+    from ffexp.errors import FfexpError
 
-    if not results:
+    if not recs:
         return []
-    out_dir.mkdir(parents=True, exist_ok=True)
-    recs = [(r.protocol.name, load(r.path)) for r in results]
     paths: list[Path] = []
-    try:
-        fig = campaign_figure(recs)
-        path = out_dir / "exp_all_wrench.png"
-        fig.savefig(path, dpi=130)
-        paths.append(path)
-        for name, rec in recs:
-            paths.extend(write_run_figures(rec, out_dir, name))
-    except FfexpError as exc:
-        typer.echo(f"warning: figures incomplete: {exc}", err=True)
+    with steps.step("drawing figures", total=1 + 2 * len(recs)) as advance:
+        try:
+            with figures.style():
+                labelled = [(_run_title(rec), rec) for rec in recs]
+                fig = figures.campaign_figure(labelled, name)
+                paths.extend(figures.save(fig, out_dir, f"{name}_all_wrench"))
+                advance()
+            for rec in recs:
+                for path in figures.write_run_figures(rec, out_dir, run_name(rec)):
+                    paths.append(path)
+                advance(2)
+        except FfexpError as exc:
+            steps.note(f"warning: figures incomplete: {exc}")
     return paths
+
+
+def _run_title(rec: Recording) -> str:
+    """A run's title in figures: its name and its overrides."""
+    import json
+
+    from ffexp.analysis import run_name
+
+    meta = rec.metadata.get("run", {})
+    try:
+        overrides = json.loads(meta.get("overrides", "[]"))
+    except json.JSONDecodeError:
+        overrides = []
+    return run_name(rec) + (f" ({' '.join(overrides)})" if overrides else "")

@@ -3,36 +3,40 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
-from pydantic import ValidationError
-from rich.console import Console
 
-from drivers.config import load_model
-from ffexp.cli._common import SET_HELP, cli_errors, plain_table
-from ffexp.contact1dof import MAX_SAMPLES, ContactParams, Summary, simulate, summarize
-from ffexp.errors import ConfigError
-from ffexp.sweep import SUMMARY_COLUMNS, SweepProtocol, run_sweep, summary_rows, write_outputs
-from ffexp.sweep import write_trajectory_csv as write_csv
+from ffexp.cli._common import CONTEXT_SETTINGS, SET_HELP, cli_errors
+
+if TYPE_CHECKING:
+    from ffexp.contact1dof import ContactParams, Summary
 
 app = typer.Typer(
     help="Simulations of the paper's Section III contact model.",
     no_args_is_help=True,
+    context_settings=CONTEXT_SETTINGS,
 )
 
-_D = ContactParams()
+#: The defaults are the model's (ffexp.contact1dof.ContactParams: the paper's sim2).
+_D = " Default: the paper's Table, column sim2."
+#: Which sweep summary columns a narrow terminal drops first (highest first).
+_SWEEP_PRIORITY = {
+    "value": 0, "peak_F_c": 0, "contact_broke": 0, "t_peak": 1, "break_time": 1,
+    "min_F_c": 2, "settling_time": 3, "final_v_t": 4, "final_v_i": 5,
+}
 
 
 @app.command("contact-1dof")
 @cli_errors
 def contact_1dof(
-    m_ri: float = typer.Option(_D.m_ri, "--m-ri", help="Manipulator mass (kg)."),
-    m_t: float = typer.Option(_D.m_t, "--m-t", help="Target mass (kg)."),
-    k_ri: float = typer.Option(_D.k_ri, "--k-ri", help="Manipulator stiffness (N/m)."),
-    b_ri: float = typer.Option(_D.b_ri, "--b-ri", help="Manipulator damping (N s/m)."),
-    k_c: float = typer.Option(_D.k_c, "--k-c", help="Contact stiffness (N/m)."),
-    b_c: float = typer.Option(_D.b_c, "--b-c", help="Contact damping (N s/m)."),
-    v0: float = typer.Option(_D.v0, "--v0", help="Initial manipulator velocity (m/s)."),
+    m_ri: float | None = typer.Option(None, "--m-ri", help="Manipulator mass (kg)." + _D),
+    m_t: float | None = typer.Option(None, "--m-t", help="Target mass (kg)." + _D),
+    k_ri: float | None = typer.Option(None, "--k-ri", help="Manipulator stiffness (N/m)." + _D),
+    b_ri: float | None = typer.Option(None, "--b-ri", help="Manipulator damping (N s/m)." + _D),
+    k_c: float | None = typer.Option(None, "--k-c", help="Contact stiffness (N/m)." + _D),
+    b_c: float | None = typer.Option(None, "--b-c", help="Contact damping (N s/m)." + _D),
+    v0: float | None = typer.Option(None, "--v0", help="Initial manipulator velocity (m/s)." + _D),
     duration: float = typer.Option(3.0, "--duration", help="Simulated time (s)."),
     dt: float = typer.Option(0.001, "--dt", help="Output sample period (s)."),
     unilateral: bool = typer.Option(
@@ -43,10 +47,17 @@ def contact_1dof(
     ),
 ) -> None:
     """One run of the 1-DOF contact model (defaults: the paper's Table, sim2, k_ri = 0)."""
+    from pydantic import ValidationError
+
+    from ffexp.contact1dof import MAX_SAMPLES, ContactParams, simulate, summarize
+    from ffexp.errors import ConfigError
+    from ffexp.sweep import write_trajectory_csv as write_csv
+
+    given = {"m_ri": m_ri, "m_t": m_t, "k_ri": k_ri, "b_ri": b_ri, "k_c": k_c, "b_c": b_c,
+             "v0": v0}
     try:
         params = ContactParams(
-            m_ri=m_ri, m_t=m_t, k_ri=k_ri, b_ri=b_ri, k_c=k_c, b_c=b_c, v0=v0,
-            unilateral=unilateral,
+            **{k: v for k, v in given.items() if v is not None}, unilateral=unilateral,
         )
     except ValidationError as exc:
         err = exc.errors()[0]
@@ -91,14 +102,31 @@ def sweep(
     out: Path = typer.Option(Path("runs"), "--out", help="Output directory."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
 ) -> None:
-    """Run a Section III sweep and write its F_c(t) figure (PNG, SVG) and CSVs."""
+    """Run a Section III sweep and write its F_c(t) figure (PNG, SVG) and CSVs.
+
+    Never overwrites: files whose names are taken in OUT get -1, -2, ...
+    """
+    from drivers.config import load_model
+    from ffexp.cli.progress import Steps
+    from ffexp.cli.tables import Column, console, fitted_table
+    from ffexp.errors import ConfigError
+    from ffexp.sweep import SUMMARY_COLUMNS, SweepProtocol, run_sweep, summary_rows, write_outputs
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError("--out", str(out), "exists and is not a directory")
     proto = load_model(SweepProtocol, protocol, set_)
-    results = run_sweep(proto)
-    try:
-        paths = write_outputs(proto, results, out)
-    except OSError as exc:
-        raise ConfigError(str(out), "", f"cannot write: {exc.strerror}") from None
+    with Steps() as steps:
+        with steps.step(f"sweep {proto.name}"):
+            results = run_sweep(proto)
+        with steps.step("writing figures and CSVs"):
+            try:
+                paths = write_outputs(proto, results, out)
+            except OSError as exc:
+                raise ConfigError(str(out), "", f"cannot write: {exc.strerror}") from None
     title = f"{proto.name}: {proto.description}".rstrip(": ")
-    Console(width=160).print(plain_table(title, SUMMARY_COLUMNS, summary_rows(results)))
+    con = console()
+    cols = [Column(c, c, _SWEEP_PRIORITY.get(c, 5)) for c in SUMMARY_COLUMNS]
+    rows = [dict(zip(SUMMARY_COLUMNS, r, strict=True)) for r in summary_rows(results)]
+    con.print(fitted_table(con, title, cols, rows))
     for path in paths:
         typer.echo(f"wrote {path}")

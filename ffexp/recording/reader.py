@@ -31,7 +31,8 @@ from ffexp.recording.schema import FieldSpec, MessageSpec
 from ffexp.recording.topics import CDR_TOPICS
 
 MAGIC = b"\x89MCAP0\r\n"
-_READ_ERRORS = (EndOfFile, McapError, struct.error, ValueError, MemoryError)
+# OSError: a file shorter than a footer cannot even be seeked to its summary
+_READ_ERRORS = (EndOfFile, McapError, struct.error, ValueError, MemoryError, OSError)
 
 
 @dataclass
@@ -320,3 +321,84 @@ def recover(src: Path, dst: Path) -> RecoverResult:
 
 def _in_order(messages: list[Message]) -> Iterator[Message]:
     return iter(sorted(messages, key=lambda m: m.log_time))
+
+
+@dataclass
+class Contents:
+    """What a recording holds (``ffexp topics FILE``): one row per topic."""
+
+    path: Path
+    complete: bool
+    span_s: float | None
+    rows: list[dict[str, Any]]
+    warnings: list[str]
+
+
+def contents(path: Path) -> Contents:
+    """Topics, message counts, rates and time span of a recording.
+
+    A finished file answers from its summary (statistics and channels, no
+    message is decompressed); an unfinished one is read record by record.
+    Times are seconds since the first message of the file.
+    """
+    _check_magic(path)
+    counts: dict[str, int] = {}
+    first: dict[str, int] = {}
+    last: dict[str, int] = {}
+    schema_of: dict[str, str] = {}
+    complete = False
+    with path.open("rb") as fh:
+        try:
+            reader = make_reader(fh)
+            summary = reader.get_summary()
+        except _READ_ERRORS:
+            summary = None
+        if summary is not None:
+            complete = True
+            stats = summary.statistics
+            for cid, ch in summary.channels.items():
+                counts[ch.topic] = counts.get(ch.topic, 0) + (
+                    stats.channel_message_counts.get(cid, 0) if stats else 0
+                )
+                schema = summary.schemas.get(ch.schema_id)
+                schema_of[ch.topic] = schema.name if schema is not None else ""
+            for idx in summary.chunk_indexes:
+                for cid in idx.message_index_offsets:
+                    topic = summary.channels[cid].topic
+                    first[topic] = min(first.get(topic, idx.message_start_time),
+                                       idx.message_start_time)
+                    last[topic] = max(last.get(topic, idx.message_end_time), idx.message_end_time)
+    warnings: list[str] = []
+    if summary is None or not summary.chunk_indexes:
+        stream = _read_stream(path)
+        complete = complete and stream.complete
+        if summary is None:
+            warnings.append(f"{path}: recording is incomplete; `ffexp recover` rewrites it")
+        counts = {ch.topic: 0 for ch in stream.channels.values()}
+        for ch in stream.channels.values():
+            schema = stream.schemas.get(ch.schema_id)
+            schema_of[ch.topic] = schema.name if schema is not None else ""
+        for m in stream.messages:
+            mch = stream.channels.get(m.channel_id)
+            if mch is None:
+                continue
+            counts[mch.topic] += 1
+            first[mch.topic] = min(first.get(mch.topic, m.log_time), m.log_time)
+            last[mch.topic] = max(last.get(mch.topic, m.log_time), m.log_time)
+    t0 = min(first.values(), default=None)
+    t1 = max(last.values(), default=None)
+    rows = []
+    for topic in sorted(counts):
+        n = counts[topic]
+        a, b = first.get(topic), last.get(topic)
+        span = (b - a) / 1e9 if a is not None and b is not None else None
+        rows.append({
+            "topic": topic,
+            "messages": n,
+            "rate_hz": (n - 1) / span if span and n > 1 else None,
+            "first_s": (a - t0) / 1e9 if a is not None and t0 is not None else None,
+            "last_s": (b - t0) / 1e9 if b is not None and t0 is not None else None,
+            "schema": schema_of.get(topic, ""),
+        })
+    span_s = (t1 - t0) / 1e9 if t0 is not None and t1 is not None else None
+    return Contents(path, complete, span_s, rows, warnings)

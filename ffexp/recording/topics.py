@@ -351,3 +351,35 @@ def describe() -> str:
         for name in j.schema["properties"]:
             out.append(f"    {name}")
     return "\n".join(out)
+
+
+def topic_rows() -> list[dict[str, str]]:
+    """One row per topic: topic, type, encoding, rate, what it holds (``ffexp topics``)."""
+    rows = [
+        {"topic": t.topic, "type": t.spec.name, "encoding": "cdr", "rate": t.rate,
+         "doc": t.spec.doc}
+        for t in CDR_TOPICS.values()
+    ]
+    rows += [
+        {"topic": j.topic, "type": j.schema_name, "encoding": "json", "rate": j.rate,
+         "doc": j.doc}
+        for j in JSON_TOPICS.values()
+    ]
+    return rows
+
+
+def field_rows() -> list[dict[str, str]]:
+    """One row per field of every topic (``ffexp topics --fields``)."""
+    rows = []
+    for t in CDR_TOPICS.values():
+        for f in t.spec.fields:
+            arr = f"[{f.count}]" if f.count > 1 else ""
+            rows.append({"topic": t.topic, "field": f.name, "type": f"{f.type}{arr}",
+                         "unit": f.unit, "doc": f.doc})
+    for j in JSON_TOPICS.values():
+        for name, prop in j.schema["properties"].items():
+            kind = prop.get("type", "object")
+            rows.append({"topic": j.topic, "field": name,
+                         "type": "|".join(kind) if isinstance(kind, list) else str(kind),
+                         "unit": "", "doc": str(prop.get("description", ""))})
+    return rows

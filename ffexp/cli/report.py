@@ -1,0 +1,30 @@
+"""``ffexp report DIR``: one self-contained HTML page for a campaign or sweep directory."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from ffexp.cli._common import cli_errors
+from ffexp.cli.progress import Steps
+
+
+@cli_errors
+def report(
+    directory: Path = typer.Argument(..., help="A campaign or sweep directory."),
+    out: Path | None = typer.Option(
+        None, "--out", "-o", help="The HTML file (default: DIR/report-<time>.html, never "
+        "overwriting)."
+    ),
+) -> None:
+    """Write one HTML page (images embedded) for a campaign or sweep: the paper's table
+    beside ours, the summary tables, the figures, versions, source revision, protocols."""
+    from ffexp.errors import ConfigError
+    from ffexp.report import write_report
+
+    if out is not None and out.is_dir():
+        raise ConfigError("--out", str(out), "is a directory; give the HTML file's name")
+    with Steps() as steps, steps.step(f"report of {directory}"):
+        path = write_report(directory, out)
+    typer.echo(f"report: {path}")

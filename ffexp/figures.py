@@ -120,6 +120,9 @@ def phase_legend(fig: Figure, s_list: Sequence[RunSeries]) -> None:
 
 
 def _ref(s: RunSeries) -> np.ndarray:
+    """f_ref along Z in ALIGN (NaN elsewhere, and all NaN for a method without one)."""
+    if not np.any(s.f_ref[:, 2]):
+        return np.full(len(s.t_s), np.nan)
     out: np.ndarray = np.where(s.phase == Phase.ALIGN, s.f_ref[:, 2], np.nan)
     return out
 
@@ -167,7 +170,7 @@ def wrench_figure(rec: Recording, title: str) -> Figure:
     ax.set_xlabel("time since start [s]")
     ax.legend(loc="upper left")
     phase_legend(fig, [s])
-    fig.suptitle(f"{title}: measured contact wrench (TCF, environment on tool)")
+    fig.suptitle(f"{title}\nmeasured contact wrench (TCF, environment on tool)")
     return fig
 
 
@@ -198,7 +201,7 @@ def applied_figure(rec: Recording, title: str) -> Figure:
         ax.set_ylabel(unit)
         ax.legend(loc="upper left")
     phase_legend(fig, [s])
-    fig.suptitle(f"{title}: contact and applied wrench")
+    fig.suptitle(f"{title}\ncontact and applied wrench")
     return fig
 
 
@@ -210,6 +213,7 @@ def campaign_figure(recs: Sequence[tuple[str, Recording]], title: str) -> Figure
     fig = new_figure(11.0, 1.9 * n + 1.2)
     axes = np.atleast_2d(fig.subplots(n, 2, sharex=True, squeeze=False))
     seen = []
+    twins = []
     for row, (name, rec) in zip(axes, recs, strict=True):
         s = series(rec)
         seen.append(s)
@@ -227,12 +231,13 @@ def campaign_figure(recs: Sequence[tuple[str, Recording]], title: str) -> Figure
         ax_t.plot(s.t_s, s.wrench[:, 3], color="tab:green", label="t_x [N m]")
         ax_t.set_ylabel("t_x [N m]", color="tab:green")
         ax_t.grid(False)
+        twins.append(ax_t)
         ax_l.set_title("lateral force (left axis), torque about X (right axis)", loc="left")
     for ax in axes[-1]:
         ax.set_xlabel("time since start [s]")
     axes[0][0].legend(loc="upper left")
-    handles = [*axes[0][1].get_lines()]
-    axes[0][1].legend(handles, [str(h.get_label()) for h in handles], loc="upper left")
+    lines = [*axes[0][1].get_lines(), *twins[0].get_lines()]
+    axes[0][1].legend(lines, [str(h.get_label()) for h in lines], loc="upper left")
     phase_legend(fig, seen)
     fig.suptitle(f"{title}: contact force at the force scale; lateral wrench (TCF)")
     return fig

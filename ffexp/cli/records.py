@@ -84,7 +84,14 @@ def compare(
     complete = no.
     """
     from ffexp.analysis import COMPARE_COLUMNS, COMPARE_KEYS, compare_row
-    from ffexp.cli.tables import Column, console, fitted_table, json_line, write_csv
+    from ffexp.cli.tables import (
+        Column,
+        compact_runs,
+        console,
+        fitted_table,
+        json_line,
+        write_csv,
+    )
     from ffexp.recording import load
 
     if csv_path is not None and csv_path.is_dir():
@@ -102,7 +109,8 @@ def compare(
     else:
         con = console(wide=wide)
         cols = [Column(t, k, p) for t, k, p in COMPARE_COLUMNS]
-        con.print(fitted_table(con, "runs", cols, rows))
+        shown, day = compact_runs(rows)
+        con.print(fitted_table(con, day or "runs", cols, shown))
     if csv_path is not None:
         write_csv(csv_path, COMPARE_KEYS, rows)
         print(f"wrote {csv_path}", file=sys.stderr if as_json else sys.stdout)

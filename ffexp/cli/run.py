@@ -131,11 +131,12 @@ def _load(path: Path) -> Recording:
 
 def _print_runs(recs: Sequence[Recording], wide: bool) -> None:
     from ffexp.analysis import COMPARE_COLUMNS, compare_row
-    from ffexp.cli.tables import Column, console, fitted_table
+    from ffexp.cli.tables import Column, compact_runs, console, fitted_table
 
     con = console(wide=wide)
     cols = [Column(t, k, p) for t, k, p in COMPARE_COLUMNS]
-    con.print(fitted_table(con, "runs", cols, [compare_row(r) for r in recs]))
+    rows, day = compact_runs([compare_row(r) for r in recs])
+    con.print(fitted_table(con, day or "runs", cols, rows))
 
 
 @cli_errors
@@ -188,8 +189,8 @@ def campaign(
         _paper_table(recs, wide)
         _print_runs(recs, wide)
         figures = _campaign_figures(steps, camp.name, recs, camp_dir / "figures")
-    for path in figures:
-        typer.echo(f"figure: {path}")
+    if figures:
+        typer.echo(f"figures: {len(figures)} files (PNG and SVG) in {figures[0].parent}")
     typer.echo(f"campaign: {camp_dir} (ffexp report {camp_dir})")
     code = flag.exit_code()
     raise typer.Exit(code if code is not None else EXIT_OK)
@@ -241,12 +242,12 @@ def _write_manifest(
 
 def _paper_table(recs: Sequence[Recording], wide: bool) -> None:
     from ffexp.analysis import PAPER_COLUMNS, paper_row
-    from ffexp.cli.tables import Column, console, fitted_table
+    from ffexp.cli.tables import Column, compact_runs, console, fitted_table
 
     con = console(wide=wide)
     cols = [Column(t, k, p, digits=2) for t, k, p in PAPER_COLUMNS]
-    rows = [row for row in (paper_row(r) for r in recs) if row is not None]
-    title = "paper Table res_par vs this run (times since the start of the experiment)"
+    rows, _day = compact_runs([row for row in (paper_row(r) for r in recs) if row is not None])
+    title = "paper Table res_par vs ours (times since the start of the experiment)"
     con.print(fitted_table(con, title, cols, rows))
 
 

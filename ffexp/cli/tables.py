@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -111,6 +112,27 @@ def fitted_table(
     if dropped:
         title = f"{title} ({dropped} columns left out; --wide shows all)"
     return _build(title, keep, rows)
+
+
+_DATE = re.compile(r"-(\d{8})-(\d{6})(-\d+)?$")
+
+
+def compact_runs(
+    rows: Sequence[Mapping[str, Any]], key: str = "run"
+) -> tuple[list[dict[str, Any]], str]:
+    """Rows whose run names drop the date when every run is of the same UTC day
+    (``method2-base-20261123-190102`` shows as ``method2-base-190102``), and a
+    note for the title naming that day ("" if nothing was dropped)."""
+    dates = {m.group(1) for r in rows if (m := _DATE.search(str(r.get(key, ""))))}
+    if len(dates) != 1 or not all(_DATE.search(str(r.get(key, ""))) for r in rows):
+        return [dict(r) for r in rows], ""
+    out = []
+    for r in rows:
+        row = dict(r)
+        row[key] = _DATE.sub(lambda m: f"-{m.group(2)}{m.group(3) or ''}", str(r[key]))
+        out.append(row)
+    (day,) = dates
+    return out, f"runs of {day[:4]}-{day[4:6]}-{day[6:]} UTC"
 
 
 def key_value_table(title: str, values: Mapping[str, Any]) -> Table:

@@ -50,6 +50,8 @@ th,td{border:1px solid #ccc;padding:2px 6px;text-align:right}
 th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
 .side{display:flex;gap:2em;flex-wrap:wrap}.meta td{text-align:left}
 img{max-width:100%;border:1px solid #ddd;margin:0.5em 0}
+figure{display:inline-block;width:48%;margin:0.5em 1% 0.5em 0;vertical-align:top}
+figure.wide{width:98%}figcaption{font-size:0.8em;color:#555}
 pre{background:#f7f7f7;padding:0.5em;overflow-x:auto;font-size:0.8em}
 .warn{color:#a33}
 """
@@ -153,10 +155,11 @@ def _csv_html(path: Path, root: Path) -> str:
     return f"<h3>{rel}{html.escape(note)}</h3>{table}"
 
 
-def _img(data: bytes, alt: str) -> str:
+def _img(data: bytes, alt: str, wide: bool = False) -> str:
     uri = "data:image/png;base64," + base64.b64encode(data).decode()
-    return f'<figure><img src="{uri}" alt="{html.escape(alt)}"><figcaption>' \
-           f"{html.escape(alt)}</figcaption></figure>"
+    cls = ' class="wide"' if wide else ""
+    return (f'<figure{cls}><img src="{uri}" alt="{html.escape(alt)}"><figcaption>'
+            f"{html.escape(alt)}</figcaption></figure>")
 
 
 def _drawn_figures(recs: Sequence[Recording], title: str) -> list[tuple[str, bytes]]:
@@ -222,11 +225,14 @@ def render(data: ReportInput) -> str:
         parts.extend(_csv_html(p, data.directory) for p in data.csv_files)
     parts.append("<h2>Figures</h2>")
     if data.images:
-        for p in data.images:
-            parts.append(_img(p.read_bytes(), str(p.relative_to(data.directory))))
+        # the figures of every run together first, then each run's
+        overview = [p for p in data.images if "_all_" in p.name]
+        for p in [*overview, *(p for p in data.images if p not in overview)]:
+            parts.append(_img(p.read_bytes(), str(p.relative_to(data.directory)),
+                              wide=p in overview))
     else:
         for alt, png in _drawn_figures(data.recordings, name):
-            parts.append(_img(png, alt))
+            parts.append(_img(png, alt, wide=True))
     parts.append("<h2>Versions and source revisions</h2>")
     parts.append(_table([("package", "package"), ("versions", "versions")],
                         _versions(data.recordings), caption="as recorded in the runs"))

@@ -41,6 +41,13 @@ Fault injection (:mod:`drivers.emulate.faults`, seeded; from the first
 ``friStart`` on unless ``faults_from_start``; in lockstep a reorder is only
 a delay: nothing else is in flight).
 
+Software limit switches (:func:`~drivers.emulate.krc.software_limit_error`,
+``software_limits_deg``): a joint at its limit after a step makes the KRC
+leave CMD with the error latched in every following measurement (``error``
+bits, :data:`~drivers.fri.link.ERROR_SOFTWARE_LIMIT`); the next step brakes
+the arm where it is (:func:`~drivers.emulate.krc.brake_command`) and it stays
+held; CMD does not start again while the error is latched.
+
 The world's F/T samples of each cycle go to an optional
 :class:`~drivers.emulate.netft_box.NetFtServer` after the step.
 """
@@ -60,10 +67,14 @@ import numpy as np
 
 from drivers.emulate.faults import FaultCounters, FaultSettings, FaultyLink
 from drivers.emulate.krc import (
+    SOFTWARE_LIMITS_DEG,
     arm_command_from_fri,
+    brake_command,
     control_mode,
     fri_measurement,
     plausible_command,
+    software_limit_error,
+    software_limits_rad,
     stop_command,
 )
 from drivers.emulate.netft_box import NetFtServer
@@ -119,6 +130,7 @@ class EmulatorSettings:
             start with the first ``friStart`` (a lossy link would otherwise
             never pass the script's wait for PERFECT quality).
         quality: thresholds of the quality rating.
+        software_limits_deg: the KRC's software limit switches A1..A7 [deg].
     """
 
     remote: tuple[str, int]
@@ -132,6 +144,7 @@ class EmulatorSettings:
     faults: FaultSettings = field(default_factory=FaultSettings)
     faults_from_start: bool = False
     quality: QualityThresholds = field(default_factory=QualityThresholds)
+    software_limits_deg: tuple[float, ...] = SOFTWARE_LIMITS_DEG
 
 
 @dataclass
@@ -159,6 +172,8 @@ class EmulatorStats(FaultCounters):
     """Commands the world refused (non-finite values, unknown strategy): back to MON."""
     starts: int = 0
     fallbacks: int = 0
+    limit_stops: int = 0
+    """Stops at a software limit switch (each also a fallback when in CMD)."""
     overruns: int = 0
     """Real time: cycles the emulator itself started late by more than a cycle."""
     decode: DecodeStats = field(default_factory=DecodeStats)
@@ -218,6 +233,8 @@ class FriEmulator:
         self.sock.setblocking(False)
         self.link = FaultyLink(self.sock, settings.faults, self.cycle_s, self.stats)
         self.link.active = settings.faults_from_start
+        self._soft_limits_rad = software_limits_rad(settings.software_limits_deg)
+        self._brake = False
         self._seq = world.cycle & 0xFFFF
         self._awaiting = -1
         self._last_cmd_seq: int | None = None
@@ -243,7 +260,8 @@ class FriEmulator:
     @property
     def measurement(self) -> FriMeasurement:
         """The measurement of the world's current state, as the next packet reports it."""
-        m = fri_measurement(self.world.last_state, self.cycle_s, self.krc.state, self.krc.quality)
+        m = fri_measurement(self.world.last_state, self.cycle_s, self.krc.state, self.krc.quality,
+                            self.krc.error)
         m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = self.krc.rates()
         m.miss_counter = self.stats.miss_counter
         return m
@@ -340,7 +358,8 @@ class FriEmulator:
         return st
 
     def _packet(self) -> bytes:
-        m = fri_measurement(self.world.last_state, self.cycle_s, self.krc.state, self.krc.quality)
+        m = fri_measurement(self.world.last_state, self.cycle_s, self.krc.state, self.krc.quality,
+                            self.krc.error)
         a = self._msr
         measurement_to_arrays(m, a)
         ar, lat, jit, mr = self.krc.rates()
@@ -462,7 +481,10 @@ class FriEmulator:
 
     def _execute(self, plan: _Plan) -> None:
         """One world step as planned."""
-        if plan.stop:  # leaving CMD: hold the measured pose, no superposed wrench/torque
+        if self._brake:  # stopped at a software limit switch: the brakes
+            self._brake = False
+            self._step(brake_command(self.world.last_state), None)
+        elif plan.stop:  # leaving CMD: hold the measured pose, no superposed wrench/torque
             self._step(stop_command(self.world.last_state), None)
         else:
             self._step(plan.command, plan.seq)
@@ -473,20 +495,27 @@ class FriEmulator:
         t0 = time.perf_counter()
         try:
             arm = arm_command_from_fri(cmd, world.mode) if isinstance(cmd, FriCommand) else cmd
-            world.step(arm)
+            world.advance(arm)
         except InvalidCommandError:
             # the KRC refuses such a command and leaves command mode
             st.invalid += 1
             if self.krc.commanding:
                 st.fallbacks += 1
             self.krc.refuse()
-            world.step(None)
+            world.advance(None)
             cmd = None
             seq = None
         if cmd is not None and seq is not None:
             st.applied += 1
             st.applied_seqs.append(seq)
         st.cycles += 1
+        if not self.krc.error:
+            error = software_limit_error(world.data.qpos[:7], self._soft_limits_rad)
+            if error:
+                st.limit_stops += 1
+                if self.krc.fault(error) is LinkEvent.FALLBACK:
+                    st.fallbacks += 1
+                self._brake = True
         if self.netft is not None:
             self.netft.publish(world.ft_samples())
         else:

@@ -12,16 +12,27 @@ command, and the remote sees the same measurement for the same world state.
 * :func:`fri_measurement`: the ``tFriMsrData`` of a world state, with the
   link's state, quality and statistics;
 * :func:`plausible_command`: values a KRC would take (beyond them it leaves
-  command mode).
+  command mode);
+* :func:`software_limit_error` and :func:`brake_command`: the software limit
+  switches. A joint that reaches its limit makes the KRC leave command mode
+  and stop the robot (:meth:`~drivers.fri.link.KrcLink.fault`): the arm is
+  held where it is (modelled as the joint position controller holding the
+  measured joints, stiff as the scene's ``jnt_position_stiffness``: the
+  brakes), and the measurement reports the error until it is acknowledged.
+  The fact sheet behind it is ``fri_netft.md`` of the project's research
+  notes: on limits the KRC "falls back to monitor mode, stopping the robot if
+  necessary".
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Final
 
 import numpy as np
 
+from drivers.base.types import F64
 from drivers.errors import InvalidCommandError
 from drivers.fri.types import (
     WARN_POSITION_LIMIT,
@@ -36,20 +47,26 @@ from drivers.fri.types import (
     FriState,
 )
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
+from drivers.sim.mjcf import LWR_POS_LIMITS_DEG
 
 __all__ = [
+    "HARDWARE_LIMITS_DEG",
     "MAX_DAMPING",
     "MAX_JNT_TRQ_NM",
     "MAX_REACH_M",
     "MAX_STIFFNESS",
     "MAX_TCP_FORCE_N",
     "MAX_TCP_TORQUE_NM",
+    "SOFTWARE_LIMITS_DEG",
     "arm_command_from_fri",
     "arm_mode",
+    "brake_command",
     "control_mode",
     "fri_measurement",
     "fri_warning",
     "plausible_command",
+    "software_limit_error",
+    "software_limits_rad",
     "stop_command",
 ]
 
@@ -67,6 +84,17 @@ _WARNINGS: Final = (
 )
 #: Temperature the emulated drives report [deg C].
 DRIVE_TEMPERATURE_C: Final = 30.0
+_TEMPERATURE: Final = np.full(7, DRIVE_TEMPERATURE_C)
+
+#: Hardware (mechanical) joint ranges of the LWR4+ A1..A7 [deg]: +-170/120
+#: (CentroEPiaggio kuka-lwr URDF; the KRC's rsidef7.dat as quoted by TUM's
+#: kuka_fri FRICheck.cc), the range of the simulated joints.
+HARDWARE_LIMITS_DEG: Final = LWR_POS_LIMITS_DEG
+#: The KRC's software limit switches A1..A7 [deg]: +-160/110, the "safety soft
+#: limits" of an older CentroEPiaggio kuka-lwr URDF (commit 00915b5), 10 deg
+#: inside the hardware ranges. A real cell's values are in its machine data;
+#: set them per emulator (``software_limits_deg``).
+SOFTWARE_LIMITS_DEG: Final = (160.0, 110.0, 160.0, 110.0, 160.0, 110.0, 160.0)
 
 
 def arm_mode(control: ControlMode) -> ArmMode:
@@ -113,6 +141,38 @@ def arm_command_from_fri(cmd: FriCommand, current: ArmMode) -> ArmCommand:
     )
 
 
+def software_limits_rad(limits_deg: Sequence[float]) -> F64:
+    """Validated software limits [rad]: 7 angles, each in (0, hardware range).
+
+    Raises:
+        ValueError: naming ``software_limits_deg``.
+    """
+    lim = np.asarray(limits_deg, dtype=np.float64)
+    if lim.shape != (7,) or not np.all((lim > 0.0) & (lim < np.asarray(HARDWARE_LIMITS_DEG))):
+        raise ValueError(f"software_limits_deg: 7 angles [deg] in (0, {HARDWARE_LIMITS_DEG}), "
+                         f"got {tuple(limits_deg)}")
+    return np.radians(lim)
+
+
+def software_limit_error(jnt_pos_rad: F64, limits_rad: F64) -> int:
+    """Error bits (:data:`~drivers.fri.link.ERROR_SOFTWARE_LIMIT`) of the joints at or
+    beyond their software limit (``|q_i| >= limit_i``); 0 when none is."""
+    hit = np.abs(jnt_pos_rad[:7]) >= limits_rad
+    if not hit.any():
+        return 0
+    return int(np.sum(1 << np.flatnonzero(hit)))
+
+
+def brake_command(state: ArmState) -> ArmCommand:
+    """The KRC stops the robot: hold the measured joints in joint position mode (the
+    brakes), no superposed torque."""
+    return ArmCommand(
+        mode=ArmMode.JOINT_POSITION,
+        jnt_pos_rad=state.jnt_pos_rad.copy(),
+        jnt_trq_nm=np.zeros(7),
+    )
+
+
 def stop_command(state: ArmState) -> ArmCommand:
     """Leaving command mode: hold the measured pose and joints, no superposed wrench or torque."""
     return ArmCommand(
@@ -129,8 +189,11 @@ def fri_measurement(
     cycle_s: float,
     state: FriState,
     quality: FriQuality,
+    error: int = 0,
 ) -> FriMeasurement:
     """The measurement packet of a world state (arrays shared with ``s``, not copied).
+
+    ``error``: the KRC's latched error bits (:class:`~drivers.fri.link.KrcLink`).
 
     Link statistics (answer rate, latency, ...) are left at their defaults;
     the UDP emulator fills them from its window.
@@ -144,7 +207,8 @@ def fri_measurement(
         msr_sample_time=cycle_s,
         cmd_sample_time=cycle_s,
         warning=fri_warning(s.warning),
-        temperature=np.full(7, DRIVE_TEMPERATURE_C),
+        error=error,
+        temperature=_TEMPERATURE.copy(),
         msr_jnt_pos=s.jnt_pos_rad,
         msr_cart_pos=s.tcp_pose_m,
         cmd_jnt_pos=s.cmd_jnt_pos_rad,

@@ -9,6 +9,15 @@ skips a ``send``): MON until ``start_cycles`` answered cycles with PERFECT
 quality (the 100th answer at the earliest), then CMD; the command of that
 cycle is the first one applied. ``start_cycles = 0`` starts in CMD.
 
+Software limit switches (:func:`~drivers.emulate.krc.software_limit_error`):
+when a joint reaches its limit at the end of a cycle, the KRC leaves CMD and
+latches the error (that cycle's measurement reports MON and the ``error``
+bits), the next cycle brakes the arm where it is
+(:func:`~drivers.emulate.krc.brake_command`), and the driver then raises
+:class:`~drivers.errors.DriverError` naming the joint, so the runner aborts
+with that reason; no reported joint is ever beyond its software limit by more
+than one cycle's motion, nor beyond its hardware range.
+
 Commands go through :func:`~drivers.fri.command.to_fri_command` like on the
 wire (a mirror while MON, HELD for ``None``), so the recordings
 (``/robot/measurement``, ``/robot/link``, ``/robot/command``) are those of an
@@ -17,7 +26,7 @@ FRI robot; only the float32 rounding of the wire is missing.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +34,16 @@ import numpy as np
 from drivers.base.guards import requires_open
 from drivers.base.interfaces import RobotDriver
 from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
-from drivers.emulate.krc import arm_command_from_fri, fri_measurement, stop_command
+from drivers.emulate.krc import (
+    SOFTWARE_LIMITS_DEG,
+    arm_command_from_fri,
+    brake_command,
+    fri_measurement,
+    software_limit_error,
+    software_limits_rad,
+    stop_command,
+)
+from drivers.errors import DriverError
 from drivers.fri.command import applied_from_fri, robot_state_from_fri, to_fri_command
 from drivers.fri.link import KrcLink, LinkEvent
 from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement
@@ -48,6 +66,8 @@ class SimRobot(RobotDriver):
         max_cycles: stop yielding after this many cycles (``None``: forever).
         start_cycles: answered cycles before CMD (100, as a friStart script).
         max_consecutive_misses: cycles without ``send`` in a row that end CMD.
+        software_limits_deg: the KRC's software limit switches A1..A7 [deg]
+            (default :data:`~drivers.emulate.krc.SOFTWARE_LIMITS_DEG`).
     """
 
     def __init__(
@@ -56,8 +76,12 @@ class SimRobot(RobotDriver):
         max_cycles: int | None = None,
         start_cycles: int = 100,
         max_consecutive_misses: int = 5,
+        software_limits_deg: Sequence[float] = SOFTWARE_LIMITS_DEG,
     ) -> None:
         self.world = world
+        self.software_limits_rad = software_limits_rad(software_limits_deg)
+        self._brake = False
+        self._stopped: str | None = None
         self.max_cycles = max_cycles
         self.start_cycles = start_cycles
         self.max_consecutive_misses = max_consecutive_misses
@@ -78,7 +102,8 @@ class SimRobot(RobotDriver):
 
     def _measurement(self) -> FriMeasurement:
         link = self.link
-        m = fri_measurement(self.world.last_state, self.world.cycle_s, link.state, link.quality)
+        m = fri_measurement(self.world.last_state, self.world.cycle_s, link.state, link.quality,
+                            link.error)
         m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = link.rates()
         m.miss_counter = link.missed
         return m
@@ -93,6 +118,8 @@ class SimRobot(RobotDriver):
         """Open the link: a fresh KRC link state (MON unless ``start_cycles`` is 0)."""
         self.link = self._new_link()
         self._answered = False
+        self._brake = False
+        self._stopped = None
         self._msr = self._measurement()
         self._open = True
 
@@ -123,18 +150,31 @@ class SimRobot(RobotDriver):
             if not self._open:
                 return
             self._advance()
+            if self._stopped is not None and not self._brake:
+                raise DriverError(self._stopped)
 
     def _advance(self) -> None:
         """One KRC cycle: account the answer, step the world with what the KRC takes."""
         world = self.world
-        event = self.link.cycle(self._answered, 0.0)
+        link = self.link
+        event = link.cycle(self._answered, 0.0)
         arm: ArmCommand | None = None
-        if event is LinkEvent.FALLBACK:
+        if self._brake:  # the KRC stopped the robot at the end of the last cycle
+            arm = brake_command(world.last_state)
+            self._brake = False
+        elif event is LinkEvent.FALLBACK:
             arm = stop_command(world.last_state)
-        elif self._answered and self.link.commanding:
+        elif self._answered and link.commanding:
             arm = arm_command_from_fri(self._fri, world.mode)
         self._answered = False
-        world.step(arm)
+        world.advance(arm)
+        if not link.error:
+            q = world.data.qpos[:7]
+            error = software_limit_error(q, self.software_limits_rad)
+            if error:
+                link.fault(error)
+                self._brake = True
+                self._stopped = _stop_message(error, q, self.software_limits_rad)
         self._msr = self._measurement()
 
     @requires_open(_WHAT)
@@ -164,15 +204,28 @@ class SimRobot(RobotDriver):
         return applied
 
 
+def _stop_message(error: int, q: np.ndarray, limits_rad: np.ndarray) -> str:
+    joints = ", ".join(
+        f"A{i + 1} reached its software limit switch at {np.degrees(q[i]):+.1f} deg "
+        f"(limit +-{np.degrees(limits_rad[i]):.1f} deg)"
+        for i in range(7) if error & (1 << i)
+    )
+    return (f"KRC stopped the robot: {joints}; FRI left command mode "
+            f"(error 0x{error:02x}), the arm is held")
+
+
 def open_sim(
     scene: Scene | Path | str,
     seed: int | None = None,
     overrides: Iterable[str] = (),
     max_cycles: int | None = None,
     start_cycles: int = 100,
+    software_limits_deg: Sequence[float] = SOFTWARE_LIMITS_DEG,
 ) -> tuple[SimRobot, SimFtSensor]:
     """Build a world from a scene (object or TOML path) and its robot/sensor pair."""
     if not isinstance(scene, Scene):
         scene = load_scene(Path(scene), overrides)
     world = SimWorld(scene, seed=seed)
-    return SimRobot(world, max_cycles=max_cycles, start_cycles=start_cycles), SimFtSensor(world)
+    robot = SimRobot(world, max_cycles=max_cycles, start_cycles=start_cycles,
+                     software_limits_deg=software_limits_deg)
+    return robot, SimFtSensor(world)

@@ -18,7 +18,11 @@ The machine is the KRL script ``friOpen(ms)``; ``WAIT FOR $FriQuality ==
   first packet;
 * CMD -> MON when the quality is UNACCEPTABLE or after
   ``max_consecutive_misses`` misses in a row (the KRC's own rule), or when
-  the owner refuses a command (:meth:`KrcLink.refuse`).
+  the owner refuses a command (:meth:`KrcLink.refuse`);
+* a fault (:meth:`KrcLink.fault`, e.g. a joint at its software limit switch)
+  ends CMD and latches an error: the measurement reports it in ``error``
+  and the link does not enter CMD again until it is acknowledged
+  (:meth:`KrcLink.acknowledge`; on a KRC, the operator).
 
 Quality (:func:`quality_of`, :class:`QualityThresholds`) is rated over the
 last 100 packets (:class:`LinkWindow`): answer rate always, latency and
@@ -36,12 +40,14 @@ import numpy as np
 from drivers.fri.types import FriQuality, FriState
 
 __all__ = [
+    "ERROR_SOFTWARE_LIMIT",
     "MIN_RATED",
     "WINDOW",
     "KrcLink",
     "LinkEvent",
     "LinkWindow",
     "QualityThresholds",
+    "describe_error",
     "quality_of",
 ]
 
@@ -49,6 +55,24 @@ __all__ = [
 WINDOW: Final = 100
 #: Packets in the window before the link can be rated UNACCEPTABLE.
 MIN_RATED: Final = 10
+#: Error bits of the measurement's ``error`` field set by the emulated KRC (KUKA's
+#: error codes are not public; these are ours): bit i (0..6) = joint A(i+1) reached
+#: its software limit switch. The KRC then left CMD and holds the robot.
+ERROR_SOFTWARE_LIMIT: Final = 0x7F
+
+
+def describe_error(error: int) -> str:
+    """One line for the ``error`` field of a measurement (``""`` for 0)."""
+    if error == 0:
+        return ""
+    parts = []
+    joints = [f"A{i + 1}" for i in range(7) if error & ERROR_SOFTWARE_LIMIT & (1 << i)]
+    if joints:
+        parts.append(f"{', '.join(joints)} at the software limit switch")
+    rest = error & ~ERROR_SOFTWARE_LIMIT
+    if rest:
+        parts.append(f"error bits 0x{rest:x}")
+    return "; ".join(parts)
 
 
 @dataclass(frozen=True)
@@ -200,6 +224,8 @@ class KrcLink:
         self.missed = 0
         self.starts = 0
         self.fallbacks = 0
+        self.error = 0
+        """Latched error bits (:data:`ERROR_SOFTWARE_LIMIT`, ...); 0: none."""
         if start_cycles == 0:
             self.window.fill()
             self.state = FriState.CMD
@@ -238,7 +264,8 @@ class KrcLink:
                     or self.consecutive_miss >= self.max_consecutive_misses):
                 self._to_mon()
                 return LinkEvent.FALLBACK
-        elif self.consecutive_ok >= self.start_cycles and q == FriQuality.PERFECT:
+        elif (self.consecutive_ok >= self.start_cycles and q == FriQuality.PERFECT
+                and not self.error):
             self.state = FriState.CMD
             self.starts += 1
             return LinkEvent.START
@@ -250,6 +277,23 @@ class KrcLink:
             self._to_mon()
         else:
             self.consecutive_ok = 0
+
+    def fault(self, error: int) -> LinkEvent:
+        """The KRC stopped the robot for ``error`` (bits): CMD -> MON, the error latched.
+
+        Returns :attr:`LinkEvent.FALLBACK` if this ended command mode.
+        """
+        self.error |= error
+        if self.state == FriState.CMD:
+            self._to_mon()
+            return LinkEvent.FALLBACK
+        self.consecutive_ok = 0
+        return LinkEvent.NONE
+
+    def acknowledge(self) -> None:
+        """Clear the latched error (the operator acknowledged it); CMD may start again."""
+        self.error = 0
+        self.consecutive_ok = 0
 
     def _to_mon(self) -> None:
         self.fallbacks += 1

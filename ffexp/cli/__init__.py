@@ -116,5 +116,5 @@ def _root(
 
 
 def main() -> None:
-    """Console-script entry point."""
-    app()
+    """Console-script entry point (also ``python -m ffexp``: the program is named ffexp)."""
+    app(prog_name="ffexp")

@@ -79,7 +79,8 @@ def test_usage_error_is_one_line_naming_the_option() -> None:
     )
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ffexp run: ") and "--fri-port" in lines[0]
+    assert len(lines) == 1 and lines[0].startswith("error: ffexp run: ")
+    assert "--fri-port" in lines[0]
 
 
 def test_shell_completion_is_offered() -> None:

@@ -52,8 +52,8 @@ def analyze(
     con = console()
     for path in recordings:
         rec = load(path)
+        m = metrics(rec)  # an unusable file fails here, with its one error line
         _warn(rec.warnings)
-        m = metrics(rec)
         values = {"file": str(path), "run": run_name(rec), **asdict(m)}
         values.pop("warnings")
         if as_json:
@@ -100,8 +100,8 @@ def compare(
     with Steps() as steps, steps.step("loading recordings", total=len(recordings)) as advance:
         for path in recordings:
             rec = load(path)
-            _warn(rec.warnings)
             rows.append(compare_row(rec))
+            _warn(rec.warnings)
             advance()
     if as_json:
         for row in rows:

@@ -161,12 +161,16 @@ def campaign(
     """
     from datetime import UTC, datetime
 
-    from ffexp.experiment import load_campaign
+    from ffexp.experiment import load_campaign, load_rig_choice
     from ffexp.naming import stamp
+    from ffexp.protocol import load_run_protocol
 
     _check_out(out)
     camp = load_campaign(campaign_file)
+    for entry in camp.runs:  # every protocol and the rig are checked before anything runs
+        load_run_protocol(campaign_file.parent / entry.protocol, [*entry.set, *set_])
     choice = rig_choice(rig, driver, rig_set)
+    load_rig_choice(choice)
     camp_dir = _new_dir(out, f"{camp.name}-{stamp(datetime.now(UTC))}")
     results: list[RunResult] = []
     with stop_signals(StopFlag()) as flag, Steps() as steps:

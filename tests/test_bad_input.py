@@ -1,0 +1,303 @@
+"""The bad-input battery: every command, every kind of input a user gets wrong.
+
+Each case runs through typer's CliRunner (a few also as subprocesses) and
+must end with the documented exit code (2: bad input), no traceback, and
+exactly one line on stderr, ``error: ...``, naming the culprit: the file,
+the field, the address or the option. None of these runs an experiment: the
+errors come before any device opens (a recording for the cases that need one
+comes from one short dry run on the mock rig).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from mcap.writer import Writer
+from typer.testing import CliRunner
+
+from ffexp.cli import app
+
+ROOT = Path(__file__).resolve().parents[1]
+runner = CliRunner()
+P = str(ROOT / "protocols/method2.toml")
+CAMP = str(ROOT / "protocols/paper.toml")
+SWEEP = str(ROOT / "protocols/sec3_stiffness.toml")
+VIDEO = str(ROOT / "data/friction/sample.avi")
+MOCK = str(ROOT / "rigs/mock.toml")
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
+    """Bad (and one good) input files, by placeholder name."""
+    d = tmp_path_factory.mktemp("bad")
+    out: dict[str, Path] = {
+        "dir": d / "a_dir",
+        "file": d / "a_file.txt",
+        "empty": d / "empty.mcap",
+        "text": d / "text.mcap",
+        "magic": d / "magic.mcap",
+        "foreign": d / "foreign.mcap",
+        "badtoml": d / "bad.toml",
+        "colour": d / "colour.toml",
+        "kp": d / "kp.toml",
+        "scene": d / "scene.toml",
+        "camp_missing": d / "camp_missing.toml",
+        "camp_empty": d / "camp_empty.toml",
+        "camp_badentry": d / "camp_badentry.toml",
+        "sweep_empty": d / "sweep_empty.toml",
+        "sweep_field": d / "sweep_field.toml",
+        "emptydir": d / "emptydir",
+        "badjson_dir": d / "badjson",
+        "listjson_dir": d / "listjson",
+        "points": d / "points.json",
+        "nodir": d / "no/such/dir/out.csv",
+    }
+    out["dir"].mkdir()
+    out["emptydir"].mkdir()
+    out["file"].write_text("x\n")
+    out["empty"].write_bytes(b"")
+    out["text"].write_text("not a recording\n")
+    out["magic"].write_bytes(b"\x89MCAP0\r\nxy")
+    with out["foreign"].open("wb") as fh:
+        w = Writer(fh)
+        w.start()
+        cid = w.register_channel("/other", "json", w.register_schema("x", "jsonschema", b"{}"))
+        w.add_message(cid, 1, b"{}", 1)
+        w.finish()
+    out["badtoml"].write_text("name = \n")
+    out["colour"].write_text('name = "x"\ncolour = 1\n')
+    out["kp"].write_text('name = "x"\n[align]\nmethod = "force"\nkp = "high"\n')
+    out["scene"].write_text('name = "x"\n[scene]\nfile = "nope_scene.toml"\n')
+    out["camp_missing"].write_text('name = "c"\n[[runs]]\nprotocol = "missing.toml"\n')
+    out["camp_empty"].write_text('name = "c"\nruns = []\n')
+    out["camp_badentry"].write_text(f'name = "c"\n[[runs]]\nprotocol = "{out["kp"].name}"\n')
+    out["sweep_empty"].write_text('name = "s"\n[sweep]\nparameter = "k_ri"\nvalues = []\n')
+    out["sweep_field"].write_text('name = "s"\n[sweep]\nparameter = "colour"\nvalues = [1]\n')
+    out["badjson_dir"].mkdir()
+    (out["badjson_dir"] / "campaign.json").write_text("{not json")
+    out["listjson_dir"].mkdir()
+    (out["listjson_dir"] / "campaign.json").write_text("[1, 2]")
+    out["points"].write_text('{"image_px": [[0, 0]], "table_m": [[0, 0]]}')
+    # one real recording: a dry run on the mock rig (no physics, a fraction of a second)
+    runs = d / "runs"
+    done = runner.invoke(app, ["run", P, "--rig", MOCK, "--set", "run.timeout_s=0.2",
+                               "--out", str(runs)])
+    assert done.exit_code == 4, done.stderr
+    (out["rec"],) = runs.glob("*.mcap")
+    return {k: str(v) for k, v in out.items()} | {"tmp": str(d)}
+
+
+# (command line with {placeholders}, the words the one error line must contain)
+CASES: list[tuple[str, list[str]]] = [
+    # run
+    ("run {tmp}/missing.toml", ["missing.toml", "not found"]),
+    ("run {dir}", ["a_dir"]),
+    ("run {badtoml}", ["bad.toml"]),
+    ("run {colour}", ["colour.toml", "colour"]),
+    ("run {kp}", ["kp.toml", "align.kp"]),
+    ("run {scene}", ["nope_scene.toml"]),
+    ("run {file}", ["a_file.txt"]),
+    (f"run {P} --set noequals", ["--set", "noequals"]),
+    (f"run {P} --set run.nope=1", ["run.nope"]),
+    (f"run {P} --set run.timeout_s=-1", ["run.timeout_s"]),
+    (f"run {P} --set run.timeout_s=abc", ["run.timeout_s"]),
+    (f"run {P} --rig {{tmp}}/nope_rig.toml", ["nope_rig.toml", "not found"]),
+    (f"run {P} --rig {MOCK} --rig-set robot.type=warp", ["mock.toml", "robot"]),
+    (f"run {P} --rig {MOCK} --rig-set robot.cycles=-1", ["robot.cycles"]),
+    (f"run {P} --rig {{badtoml}}", ["bad.toml"]),
+    (f"run {P} --driver warp", ["--driver", "warp"]),
+    (f"run {P} --driver fri", ["robot.robot_ip"]),
+    (f"run {P} --fri-port abc", ["--fri-port"]),
+    (f"run {P} --driver fri --robot-ip 10.0.0.1 --fri-port 70000", ["robot.port"]),
+    (f"run {P} --driver fri --robot-ip 10.0.0.1 --netft 10.0.0.2:abc", ["ft.port"]),
+    (f"run {P} --ft warp", ["ft", "warp"]),
+    (f"run {P} --out {{file}}", ["--out", "a_file.txt"]),
+    (f"run {P} --bogus", ["--bogus"]),
+    ("run", ["protocol"]),
+    # campaign
+    ("campaign {tmp}/missing.toml", ["missing.toml"]),
+    ("campaign {camp_missing}", ["runs.0.protocol", "missing.toml"]),
+    ("campaign {camp_empty}", ["camp_empty.toml", "runs"]),
+    ("campaign {camp_badentry}", ["kp.toml", "align.kp"]),
+    ("campaign {badtoml}", ["bad.toml"]),
+    ("campaign {colour}", ["colour.toml"]),
+    (f"campaign {CAMP} --out {{file}}", ["--out"]),
+    (f"campaign {CAMP} --set noequals", ["--set"]),
+    (f"campaign {CAMP} --set align.nope=1", ["align.nope"]),
+    (f"campaign {CAMP} --driver warp", ["--driver"]),
+    (f"campaign {CAMP} --rig {MOCK} --rig-set robot.type=warp", ["robot"]),
+    ("campaign", ["campaign_file"]),
+    # analyze
+    ("analyze {tmp}/missing.mcap", ["missing.mcap", "not found"]),
+    ("analyze {empty}", ["empty.mcap", "empty file"]),
+    ("analyze {text}", ["text.mcap", "not an MCAP file"]),
+    ("analyze {magic}", ["magic.mcap", "no topic"]),
+    ("analyze {foreign}", ["foreign.mcap", "no topic"]),
+    ("analyze {dir}", ["a_dir", "directory"]),
+    ("analyze {rec} --plots {file}", ["--plots", "a_file.txt"]),
+    ("analyze {rec} {text}", ["text.mcap"]),
+    ("analyze {rec} --bogus", ["--bogus"]),
+    ("analyze", ["recordings"]),
+    # compare
+    ("compare {tmp}/missing.mcap", ["missing.mcap"]),
+    ("compare {empty}", ["empty.mcap"]),
+    ("compare {text}", ["text.mcap"]),
+    ("compare {magic}", ["magic.mcap"]),
+    ("compare {foreign}", ["foreign.mcap"]),
+    ("compare {dir}", ["a_dir"]),
+    ("compare {rec} --csv {dir}", ["--csv", "a_dir"]),
+    ("compare {rec} --csv {nodir}", ["out.csv", "cannot write"]),
+    ("compare {rec} {empty}", ["empty.mcap"]),
+    ("compare", ["recordings"]),
+    # recover
+    ("recover {tmp}/missing.mcap", ["missing.mcap"]),
+    ("recover {empty}", ["empty.mcap"]),
+    ("recover {text}", ["text.mcap"]),
+    ("recover {magic}", ["magic.mcap", "nothing"]),
+    ("recover {dir}", ["a_dir"]),
+    ("recover {rec} -o {rec}", ["must differ"]),
+    ("recover {rec} -o {nodir}", ["out.csv", "cannot write"]),
+    ("recover", ["recording"]),
+    # topics
+    ("topics {tmp}/missing.mcap", ["missing.mcap"]),
+    ("topics {empty}", ["empty.mcap"]),
+    ("topics {text}", ["text.mcap"]),
+    ("topics {dir}", ["a_dir"]),
+    ("topics --bogus", ["--bogus"]),
+    # report
+    ("report {tmp}/nowhere", ["nowhere", "not found"]),
+    ("report {file}", ["a_file.txt", "not a directory"]),
+    ("report {emptydir}", ["emptydir", "no recordings"]),
+    ("report {badjson_dir}", ["campaign.json", "JSON"]),
+    ("report {listjson_dir}", ["campaign.json", "object"]),
+    ("report {tmp} --out {dir}", ["--out", "a_dir"]),
+    ("report", ["directory"]),
+    # schema
+    ("schema bogus", ["bogus", "protocol"]),
+    ("schema", ["KIND"]),
+    ("schema protocol --write {dir}", ["--write"]),
+    ("schema --write {file}", ["a_file.txt"]),
+    # emulate
+    ("emulate --remote 127.0.0.1:1 --duration -5", ["--duration"]),
+    ("emulate --remote 127.0.0.1:1 --duration nan", ["--duration"]),
+    ("emulate --remote 127.0.0.1:1 --port 70000", ["--port"]),
+    ("emulate --remote 127.0.0.1:1 --netft-port -2", ["--netft-port"]),
+    ("emulate --remote 127.0.0.1:1 --cycle-ms 0", ["--cycle-ms"]),
+    ("emulate --remote 127.0.0.1:1 --pacing warp", ["--pacing"]),
+    ("emulate --remote 127.0.0.1:1 --loss 150", ["--loss"]),
+    ("emulate --remote 127.0.0.1:1 --delay-ms -1", ["--delay-ms"]),
+    ("emulate --remote 127.0.0.1:1 --timeout-ms 0", ["--timeout-ms"]),
+    ("emulate --remote nohostport", ["--remote"]),
+    ("emulate --remote 127.0.0.1:99999", ["--remote"]),
+    ("emulate --remote 127.0.0.1:1 --scene {tmp}/nope_scene.toml", ["nope_scene.toml"]),
+    ("emulate", ["--remote"]),
+    # simulate contact-1dof
+    ("simulate contact-1dof --m-t -1", ["--m-t"]),
+    ("simulate contact-1dof --m-ri 0", ["--m-ri"]),
+    ("simulate contact-1dof --duration -1", ["--duration"]),
+    ("simulate contact-1dof --dt 0", ["--dt"]),
+    ("simulate contact-1dof --dt 5", ["--dt"]),
+    ("simulate contact-1dof --k-c abc", ["--k-c"]),
+    ("simulate contact-1dof --csv {nodir}", ["out.csv", "cannot write"]),
+    ("simulate contact-1dof --csv {dir}", ["a_dir"]),
+    # simulate sweep
+    ("simulate sweep {tmp}/missing.toml", ["missing.toml", "not found"]),
+    ("simulate sweep {sweep_empty}", ["sweep_empty.toml", "sweep.values"]),
+    ("simulate sweep {sweep_field}", ["sweep.parameter"]),
+    (f"simulate sweep {SWEEP} --set noequals", ["--set"]),
+    (f"simulate sweep {SWEEP} --out {{file}}", ["--out", "a_file.txt"]),
+    ("simulate sweep {badtoml}", ["bad.toml"]),
+    # friction synth
+    ("friction synth --out {tmp}/v.avi --size big", ["--size"]),
+    ("friction synth --out {tmp}/v.avi --codec warp", ["--codec"]),
+    ("friction synth --out {tmp}/v.avi --fps 0", ["fps"]),
+    ("friction synth --out {tmp}/v.avi --mu 2", ["mu"]),
+    ("friction synth --out {tmp}/v.avi --start-px 1", ["--start-px"]),
+    ("friction synth", ["--out"]),
+    # friction estimate
+    ("friction estimate {tmp}/missing.avi --px-per-m 1000", ["missing.avi"]),
+    ("friction estimate {text} --px-per-m 1000", ["text.mcap"]),
+    (f"friction estimate {VIDEO} --px-per-m -1", ["--px-per-m"]),
+    (f"friction estimate {VIDEO}", ["--px-per-m", "--object-size-m"]),
+    (f"friction estimate {VIDEO} --table-points {{tmp}}/nope.json", ["nope.json"]),
+    (f"friction estimate {VIDEO} --table-points {{points}}", ["points.json"]),
+    (f"friction estimate {VIDEO} --px-per-m 1000 --confidence 2", ["confidence"]),
+    (f"friction estimate {VIDEO} --px-per-m 1000 --marker WARP", ["WARP"]),
+    (f"friction estimate {VIDEO} --px-per-m 1000 --plot {{tmp}}/p.jpg", ["p.jpg"]),
+    ("friction estimate", ["video"]),
+]
+
+
+def expand(line: str, files: dict[str, str]) -> list[str]:
+    return [part.format(**files) for part in line.split()]
+
+
+def check_one_line(code: int, stdout: str, stderr: str, needles: list[str]) -> None:
+    assert "Traceback" not in stdout + stderr, stderr
+    lines = [x for x in stderr.splitlines() if x.strip()]
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("error: "), lines[0]
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    assert code == 2, (code, lines[0])
+
+
+def test_the_battery_is_large_and_covers_every_command() -> None:
+    assert len(CASES) >= 90
+    commands = {line.split()[0] if line.split()[0] not in ("simulate", "friction")
+                else " ".join(line.split()[:2]) for line, _n in CASES}
+    registered = {c.name for c in app.registered_commands} - {"sweep", "limits", "reproduce"}
+    groups = {f"{g.name} {c.name or c.callback.__name__}" for g in app.registered_groups
+              for c in g.typer_instance.registered_commands if c.callback is not None}
+    assert registered | groups <= commands
+
+
+@pytest.mark.parametrize(("line", "needles"), CASES, ids=[c[0] for c in CASES])
+def test_bad_input_is_one_line_exit_2(
+    files: dict[str, str], line: str, needles: list[str]
+) -> None:
+    args = expand(line, files)
+    result = runner.invoke(app, args)
+    check_one_line(result.exit_code, result.stdout, result.stderr,
+                   [n.format(**files) for n in needles])
+
+
+@pytest.mark.parametrize(
+    ("line", "needles"),
+    [
+        ("analyze {magic}", ["magic.mcap"]),
+        ("run {kp}", ["align.kp"]),
+        ("emulate --remote 127.0.0.1:1 --duration -5", ["--duration"]),
+        ("compare {rec} --csv {dir}", ["--csv"]),
+        ("run", ["protocol"]),
+    ],
+)
+def test_bad_input_in_a_subprocess(files: dict[str, str], line: str, needles: list[str]) -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "ffexp", *expand(line, files)],
+        capture_output=True, text=True, timeout=120, cwd=files["tmp"],
+    )
+    check_one_line(done.returncode, done.stdout, done.stderr, needles)
+
+
+def test_recover_of_nothing_writes_nothing(files: dict[str, str]) -> None:
+    out = Path(files["tmp"]) / "nothing.mcap"
+    result = runner.invoke(app, ["recover", files["magic"], "-o", str(out)])
+    assert result.exit_code == 2 and not out.exists()
+
+
+def test_no_run_directory_is_left_by_a_bad_campaign(files: dict[str, str]) -> None:
+    out = Path(files["tmp"]) / "camp_out"
+    result = runner.invoke(app, ["campaign", files["camp_badentry"], "--out", str(out)])
+    assert result.exit_code == 2
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_analyze_json_of_a_good_and_a_bad_file_prints_the_good_one(files: dict[str, str]) -> None:
+    result = runner.invoke(app, ["analyze", files["rec"], files["text"], "--json"])
+    assert result.exit_code == 2
+    assert json.loads(result.stdout.splitlines()[0])["file"] == files["rec"]

@@ -2,7 +2,7 @@
 (filterpy), tool-load compensation and a contact detector. No I/O.
 
 Wrench filter
-    One :class:`filterpy.kalman.KalmanFilter` over 12 states, per TCF axis the
+    A Kalman filter over 12 states (six 2-state filters side by side), per TCF axis the
     true wrench ``f`` (random walk, fast) and the sensor bias ``b`` (random
     walk, slow: the Mini45 drifts 0.1-0.4 N over minutes), measured as
     ``z = f + b + noise``. The bias is observable only while the wrench is
@@ -30,7 +30,6 @@ from typing import Literal
 
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
-from filterpy.kalman import KalmanFilter
 from pydantic import Field, model_validator
 
 from drivers.base.types import F64, Vec3, Vec6
@@ -70,44 +69,48 @@ class WrenchFilterConfig(StrictModel):
 
 
 class WrenchFilter:
-    """Kalman filter of the measured wrench with a per-axis bias state."""
+    """Kalman filter of the measured wrench with a per-axis bias state.
+
+    The model is separable per axis (``F = I``, ``H = [I I]``, diagonal
+    ``Q`` and ``R``, and a tare that leaves ``P`` block-diagonal), so the
+    12-state filter is run as six 2-state filters side by side on arrays of
+    six: the same equations as a :class:`filterpy.kalman.KalmanFilter` over
+    the 12 states (``tests/test_speed_estimation.py`` checks that), at a
+    fraction of its per-cycle cost (no 12x12 products or inverse).
+    """
 
     def __init__(self, config: WrenchFilterConfig) -> None:
         self.config = config
-        self._r = np.diag(np.square(np.asarray(config.noise_std, dtype=np.float64)))
-        self._q_rate = np.concatenate(
-            [np.square(config.wrench_walk_std), np.square(config.bias_walk_std)]
-        ).astype(np.float64)
-        kf = KalmanFilter(dim_x=12, dim_z=6)
-        kf.F = np.eye(12)
-        kf.H = np.hstack([np.eye(6), np.eye(6)])
-        kf.x = np.zeros((12, 1))
-        kf.P = np.diag(np.concatenate([np.full(6, 100.0), np.full(6, 100.0)]))
-        kf.R = self._r.copy()
-        self.kf = kf
+        self._r = np.square(np.asarray(config.noise_std, dtype=np.float64))
+        self._q_f = np.square(np.asarray(config.wrench_walk_std, dtype=np.float64))
+        self._q_b = np.square(np.asarray(config.bias_walk_std, dtype=np.float64))
+        self._x_f = np.zeros(6)
+        self._x_b = np.zeros(6)
+        # covariance per axis: P = [[p_ff, p_fb], [p_fb, p_bb]]
+        self._p_ff = np.full(6, 100.0)
+        self._p_fb = np.zeros(6)
+        self._p_bb = np.full(6, 100.0)
         self.tared = False
 
     def tare(self, samples: FloatArray) -> None:
         """Estimate the bias from samples (N, 6) taken in free space (wrench = 0).
 
-        A bias-only Kalman filter (``z = b + noise``) runs over the samples;
-        its estimate and covariance become the bias part of the main filter,
-        and the wrench state restarts at zero with the noise's uncertainty.
+        A bias-only Kalman filter (``z = b + noise``, prior ``b = 0`` with
+        variance 100, no process noise) over the samples, in its closed form
+        (information filter: ``1/P = 1/100 + N/r``, ``b = P sum(z) / r``);
+        its estimate and covariance become the bias part of the filter, and
+        the wrench state restarts at zero with the noise's uncertainty.
         """
         samples = np.asarray(samples, dtype=np.float64).reshape(-1, 6)
-        if samples.shape[0] == 0:
+        n = samples.shape[0]
+        if n == 0:
             raise ValueError("tare needs at least one sample")
-        tare = KalmanFilter(dim_x=6, dim_z=6)
-        tare.x = np.zeros((6, 1))
-        tare.P = np.eye(6) * 100.0
-        tare.R = self._r
-        tare.H = np.eye(6)
-        for z in samples:
-            tare.update(z)
-        self.kf.x = np.vstack([np.zeros((6, 1)), tare.x])
-        self.kf.P = np.zeros((12, 12))
-        self.kf.P[:6, :6] = self._r
-        self.kf.P[6:, 6:] = tare.P
+        p_b = 1.0 / (1.0 / 100.0 + n / self._r)
+        self._x_b = p_b * samples.sum(axis=0) / self._r
+        self._x_f = np.zeros(6)
+        self._p_ff = self._r.copy()
+        self._p_fb = np.zeros(6)
+        self._p_bb = p_b
         self.tared = True
 
     def update(self, samples: FloatArray, dt_s: float) -> None:
@@ -115,28 +118,39 @@ class WrenchFilter:
 
         With no samples the filter only predicts (its covariance grows).
         """
-        self.kf.predict(Q=np.diag(self._q_rate * dt_s))
-        samples = np.asarray(samples, dtype=np.float64).reshape(-1, 6)
+        p_ff, p_fb, p_bb = self._p_ff, self._p_fb, self._p_bb
+        p_ff += self._q_f * dt_s
+        p_bb += self._q_b * dt_s
+        samples = samples.reshape(-1, 6)
         n = samples.shape[0]
-        if n:
-            self.kf.update(samples.mean(axis=0), R=self._r / n)
+        if not n:
+            return
+        z = samples.mean(axis=0) if n > 1 else samples[0]
+        s = p_ff + 2.0 * p_fb + p_bb + self._r / n
+        k_f = (p_ff + p_fb) / s
+        k_b = (p_fb + p_bb) / s
+        y = z - self._x_f - self._x_b
+        self._x_f += k_f * y
+        self._x_b += k_b * y
+        # P - K S K^T, per axis
+        p_ff -= k_f * k_f * s
+        p_fb -= k_f * k_b * s
+        p_bb -= k_b * k_b * s
 
     @property
     def wrench(self) -> FloatArray:
         """Filtered wrench (bias removed), TCF."""
-        w: FloatArray = self.kf.x[:6, 0].copy()
-        return w
+        return self._x_f.copy()
 
     @property
     def bias(self) -> FloatArray:
         """Estimated sensor bias, TCF."""
-        b: FloatArray = self.kf.x[6:, 0].copy()
-        return b
+        return self._x_b.copy()
 
     @property
     def wrench_std(self) -> FloatArray:
         """1-sigma uncertainty of :attr:`wrench`."""
-        s: FloatArray = np.sqrt(np.diag(self.kf.P)[:6])
+        s: FloatArray = np.sqrt(self._p_ff)
         return s
 
 
@@ -149,55 +163,75 @@ class MotionFilterConfig(StrictModel):
 
 
 class MotionFilter:
-    """Velocity and acceleration of the tool from its pose (base frame)."""
+    """Velocity and acceleration of the tool from its pose (base frame).
+
+    Six independent constant-acceleration filters (x, y, z and the three
+    components of the accumulated rotation vector), run side by side: the
+    same equations as one :class:`filterpy.kalman.KalmanFilter` over 18
+    states with ``F = I6 (x) F1``, ``H = I6 (x) [1 0 0]`` and filterpy's
+    ``Q_discrete_white_noise`` per axis (``tests/test_speed_estimation.py``
+    checks that), without its 18x18 products.
+    """
 
     def __init__(self, config: MotionFilterConfig, cycle_s: float) -> None:
         self.config = config
         self.cycle_s = cycle_s
-        kf = KalmanFilter(dim_x=18, dim_z=6)
-        f1 = np.array([[1.0, cycle_s, 0.5 * cycle_s**2], [0.0, 1.0, cycle_s], [0.0, 0.0, 1.0]])
-        kf.F = np.kron(np.eye(6), f1)
-        kf.H = np.kron(np.eye(6), np.array([[1.0, 0.0, 0.0]]))
-        kf.Q = Q_discrete_white_noise(
-            dim=3, dt=cycle_s, var=config.accel_walk**2 * cycle_s, block_size=6, order_by_dim=True
-        )
+        self._f1 = np.array([[1.0, cycle_s, 0.5 * cycle_s**2], [0.0, 1.0, cycle_s],
+                             [0.0, 0.0, 1.0]])
+        self._f1_t = self._f1.T.copy()
+        self._q1 = Q_discrete_white_noise(dim=3, dt=cycle_s, var=config.accel_walk**2 * cycle_s)
         noise = [config.position_noise_m] * 3 + [config.rotation_noise_rad] * 3
-        kf.R = np.diag(np.square(noise))
-        kf.P = np.eye(18) * 1e-2
-        self.kf = kf
+        self._r = np.square(np.asarray(noise, dtype=np.float64))
+        self._x = np.zeros((6, 3))  # per axis: value, rate, acceleration
+        self._p = np.tile(np.eye(3) * 1e-2, (6, 1, 1))
+        self._z = np.zeros(6)
         self._rot_prev: FloatArray | None = None
         self._theta = np.zeros(3)
 
     def update(self, pose: FloatArray) -> None:
         """One cycle with the measured 4x4 tool pose (base frame)."""
         r = pose[:3, :3]
+        z = self._z
         if self._rot_prev is None:
-            self.kf.x = np.zeros((18, 1))
-            self.kf.x[0:18:3, 0] = np.concatenate([pose[:3, 3], self._theta])
+            self._x[:] = 0.0
+            self._x[:3, 0] = pose[:3, 3]
+            self._x[3:, 0] = self._theta
         else:
             # accumulate the incremental rotation, in the base frame
             self._theta += self._rot_prev @ rotation_log(self._rot_prev.T @ r)
         self._rot_prev = r.copy()
-        self.kf.predict()
-        self.kf.update(np.concatenate([pose[:3, 3], self._theta]))
+        z[:3] = pose[:3, 3]
+        z[3:] = self._theta
+        # predict
+        x = self._x @ self._f1_t
+        p = self._f1 @ self._p @ self._f1_t
+        p += self._q1
+        # update with the value of each axis
+        s = p[:, 0, 0] + self._r
+        k = p[:, :, 0] / s[:, None]
+        x += k * (z - x[:, 0])[:, None]
+        p -= k[:, :, None] * p[:, None, 0, :]
+        self._x = x
+        self._p = p
 
     @property
     def twist_base(self) -> FloatArray:
         """[vx, vy, vz, wx, wy, wz] in the base frame."""
-        v: FloatArray = self.kf.x[1:18:3, 0].copy()
-        return v
+        return self._x[:, 1].copy()
 
     @property
     def accel_base(self) -> FloatArray:
         """Linear and angular acceleration in the base frame."""
-        a: FloatArray = self.kf.x[2:18:3, 0].copy()
-        return a
+        return self._x[:, 2].copy()
 
     def twist_tcf(self, pose: FloatArray) -> FloatArray:
         """The twist expressed in the tool frame of ``pose``."""
         r = pose[:3, :3]
-        v = self.twist_base
-        return np.concatenate([r.T @ v[:3], r.T @ v[3:]])
+        v = self._x[:, 1]
+        out = np.empty(6)
+        out[:3] = v[:3] @ r
+        out[3:] = v[3:] @ r
+        return out
 
 
 class ToolLoad(StrictModel):

@@ -24,6 +24,7 @@ from pydantic import Field
 from drivers.base.types import F64, FtSamples, FtStatus, RobotState
 from drivers.config import StrictModel
 from ffexp.estimation import (
+    GRAVITY_BASE_MPS2,
     ContactDetector,
     ContactDetectorConfig,
     ContactEvent,
@@ -77,6 +78,9 @@ class Estimate:
     """Time of the newest sample so far, on the robot's clock [ns]."""
 
 
+_SATURATION = int(FtStatus.SATURATION)
+
+
 class Estimator:
     """Compensation, tare, wrench and motion filters, contact detection.
 
@@ -96,7 +100,22 @@ class Estimator:
         self._tare: list[F64] = []
         self._tare_first_ns: int | None = None
         self._compensate = config.tool_load.mass_kg > 0.0
+        self._mass_kg = config.tool_load.mass_kg
+        self._com_m = np.asarray(config.tool_load.com_m, dtype=np.float64)
+        self._load = np.zeros(6)
         self.out = Estimate()
+
+    def _tool_load(self, r_base_sensor: F64, accel_base: F64 | None) -> F64:
+        """:meth:`ToolLoad.wrench <ffexp.estimation.ToolLoad.wrench>` into a reused array."""
+        g = GRAVITY_BASE_MPS2 if accel_base is None else GRAVITY_BASE_MPS2 - accel_base
+        f = self._mass_kg * (g @ r_base_sensor)
+        c = self._com_m
+        load = self._load
+        load[:3] = f
+        load[3] = c[1] * f[2] - c[2] * f[1]
+        load[4] = c[2] * f[0] - c[0] * f[2]
+        load[5] = c[0] * f[1] - c[1] * f[0]
+        return load
 
     def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int) -> Estimate:
         """One cycle. ``t_ns`` is the run time of the cycle, ``t0_ns`` the robot time of
@@ -109,16 +128,17 @@ class Estimator:
         comp = ft.wrench
         if self._compensate and n:
             accel = mf.accel_base[:3] if cfg.inertial_compensation else None
-            comp = ft.wrench - cfg.tool_load.wrench(pose[:3, :3], accel)
+            comp = ft.wrench - self._tool_load(pose[:3, :3], accel)
         out.n_samples = n
         out.event = None
         out.tared_now = False
         if n:
             out.last_sample_ns = int(ft.time_ns[-1]) - t0_ns
-            out.saturated = bool(np.any(ft.status & FtStatus.SATURATION))
+            out.saturated = bool((ft.status & _SATURATION).any())
             src = comp - wf.bias if wf.tared else ft.wrench
-            out.peak_force_n = float(np.max(np.linalg.norm(src[:, :3], axis=1)))
-            out.peak_torque_nm = float(np.max(np.linalg.norm(src[:, 3:], axis=1)))
+            sq = src * src
+            out.peak_force_n = float(np.sqrt(sq[:, :3].sum(axis=1).max()))
+            out.peak_torque_nm = float(np.sqrt(sq[:, 3:].sum(axis=1).max()))
         else:
             out.saturated = False
             out.peak_force_n = out.peak_torque_nm = 0.0

@@ -146,6 +146,8 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             ft = sensor.samples()
             t_c = clock()
             cyc = cyc or Cycle(protocol, state, log)
+            log.samples(cyc.t0_ns, ft)  # before the cycle's notes: log-time order
+            t_c2 = clock()
             cycles += 1
             if stop_requested():
                 cyc.task.end(state.time_ns - cyc.t0_ns,
@@ -156,8 +158,8 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             t_e = clock()
             cyc.record(state, ft, intent, applied)
             t_f = clock()
-            for key, dt in zip(_PARTS, (t_b - t_a, t_c - t_b, t_d - t_c, t_e - t_d, t_f - t_e),
-                               strict=True):
+            for key, dt in zip(_PARTS, (t_b - t_a, t_c - t_b, t_d - t_c2, t_e - t_d,
+                                        t_f - t_e + t_c2 - t_c), strict=True):
                 tm[key] += dt
             if progress is not None and cyc.t_ns >= next_progress_ns:
                 next_progress_ns = cyc.t_ns + NS_PER_S // 10

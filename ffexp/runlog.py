@@ -1,13 +1,15 @@
 """What one run writes to its recording, and nothing else: the loop's only I/O sink.
 
-Per cycle (log time = the run's UTC start + run time): the robot state's
-back-end extras on the topics they name (FRI: ``/robot/measurement``,
-``/robot/link``), every F/T sample (``/ft/raw``), the estimate
+Per cycle, in log-time order (log time = the run's UTC start + run time):
+every F/T sample of the cycle (``/ft/raw``, :meth:`RunLog.samples`, each at
+its own time, which precedes the cycle's), the cycle's events and phase
+changes, then at the cycle's time the robot state's back-end extras on the
+topics they name (FRI: ``/robot/measurement``, ``/robot/link``), the estimate
 (``/estimator/state``), the control terms (``/control/terms``, plus the
 method's own topic if it declares one), the runner's intent beside what the
 driver really applied (``/control/command``; the back-end's own form, e.g.
 ``/robot/command``), ground truth when the robot has it (``/sim/truth``) and,
-every ``tf_period_s``, ``/tf``. Events and phase changes as they happen.
+every ``tf_period_s``, ``/tf``.
 
 Without a :class:`~ffexp.recording.Recorder` (tests, benchmarks) only the
 events are kept, in :attr:`RunLog.events`.
@@ -51,6 +53,7 @@ class RunLog:
         """``(run time [s], name, message)`` of every event, for the outcome."""
         self._next_tf_ns = 0
         self._zeros = np.zeros(6)
+        self._ft_template: np.ndarray | None = None
 
     def note(self, t_ns: int, note: Note) -> None:
         """An event, or a phase change (``/runner/phase`` and an event)."""
@@ -83,6 +86,25 @@ class RunLog:
             self.event(t_ns, level, "phase", f"{change.old.name} -> {change.new.name}: "
                        f"{change.reason}")
 
+    def samples(self, t0_ns: int, ft: FtSamples) -> None:
+        """Every F/T sample of a cycle on ``/ft/raw`` at its own time (robot clock
+        minus ``t0_ns``, the run's start): call it before the cycle's notes and
+        :meth:`cycle`, so the recording stays in log-time order."""
+        rec = self.rec
+        n = len(ft)
+        if rec is None or not n:
+            return
+        tpl = self._ft_template
+        if tpl is None or tpl.shape[0] < n:
+            proto = rec.record("/ft/raw")
+            tpl = self._ft_template = np.zeros(max(n, 16), dtype=proto.dtype)
+            tpl["_cdr_header"] = proto["_cdr_header"][0]
+        recs = tpl[:n]
+        recs["wrench"] = ft.wrench
+        recs["seq"] = ft.seq & 0xFFFFFFFF
+        recs["status"] = ft.status
+        rec.write_records("/ft/raw", ft.time_ns + (self.start_utc_ns - t0_ns), recs)
+
     def cycle(
         self,
         t_ns: int,
@@ -98,8 +120,10 @@ class RunLog:
         intent: CartesianCommand | None,
         applied: AppliedCommand,
     ) -> None:
-        """Everything of one cycle. ``approach_wrench`` is the approach law's output when
-        it acted this cycle; the controller's terms are recorded in ALIGN."""
+        """Everything of one cycle but its F/T samples (:meth:`samples`).
+        ``approach_wrench`` is the approach law's output when it acted this
+        cycle; the controller's terms are recorded in ALIGN. ``t0_ns``, the
+        robot time of the run's start, is not used here (kept for callers)."""
         rec = self.rec
         if rec is None:
             return
@@ -108,15 +132,6 @@ class RunLog:
             for topic in state.extras.topics():
                 rec.write_fields(topic, log_ns, state.extras)
         n = len(ft)
-        if n:
-            proto = rec.record("/ft/raw")
-            recs = np.zeros(n, dtype=proto.dtype)
-            recs["_cdr_header"] = proto["_cdr_header"][0]
-            recs["wrench"] = ft.wrench
-            recs["seq"] = ft.seq & 0xFFFFFFFF
-            recs["status"] = ft.status
-            rec.write_records("/ft/raw", ft.time_ns - t0_ns + self.start_utc_ns, recs)
-
         r = rec.record("/estimator/state")
         r["wrench"] = est.wrench
         r["wrench_std"] = est.wrench_std

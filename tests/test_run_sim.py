@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from mcap.records import Message as McapMessage
+from mcap.stream_reader import StreamReader
 from typer.testing import CliRunner
 
 from drivers.emulate.lockstep import open_sim
@@ -65,6 +67,10 @@ def test_recording_round_trip_of_a_sim_run(tmp_path: Path) -> None:
     assert not given[0] and given[-1]
     np.testing.assert_array_equal(intent["wrench"][given], intent["applied_wrench"][given])
     assert np.all(intent["status"][~given] == 1)  # HELD
+    # in file order (every chunk, and chunk after chunk) messages are in log-time order
+    with path.open("rb") as fh:
+        times = [r.log_time for r in StreamReader(fh).records if isinstance(r, McapMessage)]
+    assert len(times) > 1000 and times == sorted(times)
 
 
 @pytest.mark.slow

@@ -92,6 +92,7 @@ class Recorder:
         self._records: dict[str, np.ndarray] = {}
         self._names: dict[str, tuple[str, ...]] = {}
         self._seq: dict[str, int] = {}
+        self._add_message = self._writer.add_message
         self.message_count = 0
         self.finished = False
 
@@ -126,10 +127,12 @@ class Recorder:
     def _add(self, topic: str, time_ns: int, data: bytes) -> None:
         if time_ns < 0:
             raise ValueError(f"{topic}: negative log time {time_ns} ns")
-        cid = self._channel(topic)
+        cid = self._channels.get(topic)
+        if cid is None:
+            cid = self._channel(topic)
         seq = self._seq[topic]
         self._seq[topic] = seq + 1
-        self._writer.add_message(cid, time_ns, data, time_ns, seq)
+        self._add_message(cid, time_ns, data, time_ns, seq)
         self.message_count += 1
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
@@ -141,11 +144,14 @@ class Recorder:
     def write_fields(self, topic: str, time_ns: int, source: object) -> None:
         """Write a CDR topic whose fields are attributes of ``source`` by the same
         names (arrays are flattened row-major, e.g. a 4x4 pose into 16 numbers)."""
-        rec = self.record(topic)
+        rec = self._records.get(topic)
+        if rec is None:
+            rec = self.record(topic)
+        ndarray = np.ndarray
         for name in self._field_names(topic):
             value = getattr(source, name)
-            rec[name] = value.reshape(-1) if isinstance(value, np.ndarray) else value
-        self.write(topic, time_ns)
+            rec[name] = value.reshape(-1) if isinstance(value, ndarray) else value
+        self._add(topic, time_ns, rec.tobytes())
 
     def _field_names(self, topic: str) -> tuple[str, ...]:
         names = self._names.get(topic)
@@ -158,8 +164,22 @@ class Recorder:
         """Write many messages of one CDR topic (e.g. all F/T samples of a cycle)."""
         size = records.dtype.itemsize
         blob = records.tobytes()
-        for i, t in enumerate(times_ns.tolist()):
-            self._add(topic, int(t), blob[i * size : (i + 1) * size])
+        times = times_ns.tolist()
+        if not times:
+            return
+        if min(times) < 0:
+            raise ValueError(f"{topic}: negative log time {min(times)} ns")
+        cid = self._channels.get(topic)
+        if cid is None:
+            cid = self._channel(topic)
+        seq = self._seq[topic]
+        add = self._add_message
+        for i, t in enumerate(times):
+            add(cid, t, blob[i * size : (i + 1) * size], t, seq + i)
+        self._seq[topic] = seq + len(times)
+        self.message_count += len(times)
+        if self._clock() - self._last_flush >= self._flush_interval_s:
+            self.flush()
 
     def write_json(self, topic: str, time_ns: int, message: Mapping[str, Any]) -> None:
         """Write one JSON message on a low-rate topic."""

@@ -89,6 +89,8 @@ def save(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
         paths = [out_dir / f"{free}.{fmt}" for fmt in FORMATS]
         for path in paths:
             fig.savefig(path, dpi=DPI)
+            # the layout is done: the next format reuses it (half the time, same layout)
+            fig.set_layout_engine("none")
     except OSError as exc:
         raise InputError(f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None
     return paths

@@ -151,6 +151,9 @@ def campaign(
         help="Parent directory: the campaign writes into OUT/<campaign>-<time>/.",
     ),
     wide: bool = typer.Option(False, "--wide", help=WIDE_HELP),
+    draw: bool = typer.Option(
+        True, "--figures/--no-figures", help="Draw the figures (PNG and SVG) at the end."
+    ),
 ) -> None:
     """Run several protocols and compare them with the paper's Table (res_par).
 
@@ -192,7 +195,7 @@ def campaign(
         _write_manifest(camp_dir, campaign_file, camp.name, results)
         _paper_table(recs, wide)
         _print_runs(recs, wide)
-        figures = _campaign_figures(steps, camp.name, recs, camp_dir / "figures")
+        figures = _campaign_figures(steps, camp.name, recs, camp_dir / "figures") if draw else []
     if figures:
         typer.echo(f"figures: {len(figures)} files (PNG and SVG) in {figures[0].parent}")
     typer.echo(f"campaign: {camp_dir} (ffexp report {camp_dir})")

@@ -111,12 +111,28 @@ class LinkWindow:
         self.n = 0
         self.i = 0
         self._rates: tuple[float, float, float, float] | None = None
+        # running counts over the window (kept exact: integers)
+        self._n_answered = 0
+        self._n_latency = 0  # answered packets with a non-zero latency
 
     def add(self, answered: bool, latency_s: float) -> None:
+        i = self.i
+        lat = latency_s if answered else 0.0
+        if self.n == self.size:  # the oldest packet leaves the window
+            old_answered = bool(self.answered[i])
+            old_latency = float(self.latency[i]) != 0.0
+            if old_answered == answered and old_latency == (lat != 0.0) and lat == 0.0:
+                # the same kind of packet replaces it: counts and rates stay
+                self.i = (i + 1) % self.size
+                return
+            self._n_answered -= old_answered
+            self._n_latency -= old_latency
         self._rates = None
-        self.answered[self.i] = answered
-        self.latency[self.i] = latency_s if answered else 0.0
-        self.i = (self.i + 1) % self.size
+        self.answered[i] = answered
+        self.latency[i] = lat
+        self._n_answered += answered
+        self._n_latency += lat != 0.0
+        self.i = (i + 1) % self.size
         self.n = min(self.n + 1, self.size)
 
     def fill(self) -> None:
@@ -126,11 +142,15 @@ class LinkWindow:
         self.latency[:] = 0.0
         self.n = self.size
         self.i = 0
+        self._n_answered = self.size
+        self._n_latency = 0
 
     def reset(self) -> None:
         self._rates = None
         self.n = 0
         self.i = 0
+        self._n_answered = 0
+        self._n_latency = 0
 
     def rates(self) -> tuple[float, float, float, float]:
         """``(answer_rate, latency_s, jitter_s, miss_rate)``; zeros for an empty window.
@@ -145,6 +165,9 @@ class LinkWindow:
         n = self.n
         if n == 0:
             return 0.0, 0.0, 0.0, 0.0
+        if self._n_latency == 0:  # every answer prompt (lockstep): no array work
+            rate = self._n_answered / n
+            return rate, 0.0, 0.0, 1.0 - rate
         ans = self.answered[:n] if n < self.size else self.answered
         lat = (self.latency[:n] if n < self.size else self.latency)[ans]
         k = int(ans.sum())

@@ -80,6 +80,25 @@ def test_default_1280x720_video_and_human_output(tmp_path: Path) -> None:
     assert first.startswith("mu = ")
     mu = float(first.split()[2])
     assert abs(mu - 0.05) <= 0.005
+    # the uncertainty is shown with two significant digits, never as 0.00000
+    std_text = first.split()[4]
+    assert float(std_text) > 0 and len(std_text.lstrip("0.")) == 2
+
+
+@pytest.mark.parametrize(
+    ("value", "std", "text"),
+    [
+        (0.0050001, 2.9e-7, "0.00500010 ± 0.00000029"),
+        (0.0123456, 0.00042, "0.01235 ± 0.00042"),
+        (12.345, 1.5, "12.3 ± 1.5"),
+        (123.4, 25.0, "123 ± 25"),
+        (0.005, 0.0, "0.005 ± 0"),
+    ],
+)
+def test_plus_minus_keeps_the_uncertainty_visible(value: float, std: float, text: str) -> None:
+    from ffexp.numfmt import pm
+
+    assert pm(value, std) == text
 
 
 def test_zero_friction_prints_a_bound(tmp_path: Path) -> None:

@@ -440,3 +440,40 @@ def test_a_healthy_run_leaves_the_warning_counters_alone() -> None:
     assert [w.data.warning[i].number for i in (
         mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
         mujoco.mjtWarning.mjWARN_BADQVEL)] == [1, 1, 1]
+
+
+def _contact_wrench_by_contact(w: SimWorld) -> np.ndarray:
+    """Reference: mj_contactForce contact by contact, summed at the TCP, TCF."""
+    m, d = w.model, w.data
+    tcp = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tcp")
+    p, rot = d.site_xpos[tcp], d.site_xmat[tcp].reshape(3, 3)
+    total = np.zeros(6)
+    cf = np.zeros(6)
+    for i in range(d.ncon):
+        c = d.contact[i]
+        tool = [m.geom_bodyid[g] == w._tool_body and m.geom_contype[g] != 0 for g in c.geom]
+        if not any(tool) or c.efc_address < 0:
+            continue
+        mujoco.mj_contactForce(m, d, i, cf)
+        f = cf[:3] @ c.frame.reshape(3, 3) * (-1.0 if tool[0] else 1.0)
+        total[:3] += f
+        total[3:] += np.cross(c.pos - p, f)
+    return np.concatenate([rot.T @ total[:3], rot.T @ total[3:]])
+
+
+def test_contact_wrench_equals_the_sum_over_contacts() -> None:
+    """The vectorised contact wrench against mj_contactForce per contact, pressing in the funnel."""
+    w = SimWorld(scene())
+    pose = w.last_state.tcp_pose_m.copy()
+    pose[:3, 3] += 0.045 * pose[:3, 2]
+    cmd = ArmCommand(cart_pose_m=pose, tcp_wrench_n_nm=np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
+    pressing = 0
+    for k in range(500):
+        w.advance(cmd)
+        if k % 50 == 49:
+            mujoco.mj_forward(w.model, w.data)
+            got, touching = w.contact_wrench()
+            want = _contact_wrench_by_contact(w)
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
+            pressing += bool(touching and np.linalg.norm(want[:3]) > 0.1)
+    assert pressing >= 3

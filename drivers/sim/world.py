@@ -164,6 +164,7 @@ class SimWorld:
                             and m.geom_contype[g] != 0}
         self._is_tool_geom = np.zeros(m.ngeom, dtype=bool)
         self._is_tool_geom[list(self._tool_geoms)] = True
+        self._elliptic = int(m.opt.cone) == int(mujoco.mjtCone.mjCONE_ELLIPTIC)
         self._funnel_geoms = {
             g for g in range(m.ngeom)
             if m.geom_contype[g] != 0 and m.geom_bodyid[g] != self._target_body
@@ -510,7 +511,9 @@ class SimWorld:
         constraint forces must come from the same collision pass). Touching:
         a tool geom is in the contact list (within the margin counts); the
         wrench sums the contacts with a constraint row (pressing), vectorised
-        over them (``mj_contactForce`` per pressing contact, usually a few).
+        over them: with elliptic cones the contact-frame force is read from
+        ``efc_force`` as ``mj_contactForce`` does, otherwise that function is
+        called per pressing contact.
         """
         m, d = self.model, self.data
         if d.ncon == 0:
@@ -527,9 +530,23 @@ class SimWorld:
         out = np.zeros(6)
         if idx.size == 0:
             return out, True
-        local = np.empty((idx.size, 6))
-        for k, i in enumerate(idx.tolist()):
-            mujoco.mj_contactForce(m, d, i, local[k])
+        if self._elliptic:  # mj_contactForce copies efc_force[adr:adr + dim] for these
+            a = adr[idx]
+            dim = con.dim[idx]
+            local = np.zeros((idx.size, 3))
+            efc = d.efc_force
+            local[:, 0] = efc[a]
+            fric = dim >= 3
+            if fric.all():
+                local[:, 1] = efc[a + 1]
+                local[:, 2] = efc[a + 2]
+            elif fric.any():
+                local[fric, 1] = efc[a[fric] + 1]
+                local[fric, 2] = efc[a[fric] + 2]
+        else:
+            local = np.empty((idx.size, 6))
+            for k, i in enumerate(idx.tolist()):
+                mujoco.mj_contactForce(m, d, i, local[k])
         # rows of frame: normal, tangent 1, tangent 2; mj_contactForce gives the
         # force geom1 exerts on geom2 (minus when the tool is geom1)
         frame = con.frame[idx].reshape(-1, 3, 3)

@@ -148,3 +148,47 @@ def test_docs_cite_existing_paths(page: str) -> None:
     text = (ROOT / "docs" / page).read_text(encoding="utf-8")
     missing = [p for p in _DOC_PATH.findall(text) if "<" not in p and not path_exists(p)]
     assert not missing, f"docs/{page} cites paths that do not exist: {missing}"
+
+
+# --------------------------------------------------------------------------- the README
+
+
+def readme() -> str:
+    return (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def test_quick_start_is_two_commands() -> None:
+    text = readme()
+    quick = text[text.index("## Quick start"):text.index("## What is here")]
+    blocks = re.findall(r"```bash\n(.*?)```", quick, flags=re.S)
+    assert len(blocks) == 2 and all(b.count("\n") == 1 for b in blocks)
+    assert "ffexp campaign protocols/paper.toml" in blocks[0]
+
+
+def test_every_command_in_the_readme_table_exists() -> None:
+    from typer.testing import CliRunner
+
+    from ffexp.cli import app
+
+    text = readme()
+    table = text[text.index("| command | what it does |"):text.index("### Exit codes")]
+    commands = re.findall(r"^\| `ffexp ([a-z-]+(?: [a-z0-9-]+)?)", table, flags=re.M)
+    assert len(commands) >= 12
+    for command in commands:
+        words = command.split()
+        if words[0] in ("simulate", "friction"):
+            args = words[:2]
+        else:
+            args = words[:1]
+        result = CliRunner().invoke(app, [*args, "-h"])
+        assert result.exit_code == 0, (command, result.output)
+
+
+def test_the_exit_code_table_matches_the_code() -> None:
+    from ffexp.cli import _common as c
+
+    text = readme()
+    table = text[text.index("| code | meaning |"):]
+    codes = re.findall(r"^\| (\d+|128\+N) \|", table, flags=re.M)
+    assert codes == [str(c.EXIT_OK), str(c.EXIT_FAILURE), str(c.EXIT_BAD_INPUT),
+                     str(c.EXIT_ABORTED), str(c.EXIT_TIMED_OUT), f"{c.EXIT_SIGNAL_BASE}+N"]

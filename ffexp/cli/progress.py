@@ -43,7 +43,7 @@ class Steps:
             self._progress = Progress(
                 SpinnerColumn(),
                 TextColumn("{task.description}"),
-                BarColumn(bar_width=24),
+                BarColumn(bar_width=16),
                 TextColumn("{task.fields[status]}"),
                 TimeElapsedColumn(),
                 console=Console(stderr=True),
@@ -117,7 +117,4 @@ class Steps:
 
 
 def _status(p: RunProgress) -> str:
-    return (
-        f"{p.phase.name:<8} t={p.time_s:6.2f} s f_z={p.f_z_n:+6.2f} N "
-        f"contacts={p.contacts} breaks={p.breaks}"
-    )
+    return f"{p.phase.name:<8} {p.time_s:5.1f} s  f_z {p.f_z_n:+5.2f} N  breaks {p.breaks}"

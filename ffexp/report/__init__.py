@@ -37,7 +37,7 @@ from ffexp.revision import source_revision
 if TYPE_CHECKING:
     from ffexp.recording import Recording
 
-#: CSV tables longer than this show their first rows only (the file has them all).
+#: CSV tables longer than this are data (a sweep's every sample): named, not shown.
 MAX_CSV_ROWS = 60
 #: Long-format data files (a sweep's every sample) are listed, not shown.
 MAX_CSV_BYTES = 2_000_000
@@ -147,12 +147,12 @@ def _csv_html(path: Path, root: Path) -> str:
         frame = pd.read_csv(path)
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
         return f'<p class="warn">{rel}: cannot be read as CSV ({html.escape(str(exc))})</p>'
-    note = ""
     if len(frame) > MAX_CSV_ROWS:
-        note = f" (first {MAX_CSV_ROWS} of {len(frame)} rows)"
-        frame = frame.head(MAX_CSV_ROWS)
+        columns = html.escape(", ".join(map(str, frame.columns)))
+        return (f"<p>{rel}: data, {len(frame)} rows of {columns} (not shown; the figures "
+                "draw it)</p>")
     table = frame.to_html(index=False, na_rep="", float_format=lambda x: f"{x:.4g}", border=0)
-    return f"<h3>{rel}{html.escape(note)}</h3>{table}"
+    return f"<h3>{rel}</h3>{table}"
 
 
 def _img(data: bytes, alt: str, wide: bool = False) -> str:

@@ -28,13 +28,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+import mujoco
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from pydantic import Field, model_validator
 
 from drivers.base.types import F64, Vec3, Vec6
 from drivers.config import StrictModel
-from ffexp.control import rotation_log
 
 FloatArray = F64  # the project's alias (drivers.base.types)
 
@@ -125,7 +125,7 @@ class WrenchFilter:
         n = samples.shape[0]
         if not n:
             return
-        z = samples.mean(axis=0) if n > 1 else samples[0]
+        z = np.add.reduce(samples, axis=0) / n if n > 1 else samples[0]  # the mean
         s = p_ff + 2.0 * p_fb + p_bb + self._r / n
         k_f = (p_ff + p_fb) / s
         k_b = (p_fb + p_bb) / s
@@ -185,6 +185,8 @@ class MotionFilter:
         self._x = np.zeros((6, 3))  # per axis: value, rate, acceleration
         self._p = np.tile(np.eye(3) * 1e-2, (6, 1, 1))
         self._z = np.zeros(6)
+        self._quat = np.zeros(4)
+        self._rotvec = np.zeros(3)
         self._rot_prev: FloatArray | None = None
         self._theta = np.zeros(3)
 
@@ -198,7 +200,9 @@ class MotionFilter:
             self._x[3:, 0] = self._theta
         else:
             # accumulate the incremental rotation, in the base frame
-            self._theta += self._rot_prev @ rotation_log(self._rot_prev.T @ r)
+            mujoco.mju_mat2Quat(self._quat, (self._rot_prev.T @ r).ravel())
+            mujoco.mju_quat2Vel(self._rotvec, self._quat, 1.0)  # its rotation vector
+            self._theta += self._rot_prev @ self._rotvec
         self._rot_prev = r.copy()
         z[:3] = pose[:3, 3]
         z[3:] = self._theta

@@ -33,6 +33,7 @@ from ffexp.estimation import (
     ToolLoad,
     WrenchFilter,
     WrenchFilterConfig,
+    skew,
 )
 
 
@@ -101,7 +102,7 @@ class Estimator:
         self._tare_first_ns: int | None = None
         self._compensate = config.tool_load.mass_kg > 0.0
         self._mass_kg = config.tool_load.mass_kg
-        self._com_m = np.asarray(config.tool_load.com_m, dtype=np.float64)
+        self._com_skew = skew(np.asarray(config.tool_load.com_m, dtype=np.float64))
         self._load = np.zeros(6)
         self.out = Estimate()
 
@@ -109,12 +110,9 @@ class Estimator:
         """:meth:`ToolLoad.wrench <ffexp.estimation.ToolLoad.wrench>` into a reused array."""
         g = GRAVITY_BASE_MPS2 if accel_base is None else GRAVITY_BASE_MPS2 - accel_base
         f = self._mass_kg * (g @ r_base_sensor)
-        c = self._com_m
         load = self._load
         load[:3] = f
-        load[3] = c[1] * f[2] - c[2] * f[1]
-        load[4] = c[2] * f[0] - c[0] * f[2]
-        load[5] = c[0] * f[1] - c[1] * f[0]
+        np.matmul(self._com_skew, f, out=load[3:])  # com x f
         return load
 
     def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int) -> Estimate:

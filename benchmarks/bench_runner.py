@@ -1,14 +1,22 @@
-"""One paper experiment in lockstep, against the bare world, in the same run.
+"""One paper experiment in lockstep, against bare physics and the bare world, in the same run.
 
     python benchmarks/bench_runner.py [--protocol P] [--seconds S] [--repeats R]
 
 Runs the protocol (default Method I case I) for ``S`` seconds of simulated
-time through ``ffexp.experiment.run_file`` on the built-in sim rig (the loop:
-estimator, safety, task, controller, MCAP recording) and, for the same
-simulated time, the bare world (``SimWorld.step`` with a constant Cartesian
-command + F/T read). Prints medians: wall time, real-time factor, where the
-loop's time goes (driver = physics stepping, sensor read, step = estimation,
-safety, task and control, send, recording) and the ratio loop/bare.
+time through ``ffexp.experiment.run_file`` on the built-in sim rig: the
+lockstep KRC (``drivers.emulate.lockstep``) with the sim F/T sensor, the
+loop (estimator, safety, task, controller) and the MCAP recording. Baselines,
+each measured in the same repeat:
+
+* bare physics: the wall time of every ``mujoco.mj_step`` call inside that
+  very run (the floor: the same model, the same states, the same steps);
+* the loop without a recording (``RunLog(None)``), same protocol and seed;
+* the bare world: ``SimWorld.step`` with a constant Cartesian command and the
+  F/T read, for the same simulated time (no KRC, no loop).
+
+Prints medians: wall time and real-time factor of each, the ratios, and where
+the run's time goes (driver = the KRC and the world, of which physics; sensor
+read; step = estimation, safety, task and control; send; recording).
 """
 
 from __future__ import annotations
@@ -17,29 +25,65 @@ import argparse
 import statistics
 import tempfile
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
+from drivers.emulate.lockstep import open_sim
 from drivers.sim.arm import ArmCommand, ArmMode
 from drivers.sim.scene import load_scene
 from drivers.sim.world import SimWorld
+from ffexp import loop
 from ffexp.experiment import run_file
 from ffexp.protocol import load_run_protocol, scene_path
+from ffexp.runlog import RunLog
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
+@contextmanager
+def timed_physics() -> Iterator[list[float]]:
+    """Accumulate the wall time of every ``mujoco.mj_step`` call made inside the block."""
+    total = [0.0]
+    bare: Callable[..., None] = mujoco.mj_step
+    clock = time.perf_counter
+
+    def step(*args: object) -> None:
+        t = clock()
+        bare(*args)
+        total[0] += clock() - t
+
+    mujoco.mj_step = step
+    try:
+        yield total
+    finally:
+        mujoco.mj_step = bare
+
+
 def run_once(ppath: Path, seconds: float, out: Path) -> tuple[float, dict[str, float], float]:
     timings: dict[str, float] = {}
-    t0 = time.perf_counter()
-    result = run_file(ppath, [f"run.timeout_s={seconds}", "run.stop_hold_s=0"], out_dir=out,
-                      timings=timings)
-    wall = time.perf_counter() - t0
+    with timed_physics() as physics:
+        t0 = time.perf_counter()
+        result = run_file(ppath, [f"run.timeout_s={seconds}", "run.stop_hold_s=0"],
+                          out_dir=out, timings=timings)
+        wall = time.perf_counter() - t0
+    timings["physics"] = physics[0]
     return wall, timings, result.outcome.duration_s
 
 
-def bare_once(ppath: Path, seconds: float) -> float:
+def unrecorded_once(ppath: Path, seconds: float) -> float:
+    protocol = load_run_protocol(ppath, [f"run.timeout_s={seconds}", "run.stop_hold_s=0"])
+    robot, sensor = open_sim(scene_path(ppath, protocol), seed=protocol.seed,
+                             overrides=protocol.scene.set)
+    t0 = time.perf_counter()
+    loop.run(protocol, robot, sensor, RunLog(None, 0, protocol.run.tf_period_s))
+    return time.perf_counter() - t0
+
+
+def bare_world_once(ppath: Path, seconds: float) -> float:
     protocol = load_run_protocol(ppath)
     scene = load_scene(scene_path(ppath, protocol), protocol.scene.set)
     world = SimWorld(scene, seed=protocol.seed)
@@ -64,24 +108,39 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=10.0, help="simulated time per run")
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
-    walls, bares, parts = [], [], []
+    walls, unrec, bares, parts = [], [], [], []
     sim_s = args.seconds
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.repeats):
             wall, timings, sim_s = run_once(args.protocol, args.seconds, Path(tmp) / str(i))
             walls.append(wall)
             parts.append(timings)
-            bares.append(bare_once(args.protocol, sim_s))
-    wall, bare = statistics.median(walls), statistics.median(bares)
+            unrec.append(unrecorded_once(args.protocol, sim_s))
+            bares.append(bare_world_once(args.protocol, sim_s))
+    wall = statistics.median(walls)
+    part = {k: statistics.median(p[k] for p in parts) for k in parts[0]}
+    physics = part.pop("physics")
     print(f"{args.protocol.name}: {sim_s:.2f} s simulated, {args.repeats} repeats (medians)")
-    print(f"loop:       {wall:7.2f} s wall   real-time factor {sim_s / wall:6.1f}x")
-    print(f"bare world: {bare:7.2f} s wall   real-time factor {sim_s / bare:6.1f}x")
-    print(f"ratio loop/bare speed: {bare / wall:.2f}")
-    total = sum(statistics.median(p[k] for p in parts) for k in parts[0])
-    for key in parts[0]:
-        part = statistics.median(p[key] for p in parts)
-        print(f"  {key:<11} {part:7.2f} s  {100 * part / wall:5.1f} % of wall")
-    print(f"  {'other':<11} {wall - total:7.2f} s  (set-up, phase changes, closing)")
+    rows = (
+        ("whole run (loop + KRC + sim F/T + recording)", wall),
+        ("  its bare physics (mj_step calls of the run)", physics),
+        ("loop without recording", statistics.median(unrec)),
+        ("bare world (SimWorld.step + F/T, fixed command)", statistics.median(bares)),
+    )
+    for label, seconds in rows:
+        print(f"{label:<48} {seconds:7.2f} s wall   real-time factor {sim_s / seconds:6.1f}x")
+    print(f"ratio whole run / its bare physics (speed): {physics / wall:.2f}")
+    print(f"ratio whole run / loop without recording:   {rows[2][1] / wall:.2f}")
+    print(f"ratio whole run / bare world:               {rows[3][1] / wall:.2f}")
+    print("where the whole run's time goes:")
+    for key, seconds in part.items():
+        print(f"  {key:<11} {seconds:7.2f} s  {100 * seconds / wall:5.1f} %")
+        if key == "driver":
+            print(f"    physics {physics:7.2f} s  {100 * physics / wall:5.1f} %  (mj_step)")
+            rest = seconds - physics
+            print(f"    rest    {rest:7.2f} s  {100 * rest / wall:5.1f} %"
+                  "  (KRC emulation, world bookkeeping, F/T model)")
+    print(f"  {'other':<11} {wall - sum(part.values()):7.2f} s  (set-up, phase changes, closing)")
 
 
 if __name__ == "__main__":

@@ -48,10 +48,11 @@ def _one(
     steps: Steps, protocol: Path, set_: Sequence[str], rig: RigChoice, out: Path,
     flag: StopFlag, label: str,
 ) -> RunResult:
-    from ffexp.experiment import run_file
-    from ffexp.protocol import load_run_protocol
+    with steps.step(f"{label}: loading the protocol and the rig"):
+        from ffexp.experiment import run_file
+        from ffexp.protocol import load_run_protocol
 
-    timeout_s = load_run_protocol(protocol, list(set_)).run.timeout_s
+        timeout_s = load_run_protocol(protocol, list(set_)).run.timeout_s
     with steps.run(label, timeout_s) as show:
         result = run_file(
             protocol, list(set_), rig=rig, out_dir=out, progress=show, stop_requested=flag,
@@ -164,19 +165,21 @@ def campaign(
     """
     from datetime import UTC, datetime
 
-    from ffexp.experiment import load_campaign, load_rig_choice
     from ffexp.naming import stamp
-    from ffexp.protocol import load_run_protocol
 
+    with Steps() as early, early.step("starting"):  # the imports take a second or two
+        from ffexp.experiment import load_campaign, load_rig_choice
+        from ffexp.protocol import load_run_protocol
     _check_out(out)
-    camp = load_campaign(campaign_file)
-    for entry in camp.runs:  # every protocol and the rig are checked before anything runs
-        load_run_protocol(campaign_file.parent / entry.protocol, [*entry.set, *set_])
-    choice = rig_choice(rig, driver, rig_set)
-    load_rig_choice(choice)
-    camp_dir = _new_dir(out, f"{camp.name}-{stamp(datetime.now(UTC))}")
     results: list[RunResult] = []
     with stop_signals(StopFlag()) as flag, Steps() as steps:
+        with steps.step(f"checking {campaign_file.name}, its protocols and the rig"):
+            camp = load_campaign(campaign_file)
+            for entry in camp.runs:  # every protocol and the rig, before anything runs
+                load_run_protocol(campaign_file.parent / entry.protocol, [*entry.set, *set_])
+            choice = rig_choice(rig, driver, rig_set)
+            load_rig_choice(choice)
+        camp_dir = _new_dir(out, f"{camp.name}-{stamp(datetime.now(UTC))}")
         with steps.step(f"campaign {camp.name}", total=len(camp.runs)) as advance:
             for i, entry in enumerate(camp.runs):
                 if flag():

@@ -56,6 +56,8 @@ SEAT_LATERAL_TOL = 0.0025
 SEAT_YAW_TOL = math.radians(3.0)
 
 _N_ARM = 7
+_YZX = np.array([1, 2, 0])
+_ZXY = np.array([2, 0, 1])
 
 #: MuJoCo's bad-state warnings: (what went bad, index into ``mjData.warning``).
 _BAD_STATE_WARNINGS = (
@@ -164,7 +166,7 @@ class SimWorld:
                             and m.geom_contype[g] != 0}
         self._is_tool_geom = np.zeros(m.ngeom, dtype=bool)
         self._is_tool_geom[list(self._tool_geoms)] = True
-        self._elliptic = int(m.opt.cone) == int(mujoco.mjtCone.mjCONE_ELLIPTIC)
+        self._tool_root = int(m.body_rootid[self._tool_body])
         self._funnel_geoms = {
             g for g in range(m.ngeom)
             if m.geom_contype[g] != 0 and m.geom_bodyid[g] != self._target_body
@@ -509,53 +511,28 @@ class SimWorld:
 
         Valid only right after ``mj_step``/``mj_forward`` (contacts and
         constraint forces must come from the same collision pass). Touching:
-        a tool geom is in the contact list (within the margin counts); the
-        wrench sums the contacts with a constraint row (pressing), vectorised
-        over them: with elliptic cones the contact-frame force is read from
-        ``efc_force`` as ``mj_contactForce`` does, otherwise that function is
-        called per pressing contact.
+        a tool geom is in the contact list (within the margin counts). The
+        wrench is the tool body's external force from MuJoCo's
+        ``mj_rnePostConstraint`` (the sum of its contacts' forces, which only
+        the target funnel makes: the contype convention), moved from the
+        subtree centre of mass to the TCP.
         """
         m, d = self.model, self.data
         if d.ncon == 0:
             return np.zeros(6), False
-        con = d.contact
-        geom = con.geom
+        geom = d.contact.geom
         tool = self._is_tool_geom
-        tool0 = tool[geom[:, 0]]
-        sel = tool0 | tool[geom[:, 1]]
-        if not sel.any():
+        if not (tool[geom[:, 0]] | tool[geom[:, 1]]).any():
             return np.zeros(6), False
-        adr = con.efc_address
-        idx = np.flatnonzero(sel & (adr >= 0))
-        out = np.zeros(6)
-        if idx.size == 0:
-            return out, True
-        if self._elliptic:  # mj_contactForce copies efc_force[adr:adr + dim] for these
-            a = adr[idx]
-            dim = con.dim[idx]
-            local = np.zeros((idx.size, 3))
-            efc = d.efc_force
-            local[:, 0] = efc[a]
-            fric = dim >= 3
-            if fric.all():
-                local[:, 1] = efc[a + 1]
-                local[:, 2] = efc[a + 2]
-            elif fric.any():
-                local[fric, 1] = efc[a[fric] + 1]
-                local[fric, 2] = efc[a[fric] + 2]
-        else:
-            local = np.empty((idx.size, 6))
-            for k, i in enumerate(idx.tolist()):
-                mujoco.mj_contactForce(m, d, i, local[k])
-        # rows of frame: normal, tangent 1, tangent 2; mj_contactForce gives the
-        # force geom1 exerts on geom2 (minus when the tool is geom1)
-        frame = con.frame[idx].reshape(-1, 3, 3)
-        f = np.einsum("ki,kij->kj", local[:, :3], frame)
-        f[tool0[idx]] *= -1.0
-        r = con.pos[idx] - d.site_xpos[self._tcp]
+        mujoco.mj_rnePostConstraint(m, d)
+        cfrc = d.cfrc_ext[self._tool_body]  # [torque about the subtree com, force], world
+        f = cfrc[3:]
+        r = d.subtree_com[self._tool_root] - d.site_xpos[self._tcp]
+        torque = cfrc[:3] + r[_YZX] * f[_ZXY] - r[_ZXY] * f[_YZX]  # + r x f
         rot = d.site_xmat[self._tcp].reshape(3, 3)
-        out[:3] = f.sum(axis=0) @ rot
-        out[3:] = np.cross(r, f).sum(axis=0) @ rot
+        out = np.empty(6)
+        out[:3] = f @ rot
+        out[3:] = torque @ rot
         return out, True
 
     def _truth(self, contact: F64, touching: bool, tcp_twist: F64) -> GroundTruth:

@@ -1,0 +1,173 @@
+"""``--executor``: a process pool on this machine, or Ray, both as a
+:class:`concurrent.futures.Executor`.
+
+- ``local`` / ``local:N``: :class:`~concurrent.futures.ProcessPoolExecutor`
+  with N workers (default: the CPUs this process may use), started by
+  ``spawn`` (no fork of a process that runs threads).
+- ``ray`` / ``ray:auto``: the running Ray cluster (``RAY_ADDRESS`` or the latest
+  ``ray start`` on this machine); ``ray:HOST:PORT`` a cluster's GCS address;
+  ``ray://HOST:PORT`` a Ray client server; ``ray:local`` a Ray instance started
+  here for this sweep. A process that already called ``ray.init`` is reused.
+
+Ray is optional (``pip install -e ".[ray]"``) and imported only when asked for.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+from collections.abc import Callable
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from ffexp.errors import ConfigError
+
+T = TypeVar("T")
+OPTION = "--executor"
+#: Seconds to wait for a TCP answer from a Ray address before calling it unreachable.
+CONNECT_TIMEOUT_S = 3.0
+
+
+@dataclass(frozen=True)
+class ExecutorSpec:
+    kind: str
+    """``local`` or ``ray``."""
+    workers: int = 0
+    address: str = ""
+
+    @property
+    def label(self) -> str:
+        if self.kind == "local":
+            return f"local:{self.workers}"
+        return f"ray:{self.address}"
+
+
+def available_cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def parse_executor(text: str) -> ExecutorSpec:
+    """``local[:N]`` or ``ray[:ADDRESS]``; anything else is a ConfigError (exit 2)."""
+    kind, _, rest = text.strip().partition(":")
+    if kind == "local":
+        if not rest:
+            return ExecutorSpec("local", available_cpus())
+        try:
+            n = int(rest)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ConfigError(OPTION, text, "expected local or local:N with N >= 1 workers")
+        return ExecutorSpec("local", n)
+    if kind == "ray":
+        address = rest or "auto"
+        if address not in ("auto", "local") and not address.startswith("//"):
+            host, sep, port = address.rpartition(":")
+            if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+                raise ConfigError(OPTION, text, "expected ray, ray:auto, ray:local, "
+                                  "ray:HOST:PORT or ray://HOST:PORT")
+        return ExecutorSpec("ray", address=("ray:" + address) if address.startswith("//")
+                            else address)
+    raise ConfigError(OPTION, text, "expected local[:WORKERS] or ray[:ADDRESS]")
+
+
+def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
+    """The executor and how many runs it runs at once.
+
+    Raises:
+        ConfigError: Ray is not installed, or its address does not answer.
+    """
+    if spec.kind == "local":
+        import multiprocessing
+
+        from ffexp.sweeps.worker import worker_init
+
+        pool = ProcessPoolExecutor(
+            max_workers=spec.workers, mp_context=multiprocessing.get_context("spawn"),
+            initializer=worker_init,
+        )
+        return pool, spec.workers
+    ex = RayExecutor.connect(spec.address)
+    return ex, ex.slots
+
+
+def _check_reachable(address: str) -> None:
+    """A ``HOST:PORT`` that does not accept a TCP connection is unreachable."""
+    target = address.removeprefix("ray://")
+    host, _, port = target.rpartition(":")
+    try:
+        with socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S):
+            pass
+    except (OSError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        raise ConfigError(OPTION, f"ray:{address}", f"Ray is not reachable there: {reason}") \
+            from None
+
+
+class RayExecutor(Executor):
+    """An Executor over Ray remote functions: ``submit`` runs ``fn`` as a Ray task
+    (one CPU each) and returns the task's :class:`~concurrent.futures.Future`."""
+
+    def __init__(self, ray: Any, started_here: bool) -> None:
+        self._ray = ray
+        self._started_here = started_here
+        self._remote: dict[Callable[..., Any], Any] = {}
+        self._refs: list[Any] = []
+        self.slots = max(1, int(ray.cluster_resources().get("CPU", 1)))
+
+    @classmethod
+    def connect(cls, address: str) -> RayExecutor:
+        try:
+            import ray
+        except ImportError:
+            raise ConfigError(OPTION, f"ray:{address}",
+                              'Ray is not installed (pip install -e ".[ray]")') from None
+        if ray.is_initialized():
+            return cls(ray, started_here=False)
+        if address not in ("auto", "local"):
+            _check_reachable(address)
+        try:
+            if address == "local":
+                ray.init(num_cpus=available_cpus(), include_dashboard=False,
+                         logging_level=logging.ERROR, log_to_driver=False)
+            else:
+                ray.init(address=address, logging_level=logging.ERROR, log_to_driver=False)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise ConfigError(OPTION, f"ray:{address}", f"cannot connect to Ray: {msg}") \
+                from None
+        return cls(ray, started_here=True)
+
+    def submit(self, fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> Future[T]:
+        remote = self._remote.get(fn)
+        if remote is None:
+            remote = self._ray.remote(num_cpus=1, max_retries=0)(fn)
+            self._remote[fn] = remote
+        ref = remote.remote(*args, **kwargs)
+        self._refs.append(ref)
+        future: Future[T] = ref.future()
+        return future
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        if cancel_futures:
+            for ref in self._refs:
+                try:
+                    self._ray.cancel(ref, force=True)
+                except Exception:
+                    pass
+        self._refs.clear()
+        if self._started_here:
+            self._ray.shutdown()
+
+
+def end_workers(executor: Executor) -> None:
+    """Stop the running runs now (a second Ctrl-C): end a pool's worker processes."""
+    processes = getattr(executor, "_processes", None) or {}
+    for proc in list(processes.values()):
+        proc.terminate()
+    executor.shutdown(wait=False, cancel_futures=True)

@@ -477,3 +477,22 @@ def test_contact_wrench_equals_the_sum_over_contacts() -> None:
             np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
             pressing += bool(touching and np.linalg.norm(want[:3]) > 0.1)
     assert pressing >= 3
+
+
+def test_reused_cartesian_inertia_keeps_the_damping_within_0_1_percent() -> None:
+    """The KRC damping's Cartesian inertia is reused while no joint moved 1 mrad."""
+    from drivers.sim.controller import cartesian_inertia
+
+    w = SimWorld(scene())
+    pose = w.last_state.tcp_pose_m.copy()
+    pose[:3, 3] += 0.045 * pose[:3, 2]
+    cmd = ArmCommand(cart_pose_m=pose, tcp_wrench_n_nm=np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
+    reused = 0
+    for _ in range(400):
+        before = w.cart_inertia
+        w.advance(cmd)
+        reused += w.cart_inertia is before
+        exact = np.diag(cartesian_inertia(w.jacobian, w.mass_matrix))
+        ratio = np.sqrt(np.diag(w.cart_inertia) / exact)  # damping ~ sqrt(inertia)
+        assert np.max(np.abs(ratio - 1.0)) < 1e-3
+    assert 0 < reused < 400

@@ -169,6 +169,7 @@ class SimWorld:
         jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in mjcf.TARGET_JOINTS]
         self._t_qadr = np.array([m.jnt_qposadr[j] for j in jid])
         self._t_vadr = np.array([m.jnt_dofadr[j] for j in jid])
+        self._t_twist_adr = self._t_vadr[[0, 1, 3]]
         self._tool_geoms = {g for g in range(m.ngeom) if m.geom_bodyid[g] == self._tool_body
                             and m.geom_contype[g] != 0}
         self._is_tool_geom = np.zeros(m.ngeom, dtype=bool)
@@ -185,6 +186,8 @@ class SimWorld:
         self._vel_limits = np.radians(mjcf.LWR_VEL_LIMITS_DEG)
         self._pos_limits = np.radians(mjcf.LWR_POS_LIMITS_DEG)
         self._torque_limits = np.asarray(scene.arm.torque_limits)
+        self._pos_warn = self._pos_limits - 1e-3
+        self._torque_warn = self._torque_limits - 1e-9
 
         # Preallocated work arrays.
         self._jacp = np.zeros((3, m.nv))
@@ -573,27 +576,25 @@ class SimWorld:
     def _truth(self, contact: F64, touching: bool, tcp_twist: F64) -> GroundTruth:
         d = self.data
         tp = _pose(d.xpos[self._target_body], d.xmat[self._target_body])
-        v = d.qvel
-        twist = np.array([v[self._t_vadr[0]], v[self._t_vadr[1]], v[self._t_vadr[3]]])
-        mouth = d.site_xpos[self._mouth]
+        twist = d.qvel[self._t_twist_adr]
+        tcp = self.tcp_pose
         rm = d.site_xmat[self._mouth].reshape(3, 3)
-        rel = rm.T @ (self.tcp_pose[:3, 3] - mouth)
-        z_tool = self.tcp_pose[:3, 2]
-        yaw_err = _wrap(math.atan2(z_tool[1], z_tool[0]) - math.atan2(rm[1, 0], rm[0, 0]))
+        insertion, lateral, vertical = ((tcp[:3, 3] - d.site_xpos[self._mouth]) @ rm).tolist()
+        yaw_err = _wrap(math.atan2(tcp[1, 2], tcp[0, 2]) - math.atan2(rm[1, 0], rm[0, 0]))
         seated = (
-            rel[0] >= self.layout.funnel_seat_depth - SEAT_DEPTH_TOL
-            and abs(rel[1]) <= SEAT_LATERAL_TOL
+            insertion >= self.layout.funnel_seat_depth - SEAT_DEPTH_TOL
+            and abs(lateral) <= SEAT_LATERAL_TOL
             and abs(yaw_err) <= SEAT_YAW_TOL
         )
         return GroundTruth(
             target_pose=tp,
             target_twist=twist,
             contact_wrench=contact,
-            lateral_error=float(rel[1]),
-            vertical_error=float(rel[2]),
+            lateral_error=lateral,
+            vertical_error=vertical,
             yaw_error=yaw_err,
-            insertion=float(rel[0]),
-            seated=bool(seated),
+            insertion=insertion,
+            seated=seated,
             in_contact=touching,
             tcp_twist=tcp_twist,
         )
@@ -610,11 +611,11 @@ class SimWorld:
         # Link-side torque sensors: M qdd + c + g = tau_msr + tau_ext.
         tau_msr = mass @ d.qacc[:_N_ARM] + d.qfrc_bias[:_N_ARM] - tau_ext
         warning = self._warning
-        if np.any(np.abs(qd) > self._vel_limits):
+        if (np.abs(qd) > self._vel_limits).any():
             warning |= _WARN_VELOCITY
-        if np.any(np.abs(q) > self._pos_limits - 1e-3):
+        if (np.abs(q) > self._pos_warn).any():
             warning |= _WARN_POSITION
-        if np.any(np.abs(d.qfrc_actuator[:_N_ARM]) >= self._torque_limits - 1e-9):
+        if (np.abs(d.qfrc_actuator[:_N_ARM]) >= self._torque_warn).any():
             warning |= _WARN_TORQUE
         cart = self.mode == ArmMode.CART_IMPEDANCE
         tcp_twist = jac @ qd

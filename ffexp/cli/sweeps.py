@@ -141,12 +141,104 @@ def sweep(
         typer.echo(f"wrote {p}", err=err)
 
 
+@cli_errors
 def limits(
     protocol: Path = typer.Argument(..., help="Run protocol (TOML)."),
+    key: list[str] = typer.Option(..., "--key", help="The key (twice: a plane), e.g. "
+                                  "align.k_ri[3] for k_xp, align.f_ref[2] for f_ref."),
+    range_: list[str] = typer.Option(..., "--range", help="LO:HI of each --key, in order."),
+    seeds: int = typer.Option(1, "--seeds", help=SEEDS_HELP + " A point aligns when more "
+                              "than half of them do."),
+    resolution: list[float] = typer.Option(
+        [], "--resolution", help="Bracket width to stop at, in the key's unit (one, or one "
+        "per key). Default: 1/16 of each range."),
+    coarse: int = typer.Option(5, "--coarse", help="Points of the coarse grid (per ray)."),
+    n_rays: int = typer.Option(8, "--rays", help="Two keys: rays from the box centre."),
+    set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
+    executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
+    out: Path | None = typer.Option(
+        None, "--out", help=OUT_HELP + " Default sweeps/<protocol>-limits."),
+    as_json: bool = typer.Option(False, "--json", help="Print the limits as JSON lines."),
 ) -> None:
-    """Find the lower and upper limit of a gain between aligning and not (being built)."""
-    typer.echo("error: ffexp limits is not available yet", err=True)
-    raise typer.Exit(2)
+    """The limits of a gain (or f_ref) between "aligns" and "does not".
+
+    A coarse grid over LO:HI, then bisection in every bracket where the outcome
+    changes, to the resolution, each point run with every seed. Prints each
+    limit with its bracket (lower: aligns above it; upper: aligns below it) and
+    plots the outcome against the key (OUT/figures/limits.png). With --key
+    twice: the boundary in the plane, by bisection along rays from the centre.
+    Runs are cached by id in OUT: the same call twice gives the same answer.
+    Exit code: 0 done, 2 bad input (before any run), 128+N on signal N.
+    """
+    import json
+
+    from ffexp.cli.tables import json_line
+    from ffexp.errors import ConfigError
+    from ffexp.sweeps import plots, table
+    from ffexp.sweeps.executors import parse_executor
+    from ffexp.sweeps.keys import parse_key, parse_range
+    from ffexp.sweeps.plan import Target, seeds_of
+    from ffexp.sweeps.searches import LimitSearch
+
+    out = out if out is not None else Path("sweeps") / f"{protocol.stem}-limits"
+    _check_out(out)
+    spec = parse_executor(executor)
+    if len(key) != len(range_):
+        raise ConfigError("--range", " ".join(range_), "give one --range LO:HI per --key")
+    keys = [parse_key(k, "--key") for k in key]
+    spans = []
+    for text in range_:
+        _k, lo, hi = parse_range(text, "--range")
+        spans.append((lo, hi))
+    if not protocol.is_file():
+        raise ConfigError(str(protocol), "", "file not found")
+    target = Target(protocol, tuple(set_))
+    res = resolution or [(hi - lo) / 16 for lo, hi in spans]
+    search = LimitSearch(target, keys, spans, seeds_of(target, seeds), list(res), coarse,
+                         n_rays)
+    search.check()
+    with _session(out, spec, f"limits {target.label}") as (runner, _display):
+        search.run(runner)
+        found = search.limits_rows()
+        table.write(table.frame(search.rows), runner.out_dir)
+        (runner.out_dir / "limits.json").write_text(json.dumps({
+            "kind": "limits", "protocol": str(protocol), "keys": key, "ranges": spans,
+            "resolution": search.resolution, "seeds": search.seeds, "limits": found,
+        }, indent=2) + "\n")
+        names = [k.text for k in keys]
+        fig = plots.limits_figure(
+            search.points(), names, [tuple(r[n] for n in names) for r in found],
+            f"{target.label}: {' x '.join(names)}, {len(search.seeds)} seed(s)",
+            runner.out_dir / "figures" / "limits.png")
+    if as_json:
+        for row in found:
+            typer.echo(json_line(row))
+    else:
+        _print_limits(target.label, found, names, search.resolution)
+    typer.echo(f"{len(search.rows)} runs looked at; table and limits.json in {out}; "
+               f"figure {fig}", err=as_json)
+
+
+def _print_limits(
+    label: str, found: Sequence[dict[str, Any]], names: Sequence[str], resolution: Sequence[float]
+) -> None:
+    from ffexp.cli.tables import console
+
+    res = ", ".join(f"{n} {r:.4g}" for n, r in zip(names, resolution, strict=True))
+    if not found:
+        typer.echo(f"{label}: the outcome does not change over the range (resolution {res})")
+        return
+    con = console()
+    if len(names) == 1 and len(found) > 2:
+        con.print(f"{label}: the outcome changes {len(found)} times over the range "
+                  "(not one lower and one upper limit)")
+    for row in found:
+        where = ", ".join(f"{n} {row[n]:.4g} (bracket {row[n + ' from']:.4g} .. "
+                          f"{row[n + ' to']:.4g})" for n in names)
+        kind = row["kind"] if len(names) == 1 else f"ray {row['ray']}"
+        con.print(f"{kind} limit: {where}; aligned fraction {row['lo_fraction']:.2g} -> "
+                  f"{row['hi_fraction']:.2g}")
+    con.print(f"resolution: {res}")
 
 
 def reproduce() -> None:

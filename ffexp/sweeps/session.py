@@ -75,7 +75,7 @@ class Display:
         """A step before the runs (starting Ray, checking the points)."""
         if self._progress is not None:
             self._progress.update(self._task, status=text)
-        else:
+        elif text.endswith("..."):
             print(f"{self.label}: {text}", file=sys.stderr, flush=True)
 
     def update(self, counts: Counts) -> None:
@@ -101,8 +101,20 @@ class Display:
         if self._progress is not None:
             self._progress.stop()
             self._progress = None
-        else:
+        elif self._counts.total:
             self._line("0:00:00")
+
+
+@contextmanager
+def _connecting(tty: bool, text: str) -> Iterator[None]:
+    """A transient spinner on a terminal (it leaves no line behind); nothing otherwise."""
+    if not tty:
+        yield
+        return
+    from rich.console import Console
+
+    with Console(stderr=True).status(text):
+        yield
 
 
 @contextmanager
@@ -113,17 +125,18 @@ def session(
     """Executor + Runner + Display; everything is closed at the end, workers ended on a
     second interrupt."""
     shown = display or Display(label)
+    runner: Runner
+    if spec.kind == "ray":  # connect first: an unreachable cluster is one error line
+        with _connecting(shown.tty, f"{label}: connecting to Ray ({spec.address})"):
+            executor, slots = make_executor(spec)
+        runner = Runner(out_dir, executor, slots, on_change=shown.update,
+                        stop_requested=stop_requested, notice=shown.note)
+    else:  # a process pool starts on the first run that is not done yet
+        runner = Runner(out_dir, lambda: make_executor(spec)[0], spec.workers,
+                        on_change=shown.update, stop_requested=stop_requested,
+                        notice=shown.note)
     shown.start()
     try:
-        if spec.kind == "ray":  # connect now: an unreachable cluster fails before any run
-            shown.status(f"connecting to Ray ({spec.address})")
-            executor, slots = make_executor(spec)
-            runner = Runner(out_dir, executor, slots, on_change=shown.update,
-                            stop_requested=stop_requested, notice=shown.note)
-        else:  # a process pool starts on the first run that is not done yet
-            runner = Runner(out_dir, lambda: make_executor(spec)[0], spec.workers,
-                            on_change=shown.update, stop_requested=stop_requested,
-                            notice=shown.note)
         try:
             with runner:
                 shown.status(f"{runner.slots} at once on {spec.label}")

@@ -1,0 +1,90 @@
+"""Limit searches on the engine: :func:`ffexp.sweeps.limits.search` with runs as outcomes.
+
+:class:`LimitSearch` evaluates a point by running it with every seed through a
+:class:`~ffexp.sweeps.engine.Runner` (runs cached by id in the sweep
+directory: the same search twice runs nothing the second time and gives the
+same answer) and keeps every row it ran.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from ffexp.errors import ConfigError
+from ffexp.sweeps import limits
+from ffexp.sweeps.engine import Runner
+from ffexp.sweeps.keys import Key
+from ffexp.sweeps.plan import Target
+
+
+@dataclass
+class LimitSearch:
+    """One search: a protocol, one or two keys with their ranges, seeds, resolution."""
+
+    target: Target
+    keys: list[Key]
+    ranges: list[tuple[float, float]]
+    seeds: list[int]
+    resolution: list[float]
+    coarse: int = 5
+    rays: int = 8
+    name: str = ""
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    result: limits.SearchResult | None = None
+
+    def __post_init__(self) -> None:
+        if len(self.keys) not in (1, 2) or len(self.ranges) != len(self.keys):
+            raise ConfigError("--key", " ".join(k.text for k in self.keys),
+                              "give one or two keys, each with its --range")
+        if len(self.resolution) == 1:
+            self.resolution = self.resolution * len(self.keys)
+        if len(self.resolution) != len(self.keys) or any(
+                not r > 0 for r in self.resolution):
+            raise ConfigError("--resolution", " ".join(map(str, self.resolution)),
+                              "one positive value, or one per key")
+        if self.coarse < 2:
+            raise ConfigError("--coarse", str(self.coarse), "must be at least 2")
+        if len(self.keys) == 2 and self.rays < 3:
+            raise ConfigError("--rays", str(self.rays), "must be at least 3")
+        self.name = self.name or self.target.label
+
+    def check(self) -> None:
+        """Validate both ends of every range (and the centre) before anything runs."""
+        corners = [[lo for lo, _ in self.ranges], [hi for _, hi in self.ranges]]
+        for values in corners:
+            self.target.check(self.keys, self._point(values), "--range")
+
+    def _point(self, coords: Sequence[float]) -> dict[str, Any]:
+        return {k.text: float(c) for k, c in zip(self.keys, coords, strict=True)}
+
+    def segments(self) -> list[limits.Segment]:
+        if len(self.keys) == 1:
+            return limits.line(*self.ranges[0])
+        return limits.rays(self.ranges, self.rays)
+
+    def run(self, runner: Runner) -> limits.SearchResult:
+        inputs = self.target.snapshot(runner.inputs)
+
+        def evaluate(points: list[limits.Coords]) -> list[float]:
+            jobs = [self.target.job(self.keys, self._point(p), s, runner.out_dir, inputs)
+                    for p in points for s in self.seeds]
+            rows = runner.run_batch(jobs)
+            self.rows.extend(rows)
+            n = len(self.seeds)
+            return [sum(bool(r.get("aligned")) and not r.get("error")
+                        for r in rows[i * n:(i + 1) * n]) / n for i in range(len(points))]
+
+        self.result = limits.search(evaluate, self.segments(), coarse=self.coarse,
+                                    resolution=self.resolution)
+        return self.result
+
+    def limits_rows(self) -> list[dict[str, Any]]:
+        assert self.result is not None
+        return [{"search": self.name, **row}
+                for row in limits.describe(self.result, [k.text for k in self.keys])]
+
+    def points(self) -> list[tuple[limits.Coords, float]]:
+        assert self.result is not None
+        return sorted(self.result.evaluated.items())

@@ -81,11 +81,14 @@ def test_kill_9_loses_at_most_about_a_second(tmp_path: Path) -> None:  # real-ti
         [
             sys.executable, "-c", "from ffexp.cli import main; main()", "run",
             str(ROOT / "protocols/method3_impedance.toml"), "--out", str(out),
+            # a run that cannot end within the test's 5 s of wall time: a long
+            # timeout and an alignment tolerance no contact meets
+            "--set", "run.timeout_s=600", "--set", "alignment.lateral_tol_m=1e-9",
         ],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
     with pytest.raises(subprocess.TimeoutExpired):
-        proc.wait(timeout=5.0)  # Method III never aligns here: it runs 40 s simulated
+        proc.wait(timeout=5.0)
     os.kill(proc.pid, signal.SIGKILL)
     killed_at = time.time()
     proc.wait()

@@ -93,6 +93,7 @@ class Recorder:
         self._names: dict[str, tuple[str, ...]] = {}
         self._seq: dict[str, int] = {}
         self._add_message = self._writer.add_message
+        self._plans: dict[tuple[str, type], tuple[tuple[str, np.ndarray], ...]] = {}
         self.message_count = 0
         self.finished = False
 
@@ -147,11 +148,37 @@ class Recorder:
         rec = self._records.get(topic)
         if rec is None:
             rec = self.record(topic)
-        ndarray = np.ndarray
-        for name in self._field_names(topic):
+        key = (topic, type(source))
+        plan = self._plans.get(key)
+        if plan is None:
+            plan = self._plans[key] = self._plan(rec, self._field_names(topic), source)
+        try:
+            for name, view in plan:
+                view[...] = getattr(source, name)
+        except ValueError:  # a field's shape changed: assign it flattened
+            ndarray = np.ndarray
+            for name in self._field_names(topic):
+                value = getattr(source, name)
+                rec[name] = value.reshape(-1) if isinstance(value, ndarray) else value
+        self.write(topic, time_ns)
+
+    @staticmethod
+    def _plan(rec: np.ndarray, names: tuple[str, ...],
+              source: object) -> tuple[tuple[str, np.ndarray], ...]:
+        """Per field, a view of the record shaped like ``source``'s value (a 4x4 pose
+        into its 16 numbers), so that filling is one assignment per field."""
+        plan = []
+        for name in names:
+            field = rec[name]  # (1,) for a scalar field, (1, n) for an array field
             value = getattr(source, name)
-            rec[name] = value.reshape(-1) if isinstance(value, ndarray) else value
-        self._add(topic, time_ns, rec.tobytes())
+            if field.ndim == 2:
+                field = field[0]
+                if isinstance(value, np.ndarray) and value.size == field.size:
+                    shaped = field.reshape(value.shape)
+                    if np.shares_memory(shaped, rec):  # a view, not a copy
+                        field = shaped
+            plan.append((name, field))
+        return tuple(plan)
 
     def _field_names(self, topic: str) -> tuple[str, ...]:
         names = self._names.get(topic)

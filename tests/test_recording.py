@@ -207,3 +207,26 @@ def test_transform_quaternion_matches_scipy() -> None:
         ref = Rotation.from_matrix(r).as_quat()
         assert min(np.abs(got - ref).max(), np.abs(got + ref).max()) < 1e-9
         assert t == {"x": 1.0, "y": -2.0, "z": 0.5}
+
+
+def test_write_fields_takes_any_shape_of_the_same_numbers(tmp_path: Path) -> None:
+    """A 4x4 pose, then the same field as 16 flat numbers, then 4x4 again: all recorded."""
+    from types import SimpleNamespace
+
+    from drivers.fri.types import FriMeasurement
+
+    path = tmp_path / "f.mcap"
+    poses = [np.arange(16.0).reshape(4, 4) + k for k in range(3)]
+    with Recorder(path) as rec:
+        m = FriMeasurement()
+        for k, pose in enumerate(poses):
+            m.msr_cart_pos = pose if k != 1 else pose.reshape(-1)
+            m.seq = k
+            rec.write_fields("/robot/measurement", 1000 + k, m)
+        other = SimpleNamespace(**{f.name: getattr(m, f.name)
+                                   for f in CDR_TOPICS["/robot/measurement"].spec.fields})
+        other.seq = 9
+        rec.write_fields("/robot/measurement", 2000, other)  # another source type
+    data = load(path).topic("/robot/measurement")
+    np.testing.assert_array_equal(data["msr_cart_pos"][:3], [p.reshape(-1) for p in poses])
+    assert data["seq"].tolist() == [0, 1, 2, 9]

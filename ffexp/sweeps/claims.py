@@ -1,0 +1,165 @@
+"""The paper's claims as small pure functions of result rows (``ffexp reproduce``).
+
+A scene's runs are a mapping role -> row (a row of the results table: at least
+``aligned``, ``contact_breaks``, ``mean_fz_align_n``, ``f_ref_n``, ``error``).
+Roles: ``I-1`` (Method I case I at 0.8 N), ``I-2`` (case II at 0.8 N),
+``II-0.8`` and ``II-1.5`` (Method II at 0.8 and 1.5 N), ``III`` (impedance).
+A claim returns True or False, or None when it cannot be judged (a run it
+needs is missing or failed). Limit claims take the limits found at the
+nominal scene (rows of :func:`ffexp.sweeps.limits.describe`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+Row = Mapping[str, Any]
+Runs = Mapping[str, Row]
+ROLES = ("I-1", "I-2", "II-0.8", "II-1.5", "III")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Thresholds of the claims (``[claims]`` of protocols/reproduce.toml)."""
+
+    iii_min_breaks: int = 2
+    """Method III "breaks contact": at least this many contact breaks."""
+    fz_tolerance: float = 0.15
+    """f_z tracking: |mean f_z in ALIGN - f_ref| <= this fraction of f_ref."""
+    limit_factor: float = 2.0
+    """A limit agrees with the paper's when within this factor of it."""
+
+
+def _usable(runs: Runs, *roles: str) -> bool:
+    return all(role in runs and not runs[role].get("error") for role in roles)
+
+
+def _aligned(row: Row) -> bool:
+    return bool(row.get("aligned"))
+
+
+def _breaks(row: Row) -> int:
+    return int(row.get("contact_breaks") or 0)
+
+
+def iii_without_alignment(runs: Runs, s: Settings) -> bool | None:
+    """III does not align without breaking contact: it breaks at least
+    ``iii_min_breaks`` times, or it does not align at all."""
+    if not _usable(runs, "III"):
+        return None
+    return _breaks(runs["III"]) >= s.iii_min_breaks or not _aligned(runs["III"])
+
+
+def ordering(runs: Runs, s: Settings) -> bool | None:
+    """I-1 aligns at 0.8 N; II does not at 0.8 N; II aligns at 1.5 N; III does not
+    align without breaking contact."""
+    if not _usable(runs, "I-1", "II-0.8", "II-1.5", "III"):
+        return None
+    return (_aligned(runs["I-1"]) and not _aligned(runs["II-0.8"])
+            and _aligned(runs["II-1.5"]) and bool(iii_without_alignment(runs, s)))
+
+
+def i2_aligns(runs: Runs, s: Settings) -> bool | None:
+    """Method I case II (k_yp only) aligns at 0.8 N."""
+    if not _usable(runs, "I-2"):
+        return None
+    return _aligned(runs["I-2"])
+
+
+def fz_tracking(runs: Runs, s: Settings, roles: Sequence[str] = ("I-1", "I-2", "II-1.5")
+                ) -> bool | None:
+    """Mean f_z in ALIGN within ``fz_tolerance`` of f_ref for the runs of I and II that
+    reached ALIGN (None when none of them did)."""
+    judged = []
+    for role in roles:
+        if not _usable(runs, role):
+            continue
+        fz, ref = runs[role].get("mean_fz_align_n"), runs[role].get("f_ref_n")
+        if fz is None or ref is None or not ref:
+            continue
+        judged.append(abs(float(fz) - float(ref)) <= s.fz_tolerance * abs(float(ref)))
+    return all(judged) if judged else None
+
+
+def iii_breaks(runs: Runs, s: Settings) -> bool | None:
+    """Method III breaks contact (at least ``iii_min_breaks`` times)."""
+    if not _usable(runs, "III"):
+        return None
+    return _breaks(runs["III"]) >= s.iii_min_breaks
+
+
+@dataclass(frozen=True)
+class SceneClaim:
+    name: str
+    paper: str
+    judge: Callable[[Runs, Settings], bool | None]
+
+
+SCENE_CLAIMS: tuple[SceneClaim, ...] = (
+    SceneClaim("ordering", "I-1 aligns at 0.8 N; II does not at 0.8 N but does at 1.5 N; "
+               "III does not align without breaking contact", ordering),
+    SceneClaim("I-2 aligns at 0.8 N", "Method I case II (k_yp 1) aligns at f_ref 0.8 N",
+               i2_aligns),
+    SceneClaim("f_z tracking", "mean f_z in ALIGN tracks f_ref (within 15 %) for I and II",
+               fz_tracking),
+    SceneClaim("III breaks contact", "impedance control bounces: repeated contact breaks",
+               iii_breaks),
+)
+
+
+# -- limits at the nominal scene -------------------------------------------------------
+def lower_upper(found: Sequence[Row], key: str) -> tuple[float | None, float | None, int]:
+    """The lowest lower limit and the highest upper limit of ``key`` (None when there is
+    none) and how many limits there are."""
+    lows = [float(r[key]) for r in found if r.get("kind") == "lower"]
+    highs = [float(r[key]) for r in found if r.get("kind") == "upper"]
+    return (min(lows) if lows else None, max(highs) if highs else None, len(found))
+
+
+def gain_limits(found: Sequence[Row], key: str, paper: tuple[float, float], s: Settings
+                ) -> bool:
+    """One lower and one upper limit, lower below upper, each within ``limit_factor``
+    of the paper's."""
+    lo, hi, n = lower_upper(found, key)
+    if lo is None or hi is None or n != 2 or not lo < hi:
+        return False
+    return _near(lo, paper[0], s.limit_factor) and _near(hi, paper[1], s.limit_factor)
+
+
+def _near(x: float, ref: float, factor: float) -> bool:
+    if ref == 0:
+        return x == 0
+    return ref / factor <= x <= ref * factor
+
+
+def minimum_aligning(found: Sequence[Row], key: str, aligns_at_low_end: bool, low_end: float
+                     ) -> float | None:
+    """The smallest value that aligns: the range's low end when it aligns there, else
+    the lowest lower limit; None when nothing in the range aligns."""
+    if aligns_at_low_end:
+        return low_end
+    return lower_upper(found, key)[0]
+
+
+def minimum_f_ref(min_with_ri: float | None, min_without: float | None,
+                  at_n: float = 0.8, high_n: float = 1.5) -> bool:
+    """With inertia reduction the run aligns at ``at_n``; without it needs more than
+    ``at_n`` and at most ``high_n`` (the paper: 0.8 N and 1.5 N)."""
+    return (min_with_ri is not None and min_with_ri <= at_n
+            and min_without is not None and at_n < min_without <= high_n)
+
+
+def summarize(per_scene: Sequence[Mapping[str, bool | None]], claims: Sequence[SceneClaim]
+              ) -> list[dict[str, Any]]:
+    """Claim by claim: in how many scenes it holds, of how many it could be judged in."""
+    out = []
+    for c in claims:
+        verdicts = [v[c.name] for v in per_scene]
+        judged = [v for v in verdicts if v is not None]
+        holds = sum(1 for v in judged if v)
+        out.append({"claim": c.name, "paper": c.paper, "holds": holds, "scenes": len(judged),
+                    "fraction": holds / len(judged) if judged else None,
+                    "not judged": len(verdicts) - len(judged)})
+    return out

@@ -1,0 +1,253 @@
+"""``ffexp reproduce``: the paper's runs over scenes of uncertain rig parameters, claim
+by claim (protocols/reproduce.toml, protocols/robustness.toml).
+
+The config names the paper runs by role (protocol file and overrides, see
+:mod:`ffexp.sweeps.claims`), the uncertain scene keys as ranges (a Latin
+hypercube of ``sample`` scenes) or as a ``[grid]`` (the full product), the
+noise seeds of every scene, and the limit searches done at the nominal scene.
+Scenes and limit searches run at once through one Runner.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pydantic import Field, model_validator
+
+from drivers.config import StrictModel, load_model
+from ffexp.errors import ConfigError
+from ffexp.sweeps import claims
+from ffexp.sweeps.engine import Runner
+from ffexp.sweeps.keys import Key, Value, parse_key
+from ffexp.sweeps.plan import Point, Target, grid, latin_hypercube
+from ffexp.sweeps.searches import LimitSearch
+
+
+class RunRole(StrictModel):
+    protocol: str
+    set: list[str] = Field(default_factory=list)
+
+
+class LimitSpec(StrictModel):
+    name: str
+    run: str = Field(description="The role whose protocol is searched.")
+    key: str
+    range: tuple[float, float]
+    resolution: float = Field(gt=0)
+    paper: tuple[float, float] | None = Field(
+        None, description="The paper's lower and upper limit (a gain-limit claim).")
+    coarse: int = Field(5, ge=2)
+
+
+class ClaimSettings(StrictModel):
+    iii_min_breaks: int = Field(2, ge=1)
+    fz_tolerance: float = Field(0.15, gt=0)
+    limit_factor: float = Field(2.0, gt=1)
+    f_ref_low_n: float = Field(0.8, description="The f_ref at which I aligns and II does not.")
+    f_ref_high_n: float = Field(1.5, description="The f_ref at which II aligns.")
+
+
+class ReproduceConfig(StrictModel):
+    name: str = "reproduce"
+    description: str = ""
+    seeds: list[int] = Field(default_factory=lambda: [1], min_length=1)
+    sample: int | None = Field(None, ge=1)
+    sample_seed: int = 0
+    include_nominal: bool = True
+    ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
+    grid: dict[str, list[float]] = Field(default_factory=dict)
+    runs: dict[str, RunRole]
+    claims: ClaimSettings = ClaimSettings()
+    limits: list[LimitSpec] = Field(default_factory=list)
+    min_f_ref: tuple[str, str] | None = Field(
+        None, description="Names of the two f_ref limit searches: with and without inertia "
+        "reduction (the minimum-f_ref claim).")
+
+    @model_validator(mode="after")
+    def _check(self) -> ReproduceConfig:
+        missing = [r for r in claims.ROLES if r not in self.runs]
+        if missing:
+            raise ValueError(f"runs: missing role(s) {', '.join(missing)}")
+        if self.ranges and self.sample is None:
+            raise ValueError("ranges need sample = N")
+        for lo_hi in self.ranges.values():
+            if not lo_hi[0] < lo_hi[1]:
+                raise ValueError(f"empty range {list(lo_hi)}")
+        for values in self.grid.values():
+            if not values:
+                raise ValueError("a grid key without values")
+        names = [spec.name for spec in self.limits]
+        for spec in self.limits:
+            if spec.run not in self.runs:
+                raise ValueError(f"limits {spec.name}: unknown run {spec.run!r}")
+        if self.min_f_ref is not None and any(n not in names for n in self.min_f_ref):
+            raise ValueError("min_f_ref: names limit searches that are not in [[limits]]")
+        return self
+
+
+@dataclass
+class Study:
+    """A loaded config with its targets and scenes, validated."""
+
+    path: Path
+    config: ReproduceConfig
+    targets: dict[str, Target]
+    keys: list[Key]
+    scenes: list[Point]
+    searches: list[LimitSearch]
+    results: dict[str, Any] = field(default_factory=dict)
+
+
+def load(path: Path, fixed: Sequence[str] = ()) -> Study:
+    """Read and validate the config, every protocol and every scene (before any run)."""
+    cfg = load_model(ReproduceConfig, path)
+    targets = {}
+    for role, run in cfg.runs.items():
+        proto = path.parent / run.protocol
+        if not proto.is_file():
+            raise ConfigError(str(path), f"runs.{role}.protocol", f"{proto}: file not found")
+        targets[role] = Target(proto, (*run.set, *fixed), label=role)
+    axes = [(parse_key(k, str(path)), list(v)) for k, v in cfg.grid.items()]
+    spans = [(parse_key(k, str(path)), lo, hi) for k, (lo, hi) in cfg.ranges.items()]
+    keys = [k for k, _ in axes] + [k for k, _, _ in spans]
+    scenes = grid(axes) if axes else [{}]
+    if spans and cfg.sample is not None:
+        sampled = latin_hypercube(spans, cfg.sample, cfg.sample_seed)
+        scenes = [{**p, **q} for p in scenes for q in sampled]
+    if cfg.include_nominal and keys:
+        scenes = [{}, *scenes]
+    for scene in scenes:
+        for target in targets.values():
+            target.check([k for k in keys if k.text in scene], scene, str(path))
+    searches = []
+    for spec in cfg.limits:
+        key = parse_key(spec.key, f"{path}: limits.{spec.name}.key")
+        search = LimitSearch(targets[spec.run], [key], [spec.range], [cfg.seeds[0]],
+                             [spec.resolution], spec.coarse, name=spec.name)
+        search.check()
+        searches.append(search)
+    return Study(path, cfg, targets, keys, scenes, searches)
+
+
+def run(study: Study, runner: Runner) -> dict[str, Any]:
+    """Every scene's paper runs and every limit search, at once; the claims."""
+    cfg = study.config
+    inputs = {role: t.snapshot(runner.inputs) for role, t in study.targets.items()}
+    jobs = []
+    for scene in study.scenes:
+        keys = [k for k in study.keys if k.text in scene]
+        for role, target in study.targets.items():
+            for seed in cfg.seeds:
+                jobs.append(target.job(keys, scene, seed, runner.out_dir, inputs[role]))
+    with ThreadPoolExecutor(max_workers=1 + len(study.searches)) as pool:
+        scene_rows = pool.submit(runner.run_batch, jobs)
+        searches = [pool.submit(s.run, runner) for s in study.searches]
+        rows = scene_rows.result()
+        for fut in searches:
+            fut.result()
+    return evaluate(study, rows)
+
+
+def evaluate(study: Study, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Per scene and seed: each run's outcome and each claim; the summary; the limits."""
+    cfg = study.config
+    settings = claims.Settings(cfg.claims.iii_min_breaks, cfg.claims.fz_tolerance,
+                               cfg.claims.limit_factor)
+    per_scene: list[dict[str, Any]] = []
+    n_roles, n_seeds = len(study.targets), len(cfg.seeds)
+    roles = list(study.targets)
+    for i, scene in enumerate(study.scenes):
+        block = rows[i * n_roles * n_seeds:(i + 1) * n_roles * n_seeds]
+        for j, seed in enumerate(cfg.seeds):
+            runs = {role: block[r * n_seeds + j] for r, role in enumerate(roles)}
+            entry: dict[str, Any] = {"scene": i, **{k.text: scene.get(k.text) for k in
+                                                    study.keys}, "seed": seed}
+            for role, row in runs.items():
+                entry[f"{role} aligned"] = None if row.get("error") else bool(row.get("aligned"))
+                entry[f"{role} breaks"] = row.get("contact_breaks")
+                entry[f"{role} mean f_z"] = row.get("mean_fz_align_n")
+            for c in claims.SCENE_CLAIMS:
+                entry[c.name] = c.judge(runs, settings)
+            per_scene.append(entry)
+    summary = claims.summarize(per_scene, claims.SCENE_CLAIMS)
+    summary.extend(_limit_claims(study, settings))
+    limit_rows = [row for s in study.searches if s.result is not None
+                  for row in s.limits_rows()]
+    return {"scenes": per_scene, "summary": summary, "limits": limit_rows,
+            "rows": list(rows) + [r for s in study.searches for r in s.rows]}
+
+
+def _limit_claims(study: Study, settings: claims.Settings) -> list[dict[str, Any]]:
+    out = []
+    by_name = {s.name: s for s in study.searches}
+    specs = {spec.name: spec for spec in study.config.limits}
+    for name, search in by_name.items():
+        spec = specs[name]
+        if spec.paper is None or search.result is None:
+            continue
+        found = search.limits_rows()
+        lo, hi, n = claims.lower_upper(found, spec.key)
+        ok = claims.gain_limits(found, spec.key, spec.paper, settings)
+        out.append(_one(f"{name} limits", f"aligns for {spec.key} between {spec.paper[0]:g} "
+                        f"and {spec.paper[1]:g}", ok,
+                        f"ours: lower {_g(lo)}, upper {_g(hi)} ({n} change(s) in "
+                        f"{spec.range[0]:g}..{spec.range[1]:g}, resolution {spec.resolution:g})"))
+    if study.config.min_f_ref is not None:
+        mins: list[float | None] = []
+        for name in study.config.min_f_ref:
+            s, spec = by_name[name], specs[name]
+            if s.result is None:
+                mins.append(None)
+                continue
+            low = s.result.evaluated.get((float(f"{spec.range[0]:.10g}"),), 0.0)
+            mins.append(claims.minimum_aligning(s.limits_rows(), spec.key, low > 0.5,
+                                                spec.range[0]))
+        c = study.config.claims
+        ok = claims.minimum_f_ref(mins[0], mins[1], c.f_ref_low_n, c.f_ref_high_n)
+        out.append(_one("minimum f_ref", f"with inertia reduction aligns at {c.f_ref_low_n:g} "
+                        f"N; without it needs more, up to {c.f_ref_high_n:g} N", ok,
+                        f"ours: {_g(mins[0])} N with, {_g(mins[1])} N without"))
+    return out
+
+
+def _g(x: float | None) -> str:
+    return "none" if x is None else f"{x:.3g}"
+
+
+def _one(name: str, paper: str, ok: bool, note: str) -> dict[str, Any]:
+    return {"claim": name, "paper": paper, "holds": int(ok), "scenes": 1,
+            "fraction": float(ok), "not judged": 0, "note": note}
+
+
+def write(study: Study, result: Mapping[str, Any], out_dir: Path) -> list[Path]:
+    """``scenes.csv`` (per scene: runs and claims), ``claims.csv`` (the summary),
+    ``limits.csv``, ``results.csv``/``.parquet`` (every run), ``reproduce.json``, the
+    figure."""
+    from ffexp.sweeps import plots, table
+
+    paths = table.write(table.frame(result["rows"]), out_dir)
+    for name, rows in (("scenes.csv", result["scenes"]), ("claims.csv", result["summary"]),
+                       ("limits.csv", result["limits"])):
+        tmp = out_dir / f".{name}.tmp"
+        table.frame(rows).drop(columns=list(table.TAIL), errors="ignore").to_csv(
+            tmp, index=False)
+        tmp.replace(out_dir / name)
+        paths.append(out_dir / name)
+    (out_dir / "reproduce.json").write_text(json.dumps({
+        "kind": "reproduce", "config": str(study.path), "config_json":
+        study.config.model_dump(mode="json"), "summary": result["summary"],
+        "limits": result["limits"],
+    }, indent=2, default=str) + "\n")
+    paths.append(out_dir / "reproduce.json")
+    paths.append(plots.claims_figure(result["summary"], f"{study.config.name}: "
+                                     f"{len(study.scenes)} scenes x {len(study.config.seeds)} "
+                                     "seed(s)", out_dir / "figures" / "claims.png"))
+    return paths
+
+
+__all__ = ["ReproduceConfig", "Study", "Value", "evaluate", "load", "run", "write"]

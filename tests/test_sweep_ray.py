@@ -1,0 +1,55 @@
+"""The Ray executor against a local Ray instance started by this module (one fixture:
+Ray's start costs seconds): the same tiny sweep on Ray and on the process pool gives
+identical rows (except wall time), and the MCAP files land in the shared directory."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from ffexp.sweeps import engine, table
+from ffexp.sweeps.executors import RayExecutor, make_executor, parse_executor
+from ffexp.sweeps.grid import execute, prepare
+
+ray = pytest.importorskip("ray")
+ROOT = Path(__file__).resolve().parents[1]
+P1 = ROOT / "protocols/method1_case1.toml"
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def ray_local() -> Iterator[Any]:
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
+
+
+def _sweep(out: Path, executor: Any, slots: int) -> list[dict[str, Any]]:
+    prep = prepare(P1, vary=["align.k_ri[3]=0.25,0.5", "scene.target.lateral=0.010,0.014"],
+                   fixed=["run.timeout_s=0.4"])
+    with engine.Runner(out, executor, slots) as r:
+        rows: list[dict[str, Any]] = execute(prep, r, figures=False)["rows"]
+    return rows
+
+
+def test_ray_and_local_give_identical_rows(ray_local: Any, tmp_path: Path) -> None:
+    ex = RayExecutor.connect("auto")  # reuses the instance this process started
+    assert ex.slots == 2
+    on_ray = _sweep(tmp_path / "ray", ex, ex.slots)
+    pool, slots = make_executor(parse_executor("local:2"))
+    with pool:
+        local = _sweep(tmp_path / "local", pool, slots)
+    assert len(on_ray) == 4
+    assert table.without_wall_time(on_ray) == table.without_wall_time(local)
+    for row in on_ray:
+        assert (tmp_path / "ray" / row["path"]).is_file()
+    with ThreadPoolExecutor(1) as th:  # and in-process threads agree too
+        assert table.without_wall_time(_sweep(tmp_path / "thread", th, 1)) == \
+            table.without_wall_time(local)

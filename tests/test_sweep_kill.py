@@ -49,7 +49,7 @@ def test_killed_and_restarted_sweep_has_every_row_once(tmp_path: Path) -> None:
         proc.wait()
     before = {p.name: (p / "row.json").stat().st_mtime_ns for p in _done(out)}
     assert 3 <= len(before) < 12, "kill the sweep half-way"
-    res = subprocess.run(cmd + ["--json"], capture_output=True, text=True, timeout=DEADLINE_S)
+    res = subprocess.run([*cmd, "--json"], capture_output=True, text=True, timeout=DEADLINE_S)
     assert res.returncode == 0, res.stderr
     rows = [json.loads(x) for x in res.stdout.splitlines() if x.startswith("{")]
     assert len(rows) == 12 and len({r["run_id"] for r in rows}) == 12

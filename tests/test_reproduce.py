@@ -1,0 +1,166 @@
+"""``ffexp reproduce``: the claims on synthetic rows, the config's validation, and one
+tiny study end to end (short runs; its outcomes are not asserted: the simulator is
+being changed, the mechanism is: scenes x roles rows, claims per scene, files)."""
+
+from __future__ import annotations
+
+import json
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from ffexp.cli import app
+from ffexp.sweeps import claims, engine
+from ffexp.sweeps import reproduce as rep
+
+ROOT = Path(__file__).resolve().parents[1]
+S = claims.Settings(iii_min_breaks=2, fz_tolerance=0.15, limit_factor=2.0)
+cli = CliRunner()
+
+
+def row(aligned: bool, breaks: int = 0, fz: float | None = None, ref: float | None = None,
+        error: str | None = None) -> dict[str, Any]:
+    return {"aligned": aligned, "contact_breaks": breaks, "mean_fz_align_n": fz,
+            "f_ref_n": ref, "error": error}
+
+
+def paper_like() -> dict[str, dict[str, Any]]:
+    return {"I-1": row(True, 0, 0.78, 0.8), "I-2": row(True, 1, 0.75, 0.8),
+            "II-0.8": row(False, 0, 0.8, 0.8), "II-1.5": row(True, 0, 1.45, 1.5),
+            "III": row(False, 4)}
+
+
+def test_claims_hold_on_the_paper_outcome() -> None:
+    runs = paper_like()
+    for c in claims.SCENE_CLAIMS:
+        assert c.judge(runs, S) is True, c.name
+
+
+@pytest.mark.parametrize(("role", "change", "broken"), [
+    ("I-1", row(False), {"ordering", "f_z tracking"}),
+    ("II-0.8", row(True, 0, 0.8, 0.8), {"ordering"}),
+    ("II-1.5", row(False, 0, 1.45, 1.5), {"ordering"}),
+    ("III", row(True, 0), {"ordering", "III breaks contact"}),
+    ("III", row(True, 1), {"ordering", "III breaks contact"}),
+    ("I-2", row(False), {"I-2 aligns at 0.8 N", "f_z tracking"}),
+    ("II-1.5", row(True, 0, 1.2, 1.5), {"f_z tracking"}),  # 20 % low
+])
+def test_each_claim_fails_where_it_should(role: str, change: dict[str, Any], broken: set[str]
+                                          ) -> None:
+    runs = {**paper_like(), role: change}
+    failed = {c.name for c in claims.SCENE_CLAIMS if c.judge(runs, S) is False}
+    if role in ("I-1", "I-2") and change["mean_fz_align_n"] is None:
+        broken = broken - {"f_z tracking"}  # a run without ALIGN is not judged on f_z
+    assert failed == broken
+
+
+def test_iii_aligning_after_breaking_is_still_paper_like() -> None:
+    runs = {**paper_like(), "III": row(True, 3)}
+    assert claims.ordering(runs, S) is True and claims.iii_breaks(runs, S) is True
+
+
+def test_a_failed_run_is_not_judged() -> None:
+    runs = {**paper_like(), "II-0.8": row(False, error="SimulationError: diverged")}
+    assert claims.ordering(runs, S) is None
+    assert claims.i2_aligns(runs, S) is True
+    summary = claims.summarize([{c.name: c.judge(runs, S) for c in claims.SCENE_CLAIMS},
+                                {c.name: c.judge(paper_like(), S) for c in
+                                 claims.SCENE_CLAIMS}], claims.SCENE_CLAIMS)
+    first = summary[0]
+    assert (first["holds"], first["scenes"], first["not judged"], first["fraction"]) == \
+        (1, 1, 1, 1.0)
+
+
+def test_gain_limits_and_minimum_f_ref() -> None:
+    found = [{"kind": "lower", "k": 0.45}, {"kind": "upper", "k": 2.6}]
+    assert claims.gain_limits(found, "k", (0.5, 2.0), S)
+    assert not claims.gain_limits(found, "k", (0.5, 1.0), S)  # 2.6 > 2 x 1.0
+    assert not claims.gain_limits(found[:1], "k", (0.5, 2.0), S)  # no upper limit
+    assert not claims.gain_limits([*found, {"kind": "lower", "k": 3.0}], "k", (0.5, 2.0), S)
+    assert claims.minimum_aligning([], "f", True, 0.2) == 0.2
+    assert claims.minimum_aligning([{"kind": "lower", "f": 1.1}], "f", False, 0.2) == 1.1
+    assert claims.minimum_aligning([], "f", False, 0.2) is None
+    assert claims.minimum_f_ref(0.5, 1.1)
+    assert not claims.minimum_f_ref(0.5, 0.7)  # II aligns at 0.8 N too
+    assert not claims.minimum_f_ref(0.9, 1.1)  # I needs more than 0.8 N
+    assert not claims.minimum_f_ref(0.5, None)
+
+
+def _config(tmp_path: Path, body: str) -> Path:
+    runs = "\n".join(
+        f'"{role}" = {{ protocol = "{ROOT}/protocols/{p}", set = {sets} }}'
+        for role, p, sets in (
+            ("I-1", "method1_case1.toml", "[]"), ("I-2", "method1_case2.toml", "[]"),
+            ("II-0.8", "method2.toml", '["align.f_ref=[0.0, 0.0, 0.8, 0.0, 0.0, 0.0]"]'),
+            ("II-1.5", "method2.toml", "[]"), ("III", "method3_impedance.toml", "[]")))
+    path = tmp_path / "study.toml"
+    path.write_text(body + "\n[runs]\n" + runs + "\n")
+    return path
+
+
+@pytest.mark.parametrize(("body", "needle"), [
+    ('name = "x"\nsample = 2\n[ranges]\n"scene.target.nope" = [0.0, 1.0]', "target.nope"),
+    ('name = "x"\n[ranges]\n"scene.target.mu" = [0.0, 1.0]', "sample"),
+    ('name = "x"\nsample = 2\n[ranges]\n"scene.target.mu" = [0.01, 0.001]', "empty range"),
+    ('name = "x"\n[grid]\n"scene.target.mu" = ["a"]', "grid"),
+    ('name = "x"\nmin_f_ref = ["a", "b"]', "min_f_ref"),
+    ('name = "x"\ncolour = 1', "colour"),
+])
+def test_config_errors_one_line_exit_2(tmp_path: Path, body: str, needle: str) -> None:
+    cfg = _config(tmp_path, body)
+    res = cli.invoke(app, ["reproduce", "--config", str(cfg), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2, res.output
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and needle in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_missing_role_is_an_error(tmp_path: Path) -> None:
+    cfg = tmp_path / "study.toml"
+    cfg.write_text(f'[runs]\n"I-1" = {{ protocol = "{ROOT}/protocols/method1_case1.toml" }}\n')
+    res = cli.invoke(app, ["reproduce", "--config", str(cfg), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and "missing role" in res.stderr
+
+
+def test_shipped_configs_validate() -> None:
+    for name in ("reproduce.toml", "robustness.toml"):
+        study = rep.load(ROOT / "protocols" / name)
+        assert set(study.targets) == set(claims.ROLES)
+    small = rep.load(ROOT / "protocols/reproduce.toml")
+    assert len(small.scenes) == 1 + small.config.sample  # type: ignore[operator]
+    assert [s.name for s in small.searches] == ["k_xp", "k_yp", "f_ref I", "f_ref II"]
+    big = rep.load(ROOT / "protocols/robustness.toml")
+    assert len(big.scenes) == 5 * 5 * 3 * 3
+    lat = sorted({s["scene.target.lateral"] for s in big.scenes})
+    assert lat[0] == pytest.approx(0.008) and lat[-1] == pytest.approx(0.016)
+
+
+def test_tiny_study_end_to_end(tmp_path: Path) -> None:
+    body = ('name = "tiny"\nseeds = [1, 2]\n[grid]\n"scene.target.lateral" = [0.010, 0.014]\n'
+            '[[limits]]\nname = "k_xp"\nrun = "I-1"\nkey = "align.k_ri[3]"\n'
+            'range = [0.0, 2.0]\nresolution = 1.0\npaper = [0.5, 2.0]\ncoarse = 3')
+    study = rep.load(_config(tmp_path, body), ["run.timeout_s=0.4"])
+    assert len(study.scenes) == 3  # the nominal scene and the grid
+    out = tmp_path / "out"
+    with ThreadPoolExecutor(2) as ex, engine.Runner(out, ex, 2) as r:
+        result = rep.run(study, r)
+        rep.write(study, result, r.out_dir)
+    scenes = pd.read_csv(out / "scenes.csv")
+    assert len(scenes) == 3 * 2  # scenes x seeds
+    assert scenes["scene.target.lateral"].isna().sum() == 2  # the nominal scene
+    for c in claims.SCENE_CLAIMS:
+        assert c.name in scenes
+    summary = pd.read_csv(out / "claims.csv")
+    assert summary["claim"].tolist() == [c.name for c in claims.SCENE_CLAIMS] + ["k_xp limits"]
+    assert (summary["scenes"] + summary["not judged"]).iloc[:4].tolist() == [6] * 4
+    # 3 scenes x 5 roles x 2 seeds, the limit search's runs (seed 1) on top, each once
+    runs = pd.read_parquet(out / "results.parquet")
+    assert runs["run_id"].nunique() >= 30 + 3
+    assert len(list((out / "runs").glob("*/row.json"))) == runs["run_id"].nunique()
+    data = json.loads((out / "reproduce.json").read_text())
+    assert data["kind"] == "reproduce" and len(data["summary"]) == 5
+    assert (out / "figures" / "claims.png").is_file()

@@ -2,9 +2,12 @@
 
     python benchmarks/bench_sim.py [--cycles N] [--repeats R] [--scene PATH]
 
-Two states: free motion (target out of reach) and pressing into the funnel
-(the set-point 45 mm past the tool, reached after a warm-up). For each, in
-interleaved repeats on copies of the same ``MjData``, medians of:
+Three cases: holding still in free space (target out of reach, set-point at
+the start pose, no wrench), moving in free space (a 1 N push along the
+tool's Z, where the paper's stiffness is zero: the arm accelerates from
+rest) and pressing into the funnel (the set-point 45 mm past the tool,
+reached after a warm-up). For each, in interleaved repeats from copies of
+the same ``MjData``, medians of:
 
 * ``SimWorld.advance`` + the F/T read: one FRI cycle of physics with the
   KRC's per-cycle work (command, damping from the Cartesian inertia, joint
@@ -51,13 +54,14 @@ def _bare_rate(m: mujoco.MjModel, d: mujoco.MjData, steps: int) -> float:
     return steps / (time.perf_counter() - t0)
 
 
-def bench_case(scene_path: Path, overrides: list[str], push_m: float, warmup: int,
-               cycles: int, repeats: int) -> dict[str, float]:
+def bench_case(scene_path: Path, overrides: list[str], push_m: float, force_n: float,
+               warmup: int, cycles: int, repeats: int) -> dict[str, float]:
     """Median physics steps/s of advance, step and bare mj_step (interleaved)."""
     world = SimWorld(load_scene(scene_path, overrides))
     pose = world.last_state.tcp_pose_m.copy()
     pose[:3, 3] += push_m * pose[:3, 2]
-    cmd = ArmCommand(cart_pose_m=pose, tcp_wrench_n_nm=np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
+    wrench = np.array([0.0, 0.0, force_n, 0.0, 0.0, 0.0])
+    cmd = ArmCommand(cart_pose_m=pose, tcp_wrench_n_nm=wrench)
     for _ in range(warmup):
         world.advance(cmd)
         world.ft_samples()
@@ -82,15 +86,18 @@ def main() -> None:
     args = ap.parse_args()
     base = load_scene(args.scene)
     dt = base.physics.timestep
+    far = ["target.distance=0.5"]
     cases = [
-        ("free motion (target out of reach)", ["target.distance=0.5"], 0.0, 10),
-        ("pressing into the funnel", [], 0.045, 600),
+        ("holding still in free space", far, 0.0, 0.0, 10),
+        ("moving in free space (1 N push from rest)", far, 0.0, 1.0, 0),
+        ("pressing into the funnel", [], 0.045, 1.0, 600),
     ]
     print(f"scene {args.scene.name}: physics dt {dt * 1e3:g} ms, FRI cycle "
           f"{base.fri.cycle * 1e3:g} ms ({base.substeps} steps/cycle), {args.repeats} x "
           f"{args.cycles} cycles per case, interleaved, medians")
-    for label, overrides, push_m, warmup in cases:
-        r = bench_case(args.scene, overrides, push_m, warmup, args.cycles, args.repeats)
+    for label, overrides, push_m, force_n, warmup in cases:
+        r = bench_case(args.scene, overrides, push_m, force_n, warmup, args.cycles,
+                       args.repeats)
         bare = r["bare"]
         print(f"{label}:")
         print(f"  bare mj_step:       {bare:8.0f} steps/s  real-time factor {bare * dt:6.1f}x")

@@ -78,7 +78,7 @@ class FtSensorModel:
             return FtSamples()
         gauss = self._rng.standard_normal((n, 12))
         gauss *= self._scale
-        drift = np.cumsum(gauss[:, :6], axis=0)
+        drift = np.add.accumulate(gauss[:, :6], axis=0)  # cumsum
         drift += self.drift
         self.drift = drift[-1].copy()
         # environment (incl. tool load) on the tool, sensor frame

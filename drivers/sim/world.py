@@ -558,9 +558,7 @@ class SimWorld:
         m, d = self.model, self.data
         if d.ncon == 0:
             return np.zeros(6), False
-        geom = d.contact.geom
-        tool = self._is_tool_geom
-        if not (tool[geom[:, 0]] | tool[geom[:, 1]]).any():
+        if not self._is_tool_geom[d.contact.geom].any():
             return np.zeros(6), False
         mujoco.mj_rnePostConstraint(m, d)
         cfrc = d.cfrc_ext[self._tool_body]  # [torque about the subtree com, force], world

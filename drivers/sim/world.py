@@ -46,51 +46,21 @@ from drivers.errors import ConfigError, InvalidCommandError, SimulationError
 from drivers.sim import mjcf
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
 from drivers.sim.controller import clip_cart_stiffness, normalized_damping
+from drivers.sim.divergence import check_divergence, quiet_divergence
 from drivers.sim.ftsensor import FtSensorModel
 from drivers.sim.scene import Scene
+from drivers.sim.truth import ground_truth
+from drivers.sim.truth import pose as _pose
 
 #: The KRC's damping uses the Cartesian inertia of the configuration where it was
 #: last computed until a joint has moved this far from it [rad]. Measured pressing
 #: into the funnel: 1 mrad keeps the damping within 0.06 % of the exact value
 #: (3 mrad: 0.4 %; 10 mrad: off by up to 8x near a poorly conditioned axis).
 INERTIA_REUSE_RAD = 1e-3
-#: Seated: tool tip within this of the (estimated) seat depth [m] ...
-SEAT_DEPTH_TOL = 0.005
-#: ... and this close to the funnel axis [m] ...
-SEAT_LATERAL_TOL = 0.0025
-#: ... and axes within this yaw [rad]. Lateral and yaw tolerances are the
-#: play of a 45 mm capsule cone in the 16-capsule funnel (about 1-2 mm, 2-3 deg).
-SEAT_YAW_TOL = math.radians(3.0)
-
 _N_ARM = 7
 _YZX = np.array([1, 2, 0])
 _ZXY = np.array([2, 0, 1])
 
-#: MuJoCo's bad-state warnings: (what went bad, index into ``mjData.warning``).
-_BAD_STATE_WARNINGS = (
-    ("qacc", int(mujoco.mjtWarning.mjWARN_BADQACC)),
-    ("qpos", int(mujoco.mjtWarning.mjWARN_BADQPOS)),
-    ("qvel", int(mujoco.mjtWarning.mjWARN_BADQVEL)),
-)
-_SEEN = 1
-_I_QACC, _I_QPOS, _I_QVEL = (i for _, i in _BAD_STATE_WARNINGS)
-
-
-def _arm_divergence_check(m: mujoco.MjModel, d: mujoco.MjData) -> None:
-    """Make a diverging state visible and quiet.
-
-    By default MuJoCo answers a NaN/huge ``qpos``/``qvel``/``qacc`` by
-    resetting the data (``mj_resetData``: time jumps back to 0, the state to
-    the model's) and writing the first warning of each kind to stderr and
-    ``MUJOCO_LOG.TXT`` in the working directory. Here auto-reset is disabled
-    (so the bad state stays and the step keeps its time) and the three
-    warning counters start at 1 (MuJoCo writes a warning only when its
-    counter is 0); :meth:`SimWorld._check_divergence` raises when a counter
-    moved. Neither changes the physics of a run that does not diverge.
-    """
-    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-    for _, i in _BAD_STATE_WARNINGS:
-        d.warning[i].number = _SEEN
 _WARN_CLIPPED = int(ArmWarning.STIFFNESS_CLIPPED)
 _WARN_TORQUE = int(ArmWarning.TORQUE_LIMIT)
 _WARN_VELOCITY = int(ArmWarning.VELOCITY_LIMIT)
@@ -100,20 +70,6 @@ _MODES = {
     "joint_position": ArmMode.JOINT_POSITION,
     "joint_impedance": ArmMode.JOINT_IMPEDANCE,
 }
-
-
-_EYE4 = np.eye(4)
-
-
-def _pose(pos: F64, mat9: F64) -> F64:
-    out = _EYE4.copy()
-    out[:3, :3] = mat9.reshape(3, 3)
-    out[:3, 3] = pos
-    return out
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)
@@ -156,7 +112,7 @@ class SimWorld:
         self.model = m = mujoco.MjModel.from_xml_string(self.xml)
         self.data = d = mujoco.MjData(m)
         self._ready = False
-        _arm_divergence_check(m, d)
+        quiet_divergence(m, d)
         self._friction = scene.arm.joint_friction()
         self._friction.install(m)
         self._tcp = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tcp")
@@ -431,23 +387,8 @@ class SimWorld:
         return a.copy()
 
     def _check_divergence(self) -> None:
-        """Raise if MuJoCo flagged a bad state since the last check (:func:`_arm_divergence_check`).
-
-        Raises:
-            SimulationError: naming the simulated time and the bad quantities.
-        """
-        w = self.data.warning
-        number = w.number
-        if number[_I_QACC] == _SEEN and number[_I_QPOS] == _SEEN and number[_I_QVEL] == _SEEN:
-            return
-        bad = [name for name, i in _BAD_STATE_WARNINGS if number[i] != _SEEN]
-        if bad:
-            for _, i in _BAD_STATE_WARNINGS:
-                w[i].number = _SEEN
-            raise SimulationError(
-                f"physics diverged at t = {self.data.time:.4f} s: "
-                f"{', '.join(bad)} not finite or huge (MuJoCo warnings)"
-            )
+        """Raise SimulationError if the physics diverged (:mod:`drivers.sim.divergence`)."""
+        check_divergence(self.data)
 
     def step(self, command: ArmCommand | None = None) -> ArmState:
         """Latch ``command`` (``None``: keep everything), run one cycle, return its end state.
@@ -573,28 +514,10 @@ class SimWorld:
 
     def _truth(self, contact: F64, touching: bool, tcp_twist: F64) -> GroundTruth:
         d = self.data
-        tp = _pose(d.xpos[self._target_body], d.xmat[self._target_body])
-        twist = d.qvel[self._t_twist_adr]
-        tcp = self.tcp_pose
-        rm = d.site_xmat[self._mouth].reshape(3, 3)
-        insertion, lateral, vertical = ((tcp[:3, 3] - d.site_xpos[self._mouth]) @ rm).tolist()
-        yaw_err = _wrap(math.atan2(tcp[1, 2], tcp[0, 2]) - math.atan2(rm[1, 0], rm[0, 0]))
-        seated = (
-            insertion >= self.layout.funnel_seat_depth - SEAT_DEPTH_TOL
-            and abs(lateral) <= SEAT_LATERAL_TOL
-            and abs(yaw_err) <= SEAT_YAW_TOL
-        )
-        return GroundTruth(
-            target_pose=tp,
-            target_twist=twist,
-            contact_wrench=contact,
-            lateral_error=lateral,
-            vertical_error=vertical,
-            yaw_error=yaw_err,
-            insertion=insertion,
-            seated=seated,
-            in_contact=touching,
-            tcp_twist=tcp_twist,
+        return ground_truth(
+            _pose(d.xpos[self._target_body], d.xmat[self._target_body]),
+            d.qvel[self._t_twist_adr], self.tcp_pose, d.site_xpos[self._mouth],
+            d.site_xmat[self._mouth], self.layout.funnel_seat_depth, contact, touching, tcp_twist,
         )
 
     def _measure(self) -> ArmState:

@@ -19,8 +19,9 @@ command, and the remote sees the same measurement for the same world state.
   held where it is (modelled as the joint position controller holding the
   measured joints, stiff as the scene's ``jnt_position_stiffness``: the
   brakes), and the measurement reports the error until it is acknowledged.
-  The fact sheet behind it is ``fri_netft.md`` of the project's research
-  notes: on limits the KRC "falls back to monitor mode, stopping the robot if
+  Source: Schreiber, Stemmer, Bischoff, "The Fast Research Interface for the
+  KUKA Lightweight Robot" (ICRA 2010 workshop, sec. V): when command values
+  hit limits the KRC "falls back to monitor mode, stopping the robot if
   necessary".
 """
 

@@ -182,7 +182,7 @@ def test_grid_rows_files_heatmap_and_resume_after_a_stop(
 def test_a_failing_run_is_a_row_with_its_error(tmp_path: Path) -> None:
     prep = prepare(P1, vary=["align.k_ri[3]=0.5"], fixed=[SHORT])
     with ThreadPoolExecutor(1) as ex, engine.Runner(tmp_path, ex, 1) as r:
-        jobs = prep.jobs(r)
+        jobs = prep.jobs(r.out_dir)
     bad = [type(j)(j.run_id, str(tmp_path / "gone.toml"), j.overrides, j.out_dir, j.columns)
            for j in jobs]
     with ThreadPoolExecutor(1) as ex, engine.Runner(tmp_path, ex, 1) as r:
@@ -196,7 +196,7 @@ def test_a_failing_run_is_a_row_with_its_error(tmp_path: Path) -> None:
 def test_leftovers_of_a_killed_run_do_not_count_and_are_removed(tmp_path: Path) -> None:
     prep = prepare(P1, vary=["align.k_ri[3]=0.5"], fixed=[SHORT])
     with ThreadPoolExecutor(1) as ex, engine.Runner(tmp_path, ex, 1) as r:
-        job = prep.jobs(r)[0]
+        job = prep.jobs(r.out_dir)[0]
     half = tmp_path / RUNS_DIR / f"{TMP_PREFIX}{job.run_id}-host-1-abcdef"
     half.mkdir()
     (half / "run.mcap").write_bytes(b"\x89MCAP0\r\n")  # cut short

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from ffexp.errors import ConfigError
-from ffexp.sweeps.worker import RUNS_DIR, TMP_PREFIX, Job, read_row, run_one
+from ffexp.sweeps.worker import INPUTS_DIR, RUNS_DIR, TMP_PREFIX, Job, read_row, run_one
 
 #: How often a waiting batch wakes up to look at the stop flag (s).
 POLL_S = 0.25
@@ -122,7 +122,7 @@ class Runner:
 
     @property
     def inputs(self) -> Path:
-        return self.out_dir / "inputs"
+        return self.out_dir / INPUTS_DIR
 
     # -- running -------------------------------------------------------------------
     def _changed(self) -> None:

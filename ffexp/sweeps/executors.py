@@ -2,8 +2,9 @@
 :class:`concurrent.futures.Executor`.
 
 - ``local`` / ``local:N``: :class:`~concurrent.futures.ProcessPoolExecutor`
-  with N workers (default: the CPUs this process may use), started by
-  ``spawn`` (no fork of a process that runs threads).
+  with N workers (default: the CPUs this process may use), forked by a
+  ``forkserver`` that imported the simulator once (no fork of this process,
+  which runs threads; no import per worker).
 - ``ray`` / ``ray:auto``: the running Ray cluster (``RAY_ADDRESS`` or the latest
   ``ray start`` on this machine); ``ray:HOST:PORT`` a cluster's GCS address;
   ``ray://HOST:PORT`` a Ray client server; ``ray:local`` a Ray instance started
@@ -26,6 +27,9 @@ from ffexp.errors import ConfigError
 
 T = TypeVar("T")
 OPTION = "--executor"
+#: Imported once by the fork server; every worker forked from it has them (a worker
+#: that imported them itself took seconds on a loaded two-core machine).
+PRELOAD = ("ffexp.sweeps.worker", "ffexp.experiment", "ffexp.analysis", "ffexp.recording")
 #: Seconds to wait for a TCP answer from a Ray address before calling it unreachable.
 CONNECT_TIMEOUT_S = 3.0
 
@@ -87,10 +91,10 @@ def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
 
         from ffexp.sweeps.worker import worker_init
 
-        pool = ProcessPoolExecutor(
-            max_workers=spec.workers, mp_context=multiprocessing.get_context("spawn"),
-            initializer=worker_init,
-        )
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(list(PRELOAD))
+        pool = ProcessPoolExecutor(max_workers=spec.workers, mp_context=ctx,
+                                   initializer=worker_init)
         return pool, spec.workers
     ex = RayExecutor.connect(spec.address)
     return ex, ex.slots

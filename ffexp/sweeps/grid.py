@@ -19,7 +19,7 @@ from ffexp.errors import ConfigError
 from ffexp.sweeps.engine import Runner
 from ffexp.sweeps.keys import Key, Value, parse_assignment, parse_range
 from ffexp.sweeps.plan import Point, Target, grid, latin_hypercube, seeds_of
-from ffexp.sweeps.worker import Job
+from ffexp.sweeps.worker import INPUTS_DIR, Job
 
 
 @dataclass
@@ -30,9 +30,11 @@ class Prepared:
     seeds: list[int]
     command: list[str] = field(default_factory=list)
 
-    def jobs(self, runner: Runner) -> list[Job]:
-        inputs = self.target.snapshot(runner.inputs)
-        return [self.target.job(self.keys, p, s, runner.out_dir, inputs)
+    def jobs(self, out_dir: Path) -> list[Job]:
+        """The jobs into sweep directory ``out_dir`` (the inputs snapshot is written)."""
+        out_dir = out_dir.resolve()
+        inputs = self.target.snapshot(out_dir / INPUTS_DIR)
+        return [self.target.job(self.keys, p, s, out_dir, inputs)
                 for p in self.points for s in self.seeds]
 
 
@@ -79,7 +81,7 @@ def execute(prep: Prepared, runner: Runner, figures: bool = True) -> dict[str, A
     """
     from ffexp.sweeps import plots, table
 
-    jobs = prep.jobs(runner)
+    jobs = prep.jobs(runner.out_dir)
     (runner.out_dir / "sweep.json").write_text(json.dumps({
         "kind": "sweep", "protocol": str(prep.target.protocol_path),
         "protocol_id": prep.target.ident, "fixed": list(prep.target.fixed),

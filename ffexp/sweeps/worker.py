@@ -23,6 +23,7 @@ from typing import Any
 ROW_FILE = "row.json"
 RUN_FILE = "run.mcap"
 RUNS_DIR = "runs"
+INPUTS_DIR = "inputs"
 TMP_PREFIX = ".tmp-"
 #: Axis names of the six-vector metrics (columns ``mean_abs_wrench_align_fx`` ...).
 WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")

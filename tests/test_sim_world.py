@@ -496,3 +496,36 @@ def test_reused_cartesian_inertia_keeps_the_damping_within_0_1_percent() -> None
         ratio = np.sqrt(np.diag(w.cart_inertia) / exact)  # damping ~ sqrt(inertia)
         assert np.max(np.abs(ratio - 1.0)) < 1e-3
     assert 0 < reused < 400
+
+
+def test_advance_without_reading_the_state_changes_nothing() -> None:
+    """A world whose states are read every 7th cycle runs bit-identically to one read
+    every cycle (the state is built lazily, the physics does not depend on it)."""
+    a, b = SimWorld(scene(), seed=3), SimWorld(scene(), seed=3)
+    pose = a.last_state.tcp_pose_m.copy()
+    pose[:3, 3] += 0.045 * pose[:3, 2]
+    cmd = ArmCommand(cart_pose_m=pose, tcp_wrench_n_nm=np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
+    for k in range(300):
+        sa = a.step(cmd)
+        b.advance(cmd)
+        fa, fb = a.ft_samples(), b.ft_samples()
+        np.testing.assert_array_equal(fa.wrench, fb.wrench)
+        if k % 7 == 0:
+            sb = b.last_state
+            assert sb is b.last_state  # built once per cycle
+            for name in ("jnt_pos_rad", "tcp_pose_m", "jnt_trq_nm", "ext_wrench_n_nm",
+                         "jacobian", "mass_matrix"):
+                np.testing.assert_array_equal(getattr(sa, name), getattr(sb, name))
+            assert sa.truth.in_contact == sb.truth.in_contact
+    assert a.last_state.truth.in_contact  # the comparison covered contact
+
+
+def test_the_state_of_a_cycle_is_kept_when_the_target_is_pushed() -> None:
+    """set_target_velocity after a cycle does not change that cycle's reported state."""
+    w = SimWorld(scene(target=far_target()))
+    w.advance()
+    twist_before = SimWorld(scene(target=far_target()))
+    twist_before.advance()
+    w.set_target_velocity(0.1, 0.0, 0.0)
+    np.testing.assert_array_equal(w.last_state.truth.target_twist,
+                                  twist_before.last_state.truth.target_twist)

@@ -300,5 +300,8 @@ def _print_claims(name: str, summary: Sequence[dict[str, Any]]) -> None:
         })
     con = console()
     cols = [Column("claim", "claim"), Column("paper says", "paper"),
-            Column("holds in", "holds"), Column("ours", "note", 1)]
+            Column("holds in", "holds")]
     con.print(fitted_table(con, f"{name}: the paper's claims", cols, rows))
+    for row in rows:
+        if row["note"]:
+            con.print(f"{row['claim']}: {row['note']}")

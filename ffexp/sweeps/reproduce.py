@@ -193,10 +193,15 @@ def _limit_claims(study: Study, settings: claims.Settings) -> list[dict[str, Any
         found = search.limits_rows()
         lo, hi, n = claims.lower_upper(found, spec.key)
         ok = claims.gain_limits(found, spec.key, spec.paper, settings)
+        span = f"{spec.range[0]:g}..{spec.range[1]:g}"
+        if n == 0:
+            everywhere = all(f > 0.5 for f in search.result.evaluated.values())
+            seen = f"aligns {'everywhere' if everywhere else 'nowhere'} in {span}"
+        else:
+            seen = (f"lower {_g(lo)}, upper {_g(hi)} ({n} change(s) in {span}, resolution "
+                    f"{spec.resolution:g})")
         out.append(_one(f"{name} limits", f"aligns for {spec.key} between {spec.paper[0]:g} "
-                        f"and {spec.paper[1]:g}", ok,
-                        f"ours: lower {_g(lo)}, upper {_g(hi)} ({n} change(s) in "
-                        f"{spec.range[0]:g}..{spec.range[1]:g}, resolution {spec.resolution:g})"))
+                        f"and {spec.paper[1]:g}", ok, f"ours: {seen}"))
     if study.config.min_f_ref is not None:
         mins: list[float | None] = []
         for name in study.config.min_f_ref:

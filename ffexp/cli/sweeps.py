@@ -7,6 +7,7 @@ engine is :mod:`ffexp.sweeps` (docs/sweeps.md).
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -119,12 +120,14 @@ def sweep(
     from ffexp.cli.tables import json_line
     from ffexp.sweeps.executors import parse_executor
     from ffexp.sweeps.grid import execute, prepare
+    from ffexp.sweeps.session import spinner
 
     out = out if out is not None else Path("sweeps") / protocol.stem
     _check_out(out)
     spec = parse_executor(executor)
-    prep = prepare(protocol, vary=vary, ranges=ranges, sample=sample, sample_seed=sample_seed,
-                   seeds=seeds, fixed=set_)
+    with spinner(sys.stderr.isatty(), "checking every point against the protocol and scene"):
+        prep = prepare(protocol, vary=vary, ranges=ranges, sample=sample,
+                       sample_seed=sample_seed, seeds=seeds, fixed=set_)
     with _session(out, spec, f"sweep {prep.target.label}") as (runner, _display):
         result = execute(prep, runner, figures=draw)
     rows = result["rows"]
@@ -265,9 +268,11 @@ def reproduce(
     from ffexp.cli.tables import json_line
     from ffexp.sweeps import reproduce as study_mod
     from ffexp.sweeps.executors import parse_executor
+    from ffexp.sweeps.session import spinner
 
     spec = parse_executor(executor)
-    study = study_mod.load(config, set_)
+    with spinner(sys.stderr.isatty(), f"checking {config}: every scene of every paper run"):
+        study = study_mod.load(config, set_)
     out = out if out is not None else Path("sweeps") / study.config.name
     _check_out(out)
     n_runs = len(study.scenes) * len(study.targets) * len(study.config.seeds)

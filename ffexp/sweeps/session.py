@@ -106,7 +106,7 @@ class Display:
 
 
 @contextmanager
-def _connecting(tty: bool, text: str) -> Iterator[None]:
+def spinner(tty: bool, text: str) -> Iterator[None]:
     """A transient spinner on a terminal (it leaves no line behind); nothing otherwise."""
     if not tty:
         yield
@@ -127,7 +127,7 @@ def session(
     shown = display or Display(label)
     runner: Runner
     if spec.kind == "ray":  # connect first: an unreachable cluster is one error line
-        with _connecting(shown.tty, f"{label}: connecting to Ray ({spec.address})"):
+        with spinner(shown.tty, f"{label}: connecting to Ray ({spec.address})"):
             executor, slots = make_executor(spec)
         runner = Runner(out_dir, executor, slots, on_change=shown.update,
                         stop_requested=stop_requested, notice=shown.note)

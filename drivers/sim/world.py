@@ -153,6 +153,12 @@ class SimWorld:
         self._minv_jt = np.zeros((6, m.nv))
         self._kin_ok = False
         self._inertia_q = np.zeros(_N_ARM)
+        self._inertia_new = True
+        # views into MuJoCo's buffers written every cycle
+        self._cart_damp_prm = m.actuator_biasprm[self._act_cart, 2]
+        self._bias_arm = d.qfrc_bias[:_N_ARM]
+        self._gravcomp_arm = d.qfrc_gravcomp[:_N_ARM]
+        self._applied_arm = d.qfrc_applied[:_N_ARM]
         self._ft_raw = np.zeros((self.substeps, 6))
         self._cforce = np.zeros(6)
         self._quat = np.zeros(4)
@@ -287,6 +293,8 @@ class SimWorld:
         # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M.
         mujoco.mj_solveM(self.model, self.data, self._minv_jt, jfull)
         self.cart_inertia = np.linalg.inv(jfull @ self._minv_jt.T)
+        self._lam_diag = np.diag(self.cart_inertia).copy()
+        self._inertia_new = True
         self._m_diag = np.diag(self._mfull)[:_N_ARM].copy()
         self._inertia_q[:] = self.data.qpos[:_N_ARM]
 
@@ -304,8 +312,10 @@ class SimWorld:
         cart = self._act_cart
         jnt = self._act_jnt
         if self.mode == ArmMode.CART_IMPEDANCE:
-            damp = normalized_damping(self._cart_stiff, self._cart_damp, np.diag(self.cart_inertia))
-            bias[cart, 2] = -damp
+            if self._latched or self._inertia_new:  # the damping: its inputs changed
+                self._inertia_new = False
+                damp = normalized_damping(self._cart_stiff, self._cart_damp, self._lam_diag)
+                np.negative(damp, out=self._cart_damp_prm)
             if self._latched:  # the rest changes only with a command
                 self._latched = False
                 d.mocap_pos[self._cmd_mocap] = self._cart_pos[:3, 3]
@@ -319,6 +329,7 @@ class SimWorld:
                 bias[jnt, 2] = 0.0
         else:
             self._latched = True
+            self._inertia_new = True  # the Cartesian damping is rewritten on return
             bias[cart, 1] = 0.0
             bias[cart, 2] = 0.0
             ctrl[self._act_ft] = 0.0
@@ -334,7 +345,7 @@ class SimWorld:
             bias[jnt, 2] = -damp
             ctrl[jnt] = self._jnt_pos
         # f_dyn: Coriolis/centrifugal (gravity is compensated inside every step).
-        np.subtract(d.qfrc_bias[:_N_ARM], d.qfrc_gravcomp[:_N_ARM], out=d.qfrc_applied[:_N_ARM])
+        np.subtract(self._bias_arm, self._gravcomp_arm, out=self._applied_arm)
 
     def _take(self, cmd: ArmCommand) -> None:
         """Latch the fields ``cmd`` gives (the others keep their values)."""
@@ -349,12 +360,12 @@ class SimWorld:
         self._warning = 0
         if cmd.cart_pose_m is not None:
             p = np.asarray(cmd.cart_pose_m, dtype=np.float64)
-            if p.shape != (4, 4) or not np.all(np.isfinite(p)):
+            if p.shape != (4, 4) or not np.isfinite(p).all():
                 raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
             self._cart_pos = p.copy()
         if cmd.cart_stiffness_npm_nmprad is not None:
             k = np.asarray(cmd.cart_stiffness_npm_nmprad, dtype=np.float64)
-            if k.shape != (6,) or not np.all(np.isfinite(k)):
+            if k.shape != (6,) or not np.isfinite(k).all():
                 raise InvalidCommandError("cart_stiffness must be 6 finite values")
             mx = self.scene.controller.cart_stiffness_max
             self._cart_stiff, clipped = clip_cart_stiffness(k, mx[0], mx[1])
@@ -382,7 +393,7 @@ class SimWorld:
     @staticmethod
     def _finite(v: F64, n: int, name: str) -> F64:
         a = np.asarray(v, dtype=np.float64)
-        if a.shape != (n,) or not np.all(np.isfinite(a)):
+        if a.shape != (n,) or not np.isfinite(a).all():
             raise InvalidCommandError(f"{name} must be {n} finite values")
         return a.copy()
 

@@ -53,3 +53,20 @@ def test_ray_and_local_give_identical_rows(ray_local: Any, tmp_path: Path) -> No
     with ThreadPoolExecutor(1) as th:  # and in-process threads agree too
         assert table.without_wall_time(_sweep(tmp_path / "thread", th, 1)) == \
             table.without_wall_time(local)
+
+
+def test_cli_sweep_on_ray(ray_local: Any, tmp_path: Path) -> None:
+    """``--executor ray:auto`` from the command line (the instance of this process)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from ffexp.cli import app
+
+    res = CliRunner().invoke(app, [
+        "sweep", str(P1), "--vary", "align.k_ri[3]=0.25,0.5", "--set", "run.timeout_s=0.4",
+        "--executor", "ray:auto", "--out", str(tmp_path / "s"), "--json", "--no-figures"])
+    assert res.exit_code == 0, res.output
+    rows = [json.loads(x) for x in res.stdout.splitlines() if x.startswith("{")]
+    assert len(rows) == 2 and all((tmp_path / "s" / r["path"]).is_file() for r in rows)
+    assert ray_local.is_initialized()  # a Ray this process started is left running

@@ -149,7 +149,7 @@ class Runner:
             self._stop_noted = True
             running = len(self._inflight)
         if running:
-            self._notice(f"stopping: waiting for {running} running run(s) to finish "
+            self._notice(f"stopping: waiting for the {running} run(s) already started "
                          "(interrupt again to abandon them)")
 
     def run_batch(self, jobs: Sequence[Job]) -> list[dict[str, Any]]:

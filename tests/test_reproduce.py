@@ -141,6 +141,7 @@ def test_shipped_configs_validate() -> None:
 
 def test_tiny_study_end_to_end(tmp_path: Path) -> None:
     body = ('name = "tiny"\nseeds = [1, 2]\n[grid]\n"scene.target.lateral" = [0.010, 0.014]\n'
+            '"scene.target.mu" = [0.004]\n'
             '[[limits]]\nname = "k_xp"\nrun = "I-1"\nkey = "align.k_ri[3]"\n'
             'range = [0.0, 2.0]\nresolution = 1.0\npaper = [0.5, 2.0]\ncoarse = 3')
     study = rep.load(_config(tmp_path, body), ["run.timeout_s=0.4"])
@@ -164,3 +165,4 @@ def test_tiny_study_end_to_end(tmp_path: Path) -> None:
     data = json.loads((out / "reproduce.json").read_text())
     assert data["kind"] == "reproduce" and len(data["summary"]) == 5
     assert (out / "figures" / "claims.png").is_file()
+    assert (out / "figures" / "scenes.png").is_file()  # outcomes over the two grid keys

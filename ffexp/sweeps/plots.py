@@ -161,3 +161,40 @@ def claims_figure(summary: Sequence[dict[str, Any]], title: str, path: Path) -> 
             ax.text(min(values[i] + 0.02, 0.9), i, f"{s['holds']}/{s['scenes']}", va="center")
         ax.set_title(title)
         return _save_png(fig, path)
+
+
+def scene_map(
+    scenes: pd.DataFrame, keys: Sequence[str], columns: Sequence[str], title: str, path: Path
+) -> Path | None:
+    """Each outcome (a run's aligned flag, a claim) over the first two scene keys: one
+    square per scene point, coloured by the fraction over seeds and further keys (a
+    grid shows where an outcome flips between neighbours). None with fewer than two keys
+    or without varied scenes."""
+    from ffexp import figures
+    from ffexp.figures import new_figure
+
+    keys = [k for k in keys if k in scenes]
+    data = scenes.dropna(subset=keys[:2]) if len(keys) >= 2 else scenes.iloc[0:0]
+    if data.empty:
+        return None
+    kx, ky = keys[0], keys[1]
+    cols = [c for c in columns if c in data]
+    with figures.style():
+        ncol = min(3, len(cols))
+        nrow = -(-len(cols) // ncol)
+        fig = new_figure(3.6 * ncol, 3.0 * nrow)
+        axes = fig.subplots(nrow, ncol, squeeze=False).ravel()
+        for ax, col in zip(axes, cols, strict=False):
+            values = data[col].astype("Float64").astype("float64")
+            mean = values.groupby([data[kx], data[ky]]).mean().reset_index()
+            sc = ax.scatter(mean[kx], mean[ky], c=mean[col], cmap="RdYlGn", vmin=0.0,
+                            vmax=1.0, marker="s", s=120, edgecolors="0.3")
+            ax.set_title(col)
+            ax.set_xlabel(kx)
+            ax.set_ylabel(ky)
+        for ax in axes[len(cols):]:
+            ax.set_visible(False)
+        fig.colorbar(sc, ax=list(axes[:len(cols)]), shrink=0.8,
+                     label="fraction (seeds, further keys)")
+        fig.suptitle(title)
+        return _save_png(fig, path)

@@ -252,6 +252,13 @@ def write(study: Study, result: Mapping[str, Any], out_dir: Path) -> list[Path]:
     paths.append(plots.claims_figure(result["summary"], f"{study.config.name}: "
                                      f"{len(study.scenes)} scenes x {len(study.config.seeds)} "
                                      "seed(s)", out_dir / "figures" / "claims.png"))
+    outcomes = [f"{role} aligned" for role in study.targets] + [
+        c.name for c in claims.SCENE_CLAIMS]
+    mapped = plots.scene_map(table.frame(result["scenes"]), [k.text for k in study.keys],
+                             outcomes, f"{study.config.name}: outcomes over the scenes",
+                             out_dir / "figures" / "scenes.png")
+    if mapped is not None:
+        paths.append(mapped)
     return paths
 
 

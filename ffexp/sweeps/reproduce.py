@@ -144,12 +144,15 @@ def run(study: Study, runner: Runner) -> dict[str, Any]:
         for role, target in study.targets.items():
             for seed in cfg.seeds:
                 jobs.append(target.job(keys, scene, seed, runner.out_dir, inputs[role]))
-    with ThreadPoolExecutor(max_workers=1 + len(study.searches)) as pool:
+    pool = ThreadPoolExecutor(max_workers=1 + len(study.searches))
+    try:
         scene_rows = pool.submit(runner.run_batch, jobs)
         searches = [pool.submit(s.run, runner) for s in study.searches]
         rows = scene_rows.result()
         for fut in searches:
             fut.result()
+    finally:  # on an interrupt, do not wait here for the runs (the session ends them)
+        pool.shutdown(wait=False, cancel_futures=True)
     return evaluate(study, rows)
 
 

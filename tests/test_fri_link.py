@@ -76,6 +76,9 @@ def link(
                 remote=(LOCAL, port), bind_host=LOCAL,
                 pacing="lockstep" if pacing == "lockstep" else "realtime",
                 lockstep_timeout_s=timeout_s, faults=faults or FaultSettings(),
+                # these tests are about the link: limit switches just inside the
+                # hardware ranges (tests/test_krc_limits.py tests the switches)
+                software_limits_deg=(169.0, 119.0, 169.0, 119.0, 169.0, 119.0, 169.0),
             ),
         )
         robot.connect()

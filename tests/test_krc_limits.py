@@ -145,11 +145,11 @@ def test_software_limits_are_validated(far_scene: Scene) -> None:
 
 
 def test_udp_emulator_stops_and_reports_the_error(far_scene: Scene) -> None:
-    """Over FRI: the measurement leaves CMD with the error bits, every later one keeps them."""
+    """Over FRI: the KRC leaves CMD with the error bits; the driver then names the joint."""
     robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL,
                                  connect_timeout_s=10.0, cycle_timeout_s=10.0))
     emu: FriEmulator | None = None
-    msrs: list[tuple[FriState, int, np.ndarray]] = []
+    msrs: list[tuple[FriState, int]] = []
     limits = list(SOFTWARE_LIMITS_DEG)
     limits[3] = 95.0  # A4 starts at 98.2 deg and opens under the push: trips in CMD
     try:
@@ -161,22 +161,18 @@ def test_udp_emulator_stops_and_reports_the_error(far_scene: Scene) -> None:
         robot.connect()
         emu.start_thread(max_cycles=400)
         cmd = CartesianCommand()
-        for s in robot.measurements():
-            assert isinstance(s.extras, FriMeasurement)
-            msrs.append((s.extras.state, s.extras.error, s.joint_pos_rad.copy()))
-            robot.send(_free_push(s.tcp_pose_m, cmd))
-            if len(msrs) == 400:
-                break
-        emu.join(timeout=30.0)
+        with pytest.raises(DriverError, match="A4 at the software limit switch"):
+            for s in robot.measurements():
+                assert isinstance(s.extras, FriMeasurement)
+                msrs.append((s.extras.state, s.extras.error))
+                robot.send(_free_push(s.tcp_pose_m, cmd))
+                if len(msrs) == 400:
+                    break
         assert emu.stats.limit_stops == 1 and emu.stats.fallbacks == 1
     finally:
         if emu is not None:
             emu.close()
         robot.close()
-    errors = [e for _, e, _ in msrs]
-    first = next(i for i, e in enumerate(errors) if e)
-    assert first > 0 and msrs[first - 1][0] == FriState.CMD
-    assert all(e == 1 << 3 for e in errors[first:])
-    assert all(st == FriState.MON for st, _, _ in msrs[first:])
-    q4 = np.array([q[3] for _, _, q in msrs])
-    assert np.all(np.abs(q4[first + 2:] - q4[first + 1]) < 1e-3)  # held by the brakes
+    # it was commanding, without error, up to the cycle the switch tripped
+    assert len(msrs) >= 1
+    assert all(st == FriState.CMD and e == 0 for st, e in msrs)

@@ -82,9 +82,10 @@ from drivers.fri.convert import (
     cycle_ns_from_seconds,
 )
 from drivers.fri.estimate import FriEstimateSensor
+from drivers.fri.link import describe_error
 from drivers.fri.settings import FriSettings
 from drivers.fri.stats import LinkCounters, LinkStats
-from drivers.fri.types import FriCommand, FriMeasurement
+from drivers.fri.types import FriCommand, FriMeasurement, FriState
 from drivers.net.udp import bind_udp, resolve_ipv4
 
 __all__ = ["FriEstimateSensor", "FriRobot", "FriSettings", "LinkStats"]
@@ -234,6 +235,10 @@ class FriRobot(RobotDriver):
                     raise self._timeout_error(first, limit)
                 self._pending = None
                 self._runner_cycle = self._cycle
+            if m.error != 0 and m.state != FriState.CMD:
+                # the KRC left command mode with an error (e.g. a software limit
+                # switch): it holds the arm and will not resume until acknowledged
+                raise DriverError(f"the KRC left command mode: {describe_error(m.error)}")
             yield robot_state_from_fri(m)
 
     def _timeout_error(self, first: bool, limit: float) -> DriverError:

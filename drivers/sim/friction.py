@@ -57,7 +57,10 @@ class JointFriction:
 
     def dry_level_nm(self, speed_radps: F64) -> F64:
         """The dry (static-to-Coulomb) level at joint speed ``speed_radps`` [N m]."""
-        v = np.abs(np.asarray(speed_radps, dtype=np.float64)) / self.stribeck_radps
+        # beyond 40 Stribeck speeds the excess is below 1e-600: clip (a diverging
+        # state's huge speeds would overflow the power)
+        v = np.minimum(np.abs(np.asarray(speed_radps, dtype=np.float64)) / self.stribeck_radps,
+                       40.0)
         return self.coulomb_nm + self._excess * np.exp(-(v**self.shape))
 
     def torque_nm(self, speed_radps: F64) -> F64:

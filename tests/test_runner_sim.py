@@ -81,15 +81,6 @@ def run_protocol(tmp_path: Path, name: str, *overrides: str) -> tuple[Path, obje
     return result.path, result.outcome
 
 
-@pytest.mark.slow
-def test_method3_impedance_breaks_contact_repeatedly(tmp_path: Path) -> None:
-    path, _ = run_protocol(tmp_path, "method3_impedance", "run.timeout_s=20")
-    m = metrics(load(path))
-    assert m.first_contact_s is not None
-    assert m.contact_breaks >= 2
-    assert m.aborted is None
-
-
 def smallest_aligning_f_ref(tmp_path: Path, name: str, grid: list[float]) -> float | None:
     for f_ref in sorted(grid):
         path, _ = run_protocol(

@@ -191,7 +191,7 @@ def _paper_push(
 def paper_push() -> tuple[SimWorld, list[ArmState]]:
     # 2 N: above the ~1 N below which the funnels stick (paper), below the force
     # that throws the target out of the arm's reach before it is seated
-    return _paper_push(2.0, 3.5)
+    return _paper_push(2.0, 5.0)
 
 
 @pytest.mark.slow

@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
+from drivers.sim.scene import load_scene
 from ffexp.cli import app
 from ffexp.sweeps import claims, engine
 from ffexp.sweeps import reproduce as rep
@@ -109,6 +110,11 @@ def _config(tmp_path: Path, body: str) -> Path:
     ('name = "x"\n[grid]\n"scene.target.mu" = ["a"]', "grid"),
     ('name = "x"\nmin_f_ref = ["a", "b"]', "min_f_ref"),
     ('name = "x"\ncolour = 1', "colour"),
+    ('name = "x"\n[grid]\n"scene.target.mu" = { offset = [0.0], scale = [1.0] }', "exactly one"),
+    ('name = "x"\n[grid]\n"scene.target.funnel.surface" = { scale = [1.0] }', "a number"),
+    ('name = "x"\n[grid]\n"scene.target.nope" = { scale = [1.0] }', "target.nope"),
+    ('name = "x"\nsample = 2\n[ranges]\n"scene.target.mu" = { scale = [2.0, 1.0] }',
+     "empty range"),
 ])
 def test_config_errors_one_line_exit_2(tmp_path: Path, body: str, needle: str) -> None:
     cfg = _config(tmp_path, body)
@@ -135,8 +141,25 @@ def test_shipped_configs_validate() -> None:
     assert [s.name for s in small.searches] == ["k_xp", "k_yp", "f_ref I", "f_ref II"]
     big = rep.load(ROOT / "protocols/robustness.toml")
     assert len(big.scenes) == 5 * 5 * 3 * 3
+    nominal = load_scene(ROOT / "data/scenes/paper.toml")
     lat = sorted({s["scene.target.lateral"] for s in big.scenes})
-    assert lat[0] == pytest.approx(0.008) and lat[-1] == pytest.approx(0.016)
+    assert lat[0] == pytest.approx(nominal.target.lateral - 0.004)
+    assert lat[-1] == pytest.approx(nominal.target.lateral + 0.004)
+    fric = sorted({s["scene.arm.friction_scale"] for s in big.scenes})
+    assert fric == pytest.approx([nominal.arm.friction_scale * k for k in (0.7, 1.0, 1.4)])
+
+
+def test_relative_values_start_from_the_nominal_one(tmp_path: Path) -> None:
+    body = ('name = "x"\nsample = 4\n[ranges]\n"scene.target.yaw_deg" = { offset = [-1, 1] }\n'
+            '[grid]\n"approach.speed_mps" = { scale = [0.5, 2.0] }\n'
+            '"scene.target.mass" = { offset = [0.0] }')
+    study = rep.load(_config(tmp_path, body))
+    i1 = study.targets["I-1"]
+    yaw = i1.scene.target.yaw_deg
+    assert all(yaw - 1 <= s["scene.target.yaw_deg"] <= yaw + 1 for s in study.scenes[1:])
+    assert sorted({s["approach.speed_mps"] for s in study.scenes[1:]}) == pytest.approx(
+        [i1.protocol.approach.speed_mps * 0.5, i1.protocol.approach.speed_mps * 2.0])
+    assert {s["scene.target.mass"] for s in study.scenes[1:]} == {i1.scene.target.mass}
 
 
 def test_tiny_study_end_to_end(tmp_path: Path) -> None:

@@ -177,12 +177,29 @@ def point_overrides(
 
 
 def _lookup(tree: Mapping[str, Any], key: Key) -> list[Any]:
+    node = _walk(tree, key)
+    if not isinstance(node, list | tuple):
+        raise ConfigError("--vary", key.text, f"{key.dotted} is not a list; drop the index")
+    return list(node)
+
+
+def _walk(tree: Mapping[str, Any], key: Key) -> Any:
     node: Any = tree
     for part in key.path:
         if not isinstance(node, Mapping) or part not in node:
             where = "scene" if key.scene else "protocol"
             raise ConfigError("--vary", key.text, f"unknown key (no {key.dotted} in the {where})")
         node = node[part]
-    if not isinstance(node, list | tuple):
-        raise ConfigError("--vary", key.text, f"{key.dotted} is not a list; drop the index")
-    return list(node)
+    return node
+
+
+def current_value(key: Key, protocol: Mapping[str, Any], scene: Mapping[str, Any]) -> Any:
+    """The value a key has in the resolved protocol and scene (as dicts): the nominal
+    value that relative sweep values (offsets, scales) start from."""
+    if key.index is None:
+        return _walk(scene if key.scene else protocol, key)
+    values = _lookup(scene if key.scene else protocol, key)
+    if key.index >= len(values):
+        raise ConfigError("--vary", key.text,
+                          f"index {key.index} past the end of a list of {len(values)}")
+    return values[key.index]

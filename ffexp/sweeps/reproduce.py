@@ -17,13 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from drivers.config import StrictModel, load_model
 from ffexp.errors import ConfigError
 from ffexp.sweeps import claims
 from ffexp.sweeps.engine import Runner
-from ffexp.sweeps.keys import Key, Value, parse_key
+from ffexp.sweeps.keys import Key, Value, current_value, parse_key
 from ffexp.sweeps.plan import Point, Target, grid, latin_hypercube
 from ffexp.sweeps.searches import LimitSearch
 
@@ -44,6 +44,28 @@ class LimitSpec(StrictModel):
     coarse: int = Field(5, ge=2)
 
 
+class Relative(StrictModel):
+    """Values relative to the nominal one (the resolved scene or protocol of the first
+    run): ``offset`` adds, ``scale`` multiplies; exactly one of them."""
+
+    offset: list[float] | None = None
+    scale: list[float] | None = None
+
+    @model_validator(mode="after")
+    def _one(self) -> Relative:
+        if (self.offset is None) == (self.scale is None):
+            raise ValueError("give exactly one of offset = [...] or scale = [...]")
+        if not (self.offset or self.scale):
+            raise ValueError("no values")
+        return self
+
+    def values(self, nominal: float) -> list[float]:
+        if self.offset is not None:
+            return [float(f"{nominal + d:.10g}") for d in self.offset]
+        assert self.scale is not None
+        return [float(f"{nominal * k:.10g}") for k in self.scale]
+
+
 class ClaimSettings(StrictModel):
     iii_min_breaks: int = Field(2, ge=1)
     fz_tolerance: float = Field(0.15, gt=0)
@@ -59,8 +81,27 @@ class ReproduceConfig(StrictModel):
     sample: int | None = Field(None, ge=1)
     sample_seed: int = 0
     include_nominal: bool = True
-    ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
-    grid: dict[str, list[float]] = Field(default_factory=dict)
+    ranges: dict[str, tuple[float, float] | Relative] = Field(default_factory=dict)
+    grid: dict[str, list[float] | Relative] = Field(default_factory=dict)
+
+    @field_validator("ranges", "grid", mode="before")
+    @classmethod
+    def _relative(cls, data: Any) -> Any:
+        """``{ offset = [...] }`` / ``{ scale = [...] }`` tables as :class:`Relative`, with
+        their own error (not pydantic's about the list form)."""
+        if not isinstance(data, dict):
+            return data
+        out = {}
+        for key, value in data.items():
+            if isinstance(value, dict):
+                try:
+                    value = Relative.model_validate(value)
+                except ValidationError as exc:
+                    err = exc.errors()[0]
+                    msg = str(err.get("ctx", {}).get("error", err["msg"]))
+                    raise ValueError(f"{key}: {msg}") from None
+            out[key] = value
+        return out
     runs: dict[str, RunRole]
     claims: ClaimSettings = ClaimSettings()
     limits: list[LimitSpec] = Field(default_factory=list)
@@ -76,10 +117,13 @@ class ReproduceConfig(StrictModel):
         if self.ranges and self.sample is None:
             raise ValueError("ranges need sample = N")
         for lo_hi in self.ranges.values():
-            if not lo_hi[0] < lo_hi[1]:
+            if isinstance(lo_hi, Relative):
+                if len(lo_hi.values(1.0)) != 2:
+                    raise ValueError("a relative range needs two values: [low, high]")
+            elif not lo_hi[0] < lo_hi[1]:
                 raise ValueError(f"empty range {list(lo_hi)}")
         for values in self.grid.values():
-            if not values:
+            if not isinstance(values, Relative) and not values:
                 raise ValueError("a grid key without values")
         names = [spec.name for spec in self.limits]
         for spec in self.limits:
@@ -112,8 +156,18 @@ def load(path: Path, fixed: Sequence[str] = ()) -> Study:
         if not proto.is_file():
             raise ConfigError(str(path), f"runs.{role}.protocol", f"{proto}: file not found")
         targets[role] = Target(proto, (*run.set, *fixed), label=role)
-    axes = [(parse_key(k, str(path)), list(v)) for k, v in cfg.grid.items()]
-    spans = [(parse_key(k, str(path)), lo, hi) for k, (lo, hi) in cfg.ranges.items()]
+    first = next(iter(targets.values()))
+    axes = []
+    for text, vals in cfg.grid.items():
+        key = parse_key(text, str(path))
+        axes.append((key, _absolute(path, first, key, vals, "grid")))
+    spans = []
+    for text, lo_hi in cfg.ranges.items():
+        key = parse_key(text, str(path))
+        lo, hi = _absolute(path, first, key, lo_hi, "ranges")
+        if not lo < hi:
+            raise ConfigError(str(path), f"ranges.{text}", f"empty range [{lo:g}, {hi:g}]")
+        spans.append((key, lo, hi))
     keys = [k for k, _ in axes] + [k for k, _, _ in spans]
     scenes = grid(axes) if axes else [{}]
     if spans and cfg.sample is not None:
@@ -132,6 +186,21 @@ def load(path: Path, fixed: Sequence[str] = ()) -> Study:
         search.check()
         searches.append(search)
     return Study(path, cfg, targets, keys, scenes, searches)
+
+
+def _absolute(path: Path, target: Target, key: Key, values: Any, table: str) -> list[Any]:
+    """Grid or range values as numbers: relative ones from the key's nominal value."""
+    if not isinstance(values, Relative):
+        return list(values)
+    try:
+        nominal = current_value(key, target.protocol.model_dump(mode="json"),
+                                target.scene.model_dump(mode="json"))
+    except ConfigError as exc:
+        raise ConfigError(str(path), f"{table}.{key.text}", exc.message) from None
+    if not isinstance(nominal, int | float) or isinstance(nominal, bool):
+        raise ConfigError(str(path), f"{table}.{key.text}",
+                          f"relative values need a number; the nominal value is {nominal!r}")
+    return values.values(float(nominal))
 
 
 def run(study: Study, runner: Runner) -> dict[str, Any]:

@@ -52,12 +52,11 @@ class Display:
             Progress,
             SpinnerColumn,
             TextColumn,
-            TimeElapsedColumn,
         )
 
         self._progress = Progress(
-            SpinnerColumn(), TextColumn("{task.description}"), BarColumn(bar_width=24),
-            MofNCompleteColumn(), TextColumn("{task.fields[status]}"), TimeElapsedColumn(),
+            SpinnerColumn(), TextColumn("{task.description}"), BarColumn(bar_width=12),
+            MofNCompleteColumn(), TextColumn("{task.fields[status]}"),
             TextColumn("ETA {task.fields[eta]}"),
             console=Console(stderr=True), refresh_per_second=4,
         )
@@ -80,8 +79,8 @@ class Display:
 
     def update(self, counts: Counts) -> None:
         self._counts = Counts(**vars(counts))
-        status = (f"running {counts.running}  failed {counts.failed}  "
-                  f"skipped {counts.skipped}")
+        status = (f"running {counts.running} failed {counts.failed} "
+                  f"done before {counts.skipped}")
         eta = _fmt_s(eta_s(counts, self.started))
         if self._progress is not None:
             self._progress.update(self._task, total=counts.total, completed=counts.done,

@@ -83,7 +83,7 @@ def spin(n: int) -> float:
     return time.process_time() - t0
 
 
-def capacity(workers: int, n: int = 3_000_000) -> float:
+def capacity(workers: int, n: int = 6_000_000) -> float:
     """How much faster ``workers`` processes do ``workers`` units of pure CPU work than
     one process does them one after another, now (1.0 on a machine whose other
     cores are busy, ``workers`` on an idle one)."""

@@ -158,7 +158,7 @@ def test_grid_rows_files_heatmap_and_resume_after_a_stop(
     assert sorted(set(df["scene.target.lateral"])) == [0.010, 0.012, 0.014]
     assert sorted(set(df["seed"])) == [1, 2]
     for col in ("align.k_ri[3]", "duration_s", "wall_s", "contact_breaks",
-                "mean_fz_align_n", "link_cycles"):
+                "mean_fz_align_n"):
         assert pd.api.types.is_numeric_dtype(df[col]), col
     for rel in df["path"]:
         assert (tmp_path / rel).is_file()

@@ -233,6 +233,14 @@ def test_cli_sweep_grid_on_the_process_pool(tmp_path: Path) -> None:
     one = cli.invoke(app, ["sweep", str(P1), "--vary", VARY[0], "--set", SHORT,
                            "--executor", "local:1", "--out", str(tmp_path / "one")])
     assert one.exit_code == 0 and (tmp_path / "one" / "figures" / "lines.png").is_file()
+    lhs = cli.invoke(app, ["sweep", str(P1), "--sample", "3", "--range",
+                           "scene.target.mu=0.002:0.009", "--set", SHORT, "--executor",
+                           "local:1", "--out", str(tmp_path / "lhs"), "--no-figures"])
+    assert lhs.exit_code == 0, lhs.output
+    mu = pd.read_csv(tmp_path / "lhs" / "results.csv")["scene.target.mu"]
+    assert len(set(mu)) == 3 and all(0.002 <= m <= 0.009 for m in mu)
+    # one value per third of the range (Latin hypercube)
+    assert sorted(int((m - 0.002) / 0.007 * 3) for m in mu) == [0, 1, 2]
 
 
 BAD = [

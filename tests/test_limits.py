@@ -120,3 +120,22 @@ def test_limits_bad_input(tmp_path: Path, extra: list[str], needle: str) -> None
     err = res.stderr.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and needle in err[0]
     assert not (tmp_path / "x").exists()
+
+
+def test_max_breaks_makes_breaking_runs_count_as_not_aligning() -> None:
+    from ffexp.sweeps.keys import parse_key
+    from ffexp.sweeps.plan import Target
+    from ffexp.sweeps.searches import LimitSearch
+
+    t = Target(P1)
+    key = [parse_key("align.k_ri[3]")]
+    plain = LimitSearch(t, key, [(0.0, 1.0)], [1], [0.1])
+    strict = LimitSearch(t, key, [(0.0, 1.0)], [1], [0.1], max_breaks=1)
+    rows = [{"aligned": True, "contact_breaks": 0}, {"aligned": True, "contact_breaks": 3},
+            {"aligned": False, "contact_breaks": 0},
+            {"aligned": True, "contact_breaks": 0, "error": "SimulationError: x"}]
+    assert [plain.aligns(r) for r in rows] == [True, True, False, False]
+    assert [strict.aligns(r) for r in rows] == [True, False, False, False]
+    res = cli.invoke(app, ["limits", str(P1), "--key", "align.k_ri[3]", "--range", "0:1",
+                           "--max-breaks", "-1"])
+    assert res.exit_code == 2 and "--max-breaks" in res.stderr

@@ -157,6 +157,9 @@ def limits(
         "per key). Default: 1/16 of each range."),
     coarse: int = typer.Option(5, "--coarse", help="Points of the coarse grid (per ray)."),
     n_rays: int = typer.Option(8, "--rays", help="Two keys: rays from the box centre."),
+    max_breaks: int | None = typer.Option(
+        None, "--max-breaks", help="A run aligns only with at most this many contact breaks "
+        "(the paper's upper limit: contact breaks above it). Default: any."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
@@ -198,7 +201,7 @@ def limits(
     target = Target(protocol, tuple(set_))
     res = resolution or [(hi - lo) / 16 for lo, hi in spans]
     search = LimitSearch(target, keys, spans, seeds_of(target, seeds), list(res), coarse,
-                         n_rays)
+                         n_rays, max_breaks=max_breaks)
     search.check()
     with _session(out, spec, f"limits {target.label}") as (runner, _display):
         search.run(runner)
@@ -206,7 +209,8 @@ def limits(
         table.write(table.frame(search.rows), runner.out_dir)
         (runner.out_dir / "limits.json").write_text(json.dumps({
             "kind": "limits", "protocol": str(protocol), "keys": key, "ranges": spans,
-            "resolution": search.resolution, "seeds": search.seeds, "limits": found,
+            "resolution": search.resolution, "seeds": search.seeds, "max_breaks": max_breaks,
+            "limits": found,
         }, indent=2) + "\n")
         names = [k.text for k in keys]
         fig = plots.limits_figure(

@@ -42,6 +42,8 @@ class LimitSpec(StrictModel):
     paper: tuple[float, float] | None = Field(
         None, description="The paper's lower and upper limit (a gain-limit claim).")
     coarse: int = Field(5, ge=2)
+    max_breaks: int | None = Field(
+        None, ge=0, description="A run aligns only with at most this many contact breaks.")
 
 
 class Relative(StrictModel):
@@ -182,7 +184,8 @@ def load(path: Path, fixed: Sequence[str] = ()) -> Study:
     for spec in cfg.limits:
         key = parse_key(spec.key, f"{path}: limits.{spec.name}.key")
         search = LimitSearch(targets[spec.run], [key], [spec.range], [cfg.seeds[0]],
-                             [spec.resolution], spec.coarse, name=spec.name)
+                             [spec.resolution], spec.coarse, name=spec.name,
+                             max_breaks=spec.max_breaks)
         search.check()
         searches.append(search)
     return Study(path, cfg, targets, keys, scenes, searches)

@@ -31,6 +31,8 @@ class LimitSearch:
     coarse: int = 5
     rays: int = 8
     name: str = ""
+    max_breaks: int | None = None
+    """A run counts as aligning only with at most this many contact breaks (None: any)."""
     rows: list[dict[str, Any]] = field(default_factory=list)
     result: limits.SearchResult | None = None
 
@@ -46,6 +48,8 @@ class LimitSearch:
                               "one positive value, or one per key")
         if self.coarse < 2:
             raise ConfigError("--coarse", str(self.coarse), "must be at least 2")
+        if self.max_breaks is not None and self.max_breaks < 0:
+            raise ConfigError("--max-breaks", str(self.max_breaks), "must be 0 or more")
         if len(self.keys) == 2 and self.rays < 3:
             raise ConfigError("--rays", str(self.rays), "must be at least 3")
         self.name = self.name or self.target.label
@@ -73,12 +77,19 @@ class LimitSearch:
             rows = runner.run_batch(jobs)
             self.rows.extend(rows)
             n = len(self.seeds)
-            return [sum(bool(r.get("aligned")) and not r.get("error")
-                        for r in rows[i * n:(i + 1) * n]) / n for i in range(len(points))]
+            return [sum(self.aligns(r) for r in rows[i * n:(i + 1) * n]) / n
+                    for i in range(len(points))]
 
         self.result = limits.search(evaluate, self.segments(), coarse=self.coarse,
                                     resolution=self.resolution)
         return self.result
+
+    def aligns(self, row: dict[str, Any]) -> bool:
+        """The outcome the search bisects: aligned (without error, and with at most
+        ``max_breaks`` contact breaks when that is set)."""
+        if row.get("error") or not row.get("aligned"):
+            return False
+        return self.max_breaks is None or int(row.get("contact_breaks") or 0) <= self.max_breaks
 
     def limits_rows(self) -> list[dict[str, Any]]:
         assert self.result is not None

@@ -105,12 +105,14 @@ def claims(rows: list[dict[str, object]], points: list[dict[str, float]]) -> dic
     holds: dict[str, list[bool]] = {k: [] for k in (
         "I-1 aligns at 0.8 N", "I-2 aligns at 0.8 N", "II does not align at 0.8 N",
         "II aligns at 1.5 N", f"III breaks contact >= {III_BREAKS} times",
+        "force control: I-1 aligns at 0.8 N, II needs 1.5 N",
         "the ordering (I-1, II at 0.8 and 1.5 N, III)")}
     for p in points:
         i1, i2, ii08, ii15, iii = (at(p, r) for r in RUNS)
         c = [bool(i1["aligned"]), bool(i2["aligned"]), not ii08["aligned"], bool(ii15["aligned"]),
              int(iii["breaks"]) >= III_BREAKS]  # type: ignore[call-overload]
-        for key, ok in zip(holds, [*c, c[0] and c[2] and c[3] and c[4]], strict=False):
+        force = c[0] and c[2] and c[3]
+        for key, ok in zip(holds, [*c, force, force and c[4]], strict=True):
             holds[key].append(ok)
     return {k: sum(v) / len(v) for k, v in holds.items()}
 

@@ -149,7 +149,7 @@ def test_contact_direction_is_continuous_over_landing_points() -> None:
     assert steps.max() <= crease * 1.05
     # the wall pushes the nose toward the axis: the force points opposite the landing point
     azimuth_of_force = np.unwrap(np.arctan2(-n[:, 2], -n[:, 1]))
-    assert np.all(np.diff(azimuth_of_force) >= -1e-9)  # never turns back
+    assert np.all(np.diff(azimuth_of_force) >= -1e-6)  # never turns back (beyond rounding)
     # and it follows the landing point within half a crease
     assert np.max(np.abs(np.degrees(azimuth_of_force - az))) <= crease / 2 + 0.5
     axial = math.sin(smooth.target.funnel.half_angle)

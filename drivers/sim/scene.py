@@ -144,11 +144,13 @@ class FunnelGeometry(StrictModel):
     opening: PosFloat = 0.04
     """Radius of the cone's mouth (target) or base (tool) [m]."""
     surface: Literal["smooth", "capsules"] = "smooth"
-    panels: Annotated[int, Field(ge=6, le=128)] = 32
-    """Target, smooth: number of flat panels (creases turn by 360/panels deg)."""
+    panels: Annotated[int, Field(ge=6, le=128)] = 24
+    """Target, smooth: number of flat panels (creases turn by 360/panels deg).
+    Cost grows with panels x tool spheres when the cones nest (every pair's
+    bounds overlap): 24 x 6 costs about twice the capsule funnels' step there."""
     wall: Annotated[float, Field(gt=0.0, le=0.02)] = 0.004
     """Target, smooth: panel thickness [m]."""
-    scallop: Annotated[float, Field(gt=0.0, le=0.005)] = 2e-4
+    scallop: Annotated[float, Field(gt=0.0, le=0.005)] = 1e-3
     """Tool, smooth: largest dip of the sphere stack below the cone [m]."""
     generators: Annotated[int, Field(ge=3, le=32)] = 16
     """Capsules: number of generator capsules."""

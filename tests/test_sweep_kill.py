@@ -60,3 +60,28 @@ def test_killed_and_restarted_sweep_has_every_row_once(tmp_path: Path) -> None:
     for name, mtime in before.items():
         assert (out / RUNS_DIR / name / "row.json").stat().st_mtime_ns == mtime
     assert all(r["error"] is None for r in rows)
+
+
+@pytest.mark.slow
+def test_interrupted_sweep_exits_130_keeps_its_runs_and_goes_on(tmp_path: Path) -> None:
+    """Ctrl-C (SIGINT): no new runs, the started ones finish and are kept, exit 130; the
+    same command again completes the sweep without running them again."""
+    out = tmp_path / "s"
+    cmd = [sys.executable, "-m", "ffexp", "sweep", str(P1), *ARGS, "--out", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    t0 = time.monotonic()
+    while len(_done(out)) < 2 and proc.poll() is None:
+        assert time.monotonic() - t0 < DEADLINE_S, "the sweep made no progress"
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=DEADLINE_S)
+    assert proc.returncode == 130, err
+    assert "stopped; finished runs are kept" in err
+    assert not list((out / RUNS_DIR).glob(f"{TMP_PREFIX}*"))  # the started runs finished
+    before = {p.name: (p / "row.json").stat().st_mtime_ns for p in _done(out)}
+    assert 2 <= len(before) < 12
+    res = subprocess.run([*cmd, "--json"], capture_output=True, text=True, timeout=DEADLINE_S)
+    assert res.returncode == 0, res.stderr
+    assert len([x for x in res.stdout.splitlines() if x.startswith("{")]) == 12
+    for name, mtime in before.items():
+        assert (out / RUNS_DIR / name / "row.json").stat().st_mtime_ns == mtime

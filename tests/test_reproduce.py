@@ -162,6 +162,7 @@ def test_relative_values_start_from_the_nominal_one(tmp_path: Path) -> None:
     assert {s["scene.target.mass"] for s in study.scenes[1:]} == {i1.scene.target.mass}
 
 
+@pytest.mark.slow
 def test_tiny_study_end_to_end(tmp_path: Path) -> None:
     body = ('name = "tiny"\nseeds = [1, 2]\n[grid]\n"scene.target.lateral" = [0.010, 0.014]\n'
             '"scene.target.mu" = [0.004]\n'

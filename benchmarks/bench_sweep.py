@@ -16,9 +16,10 @@ one seed each) into a fresh directory (nothing cached):
 * ``ray:local``: the engine on a Ray instance started once before the repeats
   (Ray's own start, about 10 s, is printed separately, not counted).
 
-A bare parallel baseline is measured in every repeat too: ``N`` processes of
-pure CPU work against one process doing the same work (the speed-up this
-machine can give right now, whatever else runs on it).
+A bare parallel baseline is measured in every repeat too: the same runs split
+over N plain processes forked from the warmed benchmark process (no executor,
+no queue): the speed-up this machine gives right now, whatever else runs on
+it; the engine's speed-up is also printed as a fraction of it.
 
 Repeats are interleaved (baseline, local:1, local:N, ray, baseline, ...) so
 that a change of machine load hits all alike. Prints medians: wall time,
@@ -74,32 +75,29 @@ def warm_worker() -> int:
     return os.getpid()
 
 
-def spin(n: int) -> float:
-    """Pure CPU work (no I/O, no imports): the machine's own parallel capacity."""
-    t0 = time.process_time()
-    x = 0
-    for i in range(n):
-        x += i * i % 7
-    return time.process_time() - t0
+def _share(jobs: list[Job]) -> None:
+    for job in jobs:
+        run_one(job)
 
 
-def capacity(workers: int, n: int = 6_000_000) -> float:
-    """How much faster ``workers`` processes do ``workers`` units of pure CPU work than
-    one process does them one after another, now (1.0 on a machine whose other
-    cores are busy, ``workers`` on an idle one)."""
+def bare_parallel(workers: int) -> Callable[[Path, int, float], float]:
+    """The same runs split over ``workers`` plain processes forked from this (warmed)
+    one, no executor, no queue: what the machine gives in parallel right now."""
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
 
-    t0 = time.perf_counter()
-    for _ in range(workers):
-        spin(n)
-    serial = time.perf_counter() - t0
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as ex:
-        list(ex.map(spin, [1000] * workers))  # started
+    def run(out: Path, runs: int, seconds: float) -> float:
+        jobs = jobs_for(out, runs, seconds)
+        ctx = multiprocessing.get_context("fork")
+        procs = [ctx.Process(target=_share, args=(jobs[i::workers],)) for i in range(workers)]
         t0 = time.perf_counter()
-        list(ex.map(spin, [n] * workers))
-        parallel = time.perf_counter() - t0
-    return serial / parallel
+        for p in procs:
+            p.start()
+        for p in procs:
+            p.join()
+        wall = time.perf_counter() - t0
+        assert all(p.exitcode == 0 for p in procs)
+        return wall
+    return run
 
 
 #: Start-up times of the executors (s), per configuration.
@@ -143,6 +141,7 @@ def main() -> None:
     load0 = os.getloadavg()
     configs: dict[str, tuple[Callable[[Path, int, float], float], int]] = {
         "one process (baseline)": (baseline, 1),
+        f"{args.workers} bare processes": (bare_parallel(args.workers), args.workers),
         "local:1": (on_engine("local:1", lambda: make_executor(parse_executor("local:1")),
                               False), 1),
         f"local:{args.workers}": (on_engine(
@@ -166,10 +165,8 @@ def main() -> None:
         name = f"ray:local ({args.workers} CPUs)"
         configs[name] = (on_engine(name, lambda: (ray_ex, ray_ex.slots), True), args.workers)
     times: dict[str, list[float]] = {name: [] for name in configs}
-    caps: list[float] = []
     with tempfile.TemporaryDirectory(prefix="bench_sweep_") as tmp:
         for k in range(args.repeats):
-            caps.append(capacity(args.workers))
             for i, (name, (fn, _w)) in enumerate(configs.items()):
                 times[name].append(fn(Path(tmp) / f"{k}-{i}", args.runs, args.seconds))
     if ray_mod is not None:
@@ -178,17 +175,17 @@ def main() -> None:
     base = statistics.median(times["one process (baseline)"])
     print(f"{args.runs} runs of {args.seconds:g} s simulated (Method I case I), "
           f"{args.repeats} repeats, medians; {available_cpus()} CPUs")
-    cap = statistics.median(caps)
+    bare = base / statistics.median(times[f"{args.workers} bare processes"])
     print(f"{'configuration':28s} {'wall [s]':>9s} {'runs/s':>7s} {'speed-up':>9s} "
           f"{'per worker':>11s} {'of capacity':>12s}")
     for name, (_fn, workers) in configs.items():
         med = statistics.median(times[name])
         speed = base / med
-        of_cap = speed / min(cap, workers) if workers > 1 else speed
+        of_cap = speed / bare if workers > 1 else speed
         print(f"{name:28s} {med:9.2f} {args.runs / med:7.2f} {speed:8.2f}x "
               f"{speed / workers:10.2f}x {of_cap:11.2f}x")
-    print(f"machine capacity now: {args.workers} processes of pure CPU work run {cap:.2f}x "
-          f"as fast as one (the most local:{args.workers} can reach while others load it)")
+    print(f"'of capacity': the speed-up over that of {args.workers} bare processes doing the "
+          f"same runs now ({bare:.2f}x): what the machine gives while others load it")
     for name, starts in STARTUP.items():
         print(f"start-up of {name} (workers, imports; not in the wall time above): "
               f"{statistics.median(starts):.2f} s")

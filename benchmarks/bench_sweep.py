@@ -37,6 +37,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Executor
 from pathlib import Path
+from typing import Any
 
 from ffexp.sweeps import engine
 from ffexp.sweeps.executors import available_cpus, make_executor, parse_executor
@@ -149,7 +150,7 @@ def main() -> None:
             lambda: make_executor(parse_executor(f"local:{args.workers}")), False),
             args.workers),
     }
-    ray_mod = None
+    ray_mod: Any = None
     if not args.no_ray:
         try:
             import ray as ray_mod

@@ -91,6 +91,19 @@ def test_gain_limits_and_minimum_f_ref() -> None:
     assert not claims.minimum_f_ref(0.5, None)
 
 
+def test_neighbour_flips_count_changes_between_grid_neighbours() -> None:
+    axes = [("a", [0, 1, 2]), ("b", [10, 20, 30])]
+    scenes = [{"a": a, "b": b} for a in (0, 1, 2) for b in (10, 20, 30)]
+    step = [s["a"] >= 1 for s in scenes]  # a boundary between a=0 and a=1
+    assert claims.neighbour_flips(scenes, step, axes) == (3, 12)
+    checker = [(s["a"] + s["b"] // 10) % 2 == 0 for s in scenes]
+    assert claims.neighbour_flips(scenes, checker, axes) == (12, 12)
+    some = [None if s == {"a": 1, "b": 20} else v for s, v in zip(scenes, step, strict=True)]
+    assert claims.neighbour_flips(scenes, some, axes) == (2, 8)  # the centre has 4 pairs
+    nominal = [{}, *scenes]  # a scene off the grid is ignored
+    assert claims.neighbour_flips(nominal, [True, *step], axes) == (3, 12)
+
+
 def _config(tmp_path: Path, body: str) -> Path:
     runs = "\n".join(
         f'"{role}" = {{ protocol = "{ROOT}/protocols/{p}", set = {sets} }}'
@@ -190,3 +203,5 @@ def test_tiny_study_end_to_end(tmp_path: Path) -> None:
     assert data["kind"] == "reproduce" and len(data["summary"]) == 5
     assert (out / "figures" / "claims.png").is_file()
     assert (out / "figures" / "scenes.png").is_file()  # outcomes over the two grid keys
+    flips = pd.read_csv(out / "flips.csv")
+    assert len(flips) == 5 + 4 and set(flips["pairs"]) <= {0, 1}  # 2 x 1 grid: one pair

@@ -291,6 +291,9 @@ def reproduce(
             typer.echo(json_line(row))
     else:
         _print_claims(study.config.name, result["summary"])
+        if result["flips"]:
+            typer.echo("flips between neighbouring grid points (flips/pairs): " + ", ".join(
+                f"{f['outcome']} {f['flips']}/{f['pairs']}" for f in result["flips"]))
     typer.echo(f"wrote {', '.join(p.name for p in paths)} in {out}", err=as_json)
 
 

@@ -163,3 +163,30 @@ def summarize(per_scene: Sequence[Mapping[str, bool | None]], claims: Sequence[S
                     "fraction": holds / len(judged) if judged else None,
                     "not judged": len(verdicts) - len(judged)})
     return out
+
+
+def neighbour_flips(
+    scenes: Sequence[Mapping[str, Any]], verdicts: Sequence[bool | None],
+    axes: Sequence[tuple[str, Sequence[Any]]],
+) -> tuple[int, int]:
+    """How often an outcome differs between neighbouring points of a grid, and of how
+    many neighbouring pairs (both judged). Neighbours differ by one step along one axis;
+    ``verdicts[i]`` is scene i's outcome (None: not judged); scenes off the grid (the
+    nominal one) are ignored. A smooth outcome flips only along its boundary."""
+    index: dict[tuple[int, ...], bool | None] = {}
+    for scene, verdict in zip(scenes, verdicts, strict=True):
+        try:
+            at = tuple(list(values).index(scene[name]) for name, values in axes)
+        except (KeyError, ValueError):
+            continue
+        index[at] = verdict
+    flips = pairs = 0
+    for at, verdict in index.items():
+        for axis in range(len(axes)):
+            nxt = (*at[:axis], at[axis] + 1, *at[axis + 1:])
+            other = index.get(nxt)
+            if verdict is None or other is None:
+                continue
+            pairs += 1
+            flips += verdict != other
+    return flips, pairs

@@ -146,7 +146,8 @@ class Study:
     keys: list[Key]
     scenes: list[Point]
     searches: list[LimitSearch]
-    results: dict[str, Any] = field(default_factory=dict)
+    axes: list[tuple[Key, list[Any]]] = field(default_factory=list)
+    """The grid's axes when the scenes are a pure grid (neighbours are defined)."""
 
 
 def load(path: Path, fixed: Sequence[str] = ()) -> Study:
@@ -188,7 +189,7 @@ def load(path: Path, fixed: Sequence[str] = ()) -> Study:
                              max_breaks=spec.max_breaks)
         search.check()
         searches.append(search)
-    return Study(path, cfg, targets, keys, scenes, searches)
+    return Study(path, cfg, targets, keys, scenes, searches, axes if not spans else [])
 
 
 def _absolute(path: Path, target: Target, key: Key, values: Any, table: str) -> list[Any]:
@@ -254,7 +255,31 @@ def evaluate(study: Study, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     limit_rows = [row for s in study.searches if s.result is not None
                   for row in s.limits_rows()]
     return {"scenes": per_scene, "summary": summary, "limits": limit_rows,
+            "flips": flips(study, per_scene),
             "rows": list(rows) + [r for s in study.searches for r in s.rows]}
+
+
+def flips(study: Study, per_scene: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Per outcome (each run's aligned flag, each claim): flips between neighbouring
+    grid points (the outcome over seeds: more than half), of how many pairs. Empty
+    unless the scenes are a grid."""
+    if not study.axes:
+        return []
+    axes = [(k.text, values) for k, values in study.axes]
+    by_scene: dict[int, list[Mapping[str, Any]]] = {}
+    for entry in per_scene:
+        by_scene.setdefault(int(entry["scene"]), []).append(entry)
+    outcomes = [f"{role} aligned" for role in study.targets] + [
+        c.name for c in claims.SCENE_CLAIMS]
+    out = []
+    for name in outcomes:
+        verdicts: list[bool | None] = []
+        for i in range(len(study.scenes)):
+            judged = [bool(e[name]) for e in by_scene.get(i, []) if e[name] is not None]
+            verdicts.append(sum(judged) > len(judged) / 2 if judged else None)
+        n_flips, pairs = claims.neighbour_flips(study.scenes, verdicts, axes)
+        out.append({"outcome": name, "flips": n_flips, "pairs": pairs})
+    return out
 
 
 def _limit_claims(study: Study, settings: claims.Settings) -> list[dict[str, Any]]:
@@ -312,7 +337,7 @@ def write(study: Study, result: Mapping[str, Any], out_dir: Path) -> list[Path]:
 
     paths = table.write(table.frame(result["rows"]), out_dir)
     for name, rows in (("scenes.csv", result["scenes"]), ("claims.csv", result["summary"]),
-                       ("limits.csv", result["limits"])):
+                       ("limits.csv", result["limits"]), ("flips.csv", result["flips"])):
         tmp = out_dir / f".{name}.tmp"
         table.frame(rows).drop(columns=list(table.TAIL), errors="ignore").to_csv(
             tmp, index=False)
@@ -321,7 +346,7 @@ def write(study: Study, result: Mapping[str, Any], out_dir: Path) -> list[Path]:
     (out_dir / "reproduce.json").write_text(json.dumps({
         "kind": "reproduce", "config": str(study.path), "config_json":
         study.config.model_dump(mode="json"), "summary": result["summary"],
-        "limits": result["limits"],
+        "limits": result["limits"], "flips": result["flips"],
     }, indent=2, default=str) + "\n")
     paths.append(out_dir / "reproduce.json")
     paths.append(plots.claims_figure(result["summary"], f"{study.config.name}: "

@@ -103,7 +103,7 @@ def sweep(
     seeds: int = typer.Option(1, "--seeds", help=SEEDS_HELP),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
-    out: Path | None = typer.Option(None, "--out", help=OUT_HELP + " Default sweeps/<protocol>."),
+    out: Path | None = typer.Option(None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON row per run on stdout."),
     draw: bool = typer.Option(True, "--figures/--no-figures", help="Heat maps / line plots."),
 ) -> None:
@@ -122,7 +122,7 @@ def sweep(
     from ffexp.sweeps.grid import execute, prepare
     from ffexp.sweeps.session import spinner
 
-    out = out if out is not None else Path("sweeps") / protocol.stem
+    out = out if out is not None else Path("runs") / "sweeps" / protocol.stem
     _check_out(out)
     spec = parse_executor(executor)
     with spinner(sys.stderr.isatty(), "checking every point against the protocol and scene"):
@@ -163,7 +163,7 @@ def limits(
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
-        None, "--out", help=OUT_HELP + " Default sweeps/<protocol>-limits."),
+        None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>-limits."),
     as_json: bool = typer.Option(False, "--json", help="Print the limits as JSON lines."),
 ) -> None:
     """The limits of a gain (or f_ref) between "aligns" and "does not".
@@ -186,7 +186,7 @@ def limits(
     from ffexp.sweeps.plan import Target, seeds_of
     from ffexp.sweeps.searches import LimitSearch
 
-    out = out if out is not None else Path("sweeps") / f"{protocol.stem}-limits"
+    out = out if out is not None else Path("runs") / "sweeps" / f"{protocol.stem}-limits"
     _check_out(out)
     spec = parse_executor(executor)
     if len(key) != len(range_):
@@ -257,7 +257,7 @@ def reproduce(
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " In every paper run."),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
-        None, "--out", help=OUT_HELP + " Default sweeps/<config name>."),
+        None, "--out", help=OUT_HELP + " Default runs/sweeps/<config name>."),
     as_json: bool = typer.Option(False, "--json", help="Print the claim summary as JSON lines."),
 ) -> None:
     """The paper check: each claim the simulator can test, over scenes of uncertain rig
@@ -277,7 +277,7 @@ def reproduce(
     spec = parse_executor(executor)
     with spinner(sys.stderr.isatty(), f"checking {config}: every scene of every paper run"):
         study = study_mod.load(config, set_)
-    out = out if out is not None else Path("sweeps") / study.config.name
+    out = out if out is not None else Path("runs") / "sweeps" / study.config.name
     _check_out(out)
     n_runs = len(study.scenes) * len(study.targets) * len(study.config.seeds)
     with _session(out, spec, f"reproduce {study.config.name}") as (runner, display):

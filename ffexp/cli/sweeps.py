@@ -103,7 +103,8 @@ def sweep(
     seeds: int = typer.Option(1, "--seeds", help=SEEDS_HELP),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
-    out: Path | None = typer.Option(None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>."),
+    out: Path | None = typer.Option(
+        None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON row per run on stdout."),
     draw: bool = typer.Option(True, "--figures/--no-figures", help="Heat maps / line plots."),
 ) -> None:

@@ -26,10 +26,11 @@ X points up, Y along world -y, Z along world +x. The sensor site ``ft_site``
 has the same axes, on the Mini45's tool-side face.
 
 MuJoCo choices (fact sheet sec. 3): ``implicitfast``, elliptic cones,
-Newton; funnels are capsules (plus a sphere nose) so no box-box contact
-occurs; the target moves in the bed plane on x/y slides and a z hinge at its
-centre of mass, plus a z slide so that four sphere pads carry its weight on
-the glass and bed friction is isotropic Coulomb friction ``mu * m * g``.
+Newton; the funnels are spheres (tool) against thin boxes (target), a
+primitive pair (:mod:`drivers.sim.funnels`); the target moves in the bed
+plane on x/y slides and a z hinge at its centre of mass, plus a z slide so
+that four sphere pads carry its weight on the glass and bed friction is
+isotropic Coulomb friction ``mu * m * g``.
 The KRC's Cartesian impedance law is built from MuJoCo actuators so it runs
 inside the physics step (see :mod:`drivers.sim.world`).
 """
@@ -86,12 +87,11 @@ FT_SENSOR_TORQUE = "ft_torque"
 
 #: Funnel contacts closer than this are reported (``margin``) but exert no
 #: force until they touch (``gap``): the ground truth calls them "in contact",
-#: so sliding over the capsule ridges is not counted as contact breaks.
+#: so sliding over the panel creases (or the capsule ridges) is not counted as
+#: contact breaks.
 TOUCH_MARGIN = 2e-4
 
 # Collision groups: tool funnel <-> target funnel, pads <-> glass, nothing else.
-_TOOL = 'contype="1" conaffinity="2"'
-_TARGET = 'contype="2" conaffinity="1"'
 _PAD = 'contype="4" conaffinity="8"'
 _GLASS = 'contype="8" conaffinity="4"'
 _VISUAL = 'contype="0" conaffinity="0"'

@@ -43,7 +43,7 @@ def test_killed_and_restarted_sweep_has_every_row_once(tmp_path: Path) -> None:
         t0 = time.monotonic()
         while len(_done(out)) < 3 and proc.poll() is None:  # wait for a few finished runs
             assert time.monotonic() - t0 < DEADLINE_S, "the sweep made no progress"
-            time.sleep(0.05)
+            time.sleep(0.05)  # real-time: polls another process's progress
     finally:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
@@ -72,7 +72,7 @@ def test_interrupted_sweep_exits_130_keeps_its_runs_and_goes_on(tmp_path: Path) 
     t0 = time.monotonic()
     while len(_done(out)) < 2 and proc.poll() is None:
         assert time.monotonic() - t0 < DEADLINE_S, "the sweep made no progress"
-        time.sleep(0.05)
+        time.sleep(0.05)  # real-time: polls another process's progress
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=DEADLINE_S)
     assert proc.returncode == 130, err

@@ -123,11 +123,6 @@ def tool_tip_offset(scene: Scene) -> float:
     return scene.tool.shaft_length + scene.tool.funnel.depth
 
 
-def seat_depth(scene: Scene) -> float:
-    """Insertion depth of the tool tip past the target funnel's mouth when seated."""
-    return funnels.seat_depth(scene)
-
-
 def arm_xml(scene: Scene) -> str:
     """The LWR4+ chain with sensor and tool, as nested bodies."""
     arm = scene.arm
@@ -263,7 +258,7 @@ def compute_layout(
         target_pos=center,
         target_yaw=yaw,
         funnel_in_target=funnel_in_target,
-        funnel_seat_depth=seat_depth(scene),
+        funnel_seat_depth=funnels.seat_depth(scene),
     )
 
 

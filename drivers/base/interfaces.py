@@ -111,3 +111,25 @@ class ForceTorqueSensor(abc.ABC):
         tb: TracebackType | None,
     ) -> None:
         self.stop()
+
+
+
+class FlagStream:
+    """``start``/``stop``/``running`` for a sensor whose stream is a flag.
+
+    For models and stand-ins that produce samples on demand (no socket, no
+    thread): mix it in before :class:`ForceTorqueSensor`; a subclass with
+    work to do on start overrides ``start`` and calls ``super().start()``.
+    """
+
+    _running: bool = False
+
+    def start(self) -> None:
+        self._running = True
+
+    def stop(self) -> None:
+        self._running = False
+
+    @property
+    def running(self) -> bool:
+        return self._running

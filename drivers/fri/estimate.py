@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.base.guards import requires_open
-from drivers.base.interfaces import ForceTorqueSensor
+from drivers.base.interfaces import FlagStream, ForceTorqueSensor
 from drivers.base.types import FtSamples
 from drivers.fri.types import FriMeasurement
 
@@ -23,7 +23,7 @@ class MeasurementSource(Protocol):
     def add_listener(self, callback: Callable[[FriMeasurement], None]) -> None: ...
 
 
-class FriEstimateSensor(ForceTorqueSensor):
+class FriEstimateSensor(FlagStream, ForceTorqueSensor):
     """The KRC's ``estExtTcpFT`` (from joint torques) as a :class:`ForceTorqueSensor`.
 
     One sample per FRI cycle, stamped with the cycle's time; the wrench is
@@ -40,7 +40,6 @@ class FriEstimateSensor(ForceTorqueSensor):
         self._time: list[int] = []
         self._seq: list[int] = []
         self._wrench: list[NDArray[np.float64]] = []
-        self._running = False
         self._bias = np.zeros(6)
         self._last: NDArray[np.float64] | None = None
         robot.add_listener(self._on_measurement)
@@ -58,14 +57,7 @@ class FriEstimateSensor(ForceTorqueSensor):
             self._time.clear()
             self._seq.clear()
             self._wrench.clear()
-        self._running = True
-
-    def stop(self) -> None:
-        self._running = False
-
-    @property
-    def running(self) -> bool:
-        return self._running
+        super().start()
 
     @requires_open("FRI estimate F/T")
     def samples(self) -> FtSamples:

@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterator, Sequence
 import numpy as np
 
 from drivers.base.guards import requires_open
-from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
+from drivers.base.interfaces import FlagStream, ForceTorqueSensor, RobotDriver
 from drivers.base.types import (
     NS_PER_S,
     AppliedCommand,
@@ -139,24 +139,13 @@ def stationary_robot(
     return MockRobot(script)
 
 
-class MockFtSensor(ForceTorqueSensor):
+class MockFtSensor(FlagStream, ForceTorqueSensor):
     """Returns one scripted :class:`FtSamples` block per ``samples()`` call, then empty blocks."""
 
     def __init__(self, script: Sequence[FtSamples]) -> None:
         self.script = list(script)
         self._i = 0
-        self._running = False
         self.tared = 0
-
-    def start(self) -> None:
-        self._running = True
-
-    def stop(self) -> None:
-        self._running = False
-
-    @property
-    def running(self) -> bool:
-        return self._running
 
     @requires_open("mock F/T sensor")
     def samples(self) -> FtSamples:
@@ -171,7 +160,7 @@ class MockFtSensor(ForceTorqueSensor):
         self.tared += 1
 
 
-class NoisyFtSensor(ForceTorqueSensor):
+class NoisyFtSensor(FlagStream, ForceTorqueSensor):
     """A constant wrench plus seeded white noise, ``rate_hz`` samples per second of a clock.
 
     Each ``samples()`` call returns the samples due on ``clock`` since the
@@ -203,7 +192,6 @@ class NoisyFtSensor(ForceTorqueSensor):
         self.period_ns = round(NS_PER_S / rate_hz)
         self.rng = np.random.default_rng(seed)
         self.offset = np.zeros(6)
-        self._running = False
         self._next_seq = 0
         self._t0 = 0
         self.clock = clock if clock is not None else self._wall_ns
@@ -214,14 +202,7 @@ class NoisyFtSensor(ForceTorqueSensor):
 
     def start(self) -> None:
         self._t0 = time.monotonic_ns()
-        self._running = True
-
-    def stop(self) -> None:
-        self._running = False
-
-    @property
-    def running(self) -> bool:
-        return self._running
+        super().start()
 
     @requires_open("mock F/T sensor")
     def samples(self) -> FtSamples:

@@ -7,30 +7,22 @@ It only reads the world. The simulated robot is the lockstep KRC of
 from __future__ import annotations
 
 from drivers.base.guards import requires_open
-from drivers.base.interfaces import ForceTorqueSensor
+from drivers.base.interfaces import FlagStream, ForceTorqueSensor
 from drivers.base.types import FtSamples
 from drivers.sim.world import SimWorld
 
 __all__ = ["SimFtSensor"]
 
 
-class SimFtSensor(ForceTorqueSensor):
+class SimFtSensor(FlagStream, ForceTorqueSensor):
     """Every F/T sample the world produced since the last call (the world is stepped elsewhere)."""
 
     def __init__(self, world: SimWorld) -> None:
         self.world = world
-        self._running = False
 
     def start(self) -> None:
         self.world.ft_samples()  # a fresh stream starts now
-        self._running = True
-
-    def stop(self) -> None:
-        self._running = False
-
-    @property
-    def running(self) -> bool:
-        return self._running
+        super().start()
 
     @requires_open("sim F/T sensor")
     def samples(self) -> FtSamples:

@@ -50,6 +50,12 @@ def _rig() -> type[Any]:
     return Rig
 
 
+def _study() -> type[Any]:
+    from ffexp.sweeps.reproduce import ReproduceConfig
+
+    return ReproduceConfig
+
+
 #: kind -> (the model, what its files are). The file is ``schemas/<kind>.json``.
 KINDS: dict[str, tuple[Callable[[], type[Any]], str]] = {
     "protocol": (_run_protocol, "a run protocol (protocols/method*.toml)"),
@@ -57,6 +63,7 @@ KINDS: dict[str, tuple[Callable[[], type[Any]], str]] = {
     "sec3-sweep": (_sec3_sweep, "a Section III sweep (protocols/sec3_*.toml)"),
     "scene": (_scene, "a simulated scene (data/scenes/*.toml)"),
     "rig": (_rig, "a rig (rigs/*.toml)"),
+    "study": (_study, "a study of the paper's claims (protocols/reproduce.toml, robustness*.toml)"),
 }
 
 

@@ -7,6 +7,7 @@ level; the simulator, the analysis and matplotlib load inside the commands.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -33,6 +34,12 @@ RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardwa
 RIG_SET_HELP = "Override a rig field, e.g. --rig-set robot.port=49939 (repeatable)."
 DRIVER_HELP = f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
 WIDE_HELP = "Show every table column (default: as many as fit the terminal)."
+TRACKER_HELP = "Rig tracker.type: the target tracker that judges alignment (sim, camera, none)."
+CAMERA_HELP = ("Rig tracker.source with tracker.type camera: a device index, a video file "
+               "or a stream URL (http://HOST:PORT/...).")
+RT_HELP = ("Real-time: SCHED_FIFO where the OS allows it (said when not), the garbage "
+           "collector frozen and disabled during the run.")
+CPU_HELP = "With --rt: pin the process to this CPU (repeatable)."
 
 
 def outcome_exit_code(outcome: RunOutcome) -> int:
@@ -46,18 +53,22 @@ def outcome_exit_code(outcome: RunOutcome) -> int:
 
 def _one(
     steps: Steps, protocol: Path, set_: Sequence[str], rig: RigChoice, out: Path,
-    flag: StopFlag, label: str,
+    flag: StopFlag, label: str, rt: bool = False, cpus: Sequence[int] = (),
 ) -> RunResult:
     with steps.step(f"{label}: loading the protocol and the rig"):
         from ffexp.experiment import run_file
         from ffexp.protocol import load_run_protocol
+        from ffexp.rt import realtime
 
         timeout_s = load_run_protocol(protocol, list(set_)).run.timeout_s
-    with steps.run(label, timeout_s) as show:
-        result = run_file(
-            protocol, list(set_), rig=rig, out_dir=out, progress=show, stop_requested=flag,
-            notice=steps.note,
-        )
+    with (realtime(tuple(cpus)) if rt else nullcontext()) as got:
+        if got is not None:
+            steps.note(f"--rt: {got}")
+        with steps.run(label, timeout_s) as show:
+            result = run_file(
+                protocol, list(set_), rig=rig, out_dir=out, progress=show,
+                stop_requested=flag, notice=steps.note,
+            )
     o = result.outcome
     status = "aligned" if o.aligned else (o.reason or o.stop_reason.value)
     typer.echo(f"{result.path.stem}: {o.phase.name} ({status}) after {o.duration_s:.2f} s")
@@ -67,10 +78,17 @@ def _one(
 
 def rig_choice(
     rig: Path | None, driver: str, rig_set: list[str], robot_ip: str = "",
-    fri_port: int | None = None, ft: str = "", netft: str = "",
+    fri_port: int | None = None, ft: str = "", netft: str = "", tracker: str = "",
+    camera: str = "",
 ) -> RigChoice:
     """The rig of a command line: the device flags become overrides of rig fields."""
     overrides = list(rig_set)
+    if tracker:
+        overrides.append(f"tracker.type={tracker!r}")
+    if camera:
+        if not tracker:
+            overrides.append("tracker.type='camera'")
+        overrides.append(f"tracker.source={camera!r}")
     if robot_ip:
         overrides.append(f"robot.robot_ip={robot_ip!r}")
     if fri_port is not None:
@@ -106,6 +124,10 @@ def run(
     robot_ip: str = typer.Option("", "--robot-ip", help="Rig robot.robot_ip: the KRC's address."),
     ft: str = typer.Option("", "--ft", help=f"Rig ft.type: {', '.join(FT_SOURCES)}."),
     netft: str = typer.Option("", "--netft", help="Rig ft.host and ft.port as HOST[:PORT]."),
+    tracker: str = typer.Option("", "--tracker", help=TRACKER_HELP),
+    camera: str = typer.Option("", "--camera", help=CAMERA_HELP),
+    rt: bool = typer.Option(False, "--rt", help=RT_HELP),
+    cpu: list[int] = typer.Option([], "--cpu", help=CPU_HELP),
     wide: bool = typer.Option(False, "--wide", help=WIDE_HELP),
 ) -> None:
     """Run one experiment; print a summary and the path of its recording.
@@ -114,9 +136,9 @@ def run(
     1 a device or simulation failure, 128+N on signal N.
     """
     _check_out(out)
-    choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft)
+    choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft, tracker, camera)
     with stop_signals(StopFlag()) as flag, Steps() as steps:
-        result = _one(steps, protocol, set_, choice, out, flag, protocol.stem)
+        result = _one(steps, protocol, set_, choice, out, flag, protocol.stem, rt, cpu)
         with steps.step("loading the recording"):
             recs = [_load(result.path)]
     _print_runs(recs, wide)

@@ -17,6 +17,8 @@ events are kept, in :attr:`RunLog.events`.
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from drivers.base.types import (
@@ -26,6 +28,7 @@ from drivers.base.types import (
     CartesianCommand,
     FtSamples,
     RobotState,
+    TargetObservation,
 )
 from ffexp.contracts import Phase, StopReason
 from ffexp.controllers import Controller
@@ -34,6 +37,14 @@ from ffexp.recording import Recorder
 from ffexp.task import Event, Note, PhaseChange
 
 _TERMS = ("p", "i", "ri", "ff", "impedance")
+
+
+class CycleSink(Protocol):
+    """Something that writes its own topics once per cycle beside the run log's
+    (the 3-D scene of the rig); it decides its own rate."""
+
+    def cycle(self, log_ns: int, state: RobotState, target: TargetObservation | None) -> None:
+        """One cycle at log time ``log_ns``."""
 
 
 class RunLog:
@@ -54,6 +65,8 @@ class RunLog:
         self._next_tf_ns = 0
         self._zeros = np.zeros(6)
         self._ft_template: np.ndarray | None = None
+        self.sinks: list[CycleSink] = []
+        """Further per-cycle writers (set up by :mod:`ffexp.experiment`)."""
 
     def note(self, t_ns: int, note: Note) -> None:
         """An event, or a phase change (``/runner/phase`` and an event)."""
@@ -119,6 +132,7 @@ class RunLog:
         total: F64,
         intent: CartesianCommand | None,
         applied: AppliedCommand,
+        target: TargetObservation | None = None,
     ) -> None:
         """Everything of one cycle but its F/T samples (:meth:`samples`).
         ``approach_wrench`` is the approach law's output when it acted this
@@ -170,6 +184,8 @@ class RunLog:
             rec.transform(log_ns, "base", "tool", state.tcp_pose_m)
             if truth is not None:
                 rec.transform(log_ns, "base", "target", truth.target_pose)
+        for sink in self.sinks:
+            sink.cycle(log_ns, state, target)
 
     def _command(
         self, log_ns: int, intent: CartesianCommand | None, applied: AppliedCommand

@@ -16,6 +16,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
 import typer
@@ -68,6 +69,11 @@ def emulate(
     duration: float = typer.Option(
         0.0, "--duration", help="Stop after this much simulated time (s) (0: until Ctrl-C)."
     ),
+    rt: bool = typer.Option(
+        False, "--rt", help="Real-time: SCHED_FIFO where the OS allows it (said when not), "
+        "the garbage collector frozen and disabled while serving."
+    ),
+    cpu: list[int] = typer.Option([], "--cpu", help="With --rt: pin to this CPU (repeatable)."),
 ) -> None:
     """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""
     # imported here: the other commands need not load the emulator
@@ -155,8 +161,13 @@ def emulate(
 
     flag = StopFlag()
     thread = threading.Thread(target=serve, name="fri-emulator", daemon=True)
+    from ffexp.rt import realtime
+
     try:
-        with stop_signals(flag):
+        # the serving thread is started inside: it inherits the scheduling policy
+        with stop_signals(flag), (realtime(tuple(cpu)) if rt else nullcontext()) as got:
+            if got is not None:
+                print(f"ffexp emulate: --rt: {got}", file=sys.stderr, flush=True)
             # the ready line comes once the handlers are in place: a signal sent on
             # reading it stops the emulator cleanly
             print(

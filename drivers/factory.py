@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
+from drivers.base.interfaces import ForceTorqueSensor, RobotDriver, TargetTracker
 from drivers.errors import AddressError
 from drivers.rig import (
     FriEstimateFt,
@@ -44,13 +44,19 @@ class Devices:
     """Files to attach to the recording (name, bytes): the scene TOML for the sim."""
     notice: str | None = None
     """One line for the user about the devices (where a link listens), or ``None``."""
+    tracker: TargetTracker | None = None
+    """The target tracker, when the rig has one."""
 
     def close(self) -> None:
-        """Stop the sensor and close the robot; idempotent."""
+        """Stop the tracker and the sensor and close the robot; idempotent."""
         try:
-            self.sensor.stop()
+            if self.tracker is not None:
+                self.tracker.stop()
         finally:
-            self.robot.close()
+            try:
+                self.sensor.stop()
+            finally:
+                self.robot.close()
 
 
 def _rpy_pose(position: Sequence[float], rpy: Sequence[float]) -> np.ndarray:

@@ -140,7 +140,8 @@ def run_file(
                 rec.attach(name, data, "application/toml", start_ns)
             log = RunLog(rec, start_ns, protocol.run.tf_period_s)
             outcome = loop.run(
-                protocol, devices.robot, devices.sensor, log, progress=progress,
+                protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
+                progress=progress,
                 stop_requested=stop_requested, timings=timings,
             )
     finally:

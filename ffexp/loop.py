@@ -15,8 +15,15 @@ from collections.abc import Callable
 
 import numpy as np
 
-from drivers.base.interfaces import ForceTorqueSensor, RobotDriver
-from drivers.base.types import NS_PER_S, AppliedCommand, CartesianCommand, FtSamples, RobotState
+from drivers.base.interfaces import ForceTorqueSensor, RobotDriver, TargetTracker
+from drivers.base.types import (
+    NS_PER_S,
+    AppliedCommand,
+    CartesianCommand,
+    FtSamples,
+    RobotState,
+    TargetObservation,
+)
 from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
 from ffexp import controllers
 from ffexp.contracts import Phase, Progress, RunOutcome, Stop, StopReason
@@ -45,6 +52,7 @@ class Cycle:
         self.cmd = CartesianCommand()
         self.total = np.zeros(6)  # the wrench sent this cycle (reused)
         self.t_ns = 0
+        self.target: TargetObservation | None = None
         log.event(0, "INFO", "phase", f"start: {p.name} ({p.method})")
         log.phase(0, PhaseChange(Phase.CONNECT, Phase.CONNECT, "start"), announce=False)
 
@@ -75,16 +83,21 @@ class Cycle:
         elif phase.ended:
             self.hold_pose = s.tcp_pose_m.copy()
 
-    def step(self, state: RobotState, ft: FtSamples) -> CartesianCommand | None:
-        """Estimate, check, advance the task and command; ``None``: keep the robot's set-point."""
+    def step(self, state: RobotState, ft: FtSamples,
+             target: TargetObservation | None = None) -> CartesianCommand | None:
+        """Estimate, check, advance the task and command; ``None``: keep the robot's set-point.
+
+        ``target`` is the tracker's newest observation of the target, if the rig has one.
+        """
         self.state = state
+        self.target = target
         t_ns = self.t_ns = state.time_ns - self.t0_ns
         task = self.task
         est = self.estimator.update(state, ft, t_ns, self.t0_ns)
         stop = self.safety.check(t_ns, task.phase, state, est)
         if stop is not None:
             task.end(t_ns, stop)
-        task.step(t_ns, state, est)
+        task.step(t_ns, state, est, target)
         self.flush_notes()
         phase, krc, cmd = task.phase, self.p.krc, self.cmd
         self.approach_wrench: np.ndarray | None = None
@@ -111,7 +124,7 @@ class Cycle:
                applied: AppliedCommand) -> None:
         self.log.cycle(self.t_ns, self.t0_ns, state, ft, self.estimator.out, self.task.phase,
                        self.controller, self.approach_wrench, self.approach.setpoint,
-                       self.total, intent, applied)
+                       self.total, intent, applied, self.target)
 
 
 #: Where a cycle's wall time goes (``timings`` of :func:`run`): waiting for the robot
@@ -128,10 +141,14 @@ def _driver_stop(exc: DriverError) -> Stop:
 
 
 def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, log: RunLog, *,
+        tracker: TargetTracker | None = None,
         progress: Callable[[Progress], None] | None = None,
         stop_requested: Callable[[], bool] = lambda: False,
         timings: dict[str, float] | None = None) -> RunOutcome:
-    """Connect, loop until DONE/ABORT plus the safe-stop hold, close (even on error)."""
+    """Connect, loop until DONE/ABORT plus the safe-stop hold, close (even on error).
+
+    ``tracker`` (optional) is read once per cycle without blocking.
+    """
     tm = timings if timings is not None else {}
     for key in _PARTS:
         tm.setdefault(key, 0.0)
@@ -140,6 +157,8 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
     try:
         robot.connect()
         sensor.start()
+        if tracker is not None:
+            tracker.start()
         t_a = clock()
         for state in robot.measurements():
             t_b = clock()
@@ -152,7 +171,8 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             if stop_requested():
                 cyc.task.end(state.time_ns - cyc.t0_ns,
                              Stop(StopReason.STOP_REQUESTED, "stop requested (Ctrl-C / SIGTERM)"))
-            intent = cyc.step(state, ft)
+            target = tracker.latest() if tracker is not None else None
+            intent = cyc.step(state, ft, target)
             t_d = clock()
             applied = robot.send(intent)
             t_e = clock()
@@ -180,9 +200,13 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
         cyc.stop(Stop(StopReason.STOP_REQUESTED, "interrupted"))
     finally:
         try:
-            sensor.stop()
+            if tracker is not None:
+                tracker.stop()
         finally:
-            robot.close()
+            try:
+                sensor.stop()
+            finally:
+                robot.close()
     if cyc is None:
         raise DriverTimeoutError("the robot sent no state")
     cyc.stop(Stop(StopReason.ROBOT_STOPPED, "robot stopped sending measurements"))

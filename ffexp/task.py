@@ -24,7 +24,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from drivers.base.types import F64, NS_PER_S, RobotState
+from drivers.base.types import F64, NS_PER_S, RobotState, TargetObservation
 from drivers.config import StrictModel
 from ffexp.contracts import Phase, Stop, StopReason
 from ffexp.estimator import Estimate
@@ -122,8 +122,10 @@ class Task:
         return self.end_ns is not None and t_ns >= self.end_ns
 
     # -- one cycle -----------------------------------------------------------
-    def step(self, t_ns: int, state: RobotState, est: Estimate) -> None:
-        """Advance the phases by one cycle (after the safety checks)."""
+    def step(self, t_ns: int, state: RobotState, est: Estimate,
+             target: TargetObservation | None = None) -> None:
+        """Advance the phases by one cycle (after the safety checks); ``target`` is the
+        tracker's newest observation of the target, if the rig has a tracker."""
         event = est.event
         if event is not None and event.kind == "made":
             self.contacts += 1

@@ -14,7 +14,13 @@ import abc
 from collections.abc import Iterator
 from types import TracebackType
 
-from drivers.base.types import AppliedCommand, CartesianCommand, FtSamples, RobotState
+from drivers.base.types import (
+    AppliedCommand,
+    CartesianCommand,
+    FtSamples,
+    RobotState,
+    TargetObservation,
+)
 
 
 class RobotDriver(abc.ABC):
@@ -133,3 +139,24 @@ class FlagStream:
     @property
     def running(self) -> bool:
         return self._running
+
+
+class TargetTracker(abc.ABC):
+    """A device that tracks the floating target (beside the robot and the F/T sensor).
+
+    Its capture runs on its own (a thread, a process, or the simulator's
+    cycle) and never blocks the control loop: :meth:`latest` returns at once
+    with the newest pose it has, or ``None`` before the first.
+    """
+
+    @abc.abstractmethod
+    def start(self) -> None:
+        """Begin capturing (open the source)."""
+
+    @abc.abstractmethod
+    def stop(self) -> None:
+        """Stop capturing and release the source; idempotent."""
+
+    @abc.abstractmethod
+    def latest(self) -> TargetObservation | None:
+        """The newest observation (never blocks)."""

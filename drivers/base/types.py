@@ -215,3 +215,23 @@ class FtSamples:
             wrench=np.concatenate([p.wrench for p in parts]),
             status=np.concatenate([p.status for p in parts]),
         )
+
+
+@dataclass
+class TargetObservation:
+    """The floating target's pose as a tracker last saw it (a camera, or a simulator).
+
+    ``time_ns`` is when the pose was true (the frame's exposure, on the same
+    clock as :attr:`RobotState.time_ns`), not when it arrived; a consumer
+    judges staleness from it. ``valid`` is false when the tracker has no pose
+    (marker not seen, stream lost); ``pose_m`` then holds the last valid one.
+    """
+
+    time_ns: int = 0
+    pose_m: F64 = field(default_factory=_eye4)
+    """Target block frame in the robot's base frame (4x4, m)."""
+    valid: bool = False
+    source: str = ""
+    """Which tracker produced it: ``"camera"``, ``"sim"``, ..."""
+    frames: int = 0
+    """Poses received since the tracker started (a counter, for drop statistics)."""

@@ -21,7 +21,7 @@ from drivers.base.types import F64, NS_PER_S, RobotState
 from drivers.config import StrictModel
 from ffexp.control import ImpedanceConfig, ImpedanceController
 from ffexp.estimator import Estimate
-from ffexp.recording.topics import CdrTopic
+from ffexp.recording.schema import CdrTopic
 
 
 class Approach:

@@ -12,7 +12,9 @@ and ``mcap_ros2`` decode the same bytes from the schema text.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -92,3 +94,42 @@ class MessageSpec:
         rec = np.zeros(1, dtype=self.dtype)
         rec["_cdr_header"] = np.frombuffer(CDR_HEADER, dtype="V4")[0]
         return rec
+
+
+@dataclass(frozen=True)
+class CdrTopic:
+    """A topic whose messages are one fixed-layout CDR message type."""
+
+    topic: str
+    spec: MessageSpec
+    rate: str
+
+
+@dataclass(frozen=True)
+class JsonTopic:
+    """A low-rate topic of JSON messages with a JSON schema."""
+
+    topic: str
+    schema_name: str
+    schema: dict[str, Any]
+    rate: str
+    doc: str
+
+    @property
+    def schema_bytes(self) -> bytes:
+        return json.dumps(self.schema).encode()
+
+
+#: JSON-schema fragments of Foxglove's well-known types (time, vector, quaternion).
+TIME_SCHEMA = {
+    "type": "object",
+    "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
+}
+VEC3_SCHEMA = {
+    "type": "object",
+    "properties": {k: {"type": "number"} for k in ("x", "y", "z")},
+}
+QUAT_SCHEMA = {
+    "type": "object",
+    "properties": {k: {"type": "number"} for k in ("x", "y", "z", "w")},
+}

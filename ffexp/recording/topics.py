@@ -20,11 +20,18 @@ stored row-major as 16 numbers; log times are integer nanoseconds.
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
 from typing import Any
 
-from ffexp.recording.schema import FieldSpec, MessageSpec
+from ffexp.recording import topics_link, topics_scene, topics_target
+from ffexp.recording.schema import (
+    QUAT_SCHEMA,
+    TIME_SCHEMA,
+    VEC3_SCHEMA,
+    CdrTopic,
+    FieldSpec,
+    JsonTopic,
+    MessageSpec,
+)
 
 F = FieldSpec
 
@@ -171,30 +178,6 @@ TRUTH = MessageSpec(
 )
 
 
-@dataclass(frozen=True)
-class CdrTopic:
-    """A topic whose messages are one fixed-layout CDR message type."""
-
-    topic: str
-    spec: MessageSpec
-    rate: str
-
-
-@dataclass(frozen=True)
-class JsonTopic:
-    """A low-rate topic of JSON messages with a JSON schema."""
-
-    topic: str
-    schema_name: str
-    schema: dict[str, Any]
-    rate: str
-    doc: str
-
-    @property
-    def schema_bytes(self) -> bytes:
-        return json.dumps(self.schema).encode()
-
-
 CDR_TOPICS: dict[str, CdrTopic] = {
     t.topic: t
     for t in (
@@ -207,20 +190,8 @@ CDR_TOPICS: dict[str, CdrTopic] = {
         CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
         CdrTopic("/control/terms", CONTROL, "every controller cycle"),
         CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
+        *topics_link.CDR, *topics_target.CDR, *topics_scene.CDR,
     )
-}
-
-_TIME = {
-    "type": "object",
-    "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
-}
-_VEC3 = {
-    "type": "object",
-    "properties": {k: {"type": "number"} for k in ("x", "y", "z")},
-}
-_QUAT = {
-    "type": "object",
-    "properties": {k: {"type": "number"} for k in ("x", "y", "z", "w")},
 }
 
 LOG_LEVELS = {"DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
@@ -270,7 +241,7 @@ JSON_TOPICS: dict[str, JsonTopic] = {
                 "title": "foxglove.Log",
                 "type": "object",
                 "properties": {
-                    "timestamp": _TIME,
+                    "timestamp": TIME_SCHEMA,
                     "level": {"type": "integer", "description": "1 debug .. 5 fatal"},
                     "message": {"type": "string"},
                     "name": {"type": "string", "description": "event kind"},
@@ -288,11 +259,11 @@ JSON_TOPICS: dict[str, JsonTopic] = {
                 "title": "foxglove.FrameTransform",
                 "type": "object",
                 "properties": {
-                    "timestamp": _TIME,
+                    "timestamp": TIME_SCHEMA,
                     "parent_frame_id": {"type": "string"},
                     "child_frame_id": {"type": "string"},
-                    "translation": _VEC3,
-                    "rotation": _QUAT,
+                    "translation": VEC3_SCHEMA,
+                    "rotation": QUAT_SCHEMA,
                 },
             },
             "every 20 ms of run time per frame",
@@ -333,6 +304,7 @@ JSON_TOPICS: dict[str, JsonTopic] = {
             "once, at the end of the fit window (friction recordings only)",
             "The friction estimate: mu, its 1-sigma, the deceleration and the fit window.",
         ),
+        *topics_link.JSON, *topics_target.JSON, *topics_scene.JSON,
     )
 }
 

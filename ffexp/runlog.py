@@ -34,6 +34,7 @@ from ffexp.contracts import Phase, StopReason
 from ffexp.controllers import Controller
 from ffexp.estimator import Estimate
 from ffexp.recording import Recorder
+from ffexp.recording.topics import STATE_JOINTS
 from ffexp.task import Event, Note, PhaseChange
 
 _TERMS = ("p", "i", "ri", "ff", "impedance")
@@ -142,6 +143,7 @@ class RunLog:
         if rec is None:
             return
         log_ns = self.start_utc_ns + t_ns
+        self._state(log_ns, state)
         if state.extras is not None:
             for topic in state.extras.topics():
                 rec.write_fields(topic, log_ns, state.extras)
@@ -186,6 +188,27 @@ class RunLog:
                 rec.transform(log_ns, "base", "target", truth.target_pose)
         for sink in self.sinks:
             sink.cycle(log_ns, state, target)
+
+    def _state(self, log_ns: int, state: RobotState) -> None:
+        assert self.rec is not None
+        r = self.rec.record("/robot/state")
+        r["time_ns"] = state.time_ns
+        r["tcp_pose"] = state.tcp_pose_m.reshape(-1)
+        n = min(len(state.joint_pos_rad), STATE_JOINTS)
+        joints = r["joint_pos"]
+        joints[:n] = state.joint_pos_rad[:n]
+        joints[n:] = np.nan
+        r["n_joints"] = len(state.joint_pos_rad)
+        link = state.link
+        r["commanding"] = int(link.commanding)
+        r["healthy"] = int(link.healthy)
+        r["cycle"] = link.cycle
+        r["cycle_s"] = link.cycle_s
+        for flag, name, value in (("has_twist", "twist", state.tcp_twist_mps_radps),
+                                  ("has_ext_wrench", "ext_wrench", state.ext_wrench_n_nm)):
+            r[flag] = int(value is not None)
+            r[name] = self._zeros if value is None else value
+        self.rec.write("/robot/state", log_ns)
 
     def _command(
         self, log_ns: int, intent: CartesianCommand | None, applied: AppliedCommand

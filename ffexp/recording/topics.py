@@ -75,6 +75,29 @@ LINK = MessageSpec(
     "FRI link statistics per cycle.",
 )
 
+#: Joints a ``/robot/state`` message holds (a robot with fewer pads with NaN).
+STATE_JOINTS = 7
+
+ROBOT_STATE = MessageSpec(
+    "ffexp_msgs/msg/RobotState",
+    (
+        F("time_ns", "int64", 1, "ns", "the robot's clock (simulated time or controller stamp)"),
+        F("tcp_pose", "float64", 16, "m", "measured TCP pose in the base frame, 4x4 row-major"),
+        F("joint_pos", "float64", STATE_JOINTS, "rad", "measured joint positions (NaN: none)"),
+        F("n_joints", "uint8", 1, "", "joints the robot has"),
+        F("commanding", "uint8", 1, "", "the robot applies commands (FRI: CMD)"),
+        F("healthy", "uint8", 1, "", "the link's quality allows commanding"),
+        F("cycle", "int64", 1, "", "the robot's cycle counter"),
+        F("cycle_s", "float64", 1, "s", "the robot's control cycle"),
+        F("has_twist", "uint8", 1, "", "the robot reported a TCP twist"),
+        F("twist", "float64", 6, "m/s, rad/s", "measured TCP twist, TCF (0 when none)"),
+        F("has_ext_wrench", "uint8", 1, "", "the robot reported an external wrench"),
+        F("ext_wrench", "float64", 6, "N, N m", "the robot's external wrench estimate, TCF"),
+    ),
+    "The robot-neutral state the loop got this cycle (drivers.base.RobotState), "
+    "enough to feed the cycle again (ffexp replay).",
+)
+
 FT_SAMPLE = MessageSpec(
     "ffexp_msgs/msg/FtSample",
     (
@@ -181,6 +204,7 @@ TRUTH = MessageSpec(
 CDR_TOPICS: dict[str, CdrTopic] = {
     t.topic: t
     for t in (
+        CdrTopic("/robot/state", ROBOT_STATE, "every controller cycle"),
         CdrTopic("/robot/measurement", MEASUREMENT, "every controller cycle, FRI back-ends"),
         CdrTopic("/robot/link", LINK, "every controller cycle, FRI back-ends"),
         CdrTopic("/robot/command", COMMAND, "every controller cycle, FRI back-ends"),

@@ -96,6 +96,9 @@ class Recorder:
         self._plans: dict[tuple[str, type], tuple[tuple[str, np.ndarray], ...]] = {}
         self.message_count = 0
         self.finished = False
+        self.taps: list[Callable[[str, int, bytes], None]] = []
+        """Called with ``(topic, log_time_ns, message bytes)`` for every message written
+        (a live viewer); they must return at once. Empty: no cost."""
 
     # -- channels -------------------------------------------------------------
     def _channel(self, topic: str) -> int:
@@ -135,6 +138,8 @@ class Recorder:
         self._seq[topic] = seq + 1
         self._add_message(cid, time_ns, data, time_ns, seq)
         self.message_count += 1
+        for tap in self.taps:
+            tap(topic, time_ns, data)
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
 
@@ -201,8 +206,12 @@ class Recorder:
             cid = self._channel(topic)
         seq = self._seq[topic]
         add = self._add_message
+        taps = self.taps
         for i, t in enumerate(times):
-            add(cid, t, blob[i * size : (i + 1) * size], t, seq + i)
+            msg = blob[i * size : (i + 1) * size]
+            add(cid, t, msg, t, seq + i)
+            for tap in taps:
+                tap(topic, t, msg)
         self._seq[topic] = seq + len(times)
         self.message_count += len(times)
         if self._clock() - self._last_flush >= self._flush_interval_s:

@@ -47,6 +47,8 @@ class StopReason(enum.Enum):
     """The driver reported the link lost."""
     ROBOT_TIMEOUT = "robot_timeout"
     """The driver waited for a cycle that did not come."""
+    NO_MEASUREMENT = "no_measurement"
+    """The robot never sent a state: nothing was received within the connect timeout."""
     DRIVER_ERROR = "driver_error"
     """Any other device error (bad command, diverged simulation, ...)."""
     STOP_REQUESTED = "stop_requested"

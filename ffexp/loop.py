@@ -140,6 +140,24 @@ def _driver_stop(exc: DriverError) -> Stop:
     return Stop(StopReason.DRIVER_ERROR, f"device error: {exc}")
 
 
+def _link_events(log: RunLog, t_ns: int, state: RobotState) -> None:
+    """The back-end's notes on its link since the last cycle (FRI: state and quality
+    changes, foreign senders), as events at this cycle's time."""
+    events = getattr(state.extras, "link_events", None)
+    if events:
+        for _krc_ns, level, name, message in events:
+            log.event(t_ns, level, name, message)
+        events.clear()
+
+
+def _no_measurement(log: RunLog, message: str) -> RunOutcome:
+    """The outcome of a run whose robot never sent a state: an ABORT, said in the log."""
+    log.event(0, "ERROR", "link", message)
+    log.phase(0, PhaseChange(Phase.CONNECT, Phase.ABORT, message, StopReason.NO_MEASUREMENT))
+    return RunOutcome(Phase.ABORT, False, StopReason.NO_MEASUREMENT, message, 0, 0.0, 0, 0,
+                      log.events)
+
+
 def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, log: RunLog, *,
         tracker: TargetTracker | None = None,
         progress: Callable[[Progress], None] | None = None,
@@ -147,13 +165,16 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
         timings: dict[str, float] | None = None) -> RunOutcome:
     """Connect, loop until DONE/ABORT plus the safe-stop hold, close (even on error).
 
-    ``tracker`` (optional) is read once per cycle without blocking.
+    ``tracker`` (optional) is read once per cycle without blocking. A robot that
+    never sends a state (the driver's connect timeout, or its end of measurements)
+    is an ABORT with :attr:`StopReason.NO_MEASUREMENT` and the driver's message.
     """
     tm = timings if timings is not None else {}
     for key in _PARTS:
         tm.setdefault(key, 0.0)
     clock = time.perf_counter
     cycles, cyc, next_progress_ns = 0, None, 0
+    no_state = ""
     try:
         robot.connect()
         sensor.start()
@@ -166,6 +187,7 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             t_c = clock()
             cyc = cyc or Cycle(protocol, state, log)
             log.samples(cyc.t0_ns, ft)  # before the cycle's notes: log-time order
+            _link_events(log, state.time_ns - cyc.t0_ns, state)
             t_c2 = clock()
             cycles += 1
             if stop_requested():
@@ -192,8 +214,12 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             t_a = clock()
     except DriverError as exc:
         if cyc is None:
-            raise
-        cyc.stop(_driver_stop(exc))
+            if isinstance(exc, DriverTimeoutError):
+                no_state = str(exc)
+            else:
+                raise
+        else:
+            cyc.stop(_driver_stop(exc))
     except KeyboardInterrupt:
         if cyc is None:
             raise
@@ -208,7 +234,7 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             finally:
                 robot.close()
     if cyc is None:
-        raise DriverTimeoutError("the robot sent no state")
+        return _no_measurement(log, no_state or "the robot sent no state")
     cyc.stop(Stop(StopReason.ROBOT_STOPPED, "robot stopped sending measurements"))
     task = cyc.task
     assert task.stop is not None

@@ -274,7 +274,7 @@ def test_connect_timeout_names_the_address_and_port() -> None:
     robot.connect()
     try:
         port = robot.local_address[1]
-        with pytest.raises(Exception, match=rf"no FRI packet from {LOCAL} on UDP port {port}"):
+        with pytest.raises(Exception, match=rf"no FRI measurement from {LOCAL} on UDP port {port}"):
             next(robot.measurements())
     finally:
         robot.close()

@@ -362,15 +362,21 @@ def test_immediate_answers_and_sequence_tracking() -> None:
         krc.answer()
         krc.send(krc.packet(2))  # wraps; 65535, 0, 1 lost
         assert krc.answer().refl_seq == 2
-        krc.send(krc.packet(1))  # reordered (older): dropped
+        krc.send(krc.packet(1))  # reordered (older): dropped, and no longer lost
         krc.send(krc.packet(3))
         assert krc.answer().refl_seq == 3
         m1 = next(it)  # the runner was slow: it gets the newest, 2 was skipped
         assert m1.link.cycle - m0.link.cycle == 5
         assert m1.time_ns - m0.time_ns == 5 * 5_000_000
         st = robot.stats
-        assert (st.duplicates, st.lost, st.stale, st.skipped) == (1, 3, 1, 1)
+        assert (st.duplicates, st.lost, st.stale, st.skipped) == (1, 2, 1, 1)
         assert st.answers == 4
+        krc.send(krc.packet(1))  # the same old packet again: a late duplicate, not answered
+        krc.send(krc.packet(4))
+        assert krc.answer().refl_seq == 4
+        next(it)
+        st = robot.stats
+        assert (st.duplicates, st.lost, st.stale) == (2, 2, 1)
 
 
 def test_foreign_senders_are_ignored_and_counted() -> None:
@@ -412,8 +418,26 @@ def test_fri_estimate_sensor_reads_est_ext_tcp_ft() -> None:
 
 def test_no_robot_is_a_timeout_naming_the_address() -> None:
     with driver(connect_timeout_s=0.2) as (robot, _krc):
-        with pytest.raises(DriverTimeoutError, match=r"no FRI packet from 127\.0\.0\.1 on UDP"):
+        port = robot.local_address[1]
+        with pytest.raises(DriverTimeoutError, match=(
+                rf"no FRI measurement from 127\.0\.0\.1 on UDP port {port} within 0\.2 s: "
+                "received nothing")):
             next(robot.measurements())
+
+
+def test_a_robot_at_another_address_is_named_in_the_timeout() -> None:
+    with driver(connect_timeout_s=0.3) as (robot, krc):
+        other = FakeKrc(krc.dest[1], host="127.0.0.2")
+        try:
+            for k in range(3):
+                other.send(other.packet(k))
+            src = other.sock.getsockname()
+            with pytest.raises(DriverTimeoutError, match=(
+                    rf"received 3 datagrams from another address \(last "
+                    rf"127\.0\.0\.2:{src[1]}\), dropped")):
+                next(robot.measurements())
+        finally:
+            other.close()
 
 
 def test_use_before_connect_and_bad_addresses() -> None:

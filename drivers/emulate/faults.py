@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import heapq
 import socket
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -48,13 +48,21 @@ class FaultSettings:
 
 @dataclass
 class FaultCounters:
-    """What the injected faults did."""
+    """What the injected faults did.
+
+    The ``*_seqs`` lists hold the ``sendSeqCount`` (the first two bytes of an
+    FRI datagram, little endian) of each outgoing datagram a fault hit, so a test
+    can tell what a remote should have seen up to a given packet.
+    """
 
     dropped_out: int = 0
     dropped_in: int = 0
     duplicated: int = 0
     reordered: int = 0
     corrupted: int = 0
+    dropped_out_seqs: list[int] = field(default_factory=list)
+    duplicated_seqs: list[int] = field(default_factory=list)
+    reordered_seqs: list[int] = field(default_factory=list)
 
 
 class FaultyLink:
@@ -84,8 +92,10 @@ class FaultyLink:
             self._sendto(data, addr)
             return
         rng = self.rng
+        seq = int.from_bytes(data[:2], "little")
         if f.loss and rng.random() < f.loss:
             self.stats.dropped_out += 1
+            self.stats.dropped_out_seqs.append(seq)
             return
         if f.corrupt and rng.random() < f.corrupt:
             b = bytearray(data)
@@ -99,10 +109,12 @@ class FaultyLink:
         if f.reorder and rng.random() < f.reorder:
             delay += self.cycle_s * 1.5
             self.stats.reordered += 1
+            self.stats.reordered_seqs.append(seq)
         copies = 1
         if f.duplicate and rng.random() < f.duplicate:
             copies = 2
             self.stats.duplicated += 1
+            self.stats.duplicated_seqs.append(seq)
         for _ in range(copies):
             if delay <= 0.0:
                 self._sendto(data, addr)

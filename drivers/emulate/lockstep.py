@@ -46,6 +46,7 @@ from drivers.emulate.krc import (
 from drivers.errors import DriverError
 from drivers.fri.command import applied_from_fri, robot_state_from_fri, to_fri_command
 from drivers.fri.link import KrcLink, LinkEvent
+from drivers.fri.stats import LinkWatch
 from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement
 from drivers.sim.arm import ArmCommand
 from drivers.sim.controller import clip_cart_stiffness
@@ -86,6 +87,7 @@ class SimRobot(RobotDriver):
         self.start_cycles = start_cycles
         self.max_consecutive_misses = max_consecutive_misses
         self.link = self._new_link()
+        self._watch = LinkWatch()
         self._open = False
         self._answered = False
         self._fri = FriCommand()
@@ -106,6 +108,7 @@ class SimRobot(RobotDriver):
                             link.error)
         m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = link.rates()
         m.miss_counter = link.missed
+        self._watch.see(m, m.link_events)  # state and quality changes, as the UDP driver
         return m
 
     def _robot_state(self) -> RobotState:
@@ -117,6 +120,7 @@ class SimRobot(RobotDriver):
     def connect(self) -> None:
         """Open the link: a fresh KRC link state (MON unless ``start_cycles`` is 0)."""
         self.link = self._new_link()
+        self._watch = LinkWatch()
         self._answered = False
         self._brake = False
         self._stopped = None

@@ -37,6 +37,7 @@ __all__ = [
     "command_to_arrays",
     "control_from_strategy",
     "cycle_ns_from_seconds",
+    "fill_measurement",
     "measurement_to_arrays",
     "strategy_code",
 ]
@@ -115,40 +116,45 @@ def arrays_to_measurement(a: MsrArrays, seq: int, time_ns: int) -> FriMeasuremen
 
     ``seq`` is the unwrapped ``sendSeqCount``, ``time_ns`` the cycle's time.
     """
-    return FriMeasurement(
-        seq=seq,
-        time_ns=time_ns,
-        state=a.state,
-        quality=a.quality,
-        control=a.control,
-        msr_sample_time=a.msr_sample_time,
-        cmd_sample_time=a.cmd_sample_time,
-        safety_limits=a.safety_limits,
-        answer_rate=a.answer_rate,
-        latency_s=a.latency,
-        jitter_s=a.jitter,
-        miss_rate=a.miss_rate,
-        miss_counter=a.miss_counter,
-        power=a.power,
-        error=a.error,
-        warning=a.warning,
-        temperature=a.temperature.copy(),
-        msr_jnt_pos=a.msr_jnt_pos.copy(),
-        msr_cart_pos=a.msr_cart_pos.copy(),
-        cmd_jnt_pos=a.cmd_jnt_pos.copy(),
-        cmd_jnt_pos_fri_offset=a.cmd_jnt_pos_fri_offset.copy(),
-        cmd_cart_pos=a.cmd_cart_pos.copy(),
-        cmd_cart_pos_fri_offset=a.cmd_cart_pos_fri_offset.copy(),
-        msr_jnt_trq=a.msr_jnt_trq.copy(),
-        est_ext_jnt_trq=a.est_ext_jnt_trq.copy(),
-        est_ext_tcp_ft=a.est_ext_tcp_ft.copy(),
-        jacobian=a.jacobian.copy(),
-        mass_matrix=a.mass_matrix.copy(),
-        gravity=a.gravity.copy(),
-        krl_real=a.krl_real.copy(),
-        krl_int=a.krl_int.copy(),
-        krl_bool=a.krl_bool,
-    )
+    m = FriMeasurement()
+    fill_measurement(a, seq, time_ns, m)
+    return m
+
+
+def fill_measurement(a: MsrArrays, seq: int, time_ns: int, m: FriMeasurement) -> None:
+    """Fill ``m`` in place (no allocation) from decoded arrays (:func:`arrays_to_measurement`)."""
+    m.seq = seq
+    m.time_ns = time_ns
+    m.state = a.state
+    m.quality = a.quality
+    m.control = a.control
+    m.msr_sample_time = a.msr_sample_time
+    m.cmd_sample_time = a.cmd_sample_time
+    m.safety_limits = a.safety_limits
+    m.answer_rate = a.answer_rate
+    m.latency_s = a.latency
+    m.jitter_s = a.jitter
+    m.miss_rate = a.miss_rate
+    m.miss_counter = a.miss_counter
+    m.power = a.power
+    m.error = a.error
+    m.warning = a.warning
+    m.temperature[:] = a.temperature
+    m.msr_jnt_pos[:] = a.msr_jnt_pos
+    m.msr_cart_pos[:] = a.msr_cart_pos
+    m.cmd_jnt_pos[:] = a.cmd_jnt_pos
+    m.cmd_jnt_pos_fri_offset[:] = a.cmd_jnt_pos_fri_offset
+    m.cmd_cart_pos[:] = a.cmd_cart_pos
+    m.cmd_cart_pos_fri_offset[:] = a.cmd_cart_pos_fri_offset
+    m.msr_jnt_trq[:] = a.msr_jnt_trq
+    m.est_ext_jnt_trq[:] = a.est_ext_jnt_trq
+    m.est_ext_tcp_ft[:] = a.est_ext_tcp_ft
+    m.jacobian[:] = a.jacobian
+    m.mass_matrix[:] = a.mass_matrix
+    m.gravity[:] = a.gravity
+    m.krl_real[:] = a.krl_real
+    m.krl_int[:] = a.krl_int
+    m.krl_bool = a.krl_bool
 
 
 def command_to_arrays(c: FriCommand, out: CmdArrays) -> None:

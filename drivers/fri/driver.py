@@ -77,20 +77,27 @@ from drivers.fri.command import (
 from drivers.fri.convert import (
     LOCKSTEP_INDEX,
     LOCKSTEP_MARKER,
-    arrays_to_measurement,
     command_to_arrays,
     cycle_ns_from_seconds,
+    fill_measurement,
 )
 from drivers.fri.estimate import FriEstimateSensor
 from drivers.fri.link import describe_error
 from drivers.fri.settings import FriSettings
-from drivers.fri.stats import LinkCounters, LinkStats
-from drivers.fri.types import FriCommand, FriMeasurement, FriState
+from drivers.fri.stats import LinkCounters, LinkStats, LinkWatch
+from drivers.fri.types import FriCommand, FriMeasurement, FriState, RemoteMeasurement
 from drivers.net.udp import bind_udp, resolve_ipv4
 
 __all__ = ["FriEstimateSensor", "FriRobot", "FriSettings", "LinkStats"]
 
 _WHAT = "FRI robot"
+
+#: Sequence numbers remembered behind the newest one, to tell a late arrival
+#: (it fills a gap: reordered, no longer lost) from a late duplicate.
+_SEQ_WINDOW = 64
+_SEQ_MASK = (1 << _SEQ_WINDOW) - 1
+
+Event = tuple[int, str, str, str]
 
 
 def _copy_cartesian(src: CartesianCommand, dst: CartesianCommand) -> None:
@@ -147,8 +154,12 @@ class FriRobot(RobotDriver):
         self._send_seq = 0
         self._last_reply: bytes | None = None
         self._n = LinkCounters()
+        self._watch = LinkWatch()
+        self._events: list[Event] = []  # for the runner's next measurement (under _cond)
         # sequence
         self._last_seq: int | None = None
+        self._seen = 0  # bit k: sequence number last_seq - k was received
+        self._span = 0  # how many of those bits are known (since the first packet)
         self._unwrapped = 0
         self._time_base_ns = 0
         self._time_base_seq = 0
@@ -235,6 +246,9 @@ class FriRobot(RobotDriver):
                     raise self._timeout_error(first, limit)
                 self._pending = None
                 self._runner_cycle = self._cycle
+                if self._events:
+                    m.link_events.extend(self._events)
+                    self._events.clear()
             if m.error != 0 and m.state != FriState.CMD:
                 # the KRC left command mode with an error (e.g. a software limit
                 # switch): it holds the arm and will not resume until acknowledged
@@ -245,12 +259,32 @@ class FriRobot(RobotDriver):
         port = self._sock.getsockname()[1] if self._sock is not None else self.settings.local_port
         if first:
             return DriverTimeoutError(
-                f"no FRI packet from {self.robot_ip} on UDP port {port} within {limit:g} s "
-                "(check FRIHOST/FRISOCK in the KRC's dlrrc.ini, friOpen and the firewall)"
+                f"no FRI measurement from {self.robot_ip} on UDP port {port} within "
+                f"{limit:g} s: {self._what_arrived()} (check FRIHOST/FRISOCK in the KRC's "
+                "dlrrc.ini, friOpen, the rig's robot address and the firewall)"
             )
         return LinkLostError(
             f"FRI link to {self.robot_ip} lost: no packet on UDP port {port} for {limit:g} s"
         )
+
+    def _what_arrived(self) -> str:
+        """What did come on the port, in words (caller holds ``_cond``)."""
+        n = self._n
+        if n.received == 0:
+            return "received nothing"
+        said = []
+        if n.foreign:
+            host, fport = n.foreign_address or ("?", 0)
+            said.append(f"{n.foreign} datagram{'s' if n.foreign > 1 else ''} from another "
+                        f"address (last {host}:{fport}), dropped")
+        bad = {k: v for k, v in n.decode.as_dict().items() if k != "ok" and v}
+        if bad:
+            said.append(f"{sum(bad.values())} datagrams from {self.robot_ip} that are not "
+                        "FRI measurements (" + ", ".join(f"{k} {v}" for k, v in bad.items())
+                        + ")")
+        if n.implausible:
+            said.append(f"{n.implausible} measurements with impossible contents")
+        return "received " + "; ".join(said) if said else f"received {n.received} datagrams"
 
     @requires_open(_WHAT)
     def send(self, command: CartesianCommand | None) -> AppliedCommand:
@@ -355,7 +389,12 @@ class FriRobot(RobotDriver):
             t_rx = clock()
             n.received += 1
             if addr[0] != robot_ip or (robot_port is not None and addr[1] != robot_port):
-                n.foreign += 1
+                if n.on_foreign(addr):
+                    with self._cond:
+                        self._events.append(
+                            (self._last_time_ns, "WARNING", "link",
+                             f"datagrams from {addr[0]}:{addr[1]} dropped: not the robot "
+                             f"({robot_ip}" + (f":{robot_port}" if robot_port else "") + ")"))
                 continue
             if decode_msr_into(view[:size], msr, stats=n.decode) is not DecodeStatus.OK:
                 continue
@@ -368,7 +407,12 @@ class FriRobot(RobotDriver):
                 return
 
     def _accept_seq(self, msr: MsrArrays, addr: tuple[str, int]) -> bool:
-        """Track ``sendSeqCount``; False: a duplicate (re-answered), stale or implausible packet."""
+        """Track ``sendSeqCount``; False: a duplicate (re-answered), stale or implausible packet.
+
+        The last :data:`_SEQ_WINDOW` sequence numbers are remembered: a packet older
+        than the newest one that fills a gap is counted reordered and no longer
+        lost; one that was already received is a (late) duplicate.
+        """
         n, s = self._n, self.settings
         seq = msr.send_seq
         first = self._last_seq is None
@@ -377,13 +421,19 @@ class FriRobot(RobotDriver):
         if self._last_seq is not None:
             event, delta = classify_seq(seq, self._last_seq)
             if event is SeqEvent.DUPLICATE:
-                n.duplicates += 1
-                if self._last_reply is not None and self._sock is not None:
-                    self._sock.sendto(self._last_reply, addr)
-                    n.answers += 1
+                self._duplicate(addr)
                 return False
             if event is SeqEvent.STALE:
-                if -delta <= s.restart_seq_jump:
+                age = -delta
+                if age <= s.restart_seq_jump:
+                    if age < self._span:  # (older than the first: only reordered)
+                        bit = 1 << age
+                        if self._seen & bit:
+                            # an old packet again: not passed on, never re-answered
+                            n.duplicates += 1
+                            return False
+                        self._seen |= bit
+                        n.lost -= 1
                     n.stale += 1
                     return False
                 n.restarts += 1
@@ -401,11 +451,21 @@ class FriRobot(RobotDriver):
         if first:
             self._unwrapped = seq
             self._time_base_seq = seq
+            self._seen, self._span = 1, 1
         else:
             if event is SeqEvent.GAP:
                 n.lost += delta - 1
             self._unwrapped += delta
+            self._seen = ((self._seen << delta) | 1) & _SEQ_MASK
+            self._span = min(self._span + delta, _SEQ_WINDOW)
         return True
+
+    def _duplicate(self, addr: tuple[str, int]) -> None:
+        n = self._n
+        n.duplicates += 1
+        if self._last_reply is not None and self._sock is not None:
+            self._sock.sendto(self._last_reply, addr)
+            n.answers += 1
 
     def _on_measurement(self, msr: MsrArrays, addr: tuple[str, int], t_rx: int) -> None:
         if not self._accept_seq(msr, addr):
@@ -416,7 +476,8 @@ class FriRobot(RobotDriver):
             self._time_base_seq = self._unwrapped
             self._last_cycle_ns = cycle_ns
         time_ns = self._time_ns(cycle_ns)
-        m = arrays_to_measurement(msr, self._unwrapped, time_ns)
+        m = RemoteMeasurement()
+        fill_measurement(msr, self._unwrapped, time_ns, m)
         for listener in self._listeners:
             listener(m)
         s = self.settings
@@ -425,6 +486,8 @@ class FriRobot(RobotDriver):
         )
         with self._cond:
             self._n.on_measurement(m)
+            self._watch.see(m, self._events)
+            self._n.fill(m)
             self._last_rx_ns = t_rx
             self._last_time_ns = time_ns
             if self._pending is not None:

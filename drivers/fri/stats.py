@@ -14,9 +14,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.fri.codec import DecodeStats
-from drivers.fri.types import FriMeasurement, FriQuality, FriState
+from drivers.fri.types import FriMeasurement, FriQuality, FriState, RemoteMeasurement
 
-__all__ = ["TURNAROUND_CAPACITY", "LinkCounters", "LinkStats"]
+__all__ = ["TURNAROUND_CAPACITY", "LinkCounters", "LinkStats", "LinkWatch"]
 
 #: Turnaround times kept (a ring buffer): about 11 minutes at 5 ms.
 TURNAROUND_CAPACITY: Final = 1 << 17
@@ -30,6 +30,8 @@ class LinkStats:
     """Datagrams received on the port (any source)."""
     foreign: int
     """Datagrams from an address other than the robot's, dropped."""
+    foreign_address: tuple[str, int] | None
+    """The last foreign sender (``None``: none)."""
     decode: dict[str, int]
     """Codec outcome counts of the robot's datagrams (ok, too_short, wrong_id, ...)."""
     accepted: int
@@ -38,7 +40,7 @@ class LinkStats:
     stale: int
     """Reordered (older) measurements, dropped."""
     lost: int
-    """Measurements missing in the sequence (gaps)."""
+    """Measurements missing in the sequence (gaps) and never received late."""
     restarts: int
     implausible: int
     """Measurements with a header but impossible contents (sample time, NaN), dropped."""
@@ -75,6 +77,8 @@ class LinkCounters:
         self.decode = DecodeStats()
         self.received = 0
         self.foreign = 0
+        self.foreign_address: tuple[str, int] | None = None
+        self.foreign_ipv4 = 0
         self.accepted = 0
         self.duplicates = 0
         self.stale = 0
@@ -113,6 +117,42 @@ class LinkCounters:
         self._turn_max = max(self._turn_max, turnaround_ns)
         self.answers += 1
 
+    def on_foreign(self, addr: tuple[str, int]) -> bool:
+        """Count a datagram from ``addr`` (not the robot); True when the sender is new."""
+        self.foreign += 1
+        if self.foreign_address is not None and addr == self.foreign_address:
+            return False
+        host, port = addr[0], int(addr[1])
+        self.foreign_address = (host, port)
+        parts = host.split(".")
+        self.foreign_ipv4 = (
+            int.from_bytes(bytes(int(p) for p in parts), "big")
+            if len(parts) == 4 and all(p.isdigit() for p in parts) else 0
+        )
+        return True
+
+    def fill(self, m: RemoteMeasurement) -> None:
+        """Copy the counters into ``m`` (its ``/robot/link_driver`` fields), no allocation."""
+        d = self.decode
+        m.received = self.received
+        m.foreign = self.foreign
+        m.foreign_ipv4 = self.foreign_ipv4
+        m.foreign_port = self.foreign_address[1] if self.foreign_address is not None else 0
+        m.rejected = d.total - d.ok
+        m.accepted = self.accepted
+        m.lost = self.lost
+        m.duplicates = self.duplicates
+        m.reordered = self.stale
+        m.restarts = self.restarts
+        m.implausible = self.implausible
+        m.answers = self.answers
+        m.runner_answers = self.runner_answers
+        m.deadline_answers = self.deadline_answers
+        m.runner_late = self.runner_late
+        m.skipped = self.skipped
+        n = self._turn_n
+        m.turnaround_s = int(self._turn[(n - 1) % TURNAROUND_CAPACITY]) * 1e-9 if n else 0.0
+
     def turnarounds_ns(self) -> NDArray[np.int64]:
         """Receive -> answer times of the answered cycles so far, oldest first (a copy)."""
         n = self._turn_n
@@ -130,6 +170,7 @@ class LinkCounters:
         return LinkStats(
             received=self.received,
             foreign=self.foreign,
+            foreign_address=self.foreign_address,
             decode=self.decode.as_dict(),
             accepted=self.accepted,
             duplicates=self.duplicates,
@@ -154,3 +195,35 @@ class LinkCounters:
             fallbacks=self.fallbacks,
             link_lost=lost,
         )
+
+
+class LinkWatch:
+    """Notices every change of the KRC's state and quality in a stream of measurements
+    and describes it as an event ``(KRC time [ns], level, name, message)``."""
+
+    def __init__(self) -> None:
+        self.state: FriState | None = None
+        self.quality: FriQuality | None = None
+
+    def see(self, m: FriMeasurement, out: list[tuple[int, str, str, str]]) -> None:
+        """Append to ``out`` what changed with ``m`` (nothing, most cycles)."""
+        state, quality = m.state, m.quality
+        if state == self.state and quality == self.quality:
+            return
+        if self.state is None:
+            out.append((m.time_ns, "INFO", "link",
+                        f"FRI link up: state {state.name}, quality {quality.name}"))
+        else:
+            if state != self.state:
+                level = "WARNING" if self.state == FriState.CMD else "INFO"
+                out.append((m.time_ns, level, "link",
+                            f"FRI state {self.state.name} -> {state.name} "
+                            f"(quality {quality.name}, seq {m.seq})"))
+            if quality != self.quality:
+                assert self.quality is not None
+                level = ("ERROR" if quality <= FriQuality.UNACCEPTABLE else
+                         "WARNING" if quality < self.quality else "INFO")
+                out.append((m.time_ns, level, "link",
+                            f"FRI quality {self.quality.name} -> {quality.name} "
+                            f"(answer rate {m.answer_rate:.2f}, seq {m.seq})"))
+        self.state, self.quality = state, quality

@@ -128,9 +128,58 @@ class FriMeasurement(Extras):
     krl_real: F64 = field(default_factory=lambda: _zeros(16))
     krl_int: NDArray[np.int32] = field(default_factory=lambda: np.zeros(16, dtype=np.int32))
     krl_bool: int = 0
+    link_events: list[tuple[int, str, str, str]] = field(
+        default_factory=list, compare=False, repr=False)
+    """Changes of the link seen up to this measurement that the runner has not yet
+    been told about: ``(KRC time [ns], level, name, message)``; the reader clears it."""
 
     def topics(self) -> tuple[str, ...]:
         return ("/robot/measurement", "/robot/link")
+
+
+@dataclass
+class RemoteMeasurement(FriMeasurement):
+    """A measurement as the UDP remote driver received it, with the driver's own
+    link counters at its arrival (cumulative since ``connect``), recorded on
+    ``/robot/link_driver`` beside the KRC's own view (``/robot/link``)."""
+
+    received: int = 0
+    """Datagrams received on the port, any source."""
+    foreign: int = 0
+    """Datagrams from an address other than the robot's, dropped."""
+    foreign_ipv4: int = 0
+    """The last foreign sender's IPv4 address as a 32-bit number (0: none yet)."""
+    foreign_port: int = 0
+    """The last foreign sender's UDP port (0: none yet)."""
+    rejected: int = 0
+    """Datagrams from the robot the codec rejected (short, wrong id, bad sizes)."""
+    accepted: int = 0
+    """Measurements accepted (new sequence numbers)."""
+    lost: int = 0
+    """Measurements missing in the sequence and never received late."""
+    duplicates: int = 0
+    """Measurements received again (re-answered, not passed on)."""
+    reordered: int = 0
+    """Measurements that came after a newer one (dropped)."""
+    restarts: int = 0
+    """Sequence jumps back taken as a KRC restart."""
+    implausible: int = 0
+    """Measurements with impossible contents (dropped)."""
+    answers: int = 0
+    """Command datagrams sent (including re-answers of duplicates)."""
+    runner_answers: int = 0
+    """Cycles answered with the runner's command of that very cycle."""
+    deadline_answers: int = 0
+    """Cycles answered at the deadline with the previous command (runner late)."""
+    runner_late: int = 0
+    """Runner commands that came after their cycle had been answered."""
+    skipped: int = 0
+    """Measurements the runner never saw (it fell behind)."""
+    turnaround_s: float = 0.0
+    """Packet received -> answer sent, the last answered cycle."""
+
+    def topics(self) -> tuple[str, ...]:
+        return ("/robot/measurement", "/robot/link", "/robot/link_driver")
 
 
 @dataclass

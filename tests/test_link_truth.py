@@ -120,7 +120,7 @@ def test_heavy_loss_ends_command_mode_and_aborts_with_the_faults_counted(tmp_pat
     assert next(v for k, v in levels.items() if k.startswith("FRI state CMD -> MON")) == 3
 
 
-# --------------------------------------------------------------------------- delay, jitter, duplicates
+# ------------------------------------------------------------- delay, jitter, duplicates
 
 
 @pytest.mark.slow

@@ -11,6 +11,13 @@ A rig has two tables, each discriminated by ``type``::
     type = "netft"           # "sim" | "netft" | "fri-estimate" | "mock"
     host = "192.168.1.1"
 
+An optional third table names the target tracker (default ``"none"``)::
+
+    [tracker]
+    type = "camera"          # "none" | "sim" | "camera"
+    source = "http://127.0.0.1:8080/stream.mjpg"   # device index, file or URL
+    calibration = "camera-calibration.toml"
+
 Addresses, ports, counts per unit, timeouts, the answer deadline and the
 cycle limits live here; command-line flags only override these fields
 (``robot.port=49939``). Errors name the file and the field
@@ -33,20 +40,25 @@ from drivers.config import StrictModel, apply_overrides, read_toml, validate
 from drivers.errors import ConfigError
 
 __all__ = [
+    "CameraTrackerConfig",
     "FriEstimateFt",
     "FriRobotConfig",
     "MockFt",
     "MockRobotConfig",
     "NetFtConfig",
+    "NoTracker",
     "Rig",
     "SimFt",
     "SimRobotConfig",
+    "SimTrackerConfig",
+    "TrackerConfig",
     "default_rig",
     "load_rig",
     "validate_rig",
 ]
 
-_TAGS = {"robot": ("sim", "fri1", "mock"), "ft": ("sim", "netft", "fri-estimate", "mock")}
+_TAGS = {"robot": ("sim", "fri1", "mock"), "ft": ("sim", "netft", "fri-estimate", "mock"),
+         "tracker": ("none", "sim", "camera")}
 
 Port = Annotated[int, Field(ge=0, le=65535)]
 PosFloat = Annotated[float, Field(gt=0.0)]
@@ -149,6 +161,60 @@ class MockFt(StrictModel):
     rate_hz: PosFloat = 1000.0
 
 
+class NoTracker(StrictModel):
+    """No target tracker: the verdict comes from ground truth or the observer."""
+
+    type: Literal["none"] = "none"
+
+
+class SimTrackerConfig(StrictModel):
+    """The simulated target's pose as a camera would report it (sim robot only)."""
+
+    type: Literal["sim"] = "sim"
+    rate_hz: PosFloat = 50.0
+    """Frames per second (the paper's camera: 50 fps)."""
+    latency_s: NonNeg = 0.03
+    """From exposure to the pose being available."""
+    position_noise_m: NonNeg = 0.0003
+    """Standard deviation of each frame's position error, per horizontal axis [m]."""
+    yaw_noise_deg: NonNeg = 0.1
+    """Standard deviation of each frame's yaw error [deg]."""
+    dropout: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
+    """Fraction of frames without a pose (marker not found)."""
+
+
+class CameraTrackerConfig(StrictModel):
+    """A camera above the air bed tracking a fiducial marker on the target."""
+
+    type: Literal["camera"] = "camera"
+    source: str = "0"
+    """OpenCV capture source: a device index (``"0"``), a video file or a URL
+    (``http://host:port/stream.mjpg``)."""
+    calibration: Path | None = None
+    """Camera-to-table calibration TOML (``ffexp calibrate-camera``), relative to the rig file."""
+    marker_dictionary: str = "DICT_4X4_50"
+    """OpenCV ArUco/AprilTag dictionary of the marker."""
+    marker_id: Annotated[int, Field(ge=0)] = 0
+    marker_in_target_m: Vec3 = (0.0, 0.0, 0.025)
+    """Marker centre in the target block frame [m] (default: centre of its top face)."""
+    marker_yaw_deg: float = 0.0
+    """Marker's x axis against the target's x axis, about the vertical [deg]."""
+    mouth_in_target_m: Vec3 = (-0.125, 0.0, 0.0)
+    """Target funnel's mouth centre in the target block frame [m] (the paper's
+    block: mid-face of the -x side); the mouth frame is the block's, rotated not."""
+    latency_s: NonNeg = 0.0
+    """From exposure to the frame's arrival; subtracted from the arrival time."""
+    lost_after_s: PosFloat = 1.0
+    """No frame for this long: the stream is lost (an event; the capture reopens)."""
+    reopen_s: PosFloat = 1.0
+    """Wait between attempts to (re)open the source."""
+
+
+TrackerConfig = Annotated[
+    NoTracker | SimTrackerConfig | CameraTrackerConfig, Field(discriminator="type")
+]
+
+
 RobotConfig = Annotated[
     SimRobotConfig | FriRobotConfig | MockRobotConfig, Field(discriminator="type")
 ]
@@ -156,10 +222,11 @@ FtConfig = Annotated[SimFt | NetFtConfig | FriEstimateFt | MockFt, Field(discrim
 
 
 class Rig(StrictModel):
-    """A robot and an F/T sensor."""
+    """A robot, an F/T sensor and (optionally) a target tracker."""
 
     robot: RobotConfig = SimRobotConfig()
     ft: FtConfig = SimFt()
+    tracker: TrackerConfig = NoTracker()
 
     @model_validator(mode="after")
     def _pairs(self) -> Rig:
@@ -173,6 +240,10 @@ class Rig(StrictModel):
         if (isinstance(self.ft, NetFtConfig) and self.ft.host is None
                 and not isinstance(self.robot, FriRobotConfig)):
             raise ValueError("ft.host is required unless robot.type is 'fri1'")
+        if isinstance(self.tracker, SimTrackerConfig) and not isinstance(
+                self.robot, SimRobotConfig):
+            raise ValueError("tracker.type 'sim' needs robot.type 'sim' (over FRI the emulator "
+                             "serves a camera stream: use 'camera')")
         return self
 
 
@@ -191,6 +262,12 @@ def load_rig(path: Path, overrides: Iterable[str] = ()) -> Rig:
         if not robot.scene_file.is_absolute():
             robot = robot.model_copy(update={"scene_file": path.parent / robot.scene_file})
             rig = rig.model_copy(update={"robot": robot})
+    tracker = rig.tracker
+    if isinstance(tracker, CameraTrackerConfig) and tracker.calibration is not None:
+        if not tracker.calibration.is_absolute():
+            tracker = tracker.model_copy(
+                update={"calibration": path.parent / tracker.calibration})
+            rig = rig.model_copy(update={"tracker": tracker})
     return rig
 
 

@@ -8,8 +8,10 @@ topics they name (FRI: ``/robot/measurement``, ``/robot/link``), the estimate
 (``/estimator/state``), the control terms (``/control/terms``, plus the
 method's own topic if it declares one), the runner's intent beside what the
 driver really applied (``/control/command``; the back-end's own form, e.g.
-``/robot/command``), ground truth when the robot has it (``/sim/truth``) and,
-every ``tf_period_s``, ``/tf``.
+``/robot/command``), ground truth when the robot has it (``/sim/truth``), every new tracker
+observation (``/target/pose``, and ``/tf`` frame ``target_tracked``) and,
+every ``tf_period_s``, ``/tf``. Verdict notes of the task go to
+``/alignment/verdict``.
 
 Without a :class:`~ffexp.recording.Recorder` (tests, benchmarks) only the
 events are kept, in :attr:`RunLog.events`.
@@ -35,7 +37,8 @@ from ffexp.controllers import Controller
 from ffexp.estimator import Estimate
 from ffexp.recording import Recorder
 from ffexp.recording.topics import STATE_JOINTS
-from ffexp.task import Event, Note, PhaseChange
+from ffexp.recording.topics_target import TRACKED_FRAME
+from ffexp.task import Event, Note, PhaseChange, Verdict
 
 _TERMS = ("p", "i", "ri", "ff", "impedance")
 
@@ -66,6 +69,10 @@ class RunLog:
         self._next_tf_ns = 0
         self._zeros = np.zeros(6)
         self._ft_template: np.ndarray | None = None
+        self.verdicts: list[Verdict] = []
+        """Every verdict note, in order (the last one with ``final`` is the run's)."""
+        self._target_frames = -1
+        self._target_valid = False
         self.sinks: list[CycleSink] = []
         """Further per-cycle writers (set up by :mod:`ffexp.experiment`)."""
 
@@ -74,7 +81,19 @@ class RunLog:
         if isinstance(note, Event):
             self.event(t_ns, note.level, note.name, note.message)
             return
+        if isinstance(note, Verdict):
+            self.verdict(t_ns, note)
+            return
         self.phase(t_ns, note)
+
+    def verdict(self, t_ns: int, v: Verdict) -> None:
+        """Who judges, or the run's verdict, on ``/alignment/verdict``."""
+        self.verdicts.append(v)
+        if self.rec is not None:
+            evidence = {k: float(x) for k, x in v.evidence.items() if np.isfinite(x)}
+            self.rec.write_json("/alignment/verdict", self.start_utc_ns + t_ns, {
+                "label": v.label, "source": v.source, "reason": v.reason, "truth": v.truth,
+                "final": v.final, "evidence": evidence})
 
     def event(self, t_ns: int, level: str, name: str, message: str) -> None:
         self.events.append((t_ns / NS_PER_S, name, message))
@@ -186,8 +205,26 @@ class RunLog:
             rec.transform(log_ns, "base", "tool", state.tcp_pose_m)
             if truth is not None:
                 rec.transform(log_ns, "base", "target", truth.target_pose)
+        if target is not None and (target.frames != self._target_frames
+                                   or target.valid != self._target_valid):
+            self._target(log_ns, state, target)
         for sink in self.sinks:
             sink.cycle(log_ns, state, target)
+
+    def _target(self, log_ns: int, state: RobotState, target: TargetObservation) -> None:
+        """A new tracker observation: ``/target/pose`` and, when valid, ``/tf``."""
+        assert self.rec is not None
+        self._target_frames, self._target_valid = target.frames, target.valid
+        r = self.rec.record("/target/pose")
+        r["time_ns"] = target.time_ns
+        r["pose"] = target.pose_m.reshape(-1)
+        r["mouth"] = target.mouth_m.reshape(-1)
+        r["valid"] = int(target.valid)
+        r["frames"] = target.frames & 0xFFFFFFFF
+        r["age_s"] = (state.time_ns - target.time_ns) / NS_PER_S
+        self.rec.write("/target/pose", log_ns)
+        if target.valid:
+            self.rec.transform(log_ns, "base", TRACKED_FRAME, target.pose_m)
 
     def _state(self, log_ns: int, state: RobotState) -> None:
         assert self.rec is not None

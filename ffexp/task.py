@@ -24,24 +24,48 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from drivers.base.placement import Placement, placement
 from drivers.base.types import F64, NS_PER_S, RobotState, TargetObservation
 from drivers.config import StrictModel
 from ffexp.contracts import Phase, Stop, StopReason
 from ffexp.estimator import Estimate
+from ffexp.observer import ObserverLimits, WrenchObserver
 
 
 class Alignment(StrictModel):
-    """When the funnels count as aligned (one set of tolerances for every source)."""
+    """When the funnels count as aligned, and who judges it.
 
-    source: Literal["auto", "truth", "settings"] = Field(
-        "auto", description="auto: ground truth when the robot reports it, else settings."
-    )
+    One set of tolerances (lateral, yaw, insertion, ``hold_s``) for every source
+    that sees the target: ground truth (a simulator) and a target tracker (the
+    relative pose of the tool and the tracked funnel mouth). Without either,
+    the observer (:mod:`ffexp.observer`) judges with its own thresholds.
+    """
+
+    source: Literal["auto", "truth", "tracker", "observer", "settings"] = Field(
+        "auto", description="auto: ground truth when the robot reports it, else the tracker "
+        "when the rig has one, else the observer. settings: the old rule (advance "
+        "seated_depth_m since first contact with |f_y| <= lateral_force_n), kept for "
+        "comparison; it calls runs aligned that are not.")
     lateral_tol_m: float = Field(0.002, gt=0)
     yaw_tol_deg: float = Field(2.0, gt=0)
     min_insertion_m: float = Field(0.02, ge=0)
-    seated_depth_m: float = Field(0.03, gt=0)
-    lateral_force_n: float = Field(0.3, gt=0)
     hold_s: float = Field(0.2, ge=0)
+    tracker_max_age_s: float = Field(
+        0.25, gt=0, description="A tracker pose older than this does not judge (the observer "
+        "does until a fresh one arrives).")
+    seated_depth_m: float = Field(
+        0.03, gt=0, description="Observer: insertion the funnels have when seated [m].")
+    lateral_force_n: float = Field(0.3, gt=0, description="Observer: largest |f_y| when seated.")
+    lateral_torque_nm: float = Field(
+        0.05, gt=0, description="Observer: largest |t_x| (about the vertical) when seated.")
+    min_force_n: float = Field(0.3, ge=0, description="Observer: the tool must push this hard.")
+    lateral_speed_mps: float = Field(
+        0.002, gt=0, description="Observer: largest tool speed along Y when seated.")
+    yaw_rate_dps: float = Field(1.0, gt=0, description="Observer: largest tool yaw rate.")
+    observer_hold_s: float = Field(
+        1.0, ge=0, description="Observer: how long its evidence must hold.")
+    target_mass_kg: float = Field(
+        12.0, gt=0, description="Observer: the target's mass (bounds how far pushing moved it).")
 
 
 @dataclass(frozen=True)
@@ -63,7 +87,26 @@ class PhaseChange:
     stop: StopReason | None = None
 
 
-Note = Event | PhaseChange
+@dataclass(frozen=True)
+class Verdict:
+    """A note for ``/alignment/verdict``: who judges the alignment and what it says.
+
+    ``label`` is ``"aligned"``, ``"not aligned"`` or ``"unverified"``; ``truth`` is
+    the simulator's verdict beside it (``""`` without ground truth), so a recording
+    judged by a tracker or the observer can be scored against the truth.
+    """
+
+    label: str
+    source: str
+    reason: str
+    evidence: dict[str, float]
+    truth: str = ""
+    final: bool = False
+
+
+Note = Event | PhaseChange | Verdict
+
+Source = Literal["truth", "tracker", "observer", "settings"]
 
 
 class Task:
@@ -87,12 +130,29 @@ class Task:
         self.stop: Stop | None = None
         self.end_ns: int | None = None
         """When the safe stop has been held long enough and the loop ends."""
-        self.verdict_source: Literal["truth", "settings"] | None = None
+        self.verdict_source: Source | None = None
+        """Who judges this cycle (``None`` before the first cycle)."""
+        self.verdict: Verdict | None = None
+        """The run's final verdict (set when the run ends)."""
+        self.truth_aligned: bool | None = None
+        """The truth's verdict beside whoever judges (``None`` without ground truth)."""
+        self.placement: Placement | None = None
+        """The latest relative pose of tool and funnel the judge used (truth or tracker)."""
         self.notes: list[Note] = []
         """Notes of the current cycle, oldest first; the loop empties it."""
+        a = alignment
+        self.observer = WrenchObserver(ObserverLimits(
+            seated_depth_m=a.seated_depth_m, lateral_force_n=a.lateral_force_n,
+            lateral_torque_nm=a.lateral_torque_nm, min_force_n=a.min_force_n,
+            lateral_speed_mps=a.lateral_speed_mps, yaw_rate_radps=math.radians(a.yaw_rate_dps),
+            hold_s=a.observer_hold_s, target_mass_kg=a.target_mass_kg))
         self._start_pose = np.eye(4)
         self._first_contact_z: float | None = None
         self._aligned_since_ns: int | None = None
+        self._truth_since_ns: int | None = None
+        self._tracker_seen = False
+        self._target: TargetObservation | None = None
+        self._t_ns = 0
 
     # -- transitions ---------------------------------------------------------
     def _enter(self, t_ns: int, phase: Phase, reason: str, stop: StopReason | None = None) -> None:
@@ -110,6 +170,7 @@ class Task:
         self.stop = stop
         self.end_ns = t_ns + self.stop_hold_ns
         self._enter(t_ns, stop.reason.phase, stop.message, stop.reason)
+        self._final_verdict()
         return True
 
     def check_timeout(self, t_ns: int) -> None:
@@ -126,6 +187,10 @@ class Task:
              target: TargetObservation | None = None) -> None:
         """Advance the phases by one cycle (after the safety checks); ``target`` is the
         tracker's newest observation of the target, if the rig has a tracker."""
+        self._t_ns = t_ns
+        self._target = target
+        if target is not None:
+            self._tracker_seen = True
         event = est.event
         if event is not None and event.kind == "made":
             self.contacts += 1
@@ -133,6 +198,8 @@ class Task:
         elif event is not None:
             self.notes.append(Event("WARNING", "contact", "contact broken"))
         phase = self.phase
+        if phase != Phase.CONNECT:  # nothing is judged before the approach
+            self._choose_source(state, target)
         if phase == Phase.CONNECT:
             if est.tared_now:
                 bias = np.round(est.bias, 3).tolist()
@@ -141,7 +208,11 @@ class Task:
                 )
                 self._start_pose = state.tcp_pose_m.copy()
                 self._enter(t_ns, Phase.APPROACH, "sensor tared, robot commanding")
-        elif phase == Phase.APPROACH:
+            return
+        if phase.ended:
+            return
+        self._observe(t_ns, state, est)
+        if phase == Phase.APPROACH:
             if est.in_contact:
                 if self._first_contact_z is None:
                     self._first_contact_z = float(self._tcf_offset(state)[2])
@@ -150,14 +221,17 @@ class Task:
             if not est.in_contact:
                 self.breaks += 1
                 self._aligned_since_ns = None
+                self._truth_since_ns = None
                 self._enter(t_ns, Phase.APPROACH, f"contact lost (break #{self.breaks})")
                 return
+            self._shadow_truth(t_ns, state)
             if self.aligned_now(state, est):
                 if self._aligned_since_ns is None:
                     self._aligned_since_ns = t_ns
                 if t_ns - self._aligned_since_ns >= self.alignment.hold_s * NS_PER_S:
                     self.aligned = True
-                    self.notes.append(Event("INFO", "aligned", "funnels aligned"))
+                    self.notes.append(Event("INFO", "aligned",
+                                            f"funnels aligned (judged by {self.verdict_source})"))
                     self.end(t_ns, Stop(StopReason.ALIGNED, "aligned"))
             else:
                 self._aligned_since_ns = None
@@ -168,21 +242,129 @@ class Task:
         out: F64 = self._start_pose[:3, :3].T @ d
         return out
 
-    def aligned_now(self, state: RobotState, est: Estimate) -> bool:
-        """This cycle's verdict, before the hold time."""
+    def _fresh(self, state: RobotState, target: TargetObservation | None) -> bool:
+        if target is None or not target.valid:
+            return False
+        age_ns = state.time_ns - target.time_ns
+        return age_ns <= self.alignment.tracker_max_age_s * NS_PER_S
+
+    def _choose_source(self, state: RobotState, target: TargetObservation | None) -> None:
+        want = self.alignment.source
+        src: Source
+        if want == "auto":
+            if state.truth is not None:
+                src = "truth"
+            elif self._tracker_seen:
+                src = "tracker" if self._fresh(state, target) else "observer"
+            else:
+                src = "observer"
+        elif want == "tracker":
+            src = "tracker" if self._fresh(state, target) else "observer"
+        else:
+            src = want
+        if src == self.verdict_source:
+            return
+        old, self.verdict_source = self.verdict_source, src
+        self._aligned_since_ns = None
+        if old is None:
+            reason = f"{src} judges the alignment"
+            level = "INFO"
+        elif old == "tracker":
+            lost = "lost" if target is None or not target.valid else "stale"
+            reason = f"the tracker's pose is {lost}: the observer judges until it returns"
+            level = "WARNING"
+        else:
+            reason = f"{src} judges the alignment again"
+            level = "INFO"
+        self.notes.append(Event(level, "verdict_source", reason))
+        self.notes.append(Verdict("unverified", src, reason, {}, self._truth_label()))
+
+    def _observe(self, t_ns: int, state: RobotState, est: Estimate) -> None:
+        z = float(self._tcf_offset(state)[2])
+        if est.in_contact:
+            self.observer.contact_made(z)
+        w, tw = est.wrench, est.twist_tcf
+        self.observer.update(t_ns, z, est.in_contact, est.f_z, float(w[1]), float(w[3]),
+                             float(tw[1]), float(tw[3]))
+
+    def _within(self, p: Placement) -> bool:
         a = self.alignment
+        return (abs(p.lateral) <= a.lateral_tol_m and abs(math.degrees(p.yaw)) <= a.yaw_tol_deg
+                and p.insertion >= a.min_insertion_m)
+
+    def _shadow_truth(self, t_ns: int, state: RobotState) -> None:
         truth = state.truth
-        if a.source == "truth" or (a.source == "auto" and truth is not None):
-            self.verdict_source = "truth"
+        if truth is None:
+            return
+        if self.truth_aligned is None:
+            self.truth_aligned = False
+        p = Placement((truth.insertion, truth.lateral_error, truth.vertical_error,
+                       truth.yaw_error))
+        if not self._within(p):
+            self._truth_since_ns = None
+            return
+        if self._truth_since_ns is None:
+            self._truth_since_ns = t_ns
+        if t_ns - self._truth_since_ns >= self.alignment.hold_s * NS_PER_S:
+            self.truth_aligned = True
+
+    def _truth_label(self) -> str:
+        """The truth's verdict: held within tolerance for ``hold_s``, or within it when
+        the run ended (another judge may end the run before the truth's own hold)."""
+        if self.truth_aligned is None:
+            return ""
+        within = self._truth_since_ns is not None
+        return "aligned" if self.truth_aligned or within else "not aligned"
+
+    def aligned_now(self, state: RobotState, est: Estimate) -> bool:
+        """This cycle's verdict of the judging source, before the hold time."""
+        src = self.verdict_source
+        if src == "truth":
+            truth = state.truth
             if truth is None:
                 return False
-            return (
-                abs(truth.lateral_error) <= a.lateral_tol_m
-                and abs(math.degrees(truth.yaw_error)) <= a.yaw_tol_deg
-                and truth.insertion >= a.min_insertion_m
-            )
-        self.verdict_source = "settings"
-        if self._first_contact_z is None:
-            return False
-        advanced = float(self._tcf_offset(state)[2]) - self._first_contact_z
-        return advanced >= a.seated_depth_m and abs(float(est.wrench[1])) <= a.lateral_force_n
+            self.placement = Placement((truth.insertion, truth.lateral_error,
+                                        truth.vertical_error, truth.yaw_error))
+            return self._within(self.placement)
+        if src == "tracker":
+            target = self._target
+            if target is None:
+                return False
+            self.placement = placement(state.tcp_pose_m, target.mouth_m)
+            return self._within(self.placement)
+        if src == "settings":
+            if self._first_contact_z is None:
+                return False
+            advanced = float(self._tcf_offset(state)[2]) - self._first_contact_z
+            a = self.alignment
+            return advanced >= a.seated_depth_m and abs(float(est.wrench[1])) <= a.lateral_force_n
+        # the observer holds its own evidence for observer_hold_s; the task's hold adds to it
+        return self.observer.state.label == "aligned"
+
+    def _final_verdict(self) -> None:
+        src = self.verdict_source or "observer"
+        truth = self._truth_label()
+        if src == "observer":
+            obs = self.observer.state
+            label = "aligned" if self.aligned else obs.label
+            if label == "aligned" and not self.aligned:
+                label = "unverified"  # seen aligned, but the run ended before the hold
+            reason = {"aligned": "robot-side evidence of seated cones held",
+                      "not aligned": "out of contact or a sustained lateral load at the end",
+                      "unverified": "the robot alone cannot tell where the target is"}[label]
+            verdict = Verdict(label, src, reason, dict(obs.evidence), truth, True)
+        else:
+            label = "aligned" if self.aligned else "not aligned"
+            evidence: dict[str, float] = {}
+            p = self.placement
+            if p is not None:
+                evidence = {"insertion_m": p.insertion, "lateral_m": p.lateral,
+                            "vertical_m": p.vertical, "yaw_deg": math.degrees(p.yaw)}
+            reason = (f"{src}: relative pose within tolerance for {self.alignment.hold_s} s"
+                      if self.aligned else f"{src}: never within tolerance for "
+                      f"{self.alignment.hold_s} s")
+            verdict = Verdict(label, src, reason, evidence, truth, True)
+        self.verdict = verdict
+        self.notes.append(verdict)
+        self.notes.append(Event("INFO", "verdict", f"{label} (judged by {src}; truth: "
+                                f"{truth or 'n/a'}): {reason}"))

@@ -77,14 +77,20 @@ def test_a_verdict_must_hold_for_hold_s() -> None:
     assert task.aligned
 
 
-def test_settings_verdict_without_truth() -> None:
-    task = in_align(Alignment(seated_depth_m=0.03, lateral_force_n=0.3))
+def test_settings_verdict_only_when_asked() -> None:
+    task = in_align(Alignment(source="settings", seated_depth_m=0.03, lateral_force_n=0.3))
     hold(task, None, 0.3, z=0.029)
     assert not task.aligned and task.verdict_source == "settings"
     hold(task, None, 0.3, z=0.031)
     assert task.aligned
 
 
+def test_without_truth_or_tracker_the_observer_judges_and_does_not_call_a_push_aligned() -> None:
+    # the old rule's case: 31 mm advanced, no lateral force; but the target floats
+    task = in_align(Alignment())
+    hold(task, None, 3.0, z=0.031)
+    assert task.verdict_source == "observer"
+    assert not task.aligned
 def test_truth_source_without_truth_never_aligns() -> None:
     task = in_align(Alignment(source="truth"))
     hold(task, None, 0.5, z=0.1)

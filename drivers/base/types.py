@@ -230,6 +230,10 @@ class TargetObservation:
     time_ns: int = 0
     pose_m: F64 = field(default_factory=_eye4)
     """Target block frame in the robot's base frame (4x4, m)."""
+    mouth_m: F64 = field(default_factory=_eye4)
+    """The target funnel's mouth frame in the base frame (4x4, m; x along the funnel
+    axis into the target, see :mod:`drivers.base.placement`): ``pose_m`` times the
+    tracker's known offset of the mouth on the target."""
     valid: bool = False
     source: str = ""
     """Which tracker produced it: ``"camera"``, ``"sim"``, ..."""

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from drivers.base.placement import placement
 from drivers.base.types import F64, GroundTruth
 
 __all__ = ["SEAT_DEPTH_TOL", "SEAT_LATERAL_TOL", "SEAT_YAW_TOL", "ground_truth", "pose"]
@@ -30,10 +31,6 @@ def pose(pos: F64, mat9: F64) -> F64:
     return out
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
 def ground_truth(
     target_pose: F64,
     target_twist: F64,
@@ -47,9 +44,7 @@ def ground_truth(
 ) -> GroundTruth:
     """The tool tip in the funnel-mouth frame (x along the funnel axis), its yaw
     against the funnel's, and whether the simulator calls it seated."""
-    rm = mouth_mat9.reshape(3, 3)
-    insertion, lateral, vertical = ((tcp_pose[:3, 3] - mouth_pos) @ rm).tolist()
-    yaw_err = _wrap(math.atan2(tcp_pose[1, 2], tcp_pose[0, 2]) - math.atan2(rm[1, 0], rm[0, 0]))
+    insertion, lateral, vertical, yaw_err = placement(tcp_pose, pose(mouth_pos, mouth_mat9))
     seated = (
         insertion >= seat_depth_m - SEAT_DEPTH_TOL
         and abs(lateral) <= SEAT_LATERAL_TOL

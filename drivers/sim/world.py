@@ -265,6 +265,13 @@ class SimWorld:
         self._kinematics()
         return self._mfull[:_N_ARM, :_N_ARM].copy()
 
+    def target_frames(self) -> tuple[F64, F64]:
+        """The target block's pose and its funnel mouth's frame, 4x4 in the world
+        frame at the current state (new arrays; what a tracker sees)."""
+        d = self.data
+        return (_pose(d.xpos[self._target_body], d.xmat[self._target_body]),
+                _pose(d.site_xpos[self._mouth], d.site_xmat[self._mouth]))
+
     @property
     def tcp_pose(self) -> F64:
         """4x4 TCP pose in the base frame at the current state (do not modify)."""

@@ -5,7 +5,12 @@ Per robot cycle: the F/T samples since the last cycle -> :class:`~ffexp.estimato
 the method's :class:`~ffexp.controllers.Controller` -> a Cartesian impedance command ->
 ``robot.send`` -> :class:`~ffexp.runlog.RunLog`. :class:`Cycle` is that step alone (no
 device, no file: tests and benchmarks call it); :func:`run` clocks it by the robot.
-DONE and ABORT end with a safe stop: zero wrench, the hold stiffness, the pose reached.
+DONE and ABORT end with a safe stop: zero wrench, the hold stiffness, the pose reached,
+ramped in from the last command over ``run.stop_ramp_s``. In ALIGN, a robot that stops
+commanding for a few cycles (FRI left CMD) holds the method: its controller is not
+updated (no integral grows while nothing is applied) and the last wrench is repeated;
+when the robot commands again, the method's wrench is blended in from the held one over
+``run.resume_ramp_s``, so the command does not step. Both are events.
 """
 
 from __future__ import annotations
@@ -51,6 +56,17 @@ class Cycle:
         self.hold_pose = first.tcp_pose_m.copy()
         self.cmd = CartesianCommand()
         self.total = np.zeros(6)  # the wrench sent this cycle (reused)
+        self.hold_k = np.asarray(p.krc.hold_stiffness, dtype=np.float64)
+        self.hold_d = np.asarray(p.krc.hold_damping, dtype=np.float64)
+        # the safe stop's ramp: from the last command at the stop's time
+        self.stop_ns = 0
+        self.from_k, self.from_d, self.from_w = np.zeros(6), np.zeros(6), np.zeros(6)
+        # a pause of the robot in ALIGN: cycles held, the blend after it
+        self.paused = 0
+        self.resume_ns = -1
+        self.held = np.zeros(6)
+        self.offset = np.zeros(6)
+        self._tmp = np.zeros(6)
         self.t_ns = 0
         self.target: TargetObservation | None = None
         log.event(0, "INFO", "phase", f"start: {p.name} ({p.method})")
@@ -80,8 +96,66 @@ class Cycle:
             self.approach.start(self.t_ns, s.tcp_pose_m)
         elif phase == Phase.ALIGN:
             self.controller.enter(self.t_ns, s, self.estimator.out)
+            self.paused, self.resume_ns = 0, -1
+            self.held[:] = self.total  # held, should the robot pause at once
         elif phase.ended:
             self.hold_pose = s.tcp_pose_m.copy()
+            self.stop_ns = self.t_ns
+            cmd = self.cmd
+            if change.old == Phase.CONNECT:  # nothing was commanded yet: hold at once
+                self.from_k[:], self.from_d[:] = self.hold_k, self.hold_d
+            else:  # what the last cycle sent
+                self.from_k[:], self.from_d[:] = cmd.stiffness_npm_nmprad, cmd.damping_ratio
+            self.from_w[:] = self.total
+
+    @staticmethod
+    def _fraction(elapsed_ns: int, ramp_s: float) -> float:
+        """How far into a ramp of ``ramp_s`` (0 at its start, 1 at and after its end)."""
+        if ramp_s <= 0.0:
+            return 1.0
+        return min(1.0, max(0.0, elapsed_ns / (ramp_s * NS_PER_S)))
+
+    def _blend(self, a: float, start: np.ndarray, end: np.ndarray, out: np.ndarray) -> None:
+        """``out = start + a (end - start)`` without allocating."""
+        tmp = self._tmp
+        np.subtract(end, start, out=tmp)
+        tmp *= a
+        np.add(start, tmp, out=out)
+
+    def _safe_stop(self, t_ns: int, cmd: CartesianCommand) -> None:
+        a = self._fraction(t_ns - self.stop_ns, self.p.run.stop_ramp_s)
+        self._blend(a, self.from_k, self.hold_k, cmd.stiffness_npm_nmprad)
+        self._blend(a, self.from_d, self.hold_d, cmd.damping_ratio)
+        np.multiply(self.from_w, 1.0 - a, out=cmd.wrench_n_nm)
+
+    def _align(self, t_ns: int, state: RobotState, cmd: CartesianCommand) -> None:
+        """The method's wrench, held while the robot is not commanding, blended in after."""
+        if not state.link.commanding:
+            if self.paused == 0:
+                self.log.event(t_ns, "WARNING", "resume",
+                               "robot not commanding in ALIGN: the method is held at its last "
+                               "command")
+            self.paused += 1
+            cmd.wrench_n_nm[:] = self.held
+            return
+        w = self.controller.update(t_ns, state, self.estimator.out)
+        if self.paused:
+            self.offset[:] = self.held - w
+            self.resume_ns = t_ns
+            self.log.event(t_ns, "INFO", "resume",
+                           f"robot commanding again after {self.paused} cycles: the method "
+                           f"resumes, blended in from the held command over "
+                           f"{self.p.run.resume_ramp_s:g} s")
+            self.paused = 0
+        if self.resume_ns >= 0:
+            a = self._fraction(t_ns - self.resume_ns, self.p.run.resume_ramp_s)
+            if a >= 1.0:
+                self.resume_ns = -1
+            np.multiply(self.offset, 1.0 - a, out=self._tmp)
+            np.add(w, self._tmp, out=cmd.wrench_n_nm)
+        else:
+            cmd.wrench_n_nm[:] = w
+        self.held[:] = cmd.wrench_n_nm
 
     def step(self, state: RobotState, ft: FtSamples,
              target: TargetObservation | None = None) -> CartesianCommand | None:
@@ -106,9 +180,7 @@ class Cycle:
             return None
         cmd.pose_m[:] = self.hold_pose
         if phase.ended:
-            cmd.stiffness_npm_nmprad[:] = krc.hold_stiffness
-            cmd.damping_ratio[:] = krc.hold_damping
-            cmd.wrench_n_nm[:] = 0.0
+            self._safe_stop(t_ns, cmd)
         else:
             cmd.stiffness_npm_nmprad[:] = krc.cart_stiffness
             cmd.damping_ratio[:] = krc.cart_damping
@@ -116,7 +188,7 @@ class Cycle:
                 self.approach_wrench = self.approach.command(t_ns, state.tcp_pose_m, est.twist_tcf)
                 cmd.wrench_n_nm[:] = self.approach_wrench
             else:
-                cmd.wrench_n_nm[:] = self.controller.update(t_ns, state, est)
+                self._align(t_ns, state, cmd)
         self.total[:] = cmd.wrench_n_nm
         return cmd
 

@@ -55,6 +55,15 @@ class RunSettings(StrictModel):
         0.25, gt=0, description="Free-space sensor time the tare averages (any sensor rate)."
     )
     stop_hold_s: float = Field(0.1, ge=0, description="Safe-stop hold after DONE/ABORT.")
+    stop_ramp_s: float = Field(
+        0.05, ge=0,
+        description="The safe stop ramps from the last command (gains and wrench) to the hold "
+                    "stiffness, hold damping and zero wrench over this time (0: one step; cut "
+                    "at the end of stop_hold_s).")
+    resume_ramp_s: float = Field(
+        0.05, ge=0,
+        description="After the robot stopped commanding for a few cycles in ALIGN and came "
+                    "back, the method's wrench is blended in from the held one over this time.")
     tf_period_s: float = Field(0.02, gt=0, description="Period of /tf transforms in the log.")
 
 

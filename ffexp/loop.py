@@ -212,6 +212,16 @@ def _driver_stop(exc: DriverError) -> Stop:
     return Stop(StopReason.DRIVER_ERROR, f"device error: {exc}")
 
 
+def _split_samples(ft: FtSamples, time_ns: int) -> tuple[FtSamples, FtSamples] | None:
+    """``ft`` split at ``time_ns`` (up to it, after it); None when none is after it."""
+    n = len(ft)
+    if n == 0 or int(ft.time_ns[-1]) <= time_ns:
+        return None
+    k = int(np.searchsorted(ft.time_ns, time_ns, side="right"))
+    return (FtSamples(ft.time_ns[:k], ft.seq[:k], ft.wrench[:k], ft.status[:k]),
+            FtSamples(ft.time_ns[k:], ft.seq[k:], ft.wrench[k:], ft.status[k:]))
+
+
 def _link_events(log: RunLog, t_ns: int, state: RobotState) -> None:
     """The back-end's notes on its link since the last cycle (FRI: state and quality
     changes, foreign senders), as events at this cycle's time."""
@@ -246,6 +256,7 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
         tm.setdefault(key, 0.0)
     clock = time.perf_counter
     cycles, cyc, next_progress_ns = 0, None, 0
+    ahead: FtSamples | None = None
     no_state = ""
     try:
         robot.connect()
@@ -257,8 +268,15 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
             t_b = clock()
             ft = sensor.samples()
             t_c = clock()
+            t0_ns = state.time_ns if cyc is None else cyc.t0_ns
+            # log-time order: samples up to the cycle's time before its notes and topics
+            # (and before the start's notes), any stamped after it (a sensor clock ahead
+            # of the robot's) at the next cycle or the end
+            to_log = ft if ahead is None else FtSamples.concat([ahead, ft])
+            split = _split_samples(to_log, state.time_ns)
+            log.samples(t0_ns, to_log if split is None else split[0])
+            ahead = None if split is None else split[1]
             cyc = cyc or Cycle(protocol, state, log)
-            log.samples(cyc.t0_ns, ft)  # before the cycle's notes: log-time order
             _link_events(log, state.time_ns - cyc.t0_ns, state)
             t_c2 = clock()
             cycles += 1
@@ -308,6 +326,8 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
     if cyc is None:
         return _no_measurement(log, no_state or "the robot sent no state")
     cyc.stop(Stop(StopReason.ROBOT_STOPPED, "robot stopped sending measurements"))
+    if ahead is not None:
+        log.samples(cyc.t0_ns, ahead)
     task = cyc.task
     assert task.stop is not None
     return RunOutcome(task.phase, task.aligned, task.stop.reason, task.stop.message, cycles,

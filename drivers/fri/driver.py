@@ -341,12 +341,16 @@ class FriRobot(RobotDriver):
     def now_ns(self) -> int | None:
         """The KRC's time now, estimated from the last measurement (``None`` before one).
 
-        The wall time since that packet is added, at most one cycle (so that
-        the estimate stays sane in lockstep, where wall time means nothing).
+        The wall time since that packet is added, at most one cycle; in lockstep,
+        where wall time means nothing, none is (the time of the last measurement:
+        what a lockstep emulator's F/T box has sent by then is stamped up to it,
+        the same every run).
         """
         with self._cond:
             if self._n.accepted == 0:
                 return None
+            if self._lockstep:
+                return self._last_time_ns
             since = time.perf_counter_ns() - self._last_rx_ns
             return self._last_time_ns + min(max(since, 0), self._last_cycle_ns)
 

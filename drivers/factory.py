@@ -1,4 +1,4 @@
-"""Devices from a rig (:mod:`drivers.rig`): the robot and F/T sensor a run uses.
+"""Devices from a rig (:mod:`drivers.rig`): the robot, F/T sensor and target tracker a run uses.
 
 :func:`open_devices` imports each back-end only when the rig uses it, binds
 the FRI port at once (a port in use is reported before anything is
@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from drivers.base.interfaces import ForceTorqueSensor, RobotDriver, TargetTracker
-from drivers.errors import AddressError
+from drivers.errors import AddressError, ConfigError
 from drivers.rig import (
+    CameraTrackerConfig,
     FriEstimateFt,
     FriRobotConfig,
     MockFt,
@@ -27,6 +28,7 @@ from drivers.rig import (
     Rig,
     SimFt,
     SimRobotConfig,
+    SimTrackerConfig,
 )
 
 __all__ = ["Devices", "open_devices"]
@@ -92,10 +94,33 @@ def open_devices(
     """
     robot_cfg, ft_cfg = rig.robot, rig.ft
     if isinstance(robot_cfg, SimRobotConfig):
-        return _open_sim(robot_cfg, ft_cfg, source, scene_file, scene_overrides, seed)
-    if isinstance(robot_cfg, FriRobotConfig):
-        return _open_fri(robot_cfg, ft_cfg, source, seed)
-    return _open_mock(robot_cfg, ft_cfg, source, seed)
+        devices = _open_sim(robot_cfg, ft_cfg, source, scene_file, scene_overrides, seed, rig)
+    elif isinstance(robot_cfg, FriRobotConfig):
+        devices = _open_fri(robot_cfg, ft_cfg, source, seed)
+    else:
+        devices = _open_mock(robot_cfg, ft_cfg, source, seed)
+    cam = rig.tracker
+    if isinstance(cam, CameraTrackerConfig):
+        try:
+            devices.tracker = _open_camera(cam, source, devices.robot)
+        except BaseException:
+            devices.close()
+            raise
+        devices.metadata.update(tracker="camera", camera_source=cam.source)
+    elif devices.tracker is None:
+        devices.metadata["tracker"] = "none"
+    return devices
+
+
+def _open_camera(cfg: CameraTrackerConfig, source: str, robot: RobotDriver) -> TargetTracker:
+    from drivers.camera import CameraTracker, load_calibration
+
+    if cfg.calibration is None:
+        raise ConfigError(source, "tracker.calibration",
+                          "a camera tracker needs a calibration file (ffexp calibrate-camera)")
+    calibration = load_calibration(cfg.calibration, f"{source}: tracker.calibration")
+    clock = getattr(robot, "now_ns", None)
+    return CameraTracker(cfg, calibration, clock=clock, where=f"{source}: tracker.source")
 
 
 def _open_sim(
@@ -105,6 +130,7 @@ def _open_sim(
     scene_file: Path,
     scene_overrides: Sequence[str],
     seed: int,
+    rig: Rig,
 ) -> Devices:
     from drivers.emulate.lockstep import SimRobot
     from drivers.sim import SimFtSensor, SimWorld, load_scene
@@ -125,7 +151,16 @@ def _open_sim(
         sensor = SimFtSensor(world)
     else:
         sensor = _other_sensor(ft_cfg, source, seed, lambda: world.cycle * world.cycle_ns, None)
-    return Devices(robot, sensor, meta, [(path.name, path.read_bytes())], None)
+    tracker: TargetTracker | None = None
+    cam = rig.tracker
+    if isinstance(cam, SimTrackerConfig):
+        from drivers.sim.tracker import SimTracker
+
+        tracker = SimTracker(world, lambda: world.cycle * world.cycle_ns, rate_hz=cam.rate_hz,
+                             latency_s=cam.latency_s, position_noise_m=cam.position_noise_m,
+                             yaw_noise_deg=cam.yaw_noise_deg, dropout=cam.dropout, seed=seed)
+        meta["tracker"] = "sim"
+    return Devices(robot, sensor, meta, [(path.name, path.read_bytes())], None, tracker)
 
 
 #: Rig fields of the fri1 robot whose FriSettings field has another name.

@@ -199,7 +199,7 @@ class CameraTrackerConfig(StrictModel):
     """Marker centre in the target block frame [m] (default: centre of its top face)."""
     marker_yaw_deg: float = 0.0
     """Marker's x axis against the target's x axis, about the vertical [deg]."""
-    mouth_in_target_m: Vec3 = (-0.125, 0.0, 0.0)
+    mouth_in_target_m: Vec3 = (-0.125, 0.0, 0.073)
     """Target funnel's mouth centre in the target block frame [m] (the paper's
     block: mid-face of the -x side); the mouth frame is the block's, rotated not."""
     latency_s: NonNeg = 0.0

@@ -239,3 +239,6 @@ class TargetObservation:
     """Which tracker produced it: ``"camera"``, ``"sim"``, ..."""
     frames: int = 0
     """Poses received since the tracker started (a counter, for drop statistics)."""
+    status: str = ""
+    """Why there is no pose when ``valid`` is false (``"marker not found"``,
+    ``"stream lost: ..."``); empty otherwise."""

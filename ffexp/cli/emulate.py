@@ -74,6 +74,13 @@ def emulate(
         "the garbage collector frozen and disabled while serving."
     ),
     cpu: list[int] = typer.Option([], "--cpu", help="With --rt: pin to this CPU (repeatable)."),
+    camera_port: int = typer.Option(
+        -1, "--camera-port", help="Serve a camera above the bed as MJPEG over HTTP on this TCP "
+        "port (http://HOST:PORT/stream.mjpg; 0 = any, -1 = none)."),
+    camera_fps: float = typer.Option(50.0, "--camera-fps", help="The camera's frame rate."),
+    camera_calibration: Path | None = typer.Option(
+        None, "--camera-calibration", help="Write the camera's calibration file here (also "
+        "served at /calibration.toml) for the rig's tracker.calibration."),
 ) -> None:
     """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""
     # imported here: the other commands need not load the emulator
@@ -86,6 +93,9 @@ def emulate(
     from drivers.sim.world import SimWorld
 
     positive("--duration", duration, allow_zero=True)
+    positive("--camera-fps", camera_fps)
+    if not -1 <= camera_port <= 65535:
+        raise ConfigError("--camera-port", str(camera_port), "a TCP port is -1..65535")
     positive("--timeout-ms", timeout_ms)
     for option, value in (("--port", port), ("--netft-port", netft_port)):
         low = -1 if option == "--netft-port" else 0
@@ -134,6 +144,25 @@ def emulate(
         raise
     host, lport = emulator.address
     ft_line = f"Net F/T on 0.0.0.0:{netft.address[1]}" if netft is not None else "no Net F/T"
+    camera = None
+    if camera_port >= 0:
+        from drivers.emulate.camera_stream import CameraStream
+
+        try:
+            camera = CameraStream(world, "0.0.0.0", camera_port, fps=camera_fps,
+                                  field="--camera-port")
+            if camera_calibration is not None:
+                try:
+                    camera.write_calibration(camera_calibration)
+                except OSError as exc:
+                    raise ConfigError("--camera-calibration", str(camera_calibration),
+                                      exc.strerror or str(exc)) from None
+        except BaseException:
+            if camera is not None:
+                camera.close()
+            emulator.close()
+            raise
+        ft_line += f", camera on http://0.0.0.0:{camera.port}/stream.mjpg at {camera_fps:g} fps"
 
     max_cycles = round(duration / sc.fri.cycle) if duration > 0 else None
     last = [time.monotonic()]
@@ -185,6 +214,8 @@ def emulate(
         if thread.is_alive():
             thread.join(5.0)
         emulator.close()
+        if camera is not None:
+            camera.close()
     if failure:
         raise failure[0]
     stats = emulator.stats

@@ -1,0 +1,38 @@
+"""The Recorder's faster mcap writer writes exactly the bytes mcap's own writer does."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+from mcap.writer import CompressionType, Writer
+
+from ffexp.recording.recorder import FastWriter
+
+
+def _write(cls: type[Writer], compression: CompressionType) -> tuple[bytes, Writer]:
+    rng = np.random.default_rng(1)
+    out = io.BytesIO()
+    w = cls(out, chunk_size=4096, compression=compression)
+    w.start(profile="ffexp", library="test")
+    sid = w.register_schema("s", "ros2msg", b"float64 x\n")
+    a = w.register_channel("/a", "cdr", sid)
+    b = w.register_channel("/b", "json", w.register_schema("j", "jsonschema", b"{}"))
+    w.add_metadata("run", {"k": "v"})
+    for k in range(3000):  # many chunks; out of order now and then; empty and long payloads
+        t = 10**9 + 1_000_000 * k - (700_000 if k % 17 == 0 else 0)
+        size = int(rng.integers(0, 300))
+        w.add_message(a if k % 3 else b, t, rng.bytes(size), t + 5, k % 70_000)
+        if k == 1500:
+            w.add_attachment(t, t, "a.toml", "application/toml", b"x = 1\n")
+    w.finish()  # type: ignore[no-untyped-call]
+    return out.getvalue(), w
+
+
+def test_fast_writer_bytes_equal_mcaps_own() -> None:
+    for compression in (CompressionType.ZSTD, CompressionType.NONE):
+        ours, writer = _write(FastWriter, compression)
+        theirs, _ = _write(Writer, compression)
+        assert isinstance(writer, FastWriter) and writer.fast  # the fast path was taken
+        assert len(ours) > 20_000
+        assert ours == theirs

@@ -1,5 +1,5 @@
-"""Reading run recordings back: fast ``load`` into numpy, and recovery of
-files whose writer never finished.
+"""Reading run recordings back: fast ``load`` into numpy (and pandas frames on request,
+``Recording.frame``), and recovery of files whose writer never finished.
 
 A finished file is read through its summary: topic and time-range selection
 use the chunk index (``SeekingReader.iter_messages``), so only the chunks that
@@ -17,7 +17,7 @@ import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from mcap.exceptions import EndOfFile, McapError
@@ -29,6 +29,9 @@ from mcap.writer import CompressionType, Writer
 from ffexp.errors import InputError
 from ffexp.recording.schema import FieldSpec, MessageSpec
 from ffexp.recording.topics import CDR_TOPICS
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 MAGIC = b"\x89MCAP0\r\n"
 # OSError: a file shorter than a footer cannot even be seeked to its summary
@@ -80,6 +83,31 @@ class Recording:
         except KeyError:
             raise InputError(f"{self.path}: no topic {name} in this recording") from None
 
+    @property
+    def run_start_ns(self) -> int:
+        """Log time of the run's start (run time 0): the first ``/robot/state`` message
+        (the first cycle), else the first ``/control/command``, else the earliest
+        message loaded, else 0."""
+        for name in ("/robot/state", "/control/command"):
+            data = self.topics.get(name)
+            if data is not None and len(data):
+                return int(data.log_time_ns[0])
+        firsts = [int(d.log_time_ns[0]) for d in self.topics.values() if len(d)]
+        firsts += [int(d.log_time_ns[0]) for d in self.json.values() if len(d)]
+        return min(firsts, default=0)
+
+    def frame(self, name: str) -> pd.DataFrame:
+        """One topic as a pandas frame: ``t_s`` (seconds from :attr:`run_start_ns`),
+        ``log_time_ns`` and one column per field, array fields split into ``name_0 ..
+        name_k`` (:mod:`ffexp.recording.frames`)."""
+        from ffexp.recording.frames import frame
+
+        return frame(self, name)
+
+    def frames(self) -> dict[str, pd.DataFrame]:
+        """Every topic as a frame (:meth:`frame`), by topic name."""
+        return {name: self.frame(name) for name in (*self.topics, *self.json)}
+
 
 _LINE = re.compile(r"^\s*([a-z0-9]+)(?:\[(\d+)\])?\s+([A-Za-z_][A-Za-z0-9_]*)\s*(?:#.*)?$")
 
@@ -103,6 +131,12 @@ def spec_from_schema(schema: Schema) -> MessageSpec | None:
         except ValueError:
             return None
     return MessageSpec(schema.name, tuple(fields)) if fields else None
+
+
+def check_file(path: Path) -> None:
+    """An :class:`InputError` naming ``path`` unless it is a readable MCAP file (by its
+    magic bytes; nothing else is read)."""
+    _check_magic(path)
 
 
 def _check_magic(path: Path) -> None:

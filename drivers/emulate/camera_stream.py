@@ -47,7 +47,7 @@ class CameraStream:
 
     def __init__(self, world: SimWorld, host: str = "0.0.0.0", port: int = 8080, *,
                  fps: float = 50.0, size_px: tuple[int, int] = (1280, 720),
-                 px_per_m: float = 2000.0, marker_dictionary: str = "DICT_4X4_50",
+                 px_per_m: float = 1000.0, marker_dictionary: str = "DICT_4X4_50",
                  marker_id: int = 0, marker_m: float = 0.12, jpeg_quality: int = 90,
                  noise: float = 1.0, field: str = "camera port") -> None:
         self.world = world

@@ -5,8 +5,8 @@ from the run start), ``log_time_ns``, then one column per field, array fields
 split into ``name_0 .. name_k``. Files are named after the topic, slashes turned
 into underscores (``/estimator/state`` -> ``estimator_state.parquet``); an
 existing table of the same name is replaced. CSV is written with every digit
-(Python's shortest round-trip form), so ``pandas.read_csv(...,
-float_precision="round_trip")`` reads back the exact values.
+(Python's shortest round-trip form), so ``pandas.read_csv`` (pandas 3: round-trip
+float parsing by default) reads back the exact values.
 """
 
 from __future__ import annotations

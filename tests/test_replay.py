@@ -1,0 +1,181 @@
+"""ffexp replay, diff and export on one short simulated run (issue 15, deliverables 3-5).
+
+One run of Method I case I on the simulator through ``run_file`` (the real path:
+metadata, attachments, every topic), cut at 4.2 s of run time, after the tool
+has met the target and ALIGN has begun; every test here replays, diffs or
+exports that one recording.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from ffexp.cli import app
+from ffexp.contracts import Phase
+from ffexp.diff import diff
+from ffexp.experiment import run_file
+from ffexp.recording import load
+from ffexp.replay import Inputs, replay
+
+ROOT = Path(__file__).resolve().parents[1]
+PROTOCOL = ROOT / "protocols/method1_case1.toml"
+runner = CliRunner()
+#: k_ri of the protocol with k_yp (element 1) changed from 0.2 to 0.5
+K_RI_CHANGED = "align.k_ri=[0.0, 0.5, 0.0, 0.5, 0.0, 0.0]"
+INTENT = ("given", "pose", "stiffness", "damping", "wrench")
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("runs")
+    result = run_file(PROTOCOL, ["run.timeout_s=4.2"], out_dir=out)
+    rec = load(result.path, ["/runner/phase"])
+    phases = [m["phase"] for m in rec.json["/runner/phase"].messages]
+    assert "ALIGN" in phases, phases  # the replay below must exercise the method
+    return result.path
+
+
+@pytest.fixture(scope="module")
+def same(run: Path) -> Path:
+    out = run.with_name("same.mcap")
+    replay(run, out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def changed(run: Path) -> Path:
+    out = run.with_name("kyp.mcap")
+    result = runner.invoke(app, ["replay", str(run), "--set", K_RI_CHANGED, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "open-loop replay" in result.stdout
+    return out
+
+
+def test_own_protocol_reproduces_every_recorded_command(run: Path, same: Path) -> None:
+    a, b = load(run), load(same)
+    ca, cb = a.topic("/control/command"), b.topic("/control/command")
+    assert len(ca) == len(cb) == len(a.topic("/robot/state")) > 800
+    np.testing.assert_array_equal(ca.log_time_ns, cb.log_time_ns)
+    for name in INTENT:
+        np.testing.assert_allclose(cb[name], ca[name], rtol=1e-12, atol=1e-12, err_msg=name)
+    # and why: the estimate and the terms of every cycle, the phases at the same times
+    for topic in ("/estimator/state", "/control/terms"):
+        for name, values in a.topic(topic).fields.items():
+            np.testing.assert_allclose(b.topic(topic)[name], values, rtol=1e-12, atol=1e-12,
+                                       err_msg=f"{topic}.{name}")
+    pa, pb = a.json["/runner/phase"], b.json["/runner/phase"]
+    assert [m["phase"] for m in pb.messages] == [m["phase"] for m in pa.messages]
+    np.testing.assert_array_equal(pb.log_time_ns, pa.log_time_ns)
+    assert b.metadata["replay"]["diverges_at_s"] == ""
+    assert b.metadata["run"]["replay_of"] == str(run)
+
+
+def test_the_f_t_samples_of_each_cycle_are_the_ones_the_loop_got(run: Path) -> None:
+    rec = load(run)
+    inputs = Inputs(rec)
+    counts = np.array([len(inputs.ft(i)) for i in range(len(inputs))])
+    np.testing.assert_array_equal(counts, rec.topic("/estimator/state")["n_samples"])
+    # robot clock: the samples of a cycle are not later than the cycle's state
+    for i in (1, len(inputs) // 2, len(inputs) - 1):
+        assert inputs.ft(i).time_ns[-1] <= inputs.state(i).time_ns
+
+
+def test_changed_k_yp_changes_the_commands_on_y_only(run: Path, changed: Path) -> None:
+    a, b = load(run), load(changed)
+    result = diff(a, b)
+    assert not result.ok
+    differing = {(t.topic, f.column) for t in result.topics for f in t.fields}
+    assert differing == {("/control/command", "wrench_1"),
+                         ("/control/command", "applied_wrench_1"),
+                         ("/control/terms", "ri_1"), ("/control/terms", "total_1")}
+    # open loop the measured wrench is the same, so the RI term scales with k_yp: 0.5 / 0.2
+    ri_a, ri_b = a.topic("/control/terms")["ri"][:, 1], b.topic("/control/terms")["ri"][:, 1]
+    np.testing.assert_allclose(ri_b, 2.5 * ri_a, rtol=1e-12, atol=1e-15)
+    # where the replay says its commands leave the recorded ones is where diff sees it
+    first = min(f.first_s for t in result.topics for f in t.fields
+                if t.topic == "/control/command")
+    md = b.metadata["replay"]
+    assert float(md["diverges_at_s"]) == pytest.approx(first, abs=1e-9)
+    assert md["diverges_on"] == "/control/command wrench_1"
+    # ...in ALIGN, at the first cycle with a lateral force
+    terms = a.topic("/control/terms")
+    t_s = (terms.log_time_ns - a.run_start_ns) / 1e9
+    lateral = (terms["phase"] == int(Phase.ALIGN)) & (np.abs(ri_a) > 1e-9)
+    assert first == pytest.approx(t_s[np.argmax(lateral)], abs=1e-9)
+    events = [m["message"] for m in b.json["/events"].messages if m["name"] == "replay"]
+    assert any("not valid after it" in e for e in events)
+
+
+def test_diff_cli_exit_codes_and_figure(run: Path, same: Path, changed: Path,
+                                        tmp_path: Path) -> None:
+    ok = runner.invoke(app, ["diff", str(run), str(same)])
+    assert ok.exit_code == 0, ok.output
+    assert "within tolerance" in ok.stdout
+    bad = runner.invoke(app, ["diff", str(run), str(changed), "--plots", str(tmp_path)])
+    assert bad.exit_code == 1, bad.output
+    assert "first difference: /control/terms ri_1" in bad.stdout
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".png", ".svg"]
+    # one topic asked for, within a tolerance wider than the change
+    wide = runner.invoke(app, ["diff", str(run), str(changed), "--topic", "/control/command",
+                               "--atol", "1.0"])
+    assert wide.exit_code == 0, wide.output
+
+
+def test_replay_as_a_subprocess_says_where_commands_diverge(run: Path, tmp_path: Path) -> None:
+    out = tmp_path / "sub.mcap"
+    done = subprocess.run(
+        [sys.executable, "-m", "ffexp", "replay", str(run), "--protocol", str(PROTOCOL),
+         "--set", K_RI_CHANGED, "--out", str(out)],
+        capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "commands differ from the recorded ones from t = " in done.stdout
+    assert "/control/command wrench_1" in done.stdout
+    assert out.is_file()
+
+
+@pytest.mark.parametrize("fmt", ["parquet", "csv"])
+def test_export_reads_back_with_the_values_load_gives(run: Path, tmp_path: Path,
+                                                      fmt: str) -> None:
+    result = runner.invoke(app, ["export", str(run), "--format", fmt, "--out", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    rec = load(run)
+    names = {p.name for p in tmp_path.iterdir()}
+    assert names == {f"{t.strip('/').replace('/', '_')}.{fmt}" for t in [*rec.topics, *rec.json]}
+    for topic in ("/estimator/state", "/robot/state", "/ft/raw"):
+        path = tmp_path / f"{topic.strip('/').replace('/', '_')}.{fmt}"
+        table = (pd.read_parquet(path) if fmt == "parquet"
+                 else pd.read_csv(path))
+        data = rec.topic(topic)
+        # time from the run start: the first cycle is 0
+        np.testing.assert_array_equal(table["log_time_ns"], data.log_time_ns)
+        np.testing.assert_array_equal(table["t_s"],
+                                      (data.log_time_ns - rec.run_start_ns) / 1e9)
+        for name, values in data.fields.items():
+            flat = values.reshape(len(data), -1)
+            cols = [name] if values.ndim == 1 else [f"{name}_{k}" for k in range(flat.shape[1])]
+            np.testing.assert_array_equal(table[cols].to_numpy(), flat,
+                                          err_msg=f"{fmt} {topic}.{name}")
+        pd.testing.assert_frame_equal(table, rec.frame(topic), check_dtype=fmt == "parquet")
+    assert rec.frame("/robot/state")["t_s"].iloc[0] == 0.0
+
+
+def test_import_ffexp_gives_recording_frames_lazily(run: Path) -> None:
+    code = (
+        "import sys, ffexp\n"
+        "assert 'ffexp.recording' not in sys.modules and 'numpy' not in sys.modules\n"
+        f"df = ffexp.recording.load({str(run)!r}).frame('/estimator/state')\n"
+        "print(len(df), df.columns[2])\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    n, first = done.stdout.split()
+    assert int(n) == len(load(run, ["/estimator/state"]).topic("/estimator/state"))
+    assert first == "wrench_0"

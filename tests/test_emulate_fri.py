@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 
 from drivers.base import ApplyStatus, CartesianCommand
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
@@ -70,3 +73,37 @@ def test_lockstep_over_udp_matches_the_in_process_robot(paper_scene: Scene) -> N
     assert states.index(FriState.CMD) == 100
     np.testing.assert_allclose(z_udp, z_ref, atol=1e-6)
     assert z_ref[-1] - z_ref[100] > 1e-4  # the push moved the tool once commanding
+
+
+@pytest.mark.slow
+def test_a_whole_run_over_udp_equals_the_in_process_run_at_wire_precision(tmp_path: Path) -> None:
+    """Lockstep over UDP and the in-process KRC with ``wire_precision`` (measurement and
+    command through the FRI codec) give the same run, bit for bit: same outcome, same
+    poses, estimates and commands every cycle (F/T: the KRC's own estimate, which
+    travels in the FRI packet; the alignment judged from the settings, as without truth)."""
+    from link_harness import PROTOCOL, ROOT, emulated_run
+
+    from drivers.fri.estimate import FriEstimateSensor
+    from drivers.sim.scene import load_scene
+    from ffexp import loop
+    from ffexp.protocol import load_run_protocol
+    from ffexp.recording import Recorder, load
+    from ffexp.runlog import RunLog
+
+    overrides = ["run.timeout_s=12", "alignment.source=settings"]
+    udp = emulated_run(tmp_path, overrides, lockstep_timeout_s=0.5)
+    protocol = load_run_protocol(PROTOCOL, overrides)
+    world = SimWorld(load_scene(ROOT / "data" / "scenes" / "paper.toml"), seed=protocol.seed)
+    robot = SimRobot(world, wire_precision=True)
+    path = tmp_path / "in_process.mcap"
+    with Recorder(path) as rec:
+        local = loop.run(protocol, robot, FriEstimateSensor(robot),
+                         RunLog(rec, 1_700_000_000 * 10**9, protocol.run.tf_period_s))
+    here = load(path)
+    assert local.aligned and udp.outcome.aligned
+    assert (local.phase, local.stop_reason, local.cycles, local.duration_s, local.breaks) == (
+        udp.outcome.phase, udp.outcome.stop_reason, udp.outcome.cycles,
+        udp.outcome.duration_s, udp.outcome.breaks)
+    for topic, field in (("/robot/state", "tcp_pose"), ("/estimator/state", "wrench"),
+                         ("/control/command", "wrench"), ("/control/terms", "total")):
+        np.testing.assert_array_equal(here.topic(topic)[field], udp.rec.topic(topic)[field])

@@ -21,12 +21,16 @@ than one cycle's motion, nor beyond its hardware range.
 Commands go through :func:`~drivers.fri.command.to_fri_command` like on the
 wire (a mirror while MON, HELD for ``None``), so the recordings
 (``/robot/measurement``, ``/robot/link``, ``/robot/command``) are those of an
-FRI robot; only the float32 rounding of the wire is missing.
+FRI robot. With ``wire_precision`` the measurement and the command also go
+through the FRI codec (float32 on the wire, as over UDP), so a run equals the
+same run against the UDP emulator in lockstep (``tests/test_emulate_fri.py``).
+Listeners (:meth:`SimRobot.add_listener`, e.g. the KRC's wrench estimate read as
+an F/T sensor) see every measurement, as with the UDP driver.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -38,13 +42,30 @@ from drivers.emulate.krc import (
     SOFTWARE_LIMITS_DEG,
     arm_command_from_fri,
     brake_command,
+    control_mode,
     fri_measurement,
     software_limit_error,
     software_limits_rad,
     stop_command,
 )
 from drivers.errors import DriverError
+from drivers.fri.codec import (
+    CmdArrays,
+    MsrArrays,
+    decode_cmd_into,
+    decode_msr_into,
+    encode_cmd,
+    encode_msr,
+    new_cmd_buffer,
+    new_msr_buffer,
+)
 from drivers.fri.command import applied_from_fri, robot_state_from_fri, to_fri_command
+from drivers.fri.convert import (
+    arrays_to_command,
+    arrays_to_measurement,
+    command_to_arrays,
+    measurement_to_arrays,
+)
 from drivers.fri.link import KrcLink, LinkEvent
 from drivers.fri.stats import LinkWatch
 from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement
@@ -69,6 +90,8 @@ class SimRobot(RobotDriver):
         max_consecutive_misses: cycles without ``send`` in a row that end CMD.
         software_limits_deg: the KRC's software limit switches A1..A7 [deg]
             (default :data:`~drivers.emulate.krc.SOFTWARE_LIMITS_DEG`).
+        wire_precision: round the measurement and the command through the FRI
+            codec, as the UDP link does.
     """
 
     def __init__(
@@ -78,8 +101,13 @@ class SimRobot(RobotDriver):
         start_cycles: int = 100,
         max_consecutive_misses: int = 5,
         software_limits_deg: Sequence[float] = SOFTWARE_LIMITS_DEG,
+        wire_precision: bool = False,
     ) -> None:
         self.world = world
+        self.wire_precision = wire_precision
+        self._listeners: list[Callable[[FriMeasurement], None]] = []
+        self._wire = (MsrArrays(), MsrArrays(), new_msr_buffer(),
+                      CmdArrays(), CmdArrays(), new_cmd_buffer())
         self.software_limits_rad = software_limits_rad(software_limits_deg)
         self._brake = False
         self._stopped: str | None = None
@@ -108,8 +136,33 @@ class SimRobot(RobotDriver):
                             link.error)
         m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = link.rates()
         m.miss_counter = link.missed
+        if self.wire_precision:
+            m = self._over_the_wire(m)
         self._watch.see(m, m.link_events)  # state and quality changes, as the UDP driver
+        for listener in self._listeners:
+            listener(m)
         return m
+
+    def _over_the_wire(self, m: FriMeasurement) -> FriMeasurement:
+        """``m`` as the UDP driver would decode it (a new measurement, own arrays)."""
+        out, back, buf = self._wire[:3]
+        measurement_to_arrays(m, out)
+        out.send_seq = m.seq & 0xFFFF
+        decode_msr_into(encode_msr(out, buf), back)
+        return arrays_to_measurement(back, m.seq, m.time_ns)
+
+    def _taken(self) -> FriCommand:
+        """The command the KRC takes: the answer, through the codec with ``wire_precision``."""
+        if not self.wire_precision:
+            return self._fri
+        out, back, buf = self._wire[3:]
+        command_to_arrays(self._fri, out)
+        decode_cmd_into(encode_cmd(out, buf), back)
+        return arrays_to_command(back, control_mode(self.world.mode))
+
+    def add_listener(self, callback: Callable[[FriMeasurement], None]) -> None:
+        """Call ``callback(m)`` with every new measurement (as :class:`FriRobot` does)."""
+        self._listeners.append(callback)
 
     def _robot_state(self) -> RobotState:
         state = robot_state_from_fri(self._msr)
@@ -169,7 +222,7 @@ class SimRobot(RobotDriver):
         elif event is LinkEvent.FALLBACK:
             arm = stop_command(world.last_state)
         elif self._answered and link.commanding:
-            arm = arm_command_from_fri(self._fri, world.mode)
+            arm = arm_command_from_fri(self._taken(), world.mode)
         self._answered = False
         world.advance(arm)
         if not link.error:

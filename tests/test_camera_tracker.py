@@ -143,7 +143,7 @@ def test_calibration_file_round_trip_and_errors(tmp_path: Path) -> None:
     np.testing.assert_allclose(cal.to_plane(px), plane, atol=1e-9)
     assert cal.plane_z_m == 0.05
     path.write_text("[homography]\nmatrix = [[1, 0], [0, 1]]\n")
-    with pytest.raises(ConfigError, match="homography.matrix"):
+    with pytest.raises(ConfigError, match=r"homography\.matrix"):
         load_calibration(path, "rig.toml: tracker.calibration")
     path.write_text("plane_z_m = 0.0\n")
     with pytest.raises(ConfigError, match=r"\[homography\]"):

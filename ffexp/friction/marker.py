@@ -1,6 +1,7 @@
 """Marker tracking: an ArUco/AprilTag marker of a given dictionary, detected
 with sub-pixel corner refinement in a window around the last detection; its
-centre is the intersection of the diagonals.
+centre is the intersection of the diagonals. Detection is the camera
+tracker's (:mod:`drivers.camera.marker`): one implementation for both.
 """
 
 from __future__ import annotations
@@ -9,44 +10,27 @@ import cv2
 import numpy as np
 
 from drivers.base.types import F64 as FloatArray
+from drivers.camera import marker as camera_marker
+from drivers.camera.marker import diagonal_centre
 from ffexp.errors import InputError
 from ffexp.friction.video import Frame, to_grey
+
+__all__ = ["MarkerTracker", "aruco_dictionary", "diagonal_centre"]
 
 
 def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
     """An OpenCV predefined ArUco/AprilTag dictionary by name (``DICT_4X4_50``, ...)."""
-    key = name.upper()
-    if not key.startswith("DICT_"):
-        key = "DICT_" + key
-    ident = getattr(cv2.aruco, key, None)
-    if not isinstance(ident, int):
-        raise InputError(
-            f"unknown marker dictionary {name!r} (e.g. DICT_4X4_50, DICT_APRILTAG_36h11)"
-        )
-    return cv2.aruco.getPredefinedDictionary(ident)
-
-
-def diagonal_centre(corners: FloatArray) -> FloatArray:
-    """Intersection of the diagonals of a quadrilateral (4, 2)."""
-    p0, p1, p2, p3 = (np.asarray(c, np.float64) for c in corners)
-    d1 = p2 - p0
-    d2 = p3 - p1
-    mat = np.array([[d1[0], -d2[0]], [d1[1], -d2[1]]])
-    if abs(np.linalg.det(mat)) < 1e-12:
-        return np.asarray(corners, np.float64).mean(axis=0)  # type: ignore[no-any-return]
-    lam, _ = np.linalg.solve(mat, p1 - p0)
-    return p0 + lam * d1  # type: ignore[no-any-return]
+    try:
+        return camera_marker.aruco_dictionary(name)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
 
 
 class MarkerTracker:
     def __init__(
         self, dictionary: cv2.aruco.Dictionary, marker_id: int | None, size: tuple[int, int]
     ) -> None:
-        params = cv2.aruco.DetectorParameters()
-        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
-        params.cornerRefinementMinAccuracy = 0.005
-        params.cornerRefinementMaxIterations = 50
-        self.detector = cv2.aruco.ArucoDetector(dictionary, params)
+        self.detector = camera_marker.detector(dictionary)
         self.marker_id = marker_id
         self.w, self.h = size
         self.last: FloatArray | None = None
@@ -56,15 +40,10 @@ class MarkerTracker:
         self.misses = 0
 
     def _detect(self, frame: Frame, u0: int, v0: int) -> FloatArray | None:
-        corners, ids, _ = self.detector.detectMarkers(np.ascontiguousarray(to_grey(frame)))
-        if ids is None or len(ids) == 0:
+        found = camera_marker.find_marker(self.detector, to_grey(frame), self.marker_id)
+        if found is None:
             return None
-        flat = [int(i) for i in np.asarray(ids).ravel()]
-        if self.marker_id is None:
-            self.marker_id = flat[0]
-        if self.marker_id not in flat:
-            return None
-        quad = np.asarray(corners[flat.index(self.marker_id)], np.float64).reshape(4, 2)
+        self.marker_id, quad = found
         quad = quad + np.array([u0, v0], np.float64)
         sides = np.linalg.norm(quad - np.roll(quad, -1, axis=0), axis=1)
         self.sides.append(float(sides.mean()))

@@ -97,10 +97,13 @@ def diff(
     from ffexp.cli.tables import console
     from ffexp.diff import check_tolerance, figure
     from ffexp.diff import diff as run_diff
+    from ffexp.errors import ConfigError
     from ffexp.recording import load
 
     check_tolerance("--rtol", rtol)
     check_tolerance("--atol", atol)
+    if plots is not None and plots.exists() and not plots.is_dir():
+        raise ConfigError("--plots", str(plots), "exists and is not a directory")
     ra, rb = load(a), load(b)
     _warn(ra.warnings + rb.warnings)
     result = run_diff(ra, rb, topics, rtol=rtol, atol=atol)

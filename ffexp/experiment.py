@@ -15,19 +15,25 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from importlib import metadata as importlib_metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from drivers.config import apply_overrides, load_model, read_toml
-from drivers.factory import open_devices
+from drivers.factory import Devices, open_devices
 from drivers.rig import Rig, load_rig, validate_rig
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
 from ffexp.errors import ConfigError, InputError
+from ffexp.live.address import LiveOptions
 from ffexp.naming import overrides_id, reserve, run_stem
 from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, scene_path
 from ffexp.recording import Recorder
 from ffexp.revision import source_revision
 from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
 from ffexp.runlog import RunLog
+
+if TYPE_CHECKING:
+    from ffexp.live.server import LiveServer
+    from ffexp.scene3d import SceneWriter
 
 __all__ = [
     "DRIVERS", "FT_SOURCES", "RigChoice", "RunResult", "load_campaign", "load_rig_choice",
@@ -89,64 +95,109 @@ def run_file(
     stop_requested: Callable[[], bool] = lambda: False,
     notice: Callable[[str], None] | None = None,
     timings: dict[str, float] | None = None,
+    live: LiveOptions | None = None,
 ) -> RunResult:
     """Run one protocol file on a rig and record it; the recording is finished even on errors.
 
     ``notice`` receives a line about the opened devices (where a link listens)
     before the run starts; ``timings`` collects wall time per part of the loop.
+    ``live``: also serve the run to Foxglove viewers (:mod:`ffexp.live`) while it
+    runs; the server stops with the run. The recording holds the rig's 3-D scene
+    (:mod:`ffexp.scene3d`).
     """
     protocol = load_run_protocol(protocol_path, overrides)
     rig_model, rig_source = load_rig_choice(rig or RigChoice())
-    devices = open_devices(
-        rig_model,
-        source=rig_source,
-        scene_file=scene_path(protocol_path, protocol),
-        scene_overrides=protocol.scene.set,
-        seed=protocol.seed,
-    )
-    if devices.notice is not None and notice is not None:
-        notice(devices.notice)
+    server = _live_server(live, notice) if live is not None else None
     try:
-        start = datetime.now(UTC)
-        start_ns = time.time_ns()
-        all_overrides = [*overrides, *(f"rig:{o}" for o in (rig or RigChoice()).overrides)]
+        devices = open_devices(
+            rig_model,
+            source=rig_source,
+            scene_file=scene_path(protocol_path, protocol),
+            scene_overrides=protocol.scene.set,
+            seed=protocol.seed,
+        )
+        if devices.notice is not None and notice is not None:
+            notice(devices.notice)
         try:
-            path = output_path(out_dir, protocol.name, start, all_overrides)
-        except OSError as exc:
-            raise InputError(f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None
-        with Recorder(path) as rec:
-            rec.metadata(
-                "run",
-                {
-                    "protocol": protocol.name,
-                    "method": protocol.method,
-                    "protocol_file": str(protocol_path),
-                    "protocol_json": protocol.model_dump_json(),
-                    "overrides": json.dumps(list(overrides)),
-                    "overrides_id": overrides_id(all_overrides),
-                    "run_name": path.stem,
-                    "source_revision": source_revision(),
-                    "seed": str(protocol.seed),
-                    "start_utc": start.isoformat(),
-                    "versions": _versions(),
-                    "host": platform.node(),
-                    "rig": rig_source,
-                    "rig_json": rig_model.model_dump_json(),
-                    **devices.metadata,
-                },
-            )
-            rec.attach(protocol_path.name, protocol_path.read_bytes(), "application/toml", start_ns)
-            for name, data in devices.attachments:
-                rec.attach(name, data, "application/toml", start_ns)
-            log = RunLog(rec, start_ns, protocol.run.tf_period_s)
-            outcome = loop.run(
-                protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
-                progress=progress,
-                stop_requested=stop_requested, timings=timings,
-            )
+            start = datetime.now(UTC)
+            start_ns = time.time_ns()
+            all_overrides = [*overrides, *(f"rig:{o}" for o in (rig or RigChoice()).overrides)]
+            try:
+                path = output_path(out_dir, protocol.name, start, all_overrides)
+            except OSError as exc:
+                raise InputError(
+                    f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None
+            with Recorder(path) as rec:
+                rec.metadata(
+                    "run",
+                    {
+                        "protocol": protocol.name,
+                        "method": protocol.method,
+                        "protocol_file": str(protocol_path),
+                        "protocol_json": protocol.model_dump_json(),
+                        "overrides": json.dumps(list(overrides)),
+                        "overrides_id": overrides_id(all_overrides),
+                        "run_name": path.stem,
+                        "source_revision": source_revision(),
+                        "seed": str(protocol.seed),
+                        "start_utc": start.isoformat(),
+                        "versions": _versions(),
+                        "host": platform.node(),
+                        "rig": rig_source,
+                        "rig_json": rig_model.model_dump_json(),
+                        **devices.metadata,
+                    },
+                )
+                rec.attach(protocol_path.name, protocol_path.read_bytes(), "application/toml",
+                           start_ns)
+                for name, data in devices.attachments:
+                    rec.attach(name, data, "application/toml", start_ns)
+                if server is not None:
+                    rec.taps.append(server.tap)
+                log = RunLog(rec, start_ns, protocol.run.tf_period_s)
+                writer = _scene_writer(rec, protocol_path, protocol, devices, notice)
+                if writer is not None:
+                    log.sinks.append(writer)
+                outcome = loop.run(
+                    protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
+                    progress=progress,
+                    stop_requested=stop_requested, timings=timings,
+                )
+        finally:
+            devices.close()  # the loop closes them too; this covers failures before it runs
     finally:
-        devices.close()  # the loop closes them too; this covers failures before it runs
+        if server is not None:
+            server.close()  # publishes what is queued, then stops serving
     return RunResult(protocol, outcome, path)
+
+
+def _live_server(live: LiveOptions, notice: Callable[[str], None] | None) -> LiveServer:
+    from ffexp.live.server import LiveServer
+
+    server = LiveServer(live)
+    server.start()
+    if notice is not None:
+        notice(f"live: Foxglove WebSocket server on {server.url} "
+               f"(Foxglove: Open connection, layouts/ffexp-layout.json)")
+    return server
+
+
+def _scene_writer(rec: Recorder, protocol_path: Path, protocol: RunProtocol, devices: Devices,
+                  notice: Callable[[str], None] | None) -> SceneWriter | None:
+    """The 3-D scene of the rig: the sim's own scene, else the protocol's scene file
+    (a rig without a usable one records no scene, said in a notice)."""
+    from drivers.sim.scene import Scene, load_scene
+    from ffexp.scene3d import SceneWriter
+
+    scene_json = devices.metadata.get("scene_json")
+    try:
+        scene = (Scene.model_validate_json(scene_json) if scene_json is not None
+                 else load_scene(scene_path(protocol_path, protocol), protocol.scene.set))
+    except ConfigError as exc:
+        if notice is not None:
+            notice(f"3-D scene: not recorded: {exc}")
+        return None
+    return SceneWriter(rec, scene, protocol.run.tf_period_s)
 
 
 def load_campaign(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> CampaignProtocol:

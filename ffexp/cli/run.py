@@ -28,6 +28,7 @@ from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
 if TYPE_CHECKING:
     from ffexp.contracts import RunOutcome
     from ffexp.experiment import RunResult
+    from ffexp.live import LiveOptions
     from ffexp.recording import Recording
 
 RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardware number."
@@ -40,6 +41,9 @@ CAMERA_HELP = ("Rig tracker.source with tracker.type camera: a device index, a v
 RT_HELP = ("Real-time: SCHED_FIFO where the OS allows it (said when not), the garbage "
            "collector frozen and disabled during the run.")
 CPU_HELP = "With --rt: pin the process to this CPU (repeatable)."
+LIVE_HELP = ("Serve the run live to Foxglove (WebSocket, foxglove-sdk) on 127.0.0.1:8765 "
+             "while it runs; open layouts/ffexp-layout.json there.")
+LIVE_ADDRESS_HELP = "With --live (implies it): listen on HOST:PORT (port 0: any free port)."
 
 
 def outcome_exit_code(outcome: RunOutcome) -> int:
@@ -54,6 +58,7 @@ def outcome_exit_code(outcome: RunOutcome) -> int:
 def _one(
     steps: Steps, protocol: Path, set_: Sequence[str], rig: RigChoice, out: Path,
     flag: StopFlag, label: str, rt: bool = False, cpus: Sequence[int] = (),
+    live: LiveOptions | None = None,
 ) -> RunResult:
     with steps.step(f"{label}: loading the protocol and the rig"):
         from ffexp.experiment import run_file
@@ -67,7 +72,7 @@ def _one(
         with steps.run(label, timeout_s) as show:
             result = run_file(
                 protocol, list(set_), rig=rig, out_dir=out, progress=show,
-                stop_requested=flag, notice=steps.note,
+                stop_requested=flag, notice=steps.note, live=live,
             )
     o = result.outcome
     status = "aligned" if o.aligned else (o.reason or o.stop_reason.value)
@@ -128,6 +133,9 @@ def run(
     camera: str = typer.Option("", "--camera", help=CAMERA_HELP),
     rt: bool = typer.Option(False, "--rt", help=RT_HELP),
     cpu: list[int] = typer.Option([], "--cpu", help=CPU_HELP),
+    live: bool = typer.Option(False, "--live", help=LIVE_HELP),
+    live_address: str = typer.Option("", "--live-address", metavar="HOST:PORT",
+                                     help=LIVE_ADDRESS_HELP),
     wide: bool = typer.Option(False, "--wide", help=WIDE_HELP),
 ) -> None:
     """Run one experiment; print a summary and the path of its recording.
@@ -137,13 +145,26 @@ def run(
     """
     _check_out(out)
     choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft, tracker, camera)
+    live_options = _live_options(live, live_address)
     with stop_signals(StopFlag()) as flag, Steps() as steps:
-        result = _one(steps, protocol, set_, choice, out, flag, protocol.stem, rt, cpu)
+        result = _one(steps, protocol, set_, choice, out, flag, protocol.stem, rt, cpu,
+                      live_options)
         with steps.step("loading the recording"):
             recs = [_load(result.path)]
     _print_runs(recs, wide)
     code = flag.exit_code()
     raise typer.Exit(code if code is not None else outcome_exit_code(result.outcome))
+
+
+def _live_options(live: bool, address: str) -> LiveOptions | None:
+    """``--live`` / ``--live-address`` as the live server's options (None: not live)."""
+    if not live and not address:
+        return None
+    from ffexp.live.address import DEFAULT_ADDRESS, parse_address
+
+    if address:
+        return parse_address(address, "--live-address")
+    return parse_address(DEFAULT_ADDRESS, "--live")
 
 
 def _load(path: Path) -> Recording:

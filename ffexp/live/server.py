@@ -1,0 +1,186 @@
+"""A Foxglove WebSocket server fed by the recorder's taps, never blocking the loop.
+
+The control loop's thread only calls :meth:`LiveServer.tap` (a
+:attr:`Recorder.taps <ffexp.recording.Recorder.taps>` callable): it decides
+whether a message goes out and, if so, puts ``(topic, log time, bytes)`` into
+a bounded queue without waiting; when the queue is full the message is
+dropped and counted. A publisher thread takes them out and hands them to the
+foxglove-sdk server (its own :class:`foxglove.Context`, so nothing else of
+the process is published), which sends them to every subscribed viewer from
+its own threads and drops the oldest message per slow client
+(``message_backlog_size``).
+
+What goes out: every message of the low-rate JSON topics (events, phases,
+the verdict, the 3-D scene) and, of every high-rate topic (the CDR topics and
+``/tf``), at most ``rate_hz`` log-time instants per second: the first message
+at or after each period, plus every further message with the same log time
+(all ``/tf`` frames of one cycle share its time, so a viewer gets all of them
+or none). Schemas and bytes are the file's (``ros2msg``/``cdr`` and
+``jsonschema``/``json``, the names of :mod:`ffexp.recording.topics`); a
+channel is advertised when its topic first publishes.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+from types import TracebackType
+from typing import TYPE_CHECKING, Any
+
+from drivers.base.types import NS_PER_S
+from drivers.errors import AddressError
+from ffexp.live.address import LiveOptions
+from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS
+
+if TYPE_CHECKING:
+    import foxglove
+
+#: Messages the queue holds between the loop and the publisher (about 4 s of a
+#: run's decimated topics at 50 Hz); more are dropped, never waited for.
+QUEUE_SIZE = 4096
+#: Messages the server buffers per viewer before it drops that viewer's oldest.
+BACKLOG_PER_CLIENT = 1024
+
+_Item = tuple[str, int, bytes] | None
+
+
+def _decimated_topics() -> frozenset[str]:
+    """High-rate topics: every CDR topic and ``/tf``."""
+    return frozenset((*CDR_TOPICS, "/tf"))
+
+
+class LiveServer:
+    """The live view of one run. :meth:`start`, give :meth:`tap` to the recorder,
+    :meth:`close` when the run has ended (also as a context manager).
+
+    Args:
+        options: address, port (0: any free one) and rate per high-rate topic.
+        queue_size: bound of the queue between the loop and the publisher.
+    """
+
+    def __init__(self, options: LiveOptions, *, queue_size: int = QUEUE_SIZE) -> None:
+        if not options.rate_hz > 0.0:
+            raise ValueError(f"{options.where}: rate_hz must be positive")
+        self.options = options
+        self.period_ns = max(1, round(NS_PER_S / options.rate_hz))
+        self._queue: queue.Queue[_Item] = queue.Queue(maxsize=queue_size)
+        self._decimated = _decimated_topics()
+        self._next_ns: dict[str, int] = {}
+        self._last_ns: dict[str, int] = {}
+        self._server: Any = None
+        self._thread: threading.Thread | None = None
+        self._channels: dict[str, foxglove.Channel] = {}
+        self.dropped = 0
+        """Messages the full queue refused (the loop never waits for the viewer)."""
+        self.queued = 0
+        """Messages handed to the publisher."""
+        self.published = 0
+        """Messages the publisher gave the server."""
+        self.error = ""
+        """The publisher's first failure ('' when none); it goes on with the next message."""
+
+    # -- lifetime -------------------------------------------------------------
+    def start(self) -> None:
+        """Bind and start serving; a bad or busy address is an :class:`AddressError`."""
+        import foxglove
+
+        opts = self.options
+        self._context = foxglove.Context()
+        try:
+            self._server = foxglove.start_server(
+                name="ffexp", host=opts.host, port=opts.port, context=self._context,
+                message_backlog_size=BACKLOG_PER_CLIENT,
+            )
+        except RuntimeError as exc:
+            reason = str(exc).removeprefix("FoxgloveError: ")
+            raise AddressError(opts.where, opts.address, reason) from None
+        self._thread = threading.Thread(target=self._publish, name="ffexp-live", daemon=True)
+        self._thread.start()
+
+    @property
+    def port(self) -> int:
+        """The port the server listens on (the free one chosen for port 0)."""
+        if self._server is None:
+            return self.options.port
+        return int(self._server.port)
+
+    @property
+    def url(self) -> str:
+        """``ws://HOST:PORT``, what Foxglove's "Open connection" asks for."""
+        host = self.options.host
+        host = f"[{host}]" if ":" in host else host
+        return f"ws://{host}:{self.port}"
+
+    def close(self) -> None:
+        """Publish what is queued, stop the publisher and the server; idempotent."""
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            self._queue.put(None)  # the loop is over: waiting here is fine
+            thread.join()
+        for channel in self._channels.values():
+            channel.close()
+        self._channels.clear()
+        server, self._server = self._server, None
+        if server is not None:
+            server.stop()
+
+    def __enter__(self) -> LiveServer:
+        self.start()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # -- the loop's side ------------------------------------------------------
+    def tap(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """A message the recorder wrote: queue it if it is due, never wait."""
+        if topic in self._decimated and log_time_ns != self._last_ns.get(topic):
+            if log_time_ns < self._next_ns.get(topic, log_time_ns):
+                return
+            self._next_ns[topic] = log_time_ns + self.period_ns
+            self._last_ns[topic] = log_time_ns
+        try:
+            self._queue.put_nowait((topic, log_time_ns, data))
+        except queue.Full:
+            self.dropped += 1
+            return
+        self.queued += 1
+
+    # -- the publisher's side -------------------------------------------------
+    def _publish(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            topic, log_time_ns, data = item
+            try:
+                channel = self._channels.get(topic)
+                if channel is None:
+                    channel = self._channels[topic] = self._channel(topic)
+                channel.log(data, log_time=log_time_ns)
+                self.published += 1
+            except Exception as exc:  # a viewer must never end the run
+                self.error = self.error or f"{topic}: {exc}"
+
+    def _channel(self, topic: str) -> foxglove.Channel:
+        """The topic's channel with the recording's schema and encoding."""
+        import foxglove
+
+        if topic in CDR_TOPICS:
+            spec = CDR_TOPICS[topic].spec
+            schema = foxglove.Schema(name=spec.name, encoding="ros2msg",
+                                     data=spec.ros2msg.encode())
+            encoding = "cdr"
+        else:
+            jt = JSON_TOPICS[topic]
+            schema = foxglove.Schema(name=jt.schema_name, encoding="jsonschema",
+                                     data=jt.schema_bytes)
+            encoding = "json"
+        return foxglove.Channel(topic, schema=schema, message_encoding=encoding,
+                                context=self._context)
+

@@ -1,0 +1,141 @@
+"""The rig as ``foxglove.SceneUpdate`` entities: simple shapes from the scene file. Pure.
+
+Every entity is locked to a ``/tf`` frame and placed in it:
+
+- ``bed`` (frame ``base``): the air bed's glass, a thin slab whose top is the
+  glass plane, centred under the target's start position
+  (:func:`drivers.sim.mjcf.compute_layout`); the scene gives no bed size, so
+  it is :data:`BED_SIZE_M` square;
+- ``base``, ``link1`` .. ``link7``: the arm's links as cylinders of the
+  simulator's link capsules (0.06 m radius, from the link's origin to the
+  next joint along z);
+- ``tool`` (frame ``link7``, the flange): the F/T sensor, the adapter shaft
+  and the tool funnel, a cone on the nose whose tip is the TCF;
+- ``target`` (the target's frame): the block and its funnel, a hollow cone
+  drawn as a translucent frustum whose wide end is the funnel mouth, its axis
+  along the block's +x (:mod:`drivers.sim.funnels`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from drivers.base.types import F64, NS_PER_S
+from drivers.sim.mjcf import LWR_OFFSETS, Layout, tool_tip_offset
+from drivers.sim.scene import Scene
+from ffexp.recording.recorder import pose_to_transform
+from ffexp.recording.topics_scene import PRIMITIVES
+
+__all__ = ["BED_SIZE_M", "LINK_FRAMES", "LINK_RADIUS_M", "scene_update"]
+
+#: Side of the drawn air bed [m] (the scene has no bed size; the simulator's plane is unbounded).
+BED_SIZE_M = 1.0
+_BED_THICKNESS_M = 0.02
+#: Radius of the links' cylinders [m] (the simulator's link capsules).
+LINK_RADIUS_M = 0.06
+#: ``/tf`` frames of the links, ``link1`` .. ``link7``.
+LINK_FRAMES = tuple(f"link{i + 1}" for i in range(len(LWR_OFFSETS)))
+#: Length of ``link7``'s cylinder [m] (the simulator's flange capsule).
+_FLANGE_LEN_M = 0.02
+_SHAFT_RADIUS_M = 0.012
+
+_ORANGE = {"r": 1.0, "g": 0.5, "b": 0.0, "a": 0.8}
+_GREY = {"r": 0.6, "g": 0.6, "b": 0.6, "a": 1.0}
+_DARK = {"r": 0.2, "g": 0.2, "b": 0.2, "a": 1.0}
+_BLUE = {"r": 0.3, "g": 0.5, "b": 0.9, "a": 1.0}
+_BLUE_GLASS = {"r": 0.3, "g": 0.5, "b": 0.9, "a": 0.45}
+_ALU = {"r": 0.75, "g": 0.75, "b": 0.8, "a": 1.0}
+_GLASS = {"r": 0.8, "g": 0.9, "b": 1.0, "a": 0.3}
+
+#: Rotation taking a primitive's z axis to +x (a funnel's axis in the target).
+_Z_TO_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+def _pose(position: F64 | tuple[float, ...], rotation: F64 | None = None) -> dict[str, Any]:
+    m = np.eye(4)
+    if rotation is not None:
+        m[:3, :3] = rotation
+    m[:3, 3] = position
+    t, q = pose_to_transform(m)
+    return {"position": t, "orientation": q}
+
+
+def _vec(x: float, y: float, z: float) -> dict[str, float]:
+    return {"x": float(x), "y": float(y), "z": float(z)}
+
+
+def _cylinder(z0: float, z1: float, radius0: float, radius1: float,
+              color: dict[str, float], rotation: F64 | None = None,
+              origin: F64 | None = None) -> dict[str, Any]:
+    """A frustum along the z axis (of ``rotation``, from ``origin``) from ``z0``
+    (radius ``radius0``) to ``z1`` (radius ``radius1``)."""
+    r = max(radius0, radius1)
+    axis = np.array([0.0, 0.0, 1.0]) if rotation is None else rotation[:, 2]
+    centre = (np.zeros(3) if origin is None else origin) + axis * (z0 + z1) / 2.0
+    return {"pose": _pose(centre, rotation), "size": _vec(2 * r, 2 * r, abs(z1 - z0)),
+            "bottom_scale": radius0 / r, "top_scale": radius1 / r, "color": color}
+
+
+def _entity(stamp: dict[str, int], frame: str, name: str,
+            **primitives: list[Any]) -> dict[str, Any]:
+    return {"timestamp": stamp, "frame_id": frame, "id": name,
+            "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": True,
+            "metadata": [{"key": "source", "value": "ffexp.scene3d"}],
+            **{p: primitives.get(p, []) for p in PRIMITIVES}}
+
+
+def tool_funnel_radius(scene: Scene) -> float:
+    """Radius of the tool cone's base [m]: where it reaches ``opening`` or ``depth``."""
+    f = scene.tool.funnel
+    return min(f.opening, scene.tool.nose_radius + f.depth * math.tan(f.half_angle))
+
+
+def target_funnel_inner_radius(scene: Scene) -> float:
+    """Radius of the target funnel at its depth [m] (its narrow end)."""
+    f = scene.target.funnel
+    return max(f.opening - f.depth * math.tan(f.half_angle), 0.0)
+
+
+def scene_update(scene: Scene, layout: Layout, time_ns: int, target_frame: str,
+                 base: F64) -> dict[str, Any]:
+    """The whole rig as one SceneUpdate message at log time ``time_ns``.
+
+    ``layout`` places bed and target as the simulator does (in the robot's
+    frame), ``target_frame`` is the ``/tf`` frame of the target block,
+    ``base`` the arm's base in the robot's frame."""
+    sec, nsec = divmod(time_ns, NS_PER_S)
+    stamp = {"sec": sec, "nsec": nsec}
+    entities = []
+    top = layout.glass_z
+    bed = {"pose": _pose((layout.target_pos[0], layout.target_pos[1],
+                          top - _BED_THICKNESS_M / 2.0)),
+           "size": _vec(BED_SIZE_M, BED_SIZE_M, _BED_THICKNESS_M), "color": _GLASS}
+    entities.append(_entity(stamp, "base", "bed", cubes=[bed]))
+    base_pos = base[:3, 3]
+    entities.append(_entity(stamp, "base", "base", cylinders=[
+        _cylinder(0.0, LWR_OFFSETS[0], LINK_RADIUS_M, LINK_RADIUS_M, _GREY, origin=base_pos)]))
+    for i, frame in enumerate(LINK_FRAMES):
+        length = LWR_OFFSETS[i + 1] if i + 1 < len(LWR_OFFSETS) else _FLANGE_LEN_M
+        entities.append(_entity(stamp, frame, frame, cylinders=[
+            _cylinder(0.0, length, LINK_RADIUS_M, LINK_RADIUS_M, _ORANGE)]))
+    tool = scene.tool
+    h_s = tool.sensor_height
+    cone_base = h_s + tool.shaft_length
+    tip = h_s + tool_tip_offset(scene)
+    r_cone = tool_funnel_radius(scene)
+    entities.append(_entity(stamp, LINK_FRAMES[-1], "tool", cylinders=[
+        _cylinder(0.0, h_s, tool.sensor_radius, tool.sensor_radius, _DARK),
+        _cylinder(h_s, cone_base, _SHAFT_RADIUS_M, _SHAFT_RADIUS_M, _GREY),
+        _cylinder(cone_base, tip, r_cone, min(tool.nose_radius, r_cone), _BLUE),
+    ]))
+    tg = scene.target
+    mouth = np.asarray(layout.funnel_in_target, dtype=np.float64)
+    block = {"pose": _pose((0.0, 0.0, 0.0)), "size": _vec(*tg.size), "color": _ALU}
+    funnel = _cylinder(0.0, tg.funnel.depth, tg.funnel.opening,
+                       target_funnel_inner_radius(scene), _BLUE_GLASS,
+                       rotation=_Z_TO_X, origin=mouth)
+    entities.append(_entity(stamp, target_frame, "target", cubes=[block], cylinders=[funnel]))
+    return {"deletions": [], "entities": entities}

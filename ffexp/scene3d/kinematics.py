@@ -1,0 +1,92 @@
+"""Forward kinematics of the KUKA LWR4+ with the rig's sensor and tool. Pure, no I/O.
+
+The chain is the published one the simulator is built from
+(:data:`drivers.sim.mjcf.LWR_OFFSETS`, :data:`~drivers.sim.mjcf.LWR_AXES`):
+frame ``link{i}`` sits ``LWR_OFFSETS[i-1]`` along the z axis of its parent
+(``link{i-1}``, the base for ``link1``) and turns by joint ``i`` about its
+axis (``+z`` or ``-y``/``+y`` of the link). The flange is ``link7``'s origin;
+the F/T sensor and the tool follow along its z axis, and the TCF (the tool
+tip) is the flange frame moved ``sensor_height + shaft_length + funnel.depth``
+along z and turned by 180 deg about it (:mod:`drivers.sim.mjcf`).
+
+The rotations about a coordinate axis are written out: a 4x4 from ``cos`` and
+``sin`` costs a few microseconds where ``scipy``'s ``Rotation`` costs tens.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from drivers.base.types import F64
+from drivers.sim.mjcf import LWR_AXES, LWR_OFFSETS, tool_tip_offset
+from drivers.sim.scene import Scene
+
+__all__ = ["JOINTS", "flange_to_tcp", "link_transforms", "translation"]
+
+#: Joints of the LWR4+.
+JOINTS = len(LWR_OFFSETS)
+
+
+def translation(x: float, y: float, z: float) -> F64:
+    """A 4x4 translation."""
+    out = np.eye(4)
+    out[:3, 3] = (x, y, z)
+    return out
+
+
+def _joint(offset_m: float, axis: Sequence[int], angle_rad: float) -> F64:
+    """``Trans(0, 0, offset) Rot(axis, angle)`` for an axis of +-z or +-y."""
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    out = np.eye(4)
+    out[2, 3] = offset_m
+    if axis[2]:
+        s *= axis[2]
+        out[0, 0], out[0, 1], out[1, 0], out[1, 1] = c, -s, s, c
+    elif axis[1]:
+        s *= axis[1]
+        out[0, 0], out[0, 2], out[2, 0], out[2, 2] = c, s, -s, c
+    else:
+        raise ValueError(f"joint axis {tuple(axis)}: only +-y and +-z are used by the LWR4+")
+    return out
+
+
+def link_transforms(q_rad: Sequence[float] | F64, base: F64 | None = None) -> list[F64]:
+    """Pose of every ``link{i}`` (i = 1..7) in its parent (``base``'s frame for
+    ``link1``, which includes ``base``, the arm's base in the robot's frame)."""
+    if len(q_rad) < JOINTS:
+        raise ValueError(f"{len(q_rad)} joint positions; the LWR4+ has {JOINTS}")
+    out = [_joint(LWR_OFFSETS[i], LWR_AXES[i], float(q_rad[i])) for i in range(JOINTS)]
+    if base is not None:
+        out[0] = base @ out[0]
+    return out
+
+
+def chain(transforms: Sequence[F64]) -> list[F64]:
+    """Each frame of a chain of parent-relative transforms in the chain's root."""
+    out: list[F64] = []
+    pose = np.eye(4)
+    for t in transforms:
+        pose = pose @ t
+        out.append(pose)
+    return out
+
+
+def flange_to_tcp(scene: Scene) -> F64:
+    """The TCF in the flange (``link7``) frame: along z to the tool tip, turned 180 deg."""
+    out = translation(0.0, 0.0, scene.tool.sensor_height + tool_tip_offset(scene))
+    out[:2, :2] = -np.eye(2)
+    return out
+
+
+def base_pose(scene: Scene) -> F64:
+    """The arm's base in the frame of the robot's poses (the simulator's world:
+    ``arm.base_pos``; zero for the real robot's own base frame)."""
+    return translation(*scene.arm.base_pos)
+
+
+def tcp_pose(scene: Scene, q_rad: Sequence[float] | F64) -> F64:
+    """The TCF pose in the robot's frame for joint positions ``q_rad``."""
+    return chain(link_transforms(q_rad, base_pose(scene)))[-1] @ flange_to_tcp(scene)

@@ -60,7 +60,7 @@ def replay(
         typer.echo(f"commands: the recorded ones on every compared cycle (largest difference "
                    f"{result.max_command_diff:.3g})")
     else:
-        typer.echo(f"commands: {result.divergence.line()} ({result.diverging_cycles} cycles "
+        typer.echo(f"{result.divergence.line()} ({result.diverging_cycles} cycles "
                    f"differ, largest difference {result.max_command_diff:.3g})")
     stop = ""
     if result.stop_reason is not None:

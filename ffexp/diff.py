@@ -224,7 +224,7 @@ def figure(result: DiffResult, a: Recording, b: Recording, out_dir: Path, stem: 
             unit = column_unit(f.topic, f.column)
             ax.set_ylabel(f"{f.column} [{unit}]" if unit else f.column)
             ax.set_title(f"{f.topic} {f.column}: max |A-B| {f.max_abs:.3g} at {f.at_s:.3f} s; "
-                         f"beyond tolerance from {f.first_s:.3f} s (dotted)", loc="left")
+                         f"beyond tol. from {f.first_s:.3f} s (dotted)", loc="left")
         axes[0].legend(loc="upper left")
         axes[-1].set_xlabel("run time [s]")
         fig.suptitle(f"diff: rtol {result.rtol:g}, atol {result.atol:g}")

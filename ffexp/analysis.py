@@ -58,6 +58,17 @@ class RunMetrics:
     link: dict[str, float]
     complete: bool = True
     warnings: list[str] = field(default_factory=list)
+    peak_abs_fz_run_n: float | None = None
+    """Peak |f_z| over the whole run after the tare (APPROACH re-contacts included);
+    ``peak_abs_fz_n`` is ALIGN's only."""
+    peak_abs_wrench_run: list[float] | None = None
+    verdict: str | None = None
+    """The run's verdict: aligned, not aligned or unverified (``None``: not recorded)."""
+    verdict_source: str | None = None
+    """Who judged: truth, tracker, observer or settings."""
+    verdict_truth: str | None = None
+    """The simulator's verdict beside it (``None`` without ground truth)."""
+    verdict_evidence: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), allow_nan=False, default=_json_default)
@@ -164,6 +175,12 @@ def metrics(rec: Recording) -> RunMetrics:
         lat = float(truth["lateral_error"][-1])
         yaw = math.degrees(float(truth["yaw_error"][-1]))
     link = _link_summary(rec)
+    after_tare = s.phase != Phase.CONNECT
+    peak_run = peak_w_run = None
+    if after_tare.any():
+        peak_run = float(np.max(np.abs(f_z[after_tare])))
+        peak_w_run = np.max(np.abs(s.wrench[after_tare]), axis=0).tolist()
+    v = final_verdict(rec)
     return RunMetrics(
         protocol=str(info.get("protocol", rec.path.stem)),
         method=str(info.get("method", "")),
@@ -188,7 +205,25 @@ def metrics(rec: Recording) -> RunMetrics:
         link=link,
         complete=rec.complete,
         warnings=list(rec.warnings),
+        peak_abs_fz_run_n=peak_run,
+        peak_abs_wrench_run=peak_w_run,
+        verdict=v.get("label") if v else None,
+        verdict_source=v.get("source") if v else None,
+        verdict_truth=(v.get("truth") or None) if v else None,
+        verdict_evidence={k: float(x) for k, x in (v.get("evidence") or {}).items()} if v else {},
     )
+
+
+def final_verdict(rec: Recording) -> dict[str, Any]:
+    """The run's final ``/alignment/verdict`` message (``{}`` if none was recorded)."""
+    topic = rec.json.get("/alignment/verdict")
+    if topic is None:
+        return {}
+    last: dict[str, Any] = {}
+    for msg in topic.messages:
+        if msg.get("final"):
+            last = msg
+    return last
 
 
 def _phase_of(msg: dict[str, Any]) -> Phase | None:
@@ -244,8 +279,11 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("contact [s]", "first_contact_s", 2),
     ("aligned [s]", "alignment_time_s", 0),
     ("breaks", "contact_breaks", 1),
+    ("verdict", "verdict", 0),
+    ("judge", "verdict_source", 2),
     ("mean f_z [N]", "mean_fz_align_n", 4),
-    ("peak |f_z| [N]", "peak_abs_fz_n", 7),
+    ("peak |f_z| ALIGN [N]", "peak_abs_fz_n", 7),
+    ("peak |f_z| run [N]", "peak_abs_fz_run_n", 7),
     ("f_z rmse [N]", "fz_tracking_rmse_n", 5),
     ("target v [m/s]", "target_speed_after_contact_mps", 7),
     ("end", "end", 0),
@@ -254,8 +292,9 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
 #: Keys of a comparison row as data (``compare --csv/--json``), in column order.
 COMPARE_KEYS: tuple[str, ...] = (
     "file", "run", "complete", "protocol", "method", "overrides", "f_ref_n", "k_xp", "k_yp",
-    "aligned", "first_contact_s", "alignment_time_s", "contact_breaks", "mean_fz_align_n",
-    "peak_abs_fz_n", "fz_tracking_rmse_n", "target_speed_after_contact_mps",
+    "aligned", "verdict", "verdict_source", "verdict_truth", "first_contact_s",
+    "alignment_time_s", "contact_breaks", "mean_fz_align_n", "peak_abs_fz_n",
+    "peak_abs_fz_run_n", "fz_tracking_rmse_n", "target_speed_after_contact_mps",
     "target_max_speed_mps", "target_displacement_m", "final_lateral_error_m",
     "final_yaw_error_deg", "duration_s", "end", "aborted", "source_revision",
 )

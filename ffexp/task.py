@@ -280,6 +280,9 @@ class Task:
         self.notes.append(Verdict("unverified", src, reason, {}, self._truth_label()))
 
     def _observe(self, t_ns: int, state: RobotState, est: Estimate) -> None:
+        if state.truth is not None and self.truth_aligned is None:
+            self.truth_aligned = False  # the truth is there: it says "not aligned" until held
+        self._place(state)
         z = float(self._tcf_offset(state)[2])
         if est.in_contact:
             self.observer.contact_made(z)
@@ -316,22 +319,24 @@ class Task:
         within = self._truth_since_ns is not None
         return "aligned" if self.truth_aligned or within else "not aligned"
 
-    def aligned_now(self, state: RobotState, est: Estimate) -> bool:
-        """This cycle's verdict of the judging source, before the hold time."""
+    def _place(self, state: RobotState) -> None:
+        """The relative pose of tool and funnel the judging source sees (truth, tracker)."""
         src = self.verdict_source
         if src == "truth":
             truth = state.truth
-            if truth is None:
-                return False
-            self.placement = Placement((truth.insertion, truth.lateral_error,
-                                        truth.vertical_error, truth.yaw_error))
-            return self._within(self.placement)
-        if src == "tracker":
+            self.placement = None if truth is None else Placement(
+                (truth.insertion, truth.lateral_error, truth.vertical_error, truth.yaw_error))
+        elif src == "tracker":
             target = self._target
-            if target is None:
-                return False
-            self.placement = placement(state.tcp_pose_m, target.mouth_m)
-            return self._within(self.placement)
+            self.placement = (None if target is None
+                              else placement(state.tcp_pose_m, target.mouth_m))
+
+    def aligned_now(self, state: RobotState, est: Estimate) -> bool:
+        """This cycle's verdict of the judging source, before the hold time."""
+        src = self.verdict_source
+        if src in ("truth", "tracker"):
+            self._place(state)
+            return self.placement is not None and self._within(self.placement)
         if src == "settings":
             if self._first_contact_z is None:
                 return False

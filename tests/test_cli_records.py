@@ -41,6 +41,12 @@ def test_analyze_json_has_the_documented_keys(run_file: Path, tmp_path: Path) ->
     assert m["protocol"] == "method1_case2" and m["method"] == "force_ri"
     assert isinstance(m["aligned"], bool) and isinstance(m["contact_breaks"], int)
     assert m["aborted"] is None
+    # timed out without aligning, judged by the simulator's truth, its evidence recorded
+    assert m["verdict"] == "not aligned" and m["verdict_source"] == "truth"
+    assert m["verdict_truth"] == "not aligned"
+    assert {"lateral_m", "yaw_deg", "insertion_m"} <= set(m["verdict_evidence"])
+    # a 1 s run never reaches ALIGN: no ALIGN peak, but the whole run's peak is there
+    assert m["peak_abs_fz_n"] is None and m["peak_abs_fz_run_n"] >= 0.0
     assert m["file"] == str(run_file) and m["complete"] is True
     assert m["run"] == run_file.stem and run_file.stem.startswith("method1_case2-")
     for kind in ("wrench", "applied"):

@@ -248,8 +248,10 @@ def check_one_line(code: int, stdout: str, stderr: str, needles: list[str]) -> N
 
 def test_the_battery_is_large_and_covers_every_command() -> None:
     assert len(CASES) >= 90
+    from test_data_bad_input import CASES as DATA_CASES  # replay, diff, export
+
     commands = {line.split()[0] if line.split()[0] not in ("simulate", "friction")
-                else " ".join(line.split()[:2]) for line, _n in CASES}
+                else " ".join(line.split()[:2]) for line, _n in [*CASES, *DATA_CASES]}
     registered = {c.name for c in app.registered_commands} - {"sweep", "limits", "reproduce"}
     groups = {f"{g.name} {c.name or c.callback.__name__}" for g in app.registered_groups
               for c in g.typer_instance.registered_commands if c.callback is not None}

@@ -270,8 +270,12 @@ class Task:
             reason = f"{src} judges the alignment"
             level = "INFO"
         elif old == "tracker":
-            lost = "lost" if target is None or not target.valid else "stale"
-            reason = f"the tracker's pose is {lost}: the observer judges until it returns"
+            if target is None or not target.valid:
+                why = f"lost ({target.status})" if target is not None and target.status \
+                    else "lost"
+            else:
+                why = "stale"
+            reason = f"the tracker's pose is {why}: the observer judges until it returns"
             level = "WARNING"
         else:
             reason = f"{src} judges the alignment again"

@@ -26,7 +26,7 @@ from drivers.rig import (
 RIGS = Path(__file__).resolve().parent.parent / "rigs"
 
 
-@pytest.mark.parametrize("name", ["sim", "mock", "emulator", "lwr4-lab"])
+@pytest.mark.parametrize("name", ["sim", "mock", "emulator", "emulator-camera", "lwr4-lab"])
 def test_each_rig_file_loads(name: str) -> None:
     rig = load_rig(RIGS / f"{name}.toml")
     assert rig.robot.type == {"sim": "sim", "mock": "mock"}.get(name, "fri1")
@@ -80,6 +80,8 @@ def test_bad_field_names_file_and_field(
         ('[robot]\ntype = "fri1"\nrobot_ip = "1.2.3.4"\n[ft]\ntype = "sim"\n', "robot.type 'sim'"),
         ('[robot]\ntype = "sim"\n[ft]\ntype = "fri-estimate"\n', "robot.type 'fri1'"),
         ('[robot]\ntype = "mock"\n[ft]\ntype = "netft"\n', "ft.host is required"),
+        ('[robot]\ntype = "fri1"\nrobot_ip = "1.2.3.4"\n[ft]\ntype = "netft"\n'
+         '[tracker]\ntype = "sim"\n', "tracker.type 'sim' needs robot.type 'sim'"),
     ],
 )
 def test_cross_checks(tmp_path: Path, text: str, needs: str) -> None:
@@ -195,3 +197,32 @@ def test_back_ends_are_imported_only_when_used(paper_scene_path: Path) -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_tracker_table_names_its_fields_and_resolves_the_calibration(tmp_path: Path) -> None:
+    from drivers.rig import CameraTrackerConfig, NoTracker
+
+    assert isinstance(default_rig().tracker, NoTracker)
+    path = write(tmp_path, '[tracker]\ntype = "camera"\ncalibration = "cal.toml"\n')
+    rig = load_rig(path)
+    assert isinstance(rig.tracker, CameraTrackerConfig)
+    assert rig.tracker.calibration == tmp_path / "cal.toml"
+    with pytest.raises(ConfigError, match=r"tracker\.rate_hz: "):
+        load_rig(write(tmp_path, '[tracker]\ntype = "sim"\nrate_hz = 0\n'))
+    with pytest.raises(ConfigError, match=r"tracker: .*'eye'"):
+        load_rig(write(tmp_path, '[tracker]\ntype = "eye"\n'))
+
+
+def test_factory_opens_the_sim_tracker_and_checks_the_camera(paper_scene_path: Path) -> None:
+    from drivers.rig import CameraTrackerConfig, MockFt, SimTrackerConfig
+    from drivers.sim.tracker import SimTracker
+
+    dev = open_devices(Rig(tracker=SimTrackerConfig()), source="r.toml",
+                       scene_file=paper_scene_path)
+    try:
+        assert isinstance(dev.tracker, SimTracker) and dev.metadata["tracker"] == "sim"
+    finally:
+        dev.close()
+    rig = Rig(robot=MockRobotConfig(), ft=MockFt(), tracker=CameraTrackerConfig())
+    with pytest.raises(ConfigError, match=r"r\.toml: tracker\.calibration: .*calibrate-camera"):
+        open_devices(rig, source="r.toml", scene_file=paper_scene_path)

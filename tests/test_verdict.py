@@ -162,3 +162,16 @@ def test_observer_says_not_aligned_on_a_sustained_lateral_load_or_no_contact() -
     obs2.contact_made(0.0)
     assert drive(obs2, 0.5, z=0.05, f_z=0.5, t_x=0.2) == "unverified"
     assert drive(obs2, 0.1, z=0.05, f_z=0.0, contact=False, t0=0.505) == "not aligned"
+
+
+def test_the_lost_event_says_why() -> None:
+    clock = Clock()
+    good = mouth(0.03, 0.0, 0.0)
+    task = start(Alignment(), clock, seen(good)(0))
+    run(task, clock, 0.05, seen(good))
+    task.notes.clear()
+    run(task, clock, 0.05, lambda t: TargetObservation(t, np.eye(4), good, False, "camera", t,
+                                                       "stream lost: no frames"))
+    msgs = [n.message for n in task.notes if isinstance(n, Event) and n.name == "verdict_source"]
+    assert msgs == ["the tracker's pose is lost (stream lost: no frames): the observer judges "
+                    "until it returns"]

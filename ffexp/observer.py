@@ -13,9 +13,14 @@ tool), so the observer answers in three words and says why:
   than the target could have been pushed meanwhile* (the target's possible
   travel is bounded by the impulse the tool gave it: ``∫ f_z dt / m_target``
   integrated twice, minus nothing for friction, so the bound is generous);
-- ``"not aligned"`` when the evidence contradicts seating at the end: out of
-  contact, or a sustained lateral force or torque over the last
-  ``observer_hold_s``;
+- ``"not aligned"`` when the evidence contradicts seating, held for
+  ``observer_hold_s``: the tool rests on one wall of the funnel (a lateral
+  force above ``lateral_force_n`` and at least ``wall_force_ratio`` times the
+  push: a 30 degree cone wall's normal has about 1.7 N of lateral force per
+  newton of push, 0.9 with a friction of 0.3; seated cones cancel it), or the
+  tool is out of contact *behind* the point where it first touched (the
+  target is only ever pushed away, so the funnels are apart). Out of contact
+  elsewhere says nothing: seated cones that stopped pushing look the same;
 - ``"unverified"`` otherwise: the robot's view is consistent with seating
   but cannot prove it.
 
@@ -41,6 +46,7 @@ class ObserverLimits:
     seated_depth_m: float
     lateral_force_n: float
     lateral_torque_nm: float
+    wall_force_ratio: float
     min_force_n: float
     lateral_speed_mps: float
     yaw_rate_radps: float
@@ -57,7 +63,7 @@ class ObserverState:
     quiet_since_ns: int | None = None
     """Since when the wrench and the motion have been quiet (``None``: not now)."""
     loaded_since_ns: int | None = None
-    """Since when a lateral force or torque has been sustained (``None``: not now)."""
+    """Since when the tool has been on one wall, or apart (``None``: not now)."""
     first_contact_z: float | None = None
     impulse_ns: float = 0.0
     """``∫ f_z dt`` since first contact [N s]."""
@@ -93,13 +99,16 @@ class WrenchObserver:
             s.travel_bound_m += s.speed_bound_mps * dt
             s.impulse_ns += push * dt
         advance = 0.0 if s.first_contact_z is None else z_m - s.first_contact_z
-        loaded = in_contact and (abs(f_y) > lim.lateral_force_n or abs(t_x) > lim.lateral_torque_nm)
-        quiet = (in_contact and f_z >= lim.min_force_n and not loaded
+        side = in_contact and (abs(f_y) > lim.lateral_force_n or abs(t_x) > lim.lateral_torque_nm)
+        quiet = (in_contact and f_z >= lim.min_force_n and not side
                  and abs(v_y) <= lim.lateral_speed_mps and abs(w_x) <= lim.yaw_rate_radps)
+        on_wall = (in_contact and abs(f_y) > lim.lateral_force_n
+                   and abs(f_y) >= lim.wall_force_ratio * max(f_z, 0.0))
+        apart = (not in_contact and s.first_contact_z is not None and advance < 0.0)
         s.quiet_since_ns = (s.quiet_since_ns if s.quiet_since_ns is not None else t_ns) \
             if quiet else None
         s.loaded_since_ns = (s.loaded_since_ns if s.loaded_since_ns is not None else t_ns) \
-            if loaded else None
+            if on_wall or apart else None
         hold_ns = lim.hold_s * NS_PER_S
         inserted = advance - s.travel_bound_m
         s.evidence = {
@@ -112,8 +121,7 @@ class WrenchObserver:
         if (s.quiet_since_ns is not None and t_ns - s.quiet_since_ns >= hold_ns
                 and inserted >= lim.seated_depth_m):
             s.label = "aligned"
-        elif not in_contact or (s.loaded_since_ns is not None
-                                and t_ns - s.loaded_since_ns >= hold_ns):
+        elif s.loaded_since_ns is not None and t_ns - s.loaded_since_ns >= hold_ns:
             s.label = "not aligned"
         else:
             s.label = "unverified"

@@ -58,6 +58,9 @@ class Alignment(StrictModel):
     lateral_force_n: float = Field(0.3, gt=0, description="Observer: largest |f_y| when seated.")
     lateral_torque_nm: float = Field(
         0.05, gt=0, description="Observer: largest |t_x| (about the vertical) when seated.")
+    wall_force_ratio: float = Field(
+        0.5, gt=0, description="Observer: |f_y| / f_z at or above which (with |f_y| above "
+        "lateral_force_n) the tool rests on one wall of the funnel: not aligned.")
     min_force_n: float = Field(0.3, ge=0, description="Observer: the tool must push this hard.")
     lateral_speed_mps: float = Field(
         0.002, gt=0, description="Observer: largest tool speed along Y when seated.")
@@ -143,7 +146,8 @@ class Task:
         a = alignment
         self.observer = WrenchObserver(ObserverLimits(
             seated_depth_m=a.seated_depth_m, lateral_force_n=a.lateral_force_n,
-            lateral_torque_nm=a.lateral_torque_nm, min_force_n=a.min_force_n,
+            lateral_torque_nm=a.lateral_torque_nm, wall_force_ratio=a.wall_force_ratio,
+            min_force_n=a.min_force_n,
             lateral_speed_mps=a.lateral_speed_mps, yaw_rate_radps=math.radians(a.yaw_rate_dps),
             hold_s=a.observer_hold_s, target_mass_kg=a.target_mass_kg))
         self._start_pose = np.eye(4)
@@ -359,7 +363,8 @@ class Task:
             if label == "aligned" and not self.aligned:
                 label = "unverified"  # seen aligned, but the run ended before the hold
             reason = {"aligned": "robot-side evidence of seated cones held",
-                      "not aligned": "out of contact or a sustained lateral load at the end",
+                      "not aligned": "the tool rests on one wall of the funnel, or is out "
+                                     "of contact behind where it first touched",
                       "unverified": "the robot alone cannot tell where the target is"}[label]
             verdict = Verdict(label, src, reason, dict(obs.evidence), truth, True)
         else:

@@ -124,8 +124,8 @@ def test_truth_beats_the_tracker_and_the_verdict_records_both() -> None:
 
 
 LIMITS = ObserverLimits(seated_depth_m=0.03, lateral_force_n=0.3, lateral_torque_nm=0.05,
-                        min_force_n=0.3, lateral_speed_mps=0.002, yaw_rate_radps=0.02,
-                        hold_s=1.0, target_mass_kg=12.0)
+                        wall_force_ratio=0.5, min_force_n=0.3, lateral_speed_mps=0.002,
+                        yaw_rate_radps=0.02, hold_s=1.0, target_mass_kg=12.0)
 
 
 def drive(obs: WrenchObserver, seconds: float, *, z: float, f_z: float, f_y: float = 0.0,
@@ -153,15 +153,25 @@ def test_observer_says_unverified_when_pushing_could_explain_the_advance() -> No
     assert drive(obs, 1.2, z=0.05, f_z=1.5) == "unverified"
 
 
-def test_observer_says_not_aligned_on_a_sustained_lateral_load_or_no_contact() -> None:
+def test_observer_says_not_aligned_when_the_tool_rests_on_one_wall() -> None:
     obs = WrenchObserver(LIMITS)
     obs.contact_made(0.0)
     assert drive(obs, 0.9, z=0.05, f_z=0.5, f_y=0.8) == "unverified"  # not yet sustained
     assert drive(obs, 0.2, z=0.05, f_z=0.5, f_y=0.8, t0=0.905) == "not aligned"
+    # the same lateral force under a push three times larger: not a wall's reaction
     obs2 = WrenchObserver(LIMITS)
     obs2.contact_made(0.0)
-    assert drive(obs2, 0.5, z=0.05, f_z=0.5, t_x=0.2) == "unverified"
-    assert drive(obs2, 0.1, z=0.05, f_z=0.0, contact=False, t0=0.505) == "not aligned"
+    assert drive(obs2, 1.5, z=0.05, f_z=2.4, f_y=0.8) == "unverified"
+
+
+def test_observer_out_of_contact_is_not_aligned_only_behind_the_first_touch() -> None:
+    ahead = WrenchObserver(LIMITS)  # seated cones that stopped pushing look like this
+    ahead.contact_made(0.0)
+    assert drive(ahead, 1.5, z=0.04, f_z=0.0, contact=False) == "unverified"
+    behind = WrenchObserver(LIMITS)  # the target only moves away: the funnels are apart
+    behind.contact_made(0.0)
+    assert drive(behind, 0.5, z=-0.01, f_z=0.0, contact=False) == "unverified"
+    assert drive(behind, 0.6, z=-0.01, f_z=0.0, contact=False, t0=0.505) == "not aligned"
 
 
 def test_the_lost_event_says_why() -> None:

@@ -64,6 +64,7 @@ from drivers.fri.codec_arrays import (
     encode_cmd,
     encode_msr,
     msr_arrays_from_record,
+    pack_cmd,
 )
 from drivers.fri.codec_fields import (
     cart_gains_from_wire,
@@ -167,6 +168,7 @@ __all__ = [
     "msr_arrays_from_record",
     "new_cmd_buffer",
     "new_msr_buffer",
+    "pack_cmd",
     "seq_delta",
     "seq_next",
     "wrench_from_wire",

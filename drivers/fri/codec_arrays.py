@@ -541,6 +541,16 @@ def encode_cmd(arrays: CmdArrays, buf: PacketBuffer | None = None) -> bytes:
             an integer does not fit its wire type.
     """
     pb = new_cmd_buffer() if buf is None else buf
+    pack_cmd(arrays, pb)
+    return bytes(pb.raw)
+
+
+def pack_cmd(arrays: CmdArrays, pb: PacketBuffer) -> None:
+    """:func:`encode_cmd` without the copy: the datagram is ``pb.raw`` (no allocation).
+
+    Raises:
+        PacketEncodeError: as :func:`encode_cmd`.
+    """
     if pb.record.dtype != CMD_DTYPE:
         raise ValueError("encode_cmd needs a command PacketBuffer (new_cmd_buffer())")
     a = arrays
@@ -559,7 +569,6 @@ def encode_cmd(arrays: CmdArrays, buf: PacketBuffer | None = None) -> bytes:
         ) from exc  # fmt: skip
     _write_krl_int(pb, a.krl_int)
     _CMD_LAYOUT.pack(a.floats, pb.f4)
-    return bytes(pb.raw)
 
 
 def _write_krl_int(pb: PacketBuffer, values: NDArray[np.int32]) -> None:

@@ -23,7 +23,10 @@ real KUKA KRC"):
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Final
+
+import numpy as np
 
 from drivers.fri.codec import CmdArrays, MsrArrays
 from drivers.fri.types import CmdFlags, ControlMode, FriCommand, FriMeasurement
@@ -36,6 +39,7 @@ __all__ = [
     "arrays_to_measurement",
     "command_to_arrays",
     "control_from_strategy",
+    "copy_measurement",
     "cycle_ns_from_seconds",
     "fill_measurement",
     "measurement_to_arrays",
@@ -155,6 +159,29 @@ def fill_measurement(a: MsrArrays, seq: int, time_ns: int, m: FriMeasurement) ->
     m.krl_real[:] = a.krl_real
     m.krl_int[:] = a.krl_int
     m.krl_bool = a.krl_bool
+
+
+def copy_measurement(src: FriMeasurement, dst: FriMeasurement) -> None:
+    """Copy every field of ``src`` into ``dst`` in place (arrays element-wise, no
+    allocation); both of the same class (a :class:`~drivers.fri.types.RemoteMeasurement`
+    carries its counters along). ``link_events`` is not copied."""
+    for name in _fields(type(src)):
+        value = getattr(src, name)
+        if isinstance(value, np.ndarray):
+            getattr(dst, name)[...] = value
+        else:
+            setattr(dst, name, value)
+
+
+_FIELDS: dict[type, tuple[str, ...]] = {}
+
+
+def _fields(cls: type) -> tuple[str, ...]:
+    names = _FIELDS.get(cls)
+    if names is None:
+        names = _FIELDS[cls] = tuple(
+            f.name for f in dataclasses.fields(cls) if f.name != "link_events")
+    return names
 
 
 def command_to_arrays(c: FriCommand, out: CmdArrays) -> None:

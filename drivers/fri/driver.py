@@ -64,8 +64,8 @@ from drivers.fri.codec import (
     SeqEvent,
     classify_seq,
     decode_msr_into,
-    encode_cmd,
     new_cmd_buffer,
+    pack_cmd,
     seq_next,
 )
 from drivers.fri.command import (
@@ -78,6 +78,7 @@ from drivers.fri.convert import (
     LOCKSTEP_INDEX,
     LOCKSTEP_MARKER,
     command_to_arrays,
+    copy_measurement,
     cycle_ns_from_seconds,
     fill_measurement,
 )
@@ -128,8 +129,13 @@ class FriRobot(RobotDriver):
         self._error: DriverError | None = None
         self._listeners: list[Callable[[FriMeasurement], None]] = []
         # cycle hand-over (guarded by _cond)
-        self._pending: FriMeasurement | None = None
-        self._msr: FriMeasurement | None = None
+        # the I/O thread fills _io (its own) and copies it to _msr under the lock: the
+        # current cycle's measurement; the runner takes a copy of it (no allocation
+        # on the I/O path)
+        self._io = RemoteMeasurement()
+        self._msr = RemoteMeasurement()
+        self._have_msr = False
+        self._pending = False
         self._cycle = 0
         self._runner_cycle = -1
         self._answered = True
@@ -152,7 +158,8 @@ class FriRobot(RobotDriver):
         self._applied_fri = FriCommand()
         self._applied = AppliedCommand(extras=self._applied_fri)
         self._send_seq = 0
-        self._last_reply: bytes | None = None
+        self._last_reply = bytearray(len(self._pb.raw))
+        self._have_reply = False
         self._n = LinkCounters()
         self._watch = LinkWatch()
         self._events: list[Event] = []  # for the runner's next measurement (under _cond)
@@ -232,7 +239,7 @@ class FriRobot(RobotDriver):
                 first = self._n.accepted == 0
                 limit = s.connect_timeout_s if first else s.cycle_timeout_s
                 end = time.monotonic() + limit
-                while self._pending is None and not self._stop and self._error is None:
+                while not self._pending and not self._stop and self._error is None:
                     remaining = end - time.monotonic()
                     if remaining <= 0.0:
                         break
@@ -241,10 +248,11 @@ class FriRobot(RobotDriver):
                     raise self._error
                 if self._stop:
                     return
-                m = self._pending
-                if m is None:
+                if not self._pending:
                     raise self._timeout_error(first, limit)
-                self._pending = None
+                m = RemoteMeasurement()
+                copy_measurement(self._msr, m)
+                self._pending = False
                 self._runner_cycle = self._cycle
                 if self._events:
                     m.link_events.extend(self._events)
@@ -299,13 +307,12 @@ class FriRobot(RobotDriver):
         """
         check = self._check_fri
         with self._cond:
-            msr = self._msr
-            copy_fri_command(self._fri, check)
-        if msr is not None:
-            # validate on a private copy first: never put NaN on the wire
-            to_fri_command(command, msr, check)
-            command_to_arrays(check, self._check)
-            encode_cmd(self._check, self._check_pb)
+            if self._have_msr:
+                # validate on a private copy first: never put NaN on the wire
+                copy_fri_command(self._fri, check)
+                to_fri_command(command, self._msr, check)
+                command_to_arrays(check, self._check)
+                pack_cmd(self._check, self._check_pb)
         applied, out = self._applied, self._applied_fri
         with self._cond:
             if command is None:
@@ -314,7 +321,7 @@ class FriRobot(RobotDriver):
                 _copy_cartesian(command, self._user)
                 self._have_user = True
             msr = self._msr
-            if msr is None:  # before the first measurement: the command waits for it
+            if not self._have_msr:  # before the first measurement: the command waits for it
                 copy_fri_command(self._fri, out)
                 status = ApplyStatus.LATE | (
                     ApplyStatus.HELD if command is None else ApplyStatus.APPLIED
@@ -467,7 +474,7 @@ class FriRobot(RobotDriver):
     def _duplicate(self, addr: tuple[str, int]) -> None:
         n = self._n
         n.duplicates += 1
-        if self._last_reply is not None and self._sock is not None:
+        if self._have_reply and self._sock is not None:
             self._sock.sendto(self._last_reply, addr)
             n.answers += 1
 
@@ -480,7 +487,7 @@ class FriRobot(RobotDriver):
             self._time_base_seq = self._unwrapped
             self._last_cycle_ns = cycle_ns
         time_ns = self._time_ns(cycle_ns)
-        m = RemoteMeasurement()
+        m = self._io
         fill_measurement(msr, self._unwrapped, time_ns, m)
         for listener in self._listeners:
             listener(m)
@@ -494,10 +501,10 @@ class FriRobot(RobotDriver):
             self._n.fill(m)
             self._last_rx_ns = t_rx
             self._last_time_ns = time_ns
-            if self._pending is not None:
+            if self._pending:
                 self._n.skipped += 1
-            self._pending = m
-            self._msr = m
+            copy_measurement(m, self._msr)
+            self._pending = self._have_msr = True
             self._cycle += 1
             self._answered = False
             self._reply_addr = addr
@@ -534,9 +541,10 @@ class FriRobot(RobotDriver):
         command_to_arrays(self._fri, wire)
         wire.send_seq = self._send_seq
         wire.refl_seq = self._reply_refl
-        data = encode_cmd(wire, self._pb)
-        sock.sendto(data, addr)
+        pack_cmd(wire, self._pb)
+        sock.sendto(self._pb.raw, addr)
         self._n.on_answer(time.perf_counter_ns() - self._t_rx)
         self._send_seq = seq_next(self._send_seq)
-        self._last_reply = data
+        self._last_reply[:] = self._pb.raw  # for a duplicate measurement (same length)
+        self._have_reply = True
         self._answered = True

@@ -14,7 +14,10 @@ from drivers.base.interfaces import FlagStream, ForceTorqueSensor
 from drivers.base.types import FtSamples
 from drivers.fri.types import FriMeasurement
 
-__all__ = ["FriEstimateSensor", "MeasurementSource"]
+__all__ = ["CAPACITY", "FriEstimateSensor", "MeasurementSource"]
+
+#: Unread samples kept (at 1 kHz, 4 s without a read).
+CAPACITY = 4096
 
 
 class MeasurementSource(Protocol):
@@ -37,9 +40,14 @@ class FriEstimateSensor(FlagStream, ForceTorqueSensor):
     def __init__(self, robot: MeasurementSource) -> None:
         self.robot = robot
         self._lock = threading.Lock()
-        self._time: list[int] = []
-        self._seq: list[int] = []
-        self._wrench: list[NDArray[np.float64]] = []
+        # the samples since the last read, copied into preallocated rows (the
+        # listener runs on the link's I/O thread: nothing allocated there)
+        self._time = np.zeros(CAPACITY, dtype=np.int64)
+        self._seq = np.zeros(CAPACITY, dtype=np.int64)
+        self._wrench = np.zeros((CAPACITY, 6))
+        self._n = 0
+        self.dropped = 0
+        """Samples overwritten before a read (more than :data:`CAPACITY` unread)."""
         self._bias = np.zeros(6)
         self._last: NDArray[np.float64] | None = None
         robot.add_listener(self._on_measurement)
@@ -48,32 +56,34 @@ class FriEstimateSensor(FlagStream, ForceTorqueSensor):
         if not self._running:
             return
         with self._lock:
-            self._time.append(m.time_ns)
-            self._seq.append(m.seq)
-            self._wrench.append(m.est_ext_tcp_ft)
+            n = self._n
+            if n == CAPACITY:  # nobody reads: keep the newest
+                self._time[:-1] = self._time[1:]
+                self._seq[:-1] = self._seq[1:]
+                self._wrench[:-1] = self._wrench[1:]
+                n = CAPACITY - 1
+                self.dropped += 1
+            self._time[n] = m.time_ns
+            self._seq[n] = m.seq
+            self._wrench[n] = m.est_ext_tcp_ft
+            self._n = n + 1
 
     def start(self) -> None:
         with self._lock:
-            self._time.clear()
-            self._seq.clear()
-            self._wrench.clear()
+            self._n = 0
         super().start()
 
     @requires_open("FRI estimate F/T")
     def samples(self) -> FtSamples:
         with self._lock:
-            t, s, w = self._time, self._seq, self._wrench
-            self._time, self._seq, self._wrench = [], [], []
-        if not t:
-            return FtSamples()
-        wrench = np.array(w, dtype=np.float64).reshape(-1, 6) - self._bias
-        self._last = wrench[-1] + self._bias
-        return FtSamples(
-            time_ns=np.array(t, dtype=np.int64),
-            seq=np.array(s, dtype=np.int64),
-            wrench=wrench,
-            status=np.zeros(len(t), dtype=np.uint32),
-        )
+            n = self._n
+            if n == 0:
+                return FtSamples()
+            t, q, w = self._time[:n].copy(), self._seq[:n].copy(), self._wrench[:n].copy()
+            self._n = 0
+        w -= self._bias
+        self._last = w[-1] + self._bias
+        return FtSamples(time_ns=t, seq=q, wrench=w, status=np.zeros(n, dtype=np.uint32))
 
     @requires_open("FRI estimate F/T")
     def tare(self) -> None:

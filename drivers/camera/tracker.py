@@ -80,7 +80,7 @@ class CameraTracker(TargetTracker):
         cfg: the rig's ``[tracker]`` table (:class:`drivers.rig.CameraTrackerConfig`).
         calibration: pixels to the marker plane.
         clock: the robot's time now [ns] (``None`` or returning ``None``: monotonic time).
-        where: names the source in messages (``rigs/x.toml: tracker.source``).
+        where: names the source in messages (the rig file and ``tracker.source``).
         on_frame: called with each observation as it is published (tests, statistics).
     """
 

@@ -156,7 +156,8 @@ def test_the_tracker_back_ends_import_no_sibling_and_no_ffexp() -> None:
     import ast
 
     root = Path(__file__).resolve().parents[1] / "drivers"
-    files = [*(root / "camera").glob("*.py"), root / "sim" / "tracker.py", root / "sim" / "render.py"]
+    files = [*(root / "camera").glob("*.py"), root / "sim" / "tracker.py",
+             root / "sim" / "render.py"]
     for path in files:
         own = path.parent.name
         for node in ast.walk(ast.parse(path.read_text())):

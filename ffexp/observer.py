@@ -31,7 +31,7 @@ axis lets the tool advance any distance without entering the funnel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 from drivers.base.types import NS_PER_S
@@ -59,7 +59,8 @@ class ObserverState:
     """What the observer has seen so far (updated in place each cycle)."""
 
     label: Label = "unverified"
-    evidence: dict[str, float] = field(default_factory=dict)
+    last: tuple[float, ...] = ()
+    """The last cycle's numbers (see :attr:`evidence`), kept without building a dict."""
     quiet_since_ns: int | None = None
     """Since when the wrench and the motion have been quiet (``None``: not now)."""
     loaded_since_ns: int | None = None
@@ -71,6 +72,22 @@ class ObserverState:
     """Largest distance the target can have moved along the approach since first contact [m]."""
     speed_bound_mps: float = 0.0
     last_ns: int | None = None
+
+    @property
+    def evidence(self) -> dict[str, float]:
+        """The numbers the label rests on (SI units in the names)."""
+        if not self.last:
+            return {}
+        names = ("advance_m", "inserted_bound_m", "f_z_n", "f_y_n", "t_x_nm", "v_y_mps",
+                 "w_x_radps", "in_contact")
+        out = dict(zip(names, self.last, strict=True))
+        now = self.last_ns or 0
+        out["target_travel_bound_m"] = self.travel_bound_m
+        out["quiet_s"] = 0.0 if self.quiet_since_ns is None else \
+            (now - self.quiet_since_ns) / NS_PER_S
+        out["wall_or_apart_s"] = 0.0 if self.loaded_since_ns is None else \
+            (now - self.loaded_since_ns) / NS_PER_S
+        return out
 
 
 class WrenchObserver:
@@ -111,13 +128,7 @@ class WrenchObserver:
             if on_wall or apart else None
         hold_ns = lim.hold_s * NS_PER_S
         inserted = advance - s.travel_bound_m
-        s.evidence = {
-            "advance_m": advance, "target_travel_bound_m": s.travel_bound_m,
-            "inserted_bound_m": inserted, "f_z_n": f_z, "f_y_n": f_y, "t_x_nm": t_x,
-            "v_y_mps": v_y, "w_x_radps": w_x, "in_contact": float(in_contact),
-            "quiet_s": 0.0 if s.quiet_since_ns is None else (t_ns - s.quiet_since_ns) / NS_PER_S,
-            "loaded_s": 0.0 if s.loaded_since_ns is None else (t_ns - s.loaded_since_ns) / NS_PER_S,
-        }
+        s.last = (advance, inserted, f_z, f_y, t_x, v_y, w_x, float(in_contact))
         if (s.quiet_since_ns is not None and t_ns - s.quiet_since_ns >= hold_ns
                 and inserted >= lim.seated_depth_m):
             s.label = "aligned"

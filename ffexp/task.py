@@ -25,7 +25,7 @@ import numpy as np
 from pydantic import Field
 
 from drivers.base.placement import Placement, placement
-from drivers.base.types import F64, NS_PER_S, RobotState, TargetObservation
+from drivers.base.types import NS_PER_S, RobotState, TargetObservation
 from drivers.config import StrictModel
 from ffexp.contracts import Phase, Stop, StopReason
 from ffexp.estimator import Estimate
@@ -151,6 +151,8 @@ class Task:
             lateral_speed_mps=a.lateral_speed_mps, yaw_rate_radps=math.radians(a.yaw_rate_dps),
             hold_s=a.observer_hold_s, target_mass_kg=a.target_mass_kg))
         self._start_pose = np.eye(4)
+        self._start_z_axis = np.array([0.0, 0.0, 1.0])
+        self._start_z = 0.0
         self._first_contact_z: float | None = None
         self._aligned_since_ns: int | None = None
         self._truth_since_ns: int | None = None
@@ -211,6 +213,8 @@ class Task:
                     Event("INFO", "tare", f"tared from {est.tare_samples} samples; bias {bias}")
                 )
                 self._start_pose = state.tcp_pose_m.copy()
+                self._start_z_axis = self._start_pose[:3, 2].copy()
+                self._start_z = float(self._start_z_axis @ self._start_pose[:3, 3])
                 self._enter(t_ns, Phase.APPROACH, "sensor tared, robot commanding")
             return
         if phase.ended:
@@ -219,7 +223,7 @@ class Task:
         if phase == Phase.APPROACH:
             if est.in_contact:
                 if self._first_contact_z is None:
-                    self._first_contact_z = float(self._tcf_offset(state)[2])
+                    self._first_contact_z = self._advance(state)
                 self._enter(t_ns, Phase.ALIGN, "contact")
         elif phase == Phase.ALIGN:
             if not est.in_contact:
@@ -241,10 +245,9 @@ class Task:
                 self._aligned_since_ns = None
 
     # -- the verdict ---------------------------------------------------------
-    def _tcf_offset(self, state: RobotState) -> F64:
-        d = state.tcp_pose_m[:3, 3] - self._start_pose[:3, 3]
-        out: F64 = self._start_pose[:3, :3].T @ d
-        return out
+    def _advance(self, state: RobotState) -> float:
+        """The tool's travel along the start TCF's Z since the tare [m]."""
+        return float(self._start_z_axis @ state.tcp_pose_m[:3, 3]) - self._start_z
 
     def _fresh(self, state: RobotState, target: TargetObservation | None) -> bool:
         if target is None or not target.valid:
@@ -291,7 +294,7 @@ class Task:
         if state.truth is not None and self.truth_aligned is None:
             self.truth_aligned = False  # the truth is there: it says "not aligned" until held
         self._place(state)
-        z = float(self._tcf_offset(state)[2])
+        z = self._advance(state)
         if est.in_contact:
             self.observer.contact_made(z)
         w, tw = est.wrench, est.twist_tcf
@@ -348,7 +351,7 @@ class Task:
         if src == "settings":
             if self._first_contact_z is None:
                 return False
-            advanced = float(self._tcf_offset(state)[2]) - self._first_contact_z
+            advanced = self._advance(state) - self._first_contact_z
             a = self.alignment
             return advanced >= a.seated_depth_m and abs(float(est.wrench[1])) <= a.lateral_force_n
         # the observer holds its own evidence for observer_hold_s; the task's hold adds to it

@@ -9,10 +9,17 @@ contact (contact lost goes back to APPROACH and counts a break, as the paper
 does); DONE when aligned for ``alignment.hold_s`` or at the timeout; ABORT
 on any :class:`~ffexp.contracts.Stop` the loop passes in.
 
-The verdict uses one set of tolerances, the protocol's ``[alignment]``: with
-ground truth (a simulator) the tool tip's lateral and yaw errors within
-tolerance past ``min_insertion_m``; without it, the tool advanced
-``seated_depth_m`` since first contact with ``|w_y| <= lateral_force_n``.
+The verdict comes from whichever source sees the target (``[alignment]
+source = "auto"``): ground truth in a simulator; else the rig's target
+tracker, from the relative pose of the tool and the tracked funnel mouth
+(:mod:`drivers.base.placement`); else the wrench-and-kinematics observer
+(:mod:`ffexp.observer`), which says "aligned", "not aligned" or "unverified".
+Truth and tracker share one set of tolerances: lateral and yaw errors within
+tolerance past ``min_insertion_m``, held for ``hold_s``. A tracker pose that
+is lost or older than ``tracker_max_age_s`` hands the verdict to the observer
+until a fresh one arrives (an event says so). :class:`Verdict` notes record
+who judges and, at the end, the run's verdict with its evidence and the
+truth's verdict beside it (simulation).
 """
 
 from __future__ import annotations

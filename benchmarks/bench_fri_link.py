@@ -20,6 +20,7 @@ first reaches CMD and settles (``--warmup-s``), per configuration over
 - missed cycles: the KRC's own miss counter (no answer in time), and its share;
 - time in CMD: the share of measured cycles the KRC reported state CMD;
 - the KRC's quality histogram (shares of PERFECT, OK, BAD, UNACCEPTABLE);
+  (a link that has not reached CMD after 5 s is measured as it is);
 - measurements lost on the way in, runner answers late (deadline repeats), and
   the emulator's own overruns (cycles it started more than a cycle late).
 
@@ -76,7 +77,8 @@ def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float) -
         with realtime() if rt else nullcontext() as report:
             got_rt = str(report) if report is not None else "off"
             robot.connect()
-            k = settled = 0
+            k = settled = waited = 0
+            give_up = round(5.0 * 1000 / cycle_ms)  # a link that never reaches CMD: measure it
             start_turn = start_miss = start_lost = start_late = 0
             first = True
             for state in robot.measurements():
@@ -86,8 +88,9 @@ def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float) -
                     cmd.pose_m[:] = state.tcp_pose_m
                     first = False
                 robot.send(cmd)
-                if settled == 0:  # wait for CMD, then let the link settle
-                    k = k + 1 if (k or m.state == FriState.CMD) else 0
+                waited += 1
+                if settled == 0:  # wait for CMD (or give up on it), then let the link settle
+                    k = k + 1 if (k or m.state == FriState.CMD or waited > give_up) else 0
                     if k >= settle:
                         settled = 1
                         st = robot.stats

@@ -29,7 +29,14 @@ from drivers.fri.convert import (
     measurement_to_arrays,
 )
 from drivers.fri.driver import FriEstimateSensor, FriRobot, FriSettings
-from drivers.fri.types import ControlMode, FriCommand, FriMeasurement, FriQuality, FriState
+from drivers.fri.types import (
+    ControlMode,
+    FriCommand,
+    FriMeasurement,
+    FriQuality,
+    FriState,
+    RemoteMeasurement,
+)
 from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld
 
@@ -491,3 +498,28 @@ def test_real_time_pacing_keeps_the_wall_clock_cycle(paper_scene: Scene) -> None
     assert sum(m.quality == FriQuality.UNACCEPTABLE for m in late) < 0.2 * len(late)
     assert 0.0 < float(np.median([m.latency_s for m in late])) < 0.005
     assert float(np.median([m.answer_rate for m in late])) >= 0.8
+
+
+def test_a_foreign_sender_is_an_event_and_in_the_counters_of_the_next_measurement() -> None:
+    with driver(answer_deadline_cycles=0.0) as (robot, krc):
+        other = FakeKrc(krc.dest[1], host="127.0.0.2")
+        try:
+            it = robot.measurements()
+            krc.send(krc.packet(1))
+            krc.answer()
+            first = fri(next(it))
+            assert [e[3] for e in first.link_events] == ["FRI link up: state MON, quality PERFECT"]
+            for _ in range(2):
+                other.send(other.packet(7))
+            krc.send(krc.packet(2))
+            krc.answer()
+            m = fri(next(it))
+            port = other.sock.getsockname()[1]
+            assert [e[1:] for e in m.link_events] == [
+                ("WARNING", "link", f"datagrams from 127.0.0.2:{port} dropped: not the robot "
+                                    "(127.0.0.1)")]  # once per sender, not per datagram
+            assert isinstance(m, RemoteMeasurement)
+            assert (m.foreign, m.foreign_ipv4, m.foreign_port) == (2, 0x7F000002, port)
+            assert (m.received, m.accepted, m.answers) == (4, 2, 1)  # answers before this one
+        finally:
+            other.close()

@@ -166,3 +166,44 @@ def test_reordered_measurements_are_counted_and_never_lost(tmp_path: Path) -> No
     # only the one still in flight at the last cycle may be counted missing
     assert got["lost"] == 0 or (got["lost"] == 1 and seen[-1] - 1 in held)
     assert got["duplicates"] == 0
+
+
+# --------------------------------------------------------------------------- the verdict alone
+
+
+def test_check_link_counts_faults_by_the_phase_they_fell_in() -> None:
+    """A hand-made recording: 10 cycles, ALIGN from the 4th to the 7th; counters grow
+    by known steps, so the verdict's counts are closed forms."""
+    from ffexp.recording.reader import JsonData, TopicData
+
+    t = np.arange(10, dtype=np.int64) * 5_000_000 + 10**18
+    lost = np.array([0, 1, 1, 1, 3, 3, 4, 4, 6, 6])  # +1 at 1, +2 at 4, +1 at 6, +2 at 8
+    late = np.array([0, 0, 0, 0, 0, 1, 1, 1, 1, 1])  # +1 at 5
+    zeros = np.zeros(10, dtype=np.int64)
+    drv = TopicData(t, {"lost": lost, "deadline_answers": late, "duplicates": zeros})
+    krc = TopicData(t, {"miss_counter": np.array([5, 5, 5, 5, 5, 5, 5, 6, 6, 6])})  # +1 at 7
+    commanding = np.array([0, 1, 1, 1, 1, 0, 1, 1, 1, 1], dtype=np.uint8)  # out at 5
+    state = TopicData(t, {"commanding": commanding, "healthy": np.ones(10, dtype=np.uint8)})
+    phases = JsonData(np.array([t[0], t[4], t[8]]), [
+        {"phase_id": int(Phase.CONNECT)}, {"phase_id": int(Phase.ALIGN)},
+        {"phase_id": int(Phase.DONE)}])
+    rec = Recording(Path("x.mcap"), topics={"/robot/link_driver": drv, "/robot/link": krc,
+                                            "/robot/state": state},
+                    json={"/runner/phase": phases})
+    v = check_link(rec)
+    assert v.measured and not v.valid
+    assert v.in_align == {"lost": 3, "deadline_answers": 1, "krc_missed": 1, "not_commanding": 1}
+    assert v.whole_run == {"lost": 6, "deadline_answers": 1, "krc_missed": 1,
+                           "not_commanding": 1}  # cycle 0 is before the first CMD
+    assert v.align_s == pytest.approx(4 * 0.005)
+    assert v.text().startswith("link: INVALID trial: 3 measurements lost during ALIGN, 1 cycles "
+                               "answered late (deadline repeat) during ALIGN")
+    # the same run without faults in ALIGN is valid and says what happened elsewhere
+    drv.fields["lost"] = np.array([0, 1, 1, 1, 1, 1, 1, 1, 1, 2])
+    drv.fields["deadline_answers"] = zeros
+    krc.fields["miss_counter"] = np.full(10, 5)
+    state.fields["commanding"] = np.ones(10, dtype=np.uint8)
+    v = check_link(rec)
+    assert v.valid and v.in_align == {} and v.whole_run == {"lost": 2}
+    assert v.text() == ("link: valid trial (no link fault in 0.02 s of ALIGN; whole run: "
+                        "2 measurements lost)")

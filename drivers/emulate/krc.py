@@ -121,6 +121,14 @@ def fri_warning(warning: ArmWarning) -> int:
     return out
 
 
+# the flags as plain ints: ``int & IntFlag`` goes through the enum machinery (slow)
+_CARTPOS, _CARTSTIFF, _CARTDAMP, _TCPFT = (int(CmdFlags.CARTPOS), int(CmdFlags.CARTSTIFF),
+                                          int(CmdFlags.CARTDAMP), int(CmdFlags.TCPFT))
+_JNTPOS, _JNTTRQ, _JNTSTIFF, _JNTDAMP = (int(CmdFlags.JNTPOS), int(CmdFlags.JNTTRQ),
+                                        int(CmdFlags.JNTSTIFF), int(CmdFlags.JNTDAMP))
+_EYE3 = np.eye(3)
+
+
 def arm_command_from_fri(cmd: FriCommand, current: ArmMode) -> ArmCommand:
     """The fields of ``cmd`` its flags select, as an arm command (arrays shared, not copied).
 
@@ -131,14 +139,14 @@ def arm_command_from_fri(cmd: FriCommand, current: ArmMode) -> ArmCommand:
     mode = current if cmd.control == control_mode(current) else arm_mode(cmd.control)
     return ArmCommand(
         mode=mode,
-        cart_pose_m=cmd.cart_pos if f & CmdFlags.CARTPOS else None,
-        cart_stiffness_npm_nmprad=cmd.cart_stiffness if f & CmdFlags.CARTSTIFF else None,
-        cart_damping_ratio=cmd.cart_damping if f & CmdFlags.CARTDAMP else None,
-        tcp_wrench_n_nm=cmd.add_tcp_ft if f & CmdFlags.TCPFT else None,
-        jnt_pos_rad=cmd.jnt_pos if f & CmdFlags.JNTPOS else None,
-        jnt_trq_nm=cmd.add_jnt_trq if f & CmdFlags.JNTTRQ else None,
-        jnt_stiffness_nmprad=cmd.jnt_stiffness if f & CmdFlags.JNTSTIFF else None,
-        jnt_damping_ratio=cmd.jnt_damping if f & CmdFlags.JNTDAMP else None,
+        cart_pose_m=cmd.cart_pos if f & _CARTPOS else None,
+        cart_stiffness_npm_nmprad=cmd.cart_stiffness if f & _CARTSTIFF else None,
+        cart_damping_ratio=cmd.cart_damping if f & _CARTDAMP else None,
+        tcp_wrench_n_nm=cmd.add_tcp_ft if f & _TCPFT else None,
+        jnt_pos_rad=cmd.jnt_pos if f & _JNTPOS else None,
+        jnt_trq_nm=cmd.add_jnt_trq if f & _JNTTRQ else None,
+        jnt_stiffness_nmprad=cmd.jnt_stiffness if f & _JNTSTIFF else None,
+        jnt_damping_ratio=cmd.jnt_damping if f & _JNTDAMP else None,
     )
 
 
@@ -239,27 +247,27 @@ def plausible_command(c: FriCommand) -> bool:
     rotation in ``cart_pos`` within reach, joint angles within a turn.
     """
     f = int(c.flags)
-    if f & CmdFlags.CARTPOS:
+    if f & _CARTPOS:
         p = c.cart_pos
         r = p[:3, :3]
         if not (np.isfinite(p).all() and np.abs(p[:3, 3]).max() <= MAX_REACH_M
-                and np.abs(r.T @ r - np.eye(3)).max() <= 1e-3):
+                and np.abs(r.T @ r - _EYE3).max() <= 1e-3):
             return False
-    if f & CmdFlags.JNTPOS and not (np.abs(c.jnt_pos) <= 2.0 * math.pi).all():
+    if f & _JNTPOS and not (np.abs(c.jnt_pos) <= 2.0 * math.pi).all():
         return False
-    if f & CmdFlags.TCPFT and not (
-        (np.abs(c.add_tcp_ft[:3]) <= MAX_TCP_FORCE_N).all()
-        and (np.abs(c.add_tcp_ft[3:]) <= MAX_TCP_TORQUE_NM).all()
-    ):
-        return False
-    if f & CmdFlags.JNTTRQ and not (np.abs(c.add_jnt_trq) <= MAX_JNT_TRQ_NM).all():
+    if f & _TCPFT:
+        w = c.add_tcp_ft
+        if not (np.abs(w[:3]).max() <= MAX_TCP_FORCE_N
+                and np.abs(w[3:]).max() <= MAX_TCP_TORQUE_NM):
+            return False
+    if f & _JNTTRQ and not np.abs(c.add_jnt_trq).max() <= MAX_JNT_TRQ_NM:
         return False
     for flag, gains, top in (
-        (CmdFlags.CARTSTIFF, c.cart_stiffness, MAX_STIFFNESS),
-        (CmdFlags.JNTSTIFF, c.jnt_stiffness, MAX_STIFFNESS),
-        (CmdFlags.CARTDAMP, c.cart_damping, MAX_DAMPING),
-        (CmdFlags.JNTDAMP, c.jnt_damping, MAX_DAMPING),
+        (_CARTSTIFF, c.cart_stiffness, MAX_STIFFNESS),
+        (_JNTSTIFF, c.jnt_stiffness, MAX_STIFFNESS),
+        (_CARTDAMP, c.cart_damping, MAX_DAMPING),
+        (_JNTDAMP, c.jnt_damping, MAX_DAMPING),
     ):
-        if f & flag and not ((gains >= 0.0) & (gains <= top)).all():
+        if f & flag and not (gains.min() >= 0.0 and gains.max() <= top):
             return False
     return True

@@ -31,6 +31,7 @@ jitter only when ``timing`` (real-time pacing).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 from typing import Final
@@ -114,6 +115,11 @@ class LinkWindow:
         # running counts over the window (kept exact: integers)
         self._n_answered = 0
         self._n_latency = 0  # answered packets with a non-zero latency
+        # running sums of the latencies (unanswered: 0) and their squares, so that a
+        # real-time window costs O(1) per packet; re-summed every window (rounding)
+        self._sum = 0.0
+        self._sum2 = 0.0
+        self._adds = 0
 
     def add(self, answered: bool, latency_s: float) -> None:
         i = self.i
@@ -127,13 +133,27 @@ class LinkWindow:
                 return
             self._n_answered -= old_answered
             self._n_latency -= old_latency
+            old = float(self.latency[i])
+            self._sum -= old
+            self._sum2 -= old * old
         self._rates = None
         self.answered[i] = answered
         self.latency[i] = lat
         self._n_answered += answered
         self._n_latency += lat != 0.0
+        self._sum += lat
+        self._sum2 += lat * lat
         self.i = (i + 1) % self.size
         self.n = min(self.n + 1, self.size)
+        self._adds += 1
+        if self._adds >= self.size:
+            self._resum()
+
+    def _resum(self) -> None:
+        lat = self.latency[: self.n]
+        self._sum = float(lat.sum())
+        self._sum2 = float(lat @ lat)
+        self._adds = 0
 
     def fill(self) -> None:
         """A full window of prompt answers (a link that is up already)."""
@@ -144,6 +164,8 @@ class LinkWindow:
         self.i = 0
         self._n_answered = self.size
         self._n_latency = 0
+        self._sum = self._sum2 = 0.0
+        self._adds = 0
 
     def reset(self) -> None:
         self._rates = None
@@ -151,6 +173,8 @@ class LinkWindow:
         self.i = 0
         self._n_answered = 0
         self._n_latency = 0
+        self._sum = self._sum2 = 0.0
+        self._adds = 0
 
     def rates(self) -> tuple[float, float, float, float]:
         """``(answer_rate, latency_s, jitter_s, miss_rate)``; zeros for an empty window.
@@ -168,12 +192,10 @@ class LinkWindow:
         if self._n_latency == 0:  # every answer prompt (lockstep): no array work
             rate = self._n_answered / n
             return rate, 0.0, 0.0, 1.0 - rate
-        ans = self.answered[:n] if n < self.size else self.answered
-        lat = (self.latency[:n] if n < self.size else self.latency)[ans]
-        k = int(ans.sum())
+        k = self._n_answered
         rate = k / n
-        mean = float(lat.mean()) if k else 0.0
-        jitter = float(lat.std()) if k > 1 else 0.0
+        mean = self._sum / k if k else 0.0
+        jitter = math.sqrt(max(self._sum2 / k - mean * mean, 0.0)) if k > 1 else 0.0
         return rate, mean, jitter, 1.0 - rate
 
 

@@ -22,7 +22,10 @@ tool), so the observer answers in three words and says why:
   target is only ever pushed away, so the funnels are apart). Out of contact
   elsewhere says nothing: seated cones that stopped pushing look the same;
 - ``"unverified"`` otherwise: the robot's view is consistent with seating
-  but cannot prove it.
+  but cannot prove it. At the end of a run (:meth:`WrenchObserver.final`), a
+  run that never showed the quiet push for ``observer_hold_s`` after first
+  contact is "not aligned": seated cones show it (that is the premise of the
+  whole observer), so its absence rules seating out.
 
 The bound on the target's travel is what the old rule ("advanced 30 mm with
 no lateral force") lacked: a free-floating target pushed along the approach
@@ -62,6 +65,9 @@ class ObserverState:
     last: tuple[float, ...] = ()
     """The last cycle's numbers (see :attr:`evidence`), kept without building a dict."""
     quiet_since_ns: int | None = None
+    ever_quiet: bool = False
+    """The quiet push (the robot-side sign of seated cones) has held for ``hold_s`` at
+    some time since first contact."""
     """Since when the wrench and the motion have been quiet (``None``: not now)."""
     loaded_since_ns: int | None = None
     """Since when the tool has been on one wall, or apart (``None``: not now)."""
@@ -102,6 +108,15 @@ class WrenchObserver:
         if self.state.first_contact_z is None:
             self.state.first_contact_z = z_m
 
+    def final(self) -> Label:
+        """The run's label at its end: the current one, except that a run in which the
+        robot-side sign of seated cones (a quiet push held for ``hold_s``) never showed
+        is "not aligned": cones that seated would have shown it, the observer's premise."""
+        s = self.state
+        if s.label == "unverified" and not s.ever_quiet:
+            return "not aligned"
+        return s.label
+
     def update(self, t_ns: int, z_m: float, in_contact: bool, f_z: float, f_y: float,
                t_x: float, v_y: float, w_x: float) -> Label:
         """One cycle: the tool's advance ``z_m`` (start TCF), contact, wrench (TCF,
@@ -129,8 +144,10 @@ class WrenchObserver:
         hold_ns = lim.hold_s * NS_PER_S
         inserted = advance - s.travel_bound_m
         s.last = (advance, inserted, f_z, f_y, t_x, v_y, w_x, float(in_contact))
-        if (s.quiet_since_ns is not None and t_ns - s.quiet_since_ns >= hold_ns
-                and inserted >= lim.seated_depth_m):
+        quiet_held = s.quiet_since_ns is not None and t_ns - s.quiet_since_ns >= hold_ns
+        if quiet_held and s.first_contact_z is not None:
+            s.ever_quiet = True
+        if quiet_held and inserted >= lim.seated_depth_m:
             s.label = "aligned"
         elif s.loaded_since_ns is not None and t_ns - s.loaded_since_ns >= hold_ns:
             s.label = "not aligned"

@@ -185,3 +185,15 @@ def test_the_lost_event_says_why() -> None:
     msgs = [n.message for n in task.notes if isinstance(n, Event) and n.name == "verdict_source"]
     assert msgs == ["the tracker's pose is lost (stream lost: no frames): the observer judges "
                     "until it returns"]
+
+
+def test_observer_final_label_rules_out_seating_that_never_showed() -> None:
+    never = WrenchObserver(LIMITS)
+    never.contact_made(0.0)
+    drive(never, 2.0, z=0.05, f_z=0.5, f_y=0.2, t_x=0.1)  # always a torque: never quiet
+    assert never.state.label == "unverified" and never.final() == "not aligned"
+    once = WrenchObserver(LIMITS)
+    once.contact_made(0.0)
+    drive(once, 1.1, z=0.05, f_z=1.5)  # quiet for a second: consistent with seating
+    drive(once, 1.0, z=0.05, f_z=0.5, t_x=0.1, t0=1.105)
+    assert once.final() == "unverified"

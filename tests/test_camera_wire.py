@@ -70,3 +70,17 @@ def test_camera_tracker_over_the_wire_judges_like_the_truth(tmp_path: Path) -> N
     assert local.verdict_source == "truth"
     assert wire.verdict == local.verdict == "aligned"
     assert wire.contact_breaks == local.contact_breaks
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["--camera-port", "70000"], "--camera-port: 70000: a TCP port is -1..65535"),
+    (["--camera-fps", "0"], "--camera-fps"),
+])
+def test_emulate_camera_options_are_checked(args: list[str], needle: str) -> None:
+    from typer.testing import CliRunner
+
+    from ffexp.cli import app
+
+    result = CliRunner().invoke(app, ["emulate", "--remote", "127.0.0.1:5", *args])
+    assert result.exit_code == 2
+    assert needle in result.output and "Traceback" not in result.output

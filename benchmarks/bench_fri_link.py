@@ -7,6 +7,7 @@ Run (the README's figures: 60 s per configuration, on a quiet machine)::
 Options: ``--cycle-ms 1,5`` (the FRI cycles measured), ``--rt both|off|on``
 (without and/or with ``--rt``: SCHED_FIFO where the OS allows it, garbage
 collection frozen and disabled, for this process and the emulator's),
+``--pin`` (with ``--rt``: the emulator on CPU 0, this process on CPU 1),
 ``--mode runner|immediate`` (the driver's answer policy: the runner's command
 of the cycle with a deadline of half a cycle, or the latest command on arrival).
 
@@ -52,7 +53,8 @@ def ffexp_exe() -> str:
     return shutil.which("ffexp") or str(Path(sys.executable).parent / "ffexp")
 
 
-def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float) -> dict[str, object]:
+def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float,
+          pin: bool = False) -> dict[str, object]:
     deadline = 0.0 if mode == "immediate" else 0.5
     robot = FriRobot(FriSettings(robot_ip="127.0.0.1", local_port=0, local_host="127.0.0.1",
                                  answer_deadline_cycles=deadline, connect_timeout_s=30.0,
@@ -64,7 +66,7 @@ def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float) -
     emu = subprocess.Popen(
         [ffexp_exe(), "emulate", "--remote", f"127.0.0.1:{port}", "--cycle-ms", str(cycle_ms),
          "--pacing", "realtime", "--netft-port", "-1", "--duration", str(limit_s),
-         *(["--rt"] if rt else [])],
+         *(["--rt"] if rt else []), *(["--cpu", "0"] if rt and pin else [])],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
     )
     cmd = CartesianCommand(stiffness_npm_nmprad=np.full(6, 1000.0),
@@ -74,7 +76,7 @@ def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float) -
     got_rt = ""
     t0 = wall = 0.0
     try:
-        with realtime() if rt else nullcontext() as report:
+        with realtime((1,) if pin else ()) if rt else nullcontext() as report:
             got_rt = str(report) if report is not None else "off"
             robot.connect()
             k = settled = waited = 0
@@ -157,6 +159,8 @@ def main() -> None:
     ap.add_argument("--mode", choices=("runner", "immediate"), default="runner")
     ap.add_argument("--warmup-s", type=float, default=1.0,
                     help="time after the first CMD before measuring")
+    ap.add_argument("--pin", action="store_true",
+                    help="with --rt: the emulator on CPU 0, this process on CPU 1")
     args = ap.parse_args()
     cycles = [int(c) for c in args.cycle_ms.split(",")]
     rts = {"both": (False, True), "off": (False,), "on": (True,)}[args.rt]
@@ -164,7 +168,7 @@ def main() -> None:
           f"{args.mode}, {args.seconds:g} s per configuration")
     for cycle_ms in cycles:
         for rt in rts:
-            show(bench(cycle_ms, args.seconds, rt, args.mode, args.warmup_s))
+            show(bench(cycle_ms, args.seconds, rt, args.mode, args.warmup_s, args.pin))
 
 
 if __name__ == "__main__":

@@ -7,9 +7,9 @@ What it does each cycle, as a KRC2 LR with a KRL script would:
 2. wait for the command whose ``reflSeqCount`` is this packet's
    ``sendSeqCount``: in **lockstep** pacing until it comes (or
    ``lockstep_timeout_s``, then a miss); in **real-time** pacing until 95 %
-   of the cycle has passed (a reply read after the world's step is stamped
-   when it is read, so latencies above 30 % of the cycle are overestimated
-   by up to the step's duration);
+   of the cycle has passed (on Linux a reply is timed by the kernel's receive
+   stamp, ``SO_TIMESTAMPNS``, so one that came while the world was stepping is
+   not counted late by the step's duration; elsewhere by when it is read);
 3. account the cycle in the link state machine (:class:`~drivers.fri.link.KrcLink`:
    statistics over the last 100 packets, quality, the KRL script's
    MON/CMD rule) and step the world with the arm command the KRC takes
@@ -56,6 +56,8 @@ from __future__ import annotations
 
 import select
 import socket
+import struct
+import sys
 import threading
 import time
 from collections import deque
@@ -110,6 +112,22 @@ __all__ = [
 ]
 
 _RESTART_JUMP: Final = 100
+
+#: Linux's SO_TIMESTAMPNS (asm-generic value; Python's socket module does not name
+#: it): the kernel stamps each datagram with its arrival time (CLOCK_REALTIME).
+_SO_TIMESTAMPNS: Final = 35
+_TIMESPEC = struct.Struct("@qq")
+
+
+def _kernel_stamps(sock: socket.socket) -> bool:
+    """Ask the kernel to stamp arriving datagrams; False where it cannot."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+    except OSError:
+        return False
+    return True
 
 
 @dataclass(frozen=True)
@@ -242,6 +260,8 @@ class FriEmulator:
         self._pb = new_msr_buffer()
         self._cmd = CmdArrays()
         self._buf = bytearray(2048)
+        self._stamped = _kernel_stamps(self.sock)
+        self._found_wall_ns = 0  # kernel arrival stamp of the command found (0: none)
         self.step_time_s = 0.0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -333,7 +353,7 @@ class FriEmulator:
                 if self._stop.is_set() and cmd is None:
                     break
                 waiting_first = False
-                self._execute(self._decide(cmd, t_rx - t_send))
+                self._execute(self._decide(cmd, max(t_rx - t_send, 1e-9)))
             else:
                 # pipelined: the physics of this cycle runs while the remote
                 # answers; its answer is applied in the next cycle's step. A
@@ -344,7 +364,7 @@ class FriEmulator:
                 self._execute(plan)
                 if cmd is None:
                     cmd, t_rx = self._wait_command(end)
-                plan = self._decide(cmd, t_rx - t_send)
+                plan = self._decide(cmd, max(t_rx - t_send, 1e-9))
             if on_cycle is not None:
                 on_cycle(self)
             if not self.lockstep:
@@ -383,7 +403,10 @@ class FriEmulator:
             self.link.flush(now)
             got = self._read_commands()
             if got is not None:
-                return got, time.perf_counter()
+                t = time.perf_counter()
+                if self._found_wall_ns:  # arrived that long before now
+                    t -= max(0, time.time_ns() - self._found_wall_ns) * 1e-9
+                return got, t
             if now >= deadline or self._stop.is_set():
                 return None, now
             due = self.link.next_due()
@@ -421,8 +444,16 @@ class FriEmulator:
         view = memoryview(self._buf)
         found: FriCommand | None = None
         while True:
+            wall_ns = 0
             try:
-                n, addr = self.sock.recvfrom_into(self._buf)
+                if self._stamped:
+                    n, anc, _flags, addr = self.sock.recvmsg_into([self._buf], 64)
+                    for level, kind, data in anc:
+                        if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS:
+                            sec, nsec = _TIMESPEC.unpack_from(data)
+                            wall_ns = sec * 1_000_000_000 + nsec
+                else:
+                    n, addr = self.sock.recvfrom_into(self._buf)
             except (BlockingIOError, InterruptedError):
                 return found
             except OSError:  # ICMP port unreachable: the remote is not (yet) there
@@ -450,6 +481,7 @@ class FriEmulator:
                 st.late += 1
                 continue
             found = arrays_to_command(a, control_mode(self.world.mode))
+            self._found_wall_ns = wall_ns
 
     def _decide(self, cmd: FriCommand | None, latency_s: float) -> _Plan:
         """Statistics, quality and the script's state machine; what the next step does."""

@@ -30,7 +30,9 @@ class FriEstimateSensor(FlagStream, ForceTorqueSensor):
     """The KRC's ``estExtTcpFT`` (from joint torques) as a :class:`ForceTorqueSensor`.
 
     One sample per FRI cycle, stamped with the cycle's time; the wrench is
-    already in our convention (environment on the tool, TCF at the TCP).
+    already in our convention (environment on the tool, TCF at the TCP). Every
+    measurement from the robot's first on is a sample (also those before
+    ``start``), until ``stop``.
     ``tare`` subtracts the last sample from then on (like Net F/T 0x0042).
 
     Args:
@@ -46,6 +48,7 @@ class FriEstimateSensor(FlagStream, ForceTorqueSensor):
         self._seq = np.zeros(CAPACITY, dtype=np.int64)
         self._wrench = np.zeros((CAPACITY, 6))
         self._n = 0
+        self._stopped = False  # samples are kept from the robot's first measurement on
         self.dropped = 0
         """Samples overwritten before a read (more than :data:`CAPACITY` unread)."""
         self._bias = np.zeros(6)
@@ -53,7 +56,7 @@ class FriEstimateSensor(FlagStream, ForceTorqueSensor):
         robot.add_listener(self._on_measurement)
 
     def _on_measurement(self, m: FriMeasurement) -> None:
-        if not self._running:
+        if self._stopped:
             return
         with self._lock:
             n = self._n
@@ -69,9 +72,16 @@ class FriEstimateSensor(FlagStream, ForceTorqueSensor):
             self._n = n + 1
 
     def start(self) -> None:
+        # keeps what came since the robot connected: whether the link's first
+        # measurement arrives before or after this call does not change the samples
+        self._stopped = False
+        super().start()
+
+    def stop(self) -> None:
+        self._stopped = True
         with self._lock:
             self._n = 0
-        super().start()
+        super().stop()
 
     @requires_open("FRI estimate F/T")
     def samples(self) -> FtSamples:

@@ -22,10 +22,7 @@ tool), so the observer answers in three words and says why:
   target is only ever pushed away, so the funnels are apart). Out of contact
   elsewhere says nothing: seated cones that stopped pushing look the same;
 - ``"unverified"`` otherwise: the robot's view is consistent with seating
-  but cannot prove it. At the end of a run (:meth:`WrenchObserver.final`), a
-  run that never showed the quiet push for ``observer_hold_s`` after first
-  contact is "not aligned": seated cones show it (that is the premise of the
-  whole observer), so its absence rules seating out.
+  but cannot prove it (or it shows nothing either way).
 
 The bound on the target's travel is what the old rule ("advanced 30 mm with
 no lateral force") lacked: a free-floating target pushed along the approach
@@ -89,6 +86,7 @@ class ObserverState:
         out = dict(zip(names, self.last, strict=True))
         now = self.last_ns or 0
         out["target_travel_bound_m"] = self.travel_bound_m
+        out["ever_quiet"] = float(self.ever_quiet)
         out["quiet_s"] = 0.0 if self.quiet_since_ns is None else \
             (now - self.quiet_since_ns) / NS_PER_S
         out["wall_or_apart_s"] = 0.0 if self.loaded_since_ns is None else \
@@ -109,13 +107,11 @@ class WrenchObserver:
             self.state.first_contact_z = z_m
 
     def final(self) -> Label:
-        """The run's label at its end: the current one, except that a run in which the
-        robot-side sign of seated cones (a quiet push held for ``hold_s``) never showed
-        is "not aligned": cones that seated would have shown it, the observer's premise."""
-        s = self.state
-        if s.label == "unverified" and not s.ever_quiet:
-            return "not aligned"
-        return s.label
+        """The run's label at its end (the current one). A run that never showed the
+        quiet push is *not* called "not aligned": in the simulator, runs whose cones
+        seated did not always show it for ``hold_s`` (measured with
+        ``benchmarks/observer_confusion.py``: 10 of 37), so its absence proves nothing."""
+        return self.state.label
 
     def update(self, t_ns: int, z_m: float, in_contact: bool, f_z: float, f_y: float,
                t_x: float, v_y: float, w_x: float) -> Label:

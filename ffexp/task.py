@@ -372,15 +372,10 @@ class Task:
             label = "aligned" if self.aligned else self.observer.final()
             if label == "aligned" and not self.aligned:
                 label = "unverified"  # seen aligned, but the run ended before the hold
-            if label == "not aligned" and not obs.ever_quiet:
-                reason = (f"never a quiet push (no lateral load or motion) for "
-                          f"{self.alignment.observer_hold_s} s: the cones never seated")
-            else:
-                reason = {"aligned": "robot-side evidence of seated cones held",
-                          "not aligned": "the tool rests on one wall of the funnel, or is "
-                                         "out of contact behind where it first touched",
-                          "unverified": "consistent with seated cones, but the robot alone "
-                                        "cannot tell where the target is"}[label]
+            reason = {"aligned": "robot-side evidence of seated cones held",
+                      "not aligned": "the tool rests on one wall of the funnel, or is "
+                                     "out of contact behind where it first touched",
+                      "unverified": "the robot alone cannot tell where the target is"}[label]
             verdict = Verdict(label, src, reason, dict(obs.evidence), truth, True)
         else:
             label = "aligned" if self.aligned else "not aligned"

@@ -16,8 +16,8 @@ the verdict, the 3-D scene) and, of every high-rate topic (the CDR topics and
 at or after each period, plus every further message with the same log time
 (all ``/tf`` frames of one cycle share its time, so a viewer gets all of them
 or none). Schemas and bytes are the file's (``ros2msg``/``cdr`` and
-``jsonschema``/``json``, the names of :mod:`ffexp.recording.topics`); a
-channel is advertised when its topic first publishes.
+``jsonschema``/``json``, the names of :mod:`ffexp.recording.topics`); every
+topic of the registry is advertised from the start.
 """
 
 from __future__ import annotations
@@ -40,6 +40,8 @@ if TYPE_CHECKING:
 QUEUE_SIZE = 4096
 #: Messages the server buffers per viewer before it drops that viewer's oldest.
 BACKLOG_PER_CLIENT = 1024
+#: How long :meth:`LiveServer.close` waits for the server to stop.
+STOP_TIMEOUT_S = 2.0
 
 _Item = tuple[str, int, bytes] | None
 
@@ -94,6 +96,12 @@ class LiveServer:
         except RuntimeError as exc:
             reason = str(exc).removeprefix("FoxgloveError: ")
             raise AddressError(opts.where, opts.address, reason) from None
+        # every topic's channel now, before a viewer can connect: a channel created while
+        # a viewer is connected is advertised to it before the server accepts subscribing
+        # to it (foxglove-sdk 0.30: "unknown channel"), and a viewer that subscribes at
+        # once would never get that topic
+        for topic in (*CDR_TOPICS, *JSON_TOPICS):
+            self._channels[topic] = self._channel(topic)
         self._thread = threading.Thread(target=self._publish, name="ffexp-live", daemon=True)
         self._thread.start()
 
@@ -122,7 +130,15 @@ class LiveServer:
         self._channels.clear()
         server, self._server = self._server, None
         if server is not None:
-            server.stop()
+            # foxglove-sdk 0.30's stop() waits for a client that opened a connection
+            # but never finished its WebSocket handshake: bounded here, never the run's end
+            stopper = threading.Thread(target=server.stop, name="ffexp-live-stop", daemon=True)
+            stopper.start()
+            stopper.join(STOP_TIMEOUT_S)
+            if stopper.is_alive():
+                self.error = self.error or (
+                    f"the server did not stop within {STOP_TIMEOUT_S:g} s (a client connected "
+                    "without finishing its WebSocket handshake); left to the process's exit")
 
     def __enter__(self) -> LiveServer:
         self.start()
@@ -159,10 +175,7 @@ class LiveServer:
                 return
             topic, log_time_ns, data = item
             try:
-                channel = self._channels.get(topic)
-                if channel is None:
-                    channel = self._channels[topic] = self._channel(topic)
-                channel.log(data, log_time=log_time_ns)
+                self._channels[topic].log(data, log_time=log_time_ns)
                 self.published += 1
             except Exception as exc:  # a viewer must never end the run
                 self.error = self.error or f"{topic}: {exc}"

@@ -1,0 +1,258 @@
+"""``ffexp run --live``: a real WebSocket client (the ``websockets`` package speaking
+Foxglove's WebSocket protocol) watches a simulated run, and the decimation and
+dropping of the live server's tap; the run's file stays intact."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import re
+import socket
+import struct
+import subprocess
+import sys
+import threading
+from collections import defaultdict
+from itertools import pairwise
+from pathlib import Path
+from typing import Any
+
+import jsonschema
+import pytest
+import websockets
+from mcap.reader import make_reader
+from mcap.records import Schema
+from mcap_ros2.decoder import DecoderFactory
+from typer.testing import CliRunner
+
+from ffexp.cli import app
+from ffexp.contracts import Phase, Progress
+from ffexp.experiment import RigChoice, run_file
+from ffexp.live import LiveOptions, LiveServer, parse_address
+from ffexp.recording import load
+
+ROOT = Path(__file__).resolve().parents[1]
+DEADLINE_S = float(os.environ.get("LIVE_DEADLINE_S", "60"))
+SUBPROTOCOLS = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
+WANTED = ("/estimator/state", "/ft/raw", "/tf")
+
+
+# -- the tap: decimation and dropping, without a server ---------------------------------
+def _queued(server: LiveServer) -> list[tuple[str, int, bytes]]:
+    out = []
+    while not server._queue.empty():
+        item = server._queue.get_nowait()
+        assert item is not None
+        out.append(item)
+    return out
+
+
+def test_high_rate_topics_are_decimated_per_topic_and_cycle() -> None:
+    server = LiveServer(LiveOptions(rate_hz=50.0))  # 20 ms
+    for k in range(100):  # 1 kHz samples: one in twenty goes out
+        server.tap("/ft/raw", 1_000_000 * k, b"s")
+    for k in range(20):  # 200 Hz cycles: /tf's frames of a cycle share its time, all go out
+        t = 5_000_000 * k
+        for frame in (b"tool", b"link1", b"link2"):
+            server.tap("/tf", t, frame)
+        server.tap("/events", t, b"e")  # low-rate JSON: every one
+    items = _queued(server)
+    ft = [t for topic, t, _ in items if topic == "/ft/raw"]
+    assert ft == [0, 20_000_000, 40_000_000, 60_000_000, 80_000_000]
+    tf = [(t, d) for topic, t, d in items if topic == "/tf"]
+    assert [t for t, _ in tf] == [t for t in (0, 20_000_000, 40_000_000, 60_000_000, 80_000_000)
+                                  for _ in range(3)]
+    assert sum(topic == "/events" for topic, _, _ in items) == 20
+    assert server.queued == len(items) and server.dropped == 0
+
+
+def test_a_full_queue_drops_instead_of_waiting() -> None:
+    server = LiveServer(LiveOptions(), queue_size=3)
+    for k in range(10):
+        server.tap("/events", k, b"e")  # never blocks: nobody takes them out
+    assert server.queued == 3 and server.dropped == 7
+    assert [t for _, t, _ in _queued(server)] == [0, 1, 2]
+
+
+@pytest.mark.parametrize(("text", "host", "port"), [
+    ("127.0.0.1:9000", "127.0.0.1", 9000), (":0", "127.0.0.1", 0), ("0.0.0.0", "0.0.0.0", 8765),
+    ("[::1]:8766", "::1", 8766), ("localhost:1", "localhost", 1),
+])
+def test_live_addresses(text: str, host: str, port: int) -> None:
+    opts = parse_address(text)
+    assert (opts.host, opts.port) == (host, port)
+
+
+@pytest.mark.parametrize("text", ["host:port", "h:70000", "::1:5", "[::1]x"])
+def test_bad_live_address_is_one_line_exit_2(text: str, tmp_path: Path) -> None:
+    result = CliRunner().invoke(app, ["run", str(ROOT / "protocols/method1_case1.toml"),
+                                      "--live-address", text, "--out", str(tmp_path)])
+    assert result.exit_code == 2
+    lines = [x for x in result.output.splitlines() if x.strip()]
+    assert lines[-1].startswith("error: --live-address: ") and text in lines[-1]
+    assert len(lines) == 1 and not list(tmp_path.iterdir())
+
+
+def test_a_busy_port_is_bad_input_before_anything_runs(tmp_path: Path) -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        result = CliRunner().invoke(app, ["run", str(ROOT / "protocols/method1_case1.toml"),
+                                          "--live-address", f"127.0.0.1:{port}",
+                                          "--out", str(tmp_path)])
+    assert result.exit_code == 2
+    assert f"error: --live-address: 127.0.0.1:{port}: " in result.output
+    assert "in use" in result.output and not list(tmp_path.iterdir())
+
+
+def test_help_does_not_import_foxglove() -> None:
+    code = ("import sys\nsys.argv = ['ffexp', 'run', '--help']\nfrom ffexp.cli import main\n"
+            "try:\n    main()\nexcept SystemExit:\n    pass\n"
+            "print('FOXGLOVE', 'foxglove' in sys.modules, 'websockets' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120, env={**os.environ, "COLUMNS": "200"})
+    assert "--live-address" in done.stdout
+    assert "FOXGLOVE False False" in done.stdout
+
+
+# -- a viewer during a simulated run ----------------------------------------------------
+class Gate:
+    """Holds the run (in its progress callback, every 0.1 s of run time) until a viewer
+    grants it more progress steps; ``open`` lets it run to its end. Deadlines, no sleeps."""
+
+    def __init__(self) -> None:
+        self.credits = threading.Semaphore(0)
+        self.opened = threading.Event()
+        self.url = ""
+        self.url_ready = threading.Event()
+        self.timed_out = False
+
+    def progress(self, _p: Progress) -> None:
+        if not self.opened.is_set() and not self.credits.acquire(timeout=DEADLINE_S):
+            self.timed_out = True
+            self.opened.set()
+
+    def notice(self, line: str) -> None:
+        m = re.search(r"ws://\S+", line)
+        if m:
+            self.url = m.group(0)
+            self.url_ready.set()
+
+    def grant(self, steps: int) -> None:
+        self.credits.release(steps)
+
+    def open(self) -> None:
+        self.opened.set()
+        self.credits.release(1000)
+
+
+async def _viewer(gate: Gate, steps: int) -> dict[str, Any]:
+    """Connect, subscribe to the wanted topics as they are advertised, let the run
+    go on for ``steps`` progress steps, collect messages until each wanted topic
+    has some, disconnect."""
+    channels: dict[int, dict[str, Any]] = {}
+    subs: dict[int, int] = {}
+    got: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
+    granted = False
+    async with websockets.connect(gate.url, subprotocols=SUBPROTOCOLS, close_timeout=0.5) as ws:
+        info = json.loads(await asyncio.wait_for(ws.recv(), DEADLINE_S))
+        assert info["op"] == "serverInfo"
+        while not all(len(got[t]) >= 5 for t in WANTED):
+            frame = await asyncio.wait_for(ws.recv(), DEADLINE_S)
+            if isinstance(frame, str):
+                msg = json.loads(frame)
+                if msg["op"] != "advertise":
+                    continue
+                new = []
+                for ch in msg["channels"]:
+                    channels[ch["id"]] = ch
+                    if ch["topic"] in WANTED:
+                        subs[len(subs) + 1] = ch["id"]
+                        new.append({"id": len(subs), "channelId": ch["id"]})
+                if new:
+                    await ws.send(json.dumps({"op": "subscribe", "subscriptions": new}))
+                subscribed = {channels[c]["topic"] for c in subs.values()}
+                if not granted and {"/estimator/state", "/tf"} <= subscribed:  # /ft/raw: later
+                    gate.grant(steps)
+                    granted = True
+                continue
+            assert frame[0] == 0x01  # message data
+            sub_id, log_time = struct.unpack_from("<IQ", frame, 1)
+            got[channels[subs[sub_id]]["topic"]].append((log_time, bytes(frame[13:])))
+    return {"channels": {ch["topic"]: ch for ch in channels.values()}, "got": dict(got)}
+
+
+def _file_messages(path: Path) -> dict[tuple[str, int], set[bytes]]:
+    out: dict[tuple[str, int], set[bytes]] = defaultdict(set)
+    with path.open("rb") as fh:
+        for _s, channel, message in make_reader(fh).iter_messages(topics=list(WANTED)):
+            out[(channel.topic, message.log_time)].add(message.data)
+    return out
+
+
+@pytest.mark.slow
+def test_a_viewer_connects_during_a_run_receives_decodable_messages_and_leaves(
+        tmp_path: Path) -> None:
+    gate = Gate()
+    result: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            result["run"] = run_file(
+                ROOT / "protocols/method1_case1.toml", ["run.timeout_s=1.5"],
+                rig=RigChoice(driver="sim"), out_dir=tmp_path, progress=gate.progress,
+                notice=gate.notice, live=LiveOptions(port=0))
+        except BaseException as exc:  # reported by the test thread
+            result["error"] = exc
+            gate.url_ready.set()
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    try:
+        assert gate.url_ready.wait(DEADLINE_S) and gate.url.startswith("ws://127.0.0.1:")
+        first = asyncio.run(_viewer(gate, steps=5))
+        second = asyncio.run(_viewer(gate, steps=5))  # another viewer after the first left
+    finally:
+        gate.open()
+        thread.join(DEADLINE_S)
+    assert not thread.is_alive() and "error" not in result, result.get("error")
+    assert not gate.timed_out
+    outcome = result["run"].outcome
+    assert outcome.phase in (Phase.DONE, Phase.ABORT) and outcome.stop_reason.value == "timeout"
+    assert outcome.duration_s >= 1.5
+
+    rec = load(result["run"].path)  # the file is whole: summary, every topic readable
+    assert rec.complete and not rec.warnings
+    in_file = _file_messages(result["run"].path)
+    decoders = DecoderFactory()
+    period_ns = round(1e9 / LiveOptions().rate_hz)
+    for view in (first, second):
+        chans = view["channels"]
+        for topic in ("/estimator/state", "/ft/raw"):
+            ch = chans[topic]
+            assert (ch["encoding"], ch["schemaEncoding"]) == ("cdr", "ros2msg")
+            decode = decoders.decoder_for("cdr", Schema(
+                id=ch["id"], name=ch["schemaName"], encoding="ros2msg", data=ch["schema"].encode()))
+            times = [t for t, _ in view["got"][topic]]
+            assert min(b - a for a, b in pairwise(times)) >= period_ns
+            for t, data in view["got"][topic]:
+                assert data in in_file[(topic, t)]  # the file's own bytes at its log time
+                msg = decode(data)
+                assert len(msg.wrench) == 6
+                if topic == "/estimator/state":
+                    assert msg.f_z == -msg.wrench[2]
+        ch = chans["/tf"]
+        assert (ch["encoding"], ch["schemaEncoding"], ch["schemaName"]) == (
+            "json", "jsonschema", "foxglove.FrameTransform")
+        schema = json.loads(ch["schema"])
+        children = set()
+        for t, data in view["got"]["/tf"]:
+            assert data in in_file[("/tf", t)]
+            msg = json.loads(data)
+            jsonschema.validate(msg, schema)
+            assert msg["timestamp"]["sec"] * 10**9 + msg["timestamp"]["nsec"] == t
+            children.add(msg["child_frame_id"])
+        assert {"tool", "link7"} <= children
+

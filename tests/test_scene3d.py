@@ -1,0 +1,167 @@
+"""The rig's 3-D scene: forward kinematics against MuJoCo, and the scene in a recording
+read back with the ``mcap`` reader and ``json`` alone, its poses checked against ``/tf``."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import defaultdict
+from pathlib import Path
+
+import jsonschema
+import mujoco
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from drivers.sim.mjcf import LWR_POS_LIMITS_DEG, build_xml
+from drivers.sim.scene import Scene, load_scene
+from ffexp.experiment import RigChoice, run_file
+from ffexp.scene3d.kinematics import chain, link_transforms, tcp_pose
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _mujoco_tcp(scene: Scene, q: np.ndarray) -> np.ndarray:
+    """The TCP site of the simulator's own arm model at joint positions ``q``."""
+    model = mujoco.MjModel.from_xml_string(build_xml(scene, None))
+    data = mujoco.MjData(model)
+    data.qpos[:7] = q
+    mujoco.mj_kinematics(model, data)
+    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "tcp")
+    out = np.eye(4)
+    out[:3, :3] = data.site_xmat[site].reshape(3, 3)
+    out[:3, 3] = data.site_xpos[site]
+    return out
+
+
+@pytest.mark.parametrize("base_pos", [(0.0, 0.0, 0.0), (0.1, -0.2, 0.05)])
+def test_forward_kinematics_agrees_with_the_simulators_arm(base_pos: tuple[float, ...]) -> None:
+    scene = load_scene(ROOT / "data/scenes/paper.toml", [f"arm.base_pos={list(base_pos)}"])
+    limits = np.radians(LWR_POS_LIMITS_DEG)
+    rng = np.random.default_rng(5)
+    for q in [np.array(scene.arm.q_init), *rng.uniform(-limits, limits, (12, 7))]:
+        np.testing.assert_allclose(tcp_pose(scene, q), _mujoco_tcp(scene, q), atol=1e-12)
+
+
+def test_link_transforms_reject_a_robot_without_seven_joints() -> None:
+    with pytest.raises(ValueError, match="7"):
+        link_transforms(np.zeros(6))
+
+
+def test_a_joint_turns_the_links_after_it_about_its_axis() -> None:
+    """Joint 1 turns about the base z axis: every link's origin turns with it."""
+    q = np.array([0.0, 0.4, 0.2, -1.1, 0.3, 0.7, 0.0])
+    turned = q.copy()
+    turned[0] = 0.5
+    rz = np.array([[math.cos(0.5), -math.sin(0.5), 0], [math.sin(0.5), math.cos(0.5), 0],
+                   [0, 0, 1]])
+    for a, b in zip(chain(link_transforms(q)), chain(link_transforms(turned)), strict=True):
+        np.testing.assert_allclose(rz @ a[:3, 3], b[:3, 3], atol=1e-12)
+
+
+def _pose(p: dict[str, dict[str, float]]) -> np.ndarray:
+    """A 4x4 from a foxglove Pose or FrameTransform (translation/position, rotation)."""
+    t = p.get("translation") or p["position"]
+    q = p.get("rotation") or p["orientation"]
+    x, y, z, w = q["x"], q["y"], q["z"], q["w"]
+    out = np.eye(4)
+    out[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                   [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                   [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+    out[:3, 3] = t["x"], t["y"], t["z"]
+    return out
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short sim run with a noiseless, instant sim tracker (its mouth pose is the truth's)."""
+    out = tmp_path_factory.mktemp("scene")
+    rig = RigChoice(driver="sim", overrides=(
+        "tracker.type='sim'", "tracker.position_noise_m=0", "tracker.yaw_noise_deg=0",
+        "tracker.latency_s=0"))
+    result = run_file(ROOT / "protocols/method1_case1.toml", ["run.timeout_s=1.2"], rig=rig,
+                      out_dir=out)
+    return result.path
+
+
+def _read(path: Path) -> tuple[list[tuple[int, dict, str, str]], dict[int, dict[str, np.ndarray]],
+                                list[tuple[int, np.ndarray]]]:
+    """Scene messages (time, message, schema name, schema text), /tf by time and
+    child frame, and the tracker's mouth poses, with the mcap reader and json only."""
+    scenes, tf, mouths = [], defaultdict(dict), []
+    with path.open("rb") as fh:
+        for schema, channel, message in make_reader(fh).iter_messages(
+                topics=["/scene/rig", "/tf", "/target/pose"]):
+            if channel.topic == "/scene/rig":
+                assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
+                scenes.append((message.log_time, json.loads(message.data), schema.name,
+                               schema.data.decode()))
+            elif channel.topic == "/tf":
+                msg = json.loads(message.data)
+                tf[message.log_time][msg["child_frame_id"]] = (msg["parent_frame_id"],
+                                                                _pose(msg))
+            else:  # CDR TargetPose: header, int64 time_ns, 16 f8 pose, 16 f8 mouth, ...
+                mouth = np.frombuffer(message.data, "<f8", 16, 4 + 8 + 128).reshape(4, 4)
+                valid = message.data[4 + 8 + 256]
+                if valid:
+                    mouths.append((message.log_time, mouth))
+    return scenes, tf, mouths
+
+
+def _in_base(frames: dict[str, tuple[str, np.ndarray]], frame: str) -> np.ndarray:
+    pose = np.eye(4)
+    while frame != "base":
+        parent, t = frames[frame]
+        pose = t @ pose
+        frame = parent
+    return pose
+
+
+@pytest.mark.slow
+def test_the_scene_in_a_recording_reads_with_its_schema_and_agrees_with_tf(
+        recording: Path) -> None:
+    scenes, tf, mouths = _read(recording)
+    assert scenes, "no /scene/rig"
+    t0, first, name, schema_text = scenes[0]
+    assert name == "foxglove.SceneUpdate"
+    schema = json.loads(schema_text)
+    for _, msg, _, _ in scenes:
+        jsonschema.validate(msg, schema)
+    entities = {e["id"]: e for e in first["entities"]}
+    assert {"bed", "base", "tool", "target", *(f"link{i}" for i in range(1, 8))} <= set(entities)
+    assert all(e["frame_locked"] for e in entities.values())
+
+    # every frame an entity names is on /tf from the scene's first time on
+    frames_at_t0 = tf[t0]
+    for e in entities.values():
+        assert e["frame_id"] == "base" or e["frame_id"] in frames_at_t0, e["id"]
+
+    # the tool cone's tip, through the forward-kinematics links, is the simulator's TCP
+    cone = entities["tool"]["cylinders"][-1]
+    assert cone["top_scale"] < cone["bottom_scale"]  # a cone narrowing to the tip
+    tip_in_flange = _pose(cone["pose"]) @ np.array([0, 0, cone["size"]["z"] / 2, 1])
+    checked = 0
+    for frames in tf.values():
+        if "link7" in frames and "tool" in frames:
+            tip = _in_base(frames, "link7") @ tip_in_flange
+            np.testing.assert_allclose(tip[:3], _in_base(frames, "tool")[:3, 3], atol=1e-9)
+            checked += 1
+    assert checked > 20
+
+    # the target funnel's wide end, in the target's frame, is the funnel mouth the
+    # (noiseless) tracker reports, and its axis is the mouth's x axis
+    target = entities["target"]
+    assert target["frame_id"] == "target"
+    funnel = target["cylinders"][0]
+    assert funnel["bottom_scale"] > funnel["top_scale"]
+    fpose = _pose(funnel["pose"])
+    mouth_in_target = fpose[:3, 3] - fpose[:3, 2] * funnel["size"]["z"] / 2
+    assert mouths
+    for log_time, mouth in mouths[:5]:
+        target_in_base = _in_base(tf[max(t for t in tf if t <= log_time and "target" in tf[t])],
+                                  "target")
+        np.testing.assert_allclose(target_in_base[:3, :3] @ mouth_in_target
+                                   + target_in_base[:3, 3], mouth[:3, 3], atol=2e-6)
+        np.testing.assert_allclose(target_in_base[:3, :3] @ fpose[:3, 2], mouth[:3, 0],
+                                   atol=1e-6)

@@ -168,3 +168,70 @@ def test_the_tracker_back_ends_import_no_sibling_and_no_ffexp() -> None:
                 parts = name.split(".")
                 if parts[0] == "drivers" and len(parts) > 1:
                     assert parts[1] in (own, "base", "errors", "config"), f"{path}: {name}"
+
+
+def test_a_stalled_stream_is_reported_lost_not_waited_for(world) -> None:  # type: ignore[no-untyped-def]
+    """A server that sends one frame and then goes silent, keeping the connection open."""
+    import threading
+    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+    g, cal = camera(world)
+    target, _ = world.target_frames()
+    ok, jpeg = cv2.imencode(".jpg", TargetRenderer(g, SIZE, (0.25, 0.25)).render(target))
+    assert ok
+    release = threading.Event()
+
+    class Stall(BaseHTTPRequestHandler):
+        def log_message(self, *args: object) -> None:
+            return
+
+        def do_GET(self) -> None:
+            self.send_response(200)
+            self.send_header("Content-Type", "multipart/x-mixed-replace; boundary=f")
+            self.end_headers()
+            for _ in range(2):  # FFmpeg's demuxer reads one part ahead
+                self.wfile.write(b"--f\r\nContent-Type: image/jpeg\r\nContent-Length: "
+                                 + str(len(jpeg)).encode() + b"\r\n\r\n" + jpeg.tobytes()
+                                 + b"\r\n")
+            self.wfile.flush()
+            release.wait(30.0)
+
+    server = ThreadingHTTPServer(("127.0.0.1", 0), Stall)
+    server.daemon_threads = True
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    cfg = CameraTrackerConfig(source=f"http://127.0.0.1:{server.server_address[1]}/s.mjpg",
+                              lost_after_s=0.5, reopen_s=5.0)
+    tracker = CameraTracker(cfg, cal)
+    tracker.start()
+    try:
+        assert tracker.wait(30.0) is not None  # the frame it got
+        while True:
+            lost = tracker.wait(30.0, valid=False)
+            assert lost is not None, "the tracker hung on a silent stream"
+            if lost.status.startswith("stream lost"):
+                break
+        assert not lost.valid
+    finally:
+        release.set()
+        tracker.stop()
+        server.shutdown()
+        server.server_close()
+
+
+def test_latest_reports_a_silent_capture_itself(world) -> None:  # type: ignore[no-untyped-def]
+    import threading
+
+    g, cal = camera(world)
+    target, _ = world.target_frames()
+    tracker = CameraTracker(CameraTrackerConfig(lost_after_s=0.5), cal)
+    assert tracker.process(TargetRenderer(g, SIZE, (0.25, 0.25)).render(target), 1).valid
+    tracker._thread = threading.current_thread()  # a capture "running" that never publishes
+    try:
+        assert tracker.latest() is not None and tracker.latest().valid  # type: ignore[union-attr]
+        tracker._published_at -= 10.0  # as if it had been silent for 10 s
+        obs = tracker.latest()
+        assert obs is not None and not obs.valid
+        assert obs.status.startswith("stream lost: no frame for 10.")
+        assert tracker.latest() is obs  # said once
+    finally:
+        tracker._thread = None

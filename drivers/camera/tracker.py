@@ -11,8 +11,10 @@ A frame's time is its arrival on the robot's clock minus ``latency_s``. A
 frame without the marker publishes an invalid observation (``status``
 ``"marker not found"``); no frame for ``lost_after_s`` (or a source that ends
 or cannot be opened) publishes ``"stream lost: ..."`` and the thread reopens
-the source every ``reopen_s`` until stopped. :meth:`CameraTracker.stop`
-releases the capture within one read timeout.
+the source every ``reopen_s`` until stopped. Network reads time out after
+``lost_after_s`` (FFmpeg's read timeout), and :meth:`CameraTracker.latest`
+itself reports a stream that has been silent that long, should a read hang.
+:meth:`CameraTracker.stop` releases the capture within one read timeout.
 """
 
 from __future__ import annotations
@@ -67,9 +69,15 @@ def target_from_marker(quad_px: F64, calibration: Calibration,
     return target, target @ geometry.mouth_in_target
 
 
-def _open_source(source: str) -> cv2.VideoCapture:
+def _open_source(source: str, timeout_s: float) -> cv2.VideoCapture:
+    """A capture of a device index, a file, or a URL (FFmpeg, with open and read timeouts
+    so that a silent stream ends a read instead of blocking it)."""
     if source.isdigit():
         return cv2.VideoCapture(int(source))
+    if "://" in source:
+        ms = max(1, round(timeout_s * 1000))
+        return cv2.VideoCapture(source, cv2.CAP_FFMPEG, [
+            cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, ms])
     return cv2.VideoCapture(source)
 
 
@@ -109,6 +117,7 @@ class CameraTracker(TargetTracker):
         self._latest: TargetObservation | None = None
         self._last_valid: TargetObservation | None = None
         self._frames = 0
+        self._published_at = time.monotonic()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self.marker_misses = 0
@@ -135,8 +144,16 @@ class CameraTracker(TargetTracker):
             thread.join(timeout=self.lost_after_s + 5.0)
 
     def latest(self) -> TargetObservation | None:
+        """The newest observation; if the capture has published nothing for
+        ``lost_after_s`` (a stalled stream, a read that hangs), an invalid one saying so."""
         with self._cond:
-            return self._latest
+            obs = self._latest
+            silent = time.monotonic() - self._published_at
+            reported = not obs.valid and obs.status.startswith("stream lost") if obs else True
+            if reported or silent <= self.lost_after_s or self._thread is None:
+                return obs
+        self._lost(f"no frame for {silent:.1f} s")
+        return self.latest()
 
     def wait(self, timeout_s: float, *, valid: bool = True) -> TargetObservation | None:
         """Block until an observation (a valid one, unless ``valid`` is false) newer than
@@ -161,6 +178,7 @@ class CameraTracker(TargetTracker):
 
     def _publish(self, obs: TargetObservation) -> None:
         with self._cond:
+            self._published_at = time.monotonic()
             self._frames += 1
             obs.frames = self._frames
             self._latest = obs
@@ -185,7 +203,7 @@ class CameraTracker(TargetTracker):
 
     def _run(self) -> None:
         while not self._stop.is_set():
-            cap = _open_source(self.source)
+            cap = _open_source(self.source, self.lost_after_s)
             if not cap.isOpened():
                 cap.release()
                 self._lost(f"cannot open {self.source}")

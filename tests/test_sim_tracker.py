@@ -87,3 +87,28 @@ def test_calibrate_camera_writes_a_file_the_tracker_reads(tmp_path: Path) -> Non
     pts.write_text("1,2,3,4\n")
     res = CliRunner().invoke(app, ["calibrate-camera", str(pts), str(out)])
     assert res.exit_code == 2 and "at least four" in res.output
+
+
+def test_a_run_with_the_sim_tracker_records_its_poses_and_who_judged(tmp_path: Path) -> None:
+    from ffexp.analysis import metrics
+    from ffexp.experiment import run_file
+    from ffexp.recording import load
+    from ffexp.rig_choice import RigChoice
+
+    root = Path(__file__).resolve().parents[1]
+    res = run_file(root / "protocols" / "method1_case1.toml",
+                   ["run.timeout_s=2.0", "alignment.source='tracker'"],
+                   rig=RigChoice(overrides=("tracker.type='sim'", "tracker.rate_hz=50.0")),
+                   out_dir=tmp_path)
+    rec = load(res.path)
+    poses = rec.topic("/target/pose")
+    duration_s = metrics(rec).duration_s
+    assert abs(len(poses) - 50 * duration_s) <= 3  # one message per new frame
+    assert (poses["valid"][1:] == 1).all() and (poses["age_s"][1:] >= 0.03 - 1e-9).all()
+    tf = [m for m in rec.json["/tf"].messages if m["child_frame_id"] == "target_tracked"]
+    assert len(tf) == int(poses["valid"].sum())
+    verdicts = rec.json["/alignment/verdict"].messages
+    assert verdicts[0]["source"] == "tracker" and not verdicts[0]["final"]
+    assert verdicts[-1]["final"] and verdicts[-1]["label"] == "not aligned"
+    assert verdicts[-1]["truth"] == "not aligned"  # the truth beside the tracker's verdict
+    assert rec.metadata["run"]["tracker"] == "sim"

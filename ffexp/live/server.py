@@ -2,13 +2,16 @@
 
 The control loop's thread only calls :meth:`LiveServer.tap` (a
 :attr:`Recorder.taps <ffexp.recording.Recorder.taps>` callable): it decides
-whether a message goes out and, if so, puts ``(topic, log time, bytes)`` into
-a bounded queue without waiting; when the queue is full the message is
-dropped and counted. A publisher thread takes them out and hands them to the
-foxglove-sdk server (its own :class:`foxglove.Context`, so nothing else of
-the process is published), which sends them to every subscribed viewer from
-its own threads and drops the oldest message per slow client
-(``message_backlog_size``).
+whether a message goes out and, if so, appends ``(topic, log time, bytes)`` to
+a bounded queue (a ``collections.deque``: no lock, no wake-up of another
+thread); when the queue is full the message is dropped and counted. A
+publisher thread wakes every ``flush_period_s`` (20 ms), takes out what has
+queued and hands it to the foxglove-sdk server (its own
+:class:`foxglove.Context`, so nothing else of the process is published),
+which sends it to every subscribed viewer from its own threads and drops the
+oldest message per slow client (``message_backlog_size``). Waking on a timer
+instead of per message keeps the loop's thread from handing the interpreter
+lock to the publisher a thousand times a second (``benchmarks/bench_live.py``).
 
 What goes out: every message of the low-rate JSON topics (events, phases,
 the verdict, the 3-D scene) and, of every high-rate topic (the CDR topics and
@@ -22,8 +25,8 @@ topic of the registry is advertised from the start.
 
 from __future__ import annotations
 
-import queue
 import threading
+from collections import deque
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
@@ -42,8 +45,8 @@ QUEUE_SIZE = 4096
 BACKLOG_PER_CLIENT = 1024
 #: How long :meth:`LiveServer.close` waits for the server to stop.
 STOP_TIMEOUT_S = 2.0
-
-_Item = tuple[str, int, bytes] | None
+#: How often the publisher hands what has queued to the server [s].
+FLUSH_PERIOD_S = 0.02
 
 
 def _decimated_topics() -> frozenset[str]:
@@ -58,14 +61,19 @@ class LiveServer:
     Args:
         options: address, port (0: any free one) and rate per high-rate topic.
         queue_size: bound of the queue between the loop and the publisher.
+        flush_period_s: how often the publisher empties the queue.
     """
 
-    def __init__(self, options: LiveOptions, *, queue_size: int = QUEUE_SIZE) -> None:
+    def __init__(self, options: LiveOptions, *, queue_size: int = QUEUE_SIZE,
+                 flush_period_s: float = FLUSH_PERIOD_S) -> None:
         if not options.rate_hz > 0.0:
             raise ValueError(f"{options.where}: rate_hz must be positive")
         self.options = options
         self.period_ns = max(1, round(NS_PER_S / options.rate_hz))
-        self._queue: queue.Queue[_Item] = queue.Queue(maxsize=queue_size)
+        self.queue_size = queue_size
+        self.flush_period_s = flush_period_s
+        self._queue: deque[tuple[str, int, bytes]] = deque()
+        self._stop = threading.Event()
         self._decimated = _decimated_topics()
         self._next_ns: dict[str, int] = {}
         self._last_ns: dict[str, int] = {}
@@ -123,7 +131,7 @@ class LiveServer:
         """Publish what is queued, stop the publisher and the server; idempotent."""
         thread, self._thread = self._thread, None
         if thread is not None:
-            self._queue.put(None)  # the loop is over: waiting here is fine
+            self._stop.set()  # the publisher empties the queue once more, then ends
             thread.join()
         for channel in self._channels.values():
             channel.close()
@@ -160,25 +168,26 @@ class LiveServer:
                 return
             self._next_ns[topic] = log_time_ns + self.period_ns
             self._last_ns[topic] = log_time_ns
-        try:
-            self._queue.put_nowait((topic, log_time_ns, data))
-        except queue.Full:
+        if len(self._queue) >= self.queue_size:
             self.dropped += 1
             return
+        self._queue.append((topic, log_time_ns, data))  # only this thread appends
         self.queued += 1
 
     # -- the publisher's side -------------------------------------------------
     def _publish(self) -> None:
+        pending = self._queue
         while True:
-            item = self._queue.get()
-            if item is None:
+            stopping = self._stop.wait(self.flush_period_s)
+            while pending:
+                topic, log_time_ns, data = pending.popleft()
+                try:
+                    self._channels[topic].log(data, log_time=log_time_ns)
+                    self.published += 1
+                except Exception as exc:  # a viewer must never end the run
+                    self.error = self.error or f"{topic}: {exc}"
+            if stopping:
                 return
-            topic, log_time_ns, data = item
-            try:
-                self._channels[topic].log(data, log_time=log_time_ns)
-                self.published += 1
-            except Exception as exc:  # a viewer must never end the run
-                self.error = self.error or f"{topic}: {exc}"
 
     def _channel(self, topic: str) -> foxglove.Channel:
         """The topic's channel with the recording's schema and encoding."""

@@ -15,6 +15,7 @@ from pathlib import Path
 from drivers.emulate.faults import FaultSettings
 from drivers.emulate.fri_server import EmulatorSettings, EmulatorStats, FriEmulator
 from drivers.fri.driver import FriEstimateSensor, FriRobot, FriSettings
+from drivers.fri.link import QualityThresholds
 from drivers.sim.scene import load_scene
 from drivers.sim.world import SimWorld
 from ffexp import loop
@@ -41,12 +42,13 @@ def emulated_run(tmp: Path, overrides: list[str], *, faults: FaultSettings | Non
                  pacing: str = "lockstep", connect_timeout_s: float = 5.0,
                  cycle_timeout_s: float = 1.0, lockstep_timeout_s: float = 0.02,
                  silent: bool = False, robot_ip: str = LOCAL,
-                 max_cycles: int | None = None) -> LinkRun:
+                 max_cycles: int | None = None,
+                 quality: QualityThresholds | None = None) -> LinkRun:
     """Run ``PROTOCOL`` with ``overrides`` over UDP against the emulator; load the recording.
 
     ``silent``: no emulator at all (a robot that never answers). ``robot_ip``:
     the address the driver expects (another one than the emulator's: a robot at
-    a wrong address).
+    a wrong address). ``quality``: the emulated KRC's rating (default: its own).
     """
     protocol = load_run_protocol(PROTOCOL, overrides)
     scene = load_scene(ROOT / "data" / "scenes" / "paper.toml")
@@ -64,7 +66,8 @@ def emulated_run(tmp: Path, overrides: list[str], *, faults: FaultSettings | Non
                 EmulatorSettings(remote=(LOCAL, port), bind_host=LOCAL,
                                  pacing="lockstep" if pacing == "lockstep" else "realtime",
                                  lockstep_timeout_s=lockstep_timeout_s,
-                                 faults=faults or FaultSettings()))
+                                 faults=faults or FaultSettings(),
+                                 quality=quality or QualityThresholds()))
             emu.start_thread(max_cycles=max_cycles)
         with Recorder(path) as rec:
             log = RunLog(rec, time.time_ns(), protocol.run.tf_period_s)

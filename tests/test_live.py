@@ -251,3 +251,35 @@ def test_a_viewer_connects_during_a_run_receives_decodable_messages_and_leaves(
             children.add(msg["child_frame_id"])
         assert {"tool", "link7"} <= children
 
+
+
+# -- the layout file ----------------------------------------------------------------------
+def test_the_layout_file_is_the_generated_one_and_reads_existing_fields() -> None:
+    from ffexp.live import layout
+    from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS
+
+    text = (ROOT / "layouts/ffexp-layout.json").read_text()
+    assert text == layout.text(), "run: python -m ffexp.live.layout"
+    data = json.loads(text)
+    ids = set(data["configById"])
+    assert {"3D!rig", "Plot!force", "Plot!wrench", "StateTransitions!phase"} <= ids
+
+    def leaves(node: Any) -> list[str]:
+        return [node] if isinstance(node, str) else leaves(node["first"]) + leaves(
+            node["second"])
+
+    assert sorted(leaves(data["layout"])) == sorted(ids)  # every panel placed once
+    paths = layout.plotted_paths()
+    assert "/estimator/state.f_z" in paths and "/control/terms.f_ref[2]" in paths
+    for path in paths:
+        m = re.fullmatch(r"(/[\w/]+)\.(\w+)(?:\[(\d+)\])?", path)
+        assert m, path
+        topic, field, index = m.groups()
+        if topic in CDR_TOPICS:
+            spec = {f.name: f for f in CDR_TOPICS[topic].spec.fields}
+            assert field in spec, path
+            assert (index is None) == (spec[field].count == 1), path
+            assert index is None or int(index) < spec[field].count, path
+        else:
+            assert field in JSON_TOPICS[topic].schema["properties"], path
+    assert set(data["configById"]["3D!rig"]["topics"]) <= set(JSON_TOPICS)

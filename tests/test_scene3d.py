@@ -153,6 +153,7 @@ def test_the_scene_in_a_recording_reads_with_its_schema_and_agrees_with_tf(
     # (noiseless) tracker reports, and its axis is the mouth's x axis
     target = entities["target"]
     assert target["frame_id"] == "target"
+    assert entities["target_tracked"]["frame_id"] == "target_tracked"  # the sim tracker's
     funnel = target["cylinders"][0]
     assert funnel["bottom_scale"] > funnel["top_scale"]
     fpose = _pose(funnel["pose"])

@@ -13,7 +13,9 @@ Every entity is locked to a ``/tf`` frame and placed in it:
   and the tool funnel, a cone on the nose whose tip is the TCF;
 - ``target`` (the target's frame): the block and its funnel, a hollow cone
   drawn as a translucent frustum whose wide end is the funnel mouth, its axis
-  along the block's +x (:mod:`drivers.sim.funnels`).
+  along the block's +x (:mod:`drivers.sim.funnels`);
+- ``target_tracked``: in simulation with a tracker, the same in green and
+  translucent in the tracker's frame (what the camera model sees).
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ _BLUE = {"r": 0.3, "g": 0.5, "b": 0.9, "a": 1.0}
 _BLUE_GLASS = {"r": 0.3, "g": 0.5, "b": 0.9, "a": 0.45}
 _ALU = {"r": 0.75, "g": 0.75, "b": 0.8, "a": 1.0}
 _GLASS = {"r": 0.8, "g": 0.9, "b": 1.0, "a": 0.3}
+_GHOST = {"r": 0.2, "g": 0.9, "b": 0.3, "a": 0.3}
 
 #: Rotation taking a primitive's z axis to +x (a funnel's axis in the target).
 _Z_TO_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
@@ -100,12 +103,14 @@ def target_funnel_inner_radius(scene: Scene) -> float:
 
 
 def scene_update(scene: Scene, layout: Layout, time_ns: int, target_frame: str,
-                 base: F64) -> dict[str, Any]:
+                 base: F64, tracked_frame: str = "") -> dict[str, Any]:
     """The whole rig as one SceneUpdate message at log time ``time_ns``.
 
     ``layout`` places bed and target as the simulator does (in the robot's
     frame), ``target_frame`` is the ``/tf`` frame of the target block,
-    ``base`` the arm's base in the robot's frame."""
+    ``base`` the arm's base in the robot's frame; ``tracked_frame``, when
+    given, the frame of the tracker's target, drawn as a translucent ghost
+    (``target_tracked``) beside the true one."""
     sec, nsec = divmod(time_ns, NS_PER_S)
     stamp = {"sec": sec, "nsec": nsec}
     entities = []
@@ -138,4 +143,8 @@ def scene_update(scene: Scene, layout: Layout, time_ns: int, target_frame: str,
                        target_funnel_inner_radius(scene), _BLUE_GLASS,
                        rotation=_Z_TO_X, origin=mouth)
     entities.append(_entity(stamp, target_frame, "target", cubes=[block], cylinders=[funnel]))
+    if tracked_frame:
+        ghost = {**block, "color": _GHOST}
+        entities.append(_entity(stamp, tracked_frame, "target_tracked", cubes=[ghost],
+                                cylinders=[{**funnel, "color": _GHOST}]))
     return {"deletions": [], "entities": entities}

@@ -5,7 +5,8 @@ from the measured start TCF, as the simulator does) and picks the target's
 frame: ``target`` (ground truth, which the run log puts on ``/tf``) when the
 robot reports it, else ``target_tracked`` (the tracker's, also the run log's)
 when the rig has a tracker, else ``target_nominal``, the start placement of
-the scene, written here. Then it writes
+the scene, written here (with both truth and a tracker, the tracker's target
+is drawn too, as a ghost). Then it writes
 
 - ``/scene/rig`` (:func:`ffexp.scene3d.entities.scene_update`) at the start
   and every ``scene_period_s`` of log time;
@@ -55,6 +56,7 @@ class SceneWriter:
         self.base = base_pose(scene)
         self.layout: Layout | None = None
         self.target_frame = ""
+        self.tracked_frame = ""
         self._next_tf_ns = 0
         self._next_scene_ns = 0
         self._nominal = np.eye(4)
@@ -64,6 +66,7 @@ class SceneWriter:
         layout = compute_layout(self.scene, pose[:3, 3].copy(), pose[:3, :3].copy())
         if state.truth is not None:
             self.target_frame = TRUTH_FRAME
+            self.tracked_frame = TRACKED_FRAME if target is not None else ""
         elif target is not None:
             self.target_frame = TRACKED_FRAME
         else:
@@ -80,7 +83,8 @@ class SceneWriter:
             layout = self.layout = self._start(state, target)
         if log_ns >= self._next_scene_ns:
             self._next_scene_ns = log_ns + self.scene_period_ns
-            msg = scene_update(self.scene, layout, log_ns, self.target_frame, self.base)
+            msg = scene_update(self.scene, layout, log_ns, self.target_frame, self.base,
+                               self.tracked_frame)
             self.rec.write_json(SCENE_TOPIC, log_ns, msg)
             if self.target_frame == NOMINAL_FRAME:
                 self.rec.transform(log_ns, "base", NOMINAL_FRAME, self._nominal)

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-HEAVY = ("mujoco", "cv2", "matplotlib", "scipy", "filterpy")
+HEAVY = ("mujoco", "cv2", "matplotlib", "scipy", "filterpy", "foxglove", "pandas")
 
 _SCRIPT = """
 import json, sys

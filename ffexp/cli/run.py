@@ -149,9 +149,12 @@ def run(
     with stop_signals(StopFlag()) as flag, Steps() as steps:
         result = _one(steps, protocol, set_, choice, out, flag, protocol.stem, rt, cpu,
                       live_options)
-        with steps.step("loading the recording"):
-            recs = [_load(result.path)]
-    _print_runs(recs, wide)
+        recs = []
+        if _measured(result):  # a robot that never answered: the file has only events
+            with steps.step("loading the recording"):
+                recs = [_load(result.path)]
+    if recs:
+        _print_runs(recs, wide)
     code = flag.exit_code()
     raise typer.Exit(code if code is not None else outcome_exit_code(result.outcome))
 
@@ -165,6 +168,13 @@ def _live_options(live: bool, address: str) -> LiveOptions | None:
     if address:
         return parse_address(address, "--live-address")
     return parse_address(DEFAULT_ADDRESS, "--live")
+
+
+def _measured(result: RunResult) -> bool:
+    """The run got at least one measurement (else its recording has no cycles to show)."""
+    from ffexp.contracts import StopReason
+
+    return result.outcome.stop_reason is not StopReason.NO_MEASUREMENT
 
 
 def _load(path: Path) -> Recording:
@@ -236,7 +246,8 @@ def campaign(
         with steps.step("loading the recordings", total=len(results)) as advance:
             recs = []
             for r in results:
-                recs.append(_load(r.path))
+                if _measured(r):
+                    recs.append(_load(r.path))
                 advance()
         _write_manifest(camp_dir, campaign_file, camp.name, results)
         _paper_table(recs, wide)

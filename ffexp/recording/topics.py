@@ -291,7 +291,9 @@ JSON_TOPICS: dict[str, JsonTopic] = {
                 },
             },
             "every 20 ms of run time per frame",
-            "Tool (TCP) in the robot base, target in the world (sim), for the 3D panel.",
+            "Tool (TCP) in the robot base; target (sim truth), target_tracked (the tracker) "
+            "or target_nominal (the start placement); link1..link7 of the arm, each in its "
+            "parent; for the 3-D panel with /scene/rig.",
         ),
         JsonTopic(
             "/runner/phase",

@@ -164,6 +164,7 @@ def test_a_paper_protocol_over_the_cli_matches_the_in_process_run(tmp_path: Path
         run = subprocess.run(
             [str(FFEXP), "run", str(PROTOCOL), "--rig", str(ROOT / "rigs/emulator.toml"),
              "--fri-port", str(fri_port), "--netft", f"127.0.0.1:{netft_port}",
+             "--set", "alignment.source=settings",  # the same judge as the local run below
              "--out", str(tmp_path / "fri")],
             capture_output=True, text=True, timeout=240, env=env,
         )

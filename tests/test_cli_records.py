@@ -48,10 +48,32 @@ def test_analyze_json_has_the_documented_keys(run_file: Path, tmp_path: Path) ->
     # a 1 s run never reaches ALIGN: no ALIGN peak, but the whole run's peak is there
     assert m["peak_abs_fz_n"] is None and m["peak_abs_fz_run_n"] >= 0.0
     assert m["file"] == str(run_file) and m["complete"] is True
+    # the in-process link never faults: a valid trial, said in one line
+    assert m["measured"] is True and m["trial_valid"] is True
+    assert m["link"].startswith("valid trial")
     assert m["run"] == run_file.stem and run_file.stem.startswith("method1_case2-")
     for kind in ("wrench", "applied"):
         assert (tmp_path / f"{run_file.stem}_{kind}.png").read_bytes()[:4] == b"\x89PNG"
         assert b"<svg" in (tmp_path / f"{run_file.stem}_{kind}.svg").read_bytes()[:400]
+
+
+def test_a_robot_that_never_answered_is_an_abort_and_analyze_says_why(
+    tmp_path: Path,
+) -> None:
+    run = runner.invoke(app, [
+        "run", str(ROOT / "protocols/method1_case1.toml"), "--driver", "fri",
+        "--robot-ip", "127.0.0.1", "--fri-port", "0", "--ft", "mock",
+        "--rig-set", "robot.connect_timeout_s=0.2", "--out", str(tmp_path)])
+    assert run.exit_code == 3, run.stdout + run.stderr  # the ABORT code, not a missing topic
+    assert "received nothing" in run.stdout and "Traceback" not in run.stdout + run.stderr
+    (path,) = tmp_path.glob("*.mcap")
+    text = runner.invoke(app, ["analyze", str(path)])
+    assert text.exit_code == 0, text.stderr
+    assert "no measurement received" in " ".join(text.stdout.split())
+    as_json = runner.invoke(app, ["analyze", str(path), "--json"])
+    m = json.loads(as_json.stdout)
+    assert m["measured"] is False and m["trial_valid"] is False
+    assert m["link"].startswith("no measurement received")
 
 
 def test_compare_writes_csv(run_file: Path, tmp_path: Path) -> None:

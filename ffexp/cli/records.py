@@ -42,19 +42,35 @@ def analyze(
     ),
     plots: Path | None = typer.Option(None, "--plots", help=PLOTS_HELP),
 ) -> None:
-    """Metrics of a run from its recording (and the paper's figures with --plots)."""
+    """Metrics of a run from its recording (and the paper's figures with --plots).
+
+    Each run also gets the link's verdict on the trial (valid, or invalid with the
+    link faults during ALIGN), and a run that never got a measurement says so.
+    """
     from ffexp import figures
     from ffexp.analysis import metrics, run_name
     from ffexp.cli.tables import console, json_line, key_value_table
+    from ffexp.linkcheck import check_link
     from ffexp.recording import load
 
     _check_plots_dir(plots)
     con = console()
     for path in recordings:
         rec = load(path)
+        link = check_link(rec)
+        if not link.measured and "run" in rec.metadata:  # a robot that never answered
+            _warn(rec.warnings)
+            if as_json:
+                typer.echo(json_line({"file": str(path), "run": run_name(rec),
+                                      "measured": False, "trial_valid": False,
+                                      "link": link.text().removeprefix("link: ")}))
+            else:
+                con.print(f"{run_name(rec)}: {link.text()}")
+            continue
         m = metrics(rec)  # an unusable file fails here, with its one error line
         _warn(rec.warnings)
-        values = {"file": str(path), "run": run_name(rec), **asdict(m)}
+        values = {"file": str(path), "run": run_name(rec), **asdict(m), "measured": True,
+                  "trial_valid": link.valid, "link": link.text().removeprefix("link: ")}
         values.pop("warnings")
         if as_json:
             typer.echo(json_line({**values, "warnings": m.warnings}))

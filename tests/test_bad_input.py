@@ -55,10 +55,19 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
         "listjson_dir": d / "listjson",
         "points": d / "points.json",
         "nodir": d / "no/such/dir/out.csv",
+        "pts_few": d / "pts_few.csv",
+        "pts_text": d / "pts_text.csv",
+        "pts_cols": d / "pts_cols.csv",
+        "pts_line": d / "pts_line.csv",
     }
     out["dir"].mkdir()
     out["emptydir"].mkdir()
     out["file"].write_text("x\n")
+    out["pts_few"].write_text("u,v,x,y\n0,0,0,0\n100,0,0.1,0\n0,100,0,0.1\n")
+    out["pts_text"].write_text("u,v,x,y\n0,0,0,0\n100,zero,0.1,0\n")
+    out["pts_cols"].write_text("0,0,0,0\n100,0,0.1\n")
+    # four points on one line: no homography
+    out["pts_line"].write_text("".join(f"{i * 100},0,{i * 0.1},0\n" for i in range(4)))
     out["empty"].write_bytes(b"")
     out["text"].write_text("not a recording\n")
     out["magic"].write_bytes(b"\x89MCAP0\r\nxy")
@@ -93,6 +102,13 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
 
 # (command line with {placeholders}, the words the one error line must contain)
 CASES: list[tuple[str, list[str]]] = [
+    # calibrate-camera
+    ("calibrate-camera {tmp}/nope.csv {tmp}/cal.toml", ["nope.csv", "cannot read"]),
+    ("calibrate-camera {pts_few} {tmp}/cal.toml", ["pts_few.csv", "four reference points"]),
+    ("calibrate-camera {pts_text} {tmp}/cal.toml", ["pts_text.csv", "line 3"]),
+    ("calibrate-camera {pts_cols} {tmp}/cal.toml", ["pts_cols.csv", "line 2", "four columns"]),
+    ("calibrate-camera {pts_line} {tmp}/cal.toml", ["pts_line.csv"]),
+    ("calibrate-camera {pts_few} {tmp}/cal.toml --plane-z-m abc", ["--plane-z-m"]),
     # run
     ("run {tmp}/missing.toml", ["missing.toml", "not found"]),
     ("run {dir}", ["a_dir"]),

@@ -106,7 +106,8 @@ def load_calibration(path: Path, where: str) -> Calibration:
 
 
 def save_calibration(path: Path, homography: F64, plane_z_m: float, comment: str = "") -> None:
-    """Write a homography calibration file."""
+    """Write a homography calibration file (its directory is made if missing)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     rows = ", ".join("[" + ", ".join(repr(float(v)) for v in row) + "]" for row in homography)
     head = "".join(f"# {line}\n" for line in comment.splitlines())
     path.write_text(f"{head}plane_z_m = {float(plane_z_m)!r}\n\n[homography]\n"

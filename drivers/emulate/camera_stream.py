@@ -4,8 +4,11 @@
 frame at the camera's rate (what IP cameras serve; OpenCV reads it as a
 capture source), ``GET /calibration.toml`` the camera's calibration (the
 top view's pixels-to-plane homography, :mod:`drivers.camera.calibration`).
-A render thread takes the world's target pose at ``fps`` on the wall clock
-(the emulator runs the world at real time) and renders it
+The emulator's thread hands over the target's pose after each cycle
+(:meth:`CameraStream.publish`: a copy under a lock, so the render thread
+never reads the world while it steps); a render thread takes the newest at
+``fps`` on the wall clock (the emulator runs the world at real time) and
+renders it
 (:class:`drivers.sim.render.TargetRenderer`); each client's thread sends the
 newest frame once. Everything stops with :meth:`CameraStream.close`.
 """
@@ -61,6 +64,8 @@ class CameraStream:
                                        marker_dictionary, marker_id, marker_m, noise=noise,
                                        seed=world.seed)
         self.jpeg_quality = jpeg_quality
+        self._pose_lock = threading.Lock()
+        self._target: F64 = target  # the newest published target pose (world frame)
         self._cond = threading.Condition()
         self._jpeg = b""
         self._seq = 0
@@ -119,10 +124,18 @@ class CameraStream:
                          "ffexp emulate's synthetic camera: pixels -> base-frame metres on the "
                          "target's top face")
 
+    def publish(self) -> None:
+        """Take the world's target pose now; call it from the thread that steps the world,
+        between steps (the emulator's ``on_cycle``)."""
+        target, _ = self.world.target_frames()  # new arrays
+        with self._pose_lock:
+            self._target = target
+
     def _render_loop(self) -> None:
         next_t = time.monotonic()
         while not self._stop.is_set():
-            target, _ = self.world.target_frames()
+            with self._pose_lock:
+                target = self._target
             frame = self.renderer.render(target)
             ok, buf = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
             if ok:

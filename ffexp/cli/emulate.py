@@ -168,6 +168,8 @@ def emulate(
     last = [time.monotonic()]
 
     def status(emu: FriEmulator) -> None:
+        if camera is not None:  # the camera sees the world between steps, never during one
+            camera.publish()
         now = time.monotonic()
         if now - last[0] >= 5.0:
             last[0] = now

@@ -7,18 +7,13 @@ import cv2
 import numpy as np
 
 from drivers.base.types import F64 as FloatArray
+from drivers.camera.calibration import calibration_from_points
 
 
 def homography_from_points(image_px: FloatArray, table_m: FloatArray) -> FloatArray:
-    """Homography mapping image pixels to table metres from four (or more) points."""
-    src = np.asarray(image_px, np.float64).reshape(-1, 2)
-    dst = np.asarray(table_m, np.float64).reshape(-1, 2)
-    if src.shape[0] < 4 or src.shape != dst.shape:
-        raise ValueError("need at least four image points and as many table points")
-    hom, _ = cv2.findHomography(src, dst, 0)
-    if hom is None:
-        raise ValueError("the table points are degenerate (three on a line?)")
-    return np.asarray(hom, np.float64)
+    """Homography mapping image pixels to table metres from four (or more) points
+    (the camera calibration's fit, :func:`drivers.camera.calibration.calibration_from_points`)."""
+    return calibration_from_points(image_px, table_m)
 
 
 def pixels_to_metres(

@@ -84,15 +84,11 @@ def truth_at_end(path: Path) -> str:
 
 
 def final_verdict(path: Path) -> dict[str, str]:
-    from mcap.reader import make_reader
+    """The recording's final ``/alignment/verdict`` ({} when there is none)."""
+    from ffexp.analysis import final_verdict as final_of
+    from ffexp.recording import load
 
-    last: dict[str, str] = {}
-    with path.open("rb") as fh:
-        for _s, _c, msg in make_reader(fh).iter_messages(topics=["/alignment/verdict"]):
-            d = json.loads(msg.data)
-            if d.get("final"):
-                last = d
-    return last
+    return {k: v for k, v in final_of(load(path)).items() if isinstance(v, str)}
 
 
 def main() -> int:

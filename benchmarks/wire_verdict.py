@@ -29,15 +29,11 @@ PAPER = ["method1_case1.toml", "method1_case2.toml", "method2.toml", "method3_im
 
 
 def final_verdict(path: Path) -> dict[str, str]:
-    from mcap.reader import make_reader
+    """The recording's final ``/alignment/verdict`` ({} when there is none)."""
+    from ffexp.analysis import final_verdict as final_of
+    from ffexp.recording import load
 
-    last: dict[str, str] = {}
-    with path.open("rb") as fh:
-        for _s, _c, msg in make_reader(fh).iter_messages(topics=["/alignment/verdict"]):
-            d = json.loads(msg.data)
-            if d.get("final"):
-                last = d
-    return last
+    return {k: v for k, v in final_of(load(path)).items() if isinstance(v, str)}
 
 
 def wire(protocol: str, seed: int, scene_set: list[str], out: Path, port: int) -> dict[str, str]:

@@ -139,16 +139,22 @@ def _open_sim(
     scene = load_scene(path, scene_overrides)
     world = SimWorld(scene, seed=seed)
     robot = SimRobot(world, start_cycles=cfg.start_cycles,
-                     max_consecutive_misses=cfg.max_consecutive_misses)
+                     max_consecutive_misses=cfg.max_consecutive_misses,
+                     wire_precision=cfg.wire_precision)
     meta = {
         "driver": "sim",
         "scene_file": str(path),
         "scene_json": scene.model_dump_json(),
         "ft": ft_cfg.type,
+        "wire_precision": str(cfg.wire_precision).lower(),
     }
     sensor: ForceTorqueSensor
     if isinstance(ft_cfg, SimFt):
         sensor = SimFtSensor(world)
+    elif isinstance(ft_cfg, FriEstimateFt):  # the in-process KRC's own wrench estimate
+        from drivers.fri.estimate import FriEstimateSensor
+
+        sensor = FriEstimateSensor(robot)
     else:
         sensor = _other_sensor(ft_cfg, source, seed, lambda: world.cycle * world.cycle_ns, None)
     tracker: TargetTracker | None = None

@@ -75,6 +75,10 @@ class SimRobotConfig(StrictModel):
     """Cycles without an answer in a row that end command mode."""
     scene_file: Path | None = None
     """Scene TOML (relative to the rig file); default: the protocol's scene."""
+    wire_precision: bool = False
+    """Round the measurement and the command through the FRI codec, as the UDP link
+    does: with ``ft.type = "fri-estimate"`` a run equals the same run in lockstep
+    over UDP against ``ffexp emulate``, bit for bit."""
 
 
 class FriRobotConfig(StrictModel):
@@ -235,8 +239,9 @@ class Rig(StrictModel):
                 "ft.type 'sim' needs robot.type 'sim' (with an FRI robot the simulated sensor "
                 "is served by the emulator: use 'netft')"
             )
-        if isinstance(self.ft, FriEstimateFt) and not isinstance(self.robot, FriRobotConfig):
-            raise ValueError("ft.type 'fri-estimate' needs robot.type 'fri1'")
+        if isinstance(self.ft, FriEstimateFt) and not isinstance(
+                self.robot, FriRobotConfig | SimRobotConfig):
+            raise ValueError("ft.type 'fri-estimate' needs robot.type 'fri1' or 'sim'")
         if (isinstance(self.ft, NetFtConfig) and self.ft.host is None
                 and not isinstance(self.robot, FriRobotConfig)):
             raise ValueError("ft.host is required unless robot.type is 'fri1'")

@@ -78,7 +78,7 @@ def test_bad_field_names_file_and_field(
     ("text", "needs"),
     [
         ('[robot]\ntype = "fri1"\nrobot_ip = "1.2.3.4"\n[ft]\ntype = "sim"\n', "robot.type 'sim'"),
-        ('[robot]\ntype = "sim"\n[ft]\ntype = "fri-estimate"\n', "robot.type 'fri1'"),
+        ('[robot]\ntype = "mock"\n[ft]\ntype = "fri-estimate"\n', "robot.type 'fri1' or 'sim'"),
         ('[robot]\ntype = "mock"\n[ft]\ntype = "netft"\n', "ft.host is required"),
         ('[robot]\ntype = "fri1"\nrobot_ip = "1.2.3.4"\n[ft]\ntype = "netft"\n'
          '[tracker]\ntype = "sim"\n', "tracker.type 'sim' needs robot.type 'sim'"),
@@ -184,6 +184,30 @@ def test_fri_devices_with_the_estimate_sensor() -> None:
         assert dev.notice is not None and "estExtTcpFT" in dev.notice
     finally:
         dev.close()
+
+
+def test_sim_at_wire_precision_with_the_krc_estimate_as_the_sensor(tmp_path: Path) -> None:
+    """``robot.wire_precision`` and ``ft.type = "fri-estimate"`` on the sim rig: what the
+    in-process KRC reports is what float32 FRI fields can hold, and the F/T samples are
+    its own wrench estimate, one per cycle (the pair that equals a run over UDP)."""
+    import numpy as np
+
+    from ffexp.experiment import run_file
+    from ffexp.recording import load
+    from ffexp.rig_choice import RigChoice
+
+    res = run_file(RIGS.parent / "protocols" / "method1_case1.toml", ["run.timeout_s=0.5"],
+                   rig=RigChoice(overrides=("robot.wire_precision=true",
+                                            "ft.type='fri-estimate'")), out_dir=tmp_path)
+    rec = load(res.path)
+    assert rec.metadata["run"]["wire_precision"] == "true"
+    msr = rec.topic("/robot/measurement")
+    for name in ("msr_cart_pos", "msr_jnt_pos", "est_ext_tcp_ft"):
+        x = msr[name]
+        np.testing.assert_array_equal(x, x.astype(np.float32).astype(np.float64))
+    ft = rec.topic("/ft/raw")
+    assert len(ft) == len(msr)  # one sample per cycle
+    np.testing.assert_array_equal(ft["wrench"], msr["est_ext_tcp_ft"])
 
 
 def test_back_ends_are_imported_only_when_used(paper_scene_path: Path) -> None:

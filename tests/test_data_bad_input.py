@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_bad_input import check_one_line, expand  # the battery's own checks
 from typer.testing import CliRunner
 
 from ffexp.cli import app
@@ -104,20 +105,6 @@ CASES: list[tuple[str, list[str]]] = [
     ("export {tmp}/nope.mcap", ["nope.mcap", "not found"]),
     ("export {text}", ["text.mcap", "not an MCAP"]),
 ]
-
-
-def expand(line: str, files: dict[str, str]) -> list[str]:
-    return [part.format(**files) for part in line.split()]
-
-
-def check_one_line(code: int, stdout: str, stderr: str, needles: list[str]) -> None:
-    assert "Traceback" not in stdout + stderr, stderr
-    lines = [x for x in stderr.splitlines() if x.strip()]
-    assert len(lines) == 1, stderr
-    assert lines[0].startswith("error: "), lines[0]
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
-    assert code == 2, (code, lines[0])
 
 
 @pytest.mark.parametrize(("line", "needles"), CASES, ids=[c[0] for c in CASES])

@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import os
 import re
-import signal
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from emulator_process import free_udp_port, stop_emulator
 
 from ffexp.analysis import metrics
 from ffexp.experiment import run_file
@@ -21,12 +20,6 @@ from ffexp.recording import load
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOL = ROOT / "protocols" / "method1_case1.toml"
 FFEXP = Path(sys.executable).parent / "ffexp"
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @pytest.mark.slow
@@ -54,12 +47,7 @@ def test_camera_tracker_over_the_wire_judges_like_the_truth(tmp_path: Path) -> N
             capture_output=True, text=True, timeout=300, env=env,
         )
     finally:
-        emulator.send_signal(signal.SIGTERM)
-        try:
-            _out, emu_err = emulator.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            emulator.kill()
-            _out, emu_err = emulator.communicate()
+        emu_err = stop_emulator(emulator)
     assert run.returncode == 0, run.stdout[-400:] + run.stderr + emu_err
     assert "Traceback" not in run.stderr + emu_err
     match = re.search(r"recording: (\S+)", run.stdout)

@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from emulator_process import free_udp_port, stop_emulator
 from typer.testing import CliRunner
 
 from ffexp.analysis import metrics
@@ -30,16 +31,6 @@ ROOT = Path(__file__).resolve().parent.parent
 PROTOCOL = ROOT / "protocols" / "method3_impedance.toml"
 FFEXP = Path(sys.executable).parent / "ffexp"
 runner = CliRunner()
-
-
-def free_udp_port() -> int:
-    """A port that was free a moment ago (the two processes need to know each other's)."""
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    try:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-    finally:
-        s.close()
 
 
 def one_error_line(result: object, *needles: str) -> None:
@@ -169,12 +160,7 @@ def test_a_paper_protocol_over_the_cli_matches_the_in_process_run(tmp_path: Path
             capture_output=True, text=True, timeout=240, env=env,
         )
     finally:
-        emulator.send_signal(signal.SIGTERM)
-        try:
-            _out, emu_err = emulator.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            emulator.kill()
-            _out, emu_err = emulator.communicate()
+        emu_err = stop_emulator(emulator)
     assert run.returncode == 0, run.stdout[:400] + run.stderr + emu_err
     assert emulator.returncode == 0, emu_err
     assert "Traceback" not in run.stderr + emu_err

@@ -119,6 +119,8 @@ def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float,
             _, err = emu.communicate()
     summary = next((line for line in reversed(err.splitlines()) if "cycles" in line), "")
     overruns = re.search(r"overruns (\d+)", summary)
+    late_sends = re.search(r"late sends (\d+) \(latest ([\d.]+) ms, misses after one (\d+)",
+                           summary)
     emu_rt = next((line for line in err.splitlines() if "--rt" in line or "SCHED" in line), "")
     seen = sum(states.values())
     missed = st.miss_counter - start_miss
@@ -133,6 +135,7 @@ def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float,
                               FriQuality.UNACCEPTABLE)},
         "lost": st.lost - start_lost, "late": st.deadline_answers - start_late,
         "overruns": int(overruns.group(1)) if overruns else -1,
+        "late_sends": late_sends.groups() if late_sends else ("?", "?", "?"),
     }
 
 
@@ -143,7 +146,9 @@ def show(r: dict[str, object]) -> None:
           f"{r['wall_s']:.1f} s | turnaround p50 {p50:.0f} us, p99 {p99:.0f} us, p99.9 "
           f"{p999:.0f} us, max {mx:.0f} us | missed {r['missed']} ({r['missed_share']:.2%}) | "
           f"in CMD {r['cmd_share']:.1%} | quality {q} | lost {r['lost']}, runner late "
-          f"{r['late']}, emulator overruns {r['overruns']}")
+          f"{r['late']}, emulator overruns {r['overruns']}, emulator late sends "
+          f"{r['late_sends'][0]} (latest {r['late_sends'][1]} ms, misses after one "  # type: ignore[index]
+          f"{r['late_sends'][2]})")  # type: ignore[index]
     if r["rt"]:
         print(f"    this process: {r['rt_report']}")
         if r["emu_rt"]:

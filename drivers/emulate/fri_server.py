@@ -7,7 +7,10 @@ What it does each cycle, as a KRC2 LR with a KRL script would:
 2. wait for the command whose ``reflSeqCount`` is this packet's
    ``sendSeqCount``: in **lockstep** pacing until it comes (or
    ``lockstep_timeout_s``, then a miss); in **real-time** pacing until 95 %
-   of the cycle has passed (on Linux a reply is timed by the kernel's receive
+   of a cycle after the packet was sent (a KRC sends on its clock; when this
+   process wakes late and sends late, the remote still gets its whole budget,
+   and the late send is counted in ``late_sends``, not as the remote's miss;
+   on Linux a reply is timed by the kernel's receive
    stamp, ``SO_TIMESTAMPNS``, so one that came while the world was stepping is
    not counted late by the step's duration; elsewhere by when it is read);
 3. account the cycle in the link state machine (:class:`~drivers.fri.link.KrcLink`:
@@ -194,6 +197,13 @@ class EmulatorStats(FaultCounters):
     """Stops at a software limit switch (each also a fallback when in CMD)."""
     overruns: int = 0
     """Real time: cycles the emulator itself started late by more than a cycle."""
+    late_sends: int = 0
+    """Real time: measurements the emulator sent more than a tenth of a cycle after
+    their scheduled time (its own scheduling; a KRC's clock never is)."""
+    send_lateness_max_s: float = 0.0
+    """Real time: the latest of those sends, after its scheduled time [s]."""
+    misses_after_late_send: int = 0
+    """Real time: missed cycles whose measurement had been sent late."""
     decode: DecodeStats = field(default_factory=DecodeStats)
     state: FriState = FriState.OFF
     quality: FriQuality = FriQuality.BAD
@@ -208,7 +218,9 @@ class EmulatorStats(FaultCounters):
             f"missed {self.missed} (bridged {self.bridged}), late {self.late}, "
             f"duplicates {self.duplicates}, stale {self.stale}, foreign {self.foreign}, "
             f"rejected {sum(d.values()) - d['ok']}, applied {self.applied}, "
-            f"starts {self.starts}, fallbacks {self.fallbacks}, overruns {self.overruns}; "
+            f"starts {self.starts}, fallbacks {self.fallbacks}, overruns {self.overruns}, "
+            f"late sends {self.late_sends} (latest {self.send_lateness_max_s * 1e3:.2f} ms, "
+            f"misses after one {self.misses_after_late_send}); "
             f"state {self.state.name}, quality {self.quality.name}"
         )
 
@@ -342,6 +354,13 @@ class FriEmulator:
             t_send = time.perf_counter()
             self.link.send(data, self.settings.remote, t_send)
             st.sent += 1
+            late_send = False
+            if not self.lockstep:
+                lateness = t_send - t_cycle
+                st.send_lateness_max_s = max(st.send_lateness_max_s, lateness)
+                if lateness > 0.1 * cycle:
+                    st.late_sends += 1
+                    late_send = True
             self._awaiting = self._seq
             self._seq = seq_next(self._seq)
             if self.lockstep:
@@ -359,11 +378,16 @@ class FriEmulator:
                 # answers; its answer is applied in the next cycle's step. A
                 # prompt answer (first 30 % of the cycle) is awaited before the
                 # step, so that its latency is measured, not the step's duration.
-                end = t_cycle + 0.95 * cycle
+                # the remote's budget runs from when the packet left: a KRC sends on
+                # its clock, so an emulator that wakes late (its own scheduling,
+                # counted in late_sends) must not charge that to the remote
+                end = t_send + 0.95 * cycle
                 cmd, t_rx = self._wait_command(min(t_send + 0.3 * cycle, end))
                 self._execute(plan)
                 if cmd is None:
                     cmd, t_rx = self._wait_command(end)
+                if cmd is None and late_send:
+                    st.misses_after_late_send += 1
                 plan = self._decide(cmd, max(t_rx - t_send, 1e-9))
             if on_cycle is not None:
                 on_cycle(self)

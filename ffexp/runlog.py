@@ -19,6 +19,7 @@ events are kept, in :attr:`RunLog.events`.
 
 from __future__ import annotations
 
+from struct import Struct
 from typing import Protocol
 
 import numpy as np
@@ -36,11 +37,27 @@ from ffexp.contracts import Phase, StopReason
 from ffexp.controllers import Controller
 from ffexp.estimator import Estimate
 from ffexp.recording import Recorder
+from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import STATE_JOINTS
 from ffexp.recording.topics_target import TRACKED_FRAME
 from ffexp.task import Event, Note, PhaseChange, Verdict
 
 _TERMS = ("p", "i", "ri", "ff", "impedance")
+#: The topics of every cycle, packed with their ``struct`` layout (one call each).
+_PACKED = ("/robot/state", "/estimator/state", "/control/terms", "/control/command")
+_NAN = float("nan")
+_ZEROS6 = [0.0] * 6
+_ZEROS_5X6 = [0.0] * 30
+_ZEROS_34 = [0.0] * 34  # pose, stiffness, damping and wrench of no intent
+
+
+def _floats6(value: F64) -> list[float]:
+    """A 6-vector's elements as floats (an array, or anything numpy makes one of:
+    the recording stays what filling a numpy record with it gave)."""
+    if type(value) is np.ndarray and value.shape == (6,):
+        out: list[float] = value.tolist()
+        return out
+    return list(np.broadcast_to(np.asarray(value, dtype=np.float64), (6,)).tolist())
 
 
 class CycleSink(Protocol):
@@ -67,7 +84,7 @@ class RunLog:
         self.events: list[tuple[float, str, str]] = []
         """``(run time [s], name, message)`` of every event, for the outcome."""
         self._next_tf_ns = 0
-        self._zeros = np.zeros(6)
+        self._layouts: dict[str, Struct] | None = None
         self._ft_template: np.ndarray | None = None
         self.verdicts: list[Verdict] = []
         """Every verdict note, in order (the last one with ``final`` is the run's)."""
@@ -162,38 +179,38 @@ class RunLog:
         if rec is None:
             return
         log_ns = self.start_utc_ns + t_ns
-        self._state(log_ns, state)
+        lay = self._layouts
+        if lay is None:
+            lay = self._layouts = {topic: rec.layout(topic) for topic in _PACKED}
+        write = rec.write_bytes
+        write("/robot/state", log_ns, self._state(lay["/robot/state"], state))
         if state.extras is not None:
             for topic in state.extras.topics():
                 rec.write_fields(topic, log_ns, state.extras)
-        n = len(ft)
-        r = rec.record("/estimator/state")
-        r["wrench"] = est.wrench
-        r["wrench_std"] = est.wrench_std
-        r["bias"] = est.bias
-        r["twist_tcf"] = est.twist_tcf
-        r["f_z"] = est.f_z
-        r["n_samples"] = n
-        r["in_contact"] = int(est.in_contact)
-        rec.write("/estimator/state", log_ns)
+        write("/estimator/state", log_ns, lay["/estimator/state"].pack(
+            CDR_HEADER, *est.wrench.tolist(), *est.wrench_std.tolist(), *est.bias.tolist(),
+            *est.twist_tcf.tolist(), est.f_z, len(ft), int(est.in_contact)))
 
-        r = rec.record("/control/terms")
         terms = controller.terms if phase == Phase.ALIGN else None
-        for name in _TERMS:
-            value = getattr(terms, name, None)
-            r[name] = self._zeros if value is None else value
+        values: list[object] = [CDR_HEADER]
+        if terms is None:
+            values += _ZEROS_5X6
+        else:
+            for name in _TERMS:
+                value = getattr(terms, name, None)
+                values += _ZEROS6 if value is None else _floats6(value)
         if approach_wrench is not None:
-            r["impedance"] = approach_wrench
-        r["saturated"] = int(bool(getattr(terms, "saturated", False)))
-        r["total"] = total
-        r["f_ref"] = controller.f_ref
-        r["setpoint"] = setpoint.reshape(-1)
-        r["phase"] = int(phase)
-        rec.write("/control/terms", log_ns)
+            values[25:31] = approach_wrench.tolist()
+        values += total.tolist()
+        values += _floats6(controller.f_ref)
+        values += setpoint.ravel().tolist()
+        values.append(int(phase))
+        values.append(int(bool(getattr(terms, "saturated", False))))
+        write("/control/terms", log_ns, lay["/control/terms"].pack(*values))
         if phase == Phase.ALIGN and controller.topic is not None:
             rec.write_fields(controller.topic.topic, log_ns, controller.extra)
 
-        self._command(log_ns, intent, applied)
+        write("/control/command", log_ns, self._command(lay["/control/command"], intent, applied))
         if applied.extras is not None:
             for topic in applied.extras.topics():
                 rec.write_fields(topic, log_ns, applied.extras)
@@ -226,45 +243,39 @@ class RunLog:
         if target.valid:
             self.rec.transform(log_ns, "base", TRACKED_FRAME, target.pose_m)
 
-    def _state(self, log_ns: int, state: RobotState) -> None:
-        assert self.rec is not None
-        r = self.rec.record("/robot/state")
-        r["time_ns"] = state.time_ns
-        r["tcp_pose"] = state.tcp_pose_m.reshape(-1)
-        n = min(len(state.joint_pos_rad), STATE_JOINTS)
-        joints = r["joint_pos"]
-        joints[:n] = state.joint_pos_rad[:n]
-        joints[n:] = np.nan
-        r["n_joints"] = len(state.joint_pos_rad)
+    @staticmethod
+    def _state(layout: Struct, state: RobotState) -> bytes:
+        """``/robot/state``'s message."""
+        joints = state.joint_pos_rad
+        n = len(joints)
+        q = joints[:STATE_JOINTS].tolist()
+        if n < STATE_JOINTS:
+            q += [_NAN] * (STATE_JOINTS - n)
         link = state.link
-        r["commanding"] = int(link.commanding)
-        r["healthy"] = int(link.healthy)
-        r["cycle"] = link.cycle
-        r["cycle_s"] = link.cycle_s
-        for flag, name, value in (("has_twist", "twist", state.tcp_twist_mps_radps),
-                                  ("has_ext_wrench", "ext_wrench", state.ext_wrench_n_nm)):
-            r[flag] = int(value is not None)
-            r[name] = self._zeros if value is None else value
-        self.rec.write("/robot/state", log_ns)
+        twist, ext = state.tcp_twist_mps_radps, state.ext_wrench_n_nm
+        return layout.pack(
+            CDR_HEADER, state.time_ns, *state.tcp_pose_m.ravel().tolist(), *q, n,
+            int(link.commanding), int(link.healthy), link.cycle, link.cycle_s,
+            int(twist is not None), *(_ZEROS6 if twist is None else _floats6(twist)),
+            int(ext is not None), *(_ZEROS6 if ext is None else _floats6(ext)))
 
-    def _command(
-        self, log_ns: int, intent: CartesianCommand | None, applied: AppliedCommand
-    ) -> None:
-        assert self.rec is not None
-        r = self.rec.record("/control/command")
-        r["given"] = int(intent is not None)
-        if intent is not None:
-            r["pose"] = intent.pose_m.reshape(-1)
-            r["stiffness"] = intent.stiffness_npm_nmprad
-            r["damping"] = intent.damping_ratio
-            r["wrench"] = intent.wrench_n_nm
-        else:  # the robot keeps its own set-point: nothing was asked
-            for name in ("pose", "stiffness", "damping", "wrench"):
-                r[name] = 0.0
+    @staticmethod
+    def _command(layout: Struct, intent: CartesianCommand | None,
+                 applied: AppliedCommand) -> bytes:
+        """``/control/command``'s message."""
         a = applied.command
-        r["applied_pose"] = a.pose_m.reshape(-1)
-        r["applied_stiffness"] = a.stiffness_npm_nmprad
-        r["applied_damping"] = a.damping_ratio
-        r["applied_wrench"] = a.wrench_n_nm
-        r["status"] = int(applied.status)
-        self.rec.write("/control/command", log_ns)
+        values: list[object] = [CDR_HEADER]
+        if intent is not None:
+            values += intent.pose_m.ravel().tolist()
+            values += _floats6(intent.stiffness_npm_nmprad)
+            values += _floats6(intent.damping_ratio)
+            values += _floats6(intent.wrench_n_nm)
+        else:  # the robot keeps its own set-point: nothing was asked
+            values += _ZEROS_34
+        values += a.pose_m.ravel().tolist()
+        values += _floats6(a.stiffness_npm_nmprad)
+        values += _floats6(a.damping_ratio)
+        values += _floats6(a.wrench_n_nm)
+        values.append(int(applied.status))
+        values.append(int(intent is not None))
+        return layout.pack(*values)

@@ -21,6 +21,7 @@ from ffexp import loop
 from ffexp.cli import app
 from ffexp.protocol import load_run_protocol, scene_path
 from ffexp.recording import Recorder, load
+from ffexp.recording.topics import CDR_TOPICS
 from ffexp.runlog import RunLog
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,15 +29,17 @@ START_NS = 1_750_000_000 * 10**9
 
 
 class CapturingRecorder(Recorder):
-    """Keeps a copy of every CDR record the run log writes."""
+    """Keeps a copy of every CDR message the run log writes, as a numpy record."""
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
         self.captured: dict[str, list[tuple[int, np.ndarray]]] = {}
 
-    def write(self, topic: str, time_ns: int) -> None:
-        self.captured.setdefault(topic, []).append((time_ns, self.record(topic).copy()))
-        super().write(topic, time_ns)
+    def write_bytes(self, topic: str, time_ns: int, data: bytes) -> None:
+        if topic in CDR_TOPICS:
+            record = np.frombuffer(data, dtype=CDR_TOPICS[topic].spec.dtype)
+            self.captured.setdefault(topic, []).append((time_ns, record))
+        super().write_bytes(topic, time_ns, data)
 
     def write_records(self, topic: str, times_ns: np.ndarray, records: np.ndarray) -> None:
         for t, r in zip(times_ns.tolist(), records, strict=True):
@@ -49,7 +52,8 @@ def test_recording_round_trip_of_a_sim_run(tmp_path: Path) -> None:
     protocol = load_run_protocol(ppath, ["run.timeout_s=1.5"])
     robot, sensor = open_sim(scene_path(ppath, protocol), seed=protocol.seed)
     path = tmp_path / "run.mcap"
-    with CapturingRecorder(path) as rec:
+    rec = CapturingRecorder(path)
+    with rec:
         loop.run(protocol, robot, sensor, RunLog(rec, START_NS, protocol.run.tf_period_s))
     loaded = load(path)
     assert loaded.complete and not loaded.warnings

@@ -9,11 +9,11 @@ time (default 1 s), so a killed process loses at most about a second of data.
 
 Messages go through :class:`FastWriter`, mcap's ``Writer`` whose ``add_message``
 writes the very same bytes (record, chunk index, statistics) with one
-``struct.pack`` instead of mcap's field-by-field record writer: about 2.5 times
-faster per message (``benchmarks/bench_recording.py``). It uses the ``Writer``'s
-private chunk builder and statistics; if a future mcap lacks them, it falls back
-to mcap's own ``add_message`` (``tests/test_recording_writer.py`` checks that
-both write identical files).
+``struct.pack`` instead of mcap's field-by-field record writer, and hands a
+whole chunk's messages to mcap's chunk builder at once (``benchmarks/bench_recording.py``
+measures it). It uses the ``Writer``'s private chunk builder and statistics;
+if a future mcap lacks them, it falls back to mcap's own ``add_message``
+(``tests/test_recording_writer.py`` checks that both write identical files).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import math
 import struct
 import time
 from collections.abc import Callable, Mapping
+from itertools import chain
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
@@ -34,6 +35,7 @@ from mcap.writer import CompressionType, Writer
 
 from drivers.base.types import NS_PER_S
 from ffexp.errors import InputError
+from ffexp.recording.encode import FieldsEncoder
 from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS, LOG_LEVELS
 
 CHUNK_SIZE_BYTES = 1 << 20
@@ -44,54 +46,144 @@ PROFILE = "ffexp"
 _MESSAGE_HEAD = struct.Struct("<BQHIQQ")
 _MESSAGE_FIXED = _MESSAGE_HEAD.size - 9  # the record length counts what follows it
 _OPCODE_MESSAGE = int(Opcode.MESSAGE)
+#: A Message Index record's head: opcode, record length, channel id, entries' length.
+_INDEX_HEAD = struct.Struct("<BQHI")
+_OPCODE_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
+
+
+class _MessageIndex(MessageIndex):
+    """mcap's ``MessageIndex`` written with two ``struct.pack`` calls (the same bytes as
+    its own field-by-field ``write``)."""
+
+    def write(self, stream: Any) -> None:
+        n = len(self.records)
+        stream.write(_INDEX_HEAD.pack(_OPCODE_MESSAGE_INDEX, 6 + 16 * n, self.channel_id,
+                                      16 * n))
+        stream.write(struct.pack(f"<{2 * n}Q", *chain.from_iterable(self.records)))
 
 
 class FastWriter(Writer):
     """``mcap.writer.Writer`` with a faster :meth:`add_message` (same bytes).
 
-    Everything else (schemas, channels, chunking, compression, indexes, summary)
-    is mcap's. ``fast`` is False when this mcap has not the private state used.
+    Messages are kept in a pending batch (record bytes, per-channel index
+    entries, time range, counts) and handed to mcap's chunk builder and
+    statistics in one go when the chunk is full or before any other call of
+    the ``Writer``; the chunk is closed after the very message after which
+    mcap's own writer would close it, so the files are identical. Everything
+    else (schemas, channels, chunking, compression, indexes, summary) is
+    mcap's. ``fast`` is False when this mcap has not the private state used.
     """
 
     def __init__(self, output: IO[bytes], **kw: Any) -> None:
         super().__init__(output, **kw)
         chunks = getattr(self, "_Writer__chunk_builder", None)
         stats = getattr(self, "_Writer__statistics", None)
-        finalize = getattr(self, "_Writer__maybe_finalize_chunk", None)
+        finalize = getattr(self, "_Writer__finalize_chunk", None)
+        chunk_size = getattr(self, "_Writer__chunk_size", None)
         buffer = getattr(getattr(chunks, "record_writer", None), "_buffer", None)
         self.fast = (chunks is not None and stats is not None and callable(finalize)
-                     and buffer is not None and hasattr(chunks, "message_indices"))
+                     and buffer is not None and hasattr(chunks, "message_indices")
+                     and isinstance(chunk_size, int))
         self._chunks: Any = chunks
         self._stats: Any = stats
         self._finalize: Any = finalize
+        self._chunk_size = chunk_size if isinstance(chunk_size, int) else 0
+        # the pending batch: record bytes, per channel [(log time, offset)], counts
+        self._parts: list[bytes] = []
+        self._index: dict[int, list[tuple[int, int]]] = {}
+        self._counts: dict[int, int] = {}
+        self._size = 0  # the chunk's size with the pending records
+        self._t_min = 0
+        self._t_max = 0
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
         if not self.fast:
             super().add_message(channel_id, log_time, data, publish_time, sequence)
             return
-        st, cb = self._stats, self._chunks
-        if st.message_count == 0 or log_time < st.message_start_time:
-            st.message_start_time = log_time
-        if log_time > st.message_end_time:
-            st.message_end_time = log_time
-        st.channel_message_counts[channel_id] += 1
-        st.message_count += 1
-        if cb.num_messages == 0 or log_time < cb.message_start_time:
-            cb.message_start_time = log_time
-        if log_time > cb.message_end_time:
-            cb.message_end_time = log_time
-        index = cb.message_indices.get(channel_id)
+        parts = self._parts
+        if parts:
+            if log_time < self._t_min:
+                self._t_min = log_time
+            elif log_time > self._t_max:
+                self._t_max = log_time
+        else:
+            self._size = self._chunks.record_writer._buffer.tell()
+            self._t_min = self._t_max = log_time
+        index = self._index.get(channel_id)
         if index is None:
-            index = cb.message_indices[channel_id] = MessageIndex(channel_id=channel_id,
-                                                                  records=[])
-        buf = cb.record_writer._buffer  # the chunk builder's record stream (a BytesIO)
-        index.records.append((log_time, buf.tell()))
-        cb.num_messages += 1
-        buf.write(_MESSAGE_HEAD.pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + len(data), channel_id,
-                                     sequence, log_time, publish_time))
-        buf.write(data)
-        self._finalize()
+            index = self._index[channel_id] = []
+            self._counts[channel_id] = 0
+        offset = self._size
+        index.append((log_time, offset))
+        self._counts[channel_id] += 1
+        parts.append(_MESSAGE_HEAD.pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + len(data), channel_id,
+                                        sequence, log_time, publish_time))
+        parts.append(data)
+        self._size = offset + _MESSAGE_HEAD.size + len(data)
+        if self._size > self._chunk_size:  # mcap's rule, after the message
+            self._commit()
+            self._finalize()
+
+    def _commit(self) -> None:
+        """Hand the pending batch to mcap's chunk builder and statistics."""
+        parts = self._parts
+        if not parts:
+            return
+        st, cb = self._stats, self._chunks
+        n = len(parts) // 2
+        t_min, t_max = self._t_min, self._t_max
+        if st.message_count == 0 or t_min < st.message_start_time:
+            st.message_start_time = t_min
+        if t_max > st.message_end_time:
+            st.message_end_time = t_max
+        st.message_count += n
+        counts = st.channel_message_counts
+        for cid, k in self._counts.items():
+            counts[cid] += k
+        if cb.num_messages == 0 or t_min < cb.message_start_time:
+            cb.message_start_time = t_min
+        if t_max > cb.message_end_time:
+            cb.message_end_time = t_max
+        indices = cb.message_indices
+        for cid, records in self._index.items():
+            index = indices.get(cid)
+            if index is None:
+                index = indices[cid] = _MessageIndex(channel_id=cid, records=[])
+            index.records.extend(records)
+        cb.num_messages += n
+        cb.record_writer._buffer.write(b"".join(parts))
+        self._parts = []
+        self._index = {}
+        self._counts = {}
+
+    # every other call of the Writer sees the pending messages first
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        self._commit()
+        return int(super().register_schema(name, encoding, data))
+
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int,
+                         metadata: dict[str, str] | None = None) -> int:
+        self._commit()
+        return int(super().register_channel(topic, message_encoding, schema_id,
+                                            metadata or {}))
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        self._commit()
+        super().add_metadata(name, data)
+
+    def add_attachment(self, create_time: int, log_time: int, name: str, media_type: str,
+                       data: bytes) -> None:
+        self._commit()
+        super().add_attachment(create_time, log_time, name, media_type, data)
+
+    def flush(self) -> None:
+        self._commit()
+        super().flush()  # type: ignore[no-untyped-call]
+
+    def finish(self) -> None:
+        self._commit()
+        super().finish()  # type: ignore[no-untyped-call]
 
 
 def _stamp(time_ns: int) -> dict[str, int]:
@@ -99,27 +191,37 @@ def _stamp(time_ns: int) -> dict[str, int]:
     return {"sec": sec, "nsec": nsec}
 
 
-def pose_to_transform(pose: np.ndarray) -> tuple[dict[str, float], dict[str, float]]:
-    """Translation and unit quaternion (x, y, z, w) of a 4x4 pose.
+def pose_floats(pose: np.ndarray) -> tuple[float, float, float, float, float, float, float]:
+    """Translation ``x, y, z`` and unit quaternion ``x, y, z, w`` of a 4x4 pose as floats.
 
     Written out (Shepperd's method) because ``scipy``'s ``Rotation.from_matrix``
-    costs about 0.25 ms a call here, which the per-cycle log cannot afford.
+    costs about 0.25 ms a call here, which the per-cycle log cannot afford; on
+    the pose's elements as Python floats (the same IEEE operations in the same
+    order as on numpy scalars, at a fraction of their cost).
     """
-    r = pose[:3, :3]
-    tr = float(r[0, 0] + r[1, 1] + r[2, 2])
+    m = pose.tolist()
+    r0, r1, r2 = m[0], m[1], m[2]
+    tr = r0[0] + r1[1] + r2[2]
     if tr > 0.0:
         s = 2.0 * math.sqrt(tr + 1.0)
-        q = [(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s]
+        q = [(r2[1] - r1[2]) / s, (r0[2] - r2[0]) / s, (r1[0] - r0[1]) / s, 0.25 * s]
     else:
-        i = int(np.argmax(np.diag(r)))
+        r = (r0, r1, r2)
+        diag = [r0[0], r1[1], r2[2]]
+        i = int(np.argmax(diag))  # numpy's rule (the first maximum; NaN wins)
         j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(max(1.0 + r[i, i] - r[j, j] - r[k, k], 1e-300))
-        q = [0.0, 0.0, 0.0, (r[k, j] - r[j, k]) / s]
+        s = 2.0 * math.sqrt(max(1.0 + r[i][i] - r[j][j] - r[k][k], 1e-300))
+        q = [0.0, 0.0, 0.0, (r[k][j] - r[j][k]) / s]
         q[i] = 0.25 * s
-        q[j] = (r[j, i] + r[i, j]) / s
-        q[k] = (r[k, i] + r[i, k]) / s
-    t = {"x": float(pose[0, 3]), "y": float(pose[1, 3]), "z": float(pose[2, 3])}
-    return t, {"x": float(q[0]), "y": float(q[1]), "z": float(q[2]), "w": float(q[3])}
+        q[j] = (r[j][i] + r[i][j]) / s
+        q[k] = (r[k][i] + r[i][k]) / s
+    return (float(r0[3]), float(r1[3]), float(r2[3]), q[0], q[1], q[2], q[3])
+
+
+def pose_to_transform(pose: np.ndarray) -> tuple[dict[str, float], dict[str, float]]:
+    """Translation and unit quaternion (x, y, z, w) of a 4x4 pose (:func:`pose_floats`)."""
+    x, y, z, qx, qy, qz, qw = pose_floats(pose)
+    return {"x": x, "y": y, "z": z}, {"x": qx, "y": qy, "z": qz, "w": qw}
 
 
 class Recorder:
@@ -154,12 +256,14 @@ class Recorder:
         self._clock = clock
         self._flush_interval_s = flush_interval_s
         self._last_flush = clock()
-        self._channels: dict[str, int] = {}
+        self._channels: dict[str, list[int]] = {}  # topic: [channel id, next sequence]
         self._records: dict[str, np.ndarray] = {}
         self._names: dict[str, tuple[str, ...]] = {}
-        self._seq: dict[str, int] = {}
+        self._layouts: dict[str, struct.Struct] = {}
         self._add_message = self._writer.add_message
         self._plans: dict[tuple[str, type], tuple[tuple[str, np.ndarray], ...]] = {}
+        self._encoders: dict[str, FieldsEncoder] = {}
+        self._frames: dict[tuple[str, str], str] = {}
         self.message_count = 0
         self.finished = False
         self.taps: list[Callable[[str, int, bytes], None]] = []
@@ -167,10 +271,11 @@ class Recorder:
         (a live viewer); they must return at once. Empty: no cost."""
 
     # -- channels -------------------------------------------------------------
-    def _channel(self, topic: str) -> int:
-        cid = self._channels.get(topic)
-        if cid is not None:
-            return cid
+    def _channel(self, topic: str) -> list[int]:
+        """``[channel id, next sequence number]`` of ``topic``, registered on first use."""
+        ch = self._channels.get(topic)
+        if ch is not None:
+            return ch
         if topic in CDR_TOPICS:
             spec = CDR_TOPICS[topic].spec
             sid = self._writer.register_schema(spec.name, "ros2msg", spec.ros2msg.encode())
@@ -181,9 +286,8 @@ class Recorder:
             cid = self._writer.register_channel(topic, "json", sid)
         else:
             raise KeyError(f"unknown topic {topic!r}: add it to ffexp/recording/topics.py")
-        self._channels[topic] = cid
-        self._seq[topic] = 0
-        return cid
+        ch = self._channels[topic] = [cid, 0]
+        return ch
 
     def record(self, topic: str) -> np.ndarray:
         """The preallocated one-element record of a CDR topic (fill, then :meth:`write`)."""
@@ -193,29 +297,56 @@ class Recorder:
             self._records[topic] = rec
         return rec
 
+    def layout(self, topic: str) -> struct.Struct:
+        """The ``struct`` layout of a CDR topic's messages: ``layout(topic).pack(CDR_HEADER,
+        *values)``, the fields' values flattened in order, gives the same bytes as filling
+        :meth:`record` with them (:attr:`MessageSpec.layout
+        <ffexp.recording.schema.MessageSpec.layout>`); write them with :meth:`write_bytes`."""
+        lay = self._layouts.get(topic)
+        if lay is None:
+            lay = self._layouts[topic] = CDR_TOPICS[topic].spec.layout
+        return lay
+
     # -- writing --------------------------------------------------------------
-    def _add(self, topic: str, time_ns: int, data: bytes) -> None:
+    def write_bytes(self, topic: str, time_ns: int, data: bytes) -> None:
+        """Write one encoded message (every write of the recorder goes through here)."""
         if time_ns < 0:
             raise ValueError(f"{topic}: negative log time {time_ns} ns")
-        cid = self._channels.get(topic)
-        if cid is None:
-            cid = self._channel(topic)
-        seq = self._seq[topic]
-        self._seq[topic] = seq + 1
-        self._add_message(cid, time_ns, data, time_ns, seq)
+        ch = self._channels.get(topic)
+        if ch is None:
+            ch = self._channel(topic)
+        seq = ch[1]
+        ch[1] = seq + 1
+        self._add_message(ch[0], time_ns, data, time_ns, seq)
         self.message_count += 1
-        for tap in self.taps:
-            tap(topic, time_ns, data)
+        if self.taps:
+            for tap in self.taps:
+                tap(topic, time_ns, data)
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
 
     def write(self, topic: str, time_ns: int) -> None:
         """Write the current contents of :meth:`record` for ``topic``."""
-        self._add(topic, time_ns, self._records[topic].tobytes())
+        self.write_bytes(topic, time_ns, self._records[topic].tobytes())
 
     def write_fields(self, topic: str, time_ns: int, source: object) -> None:
         """Write a CDR topic whose fields are attributes of ``source`` by the same
-        names (arrays are flattened row-major, e.g. a 4x4 pose into 16 numbers)."""
+        names (arrays are flattened row-major, e.g. a 4x4 pose into 16 numbers).
+
+        Encoded by the topic's :class:`~ffexp.recording.encode.FieldsEncoder` when
+        every value is plainly of its field's type; anything else (a value numpy
+        would convert, e.g. a float into an integer field) fills the numpy record.
+        """
+        enc = self._encoders.get(topic)
+        if enc is None:
+            enc = self._encoders[topic] = FieldsEncoder(CDR_TOPICS[topic].spec)
+        data = enc.encode(source)
+        if data is None:
+            self._write_fields_numpy(topic, time_ns, source)
+        else:
+            self.write_bytes(topic, time_ns, data)
+
+    def _write_fields_numpy(self, topic: str, time_ns: int, source: object) -> None:
         rec = self._records.get(topic)
         if rec is None:
             rec = self.record(topic)
@@ -267,10 +398,10 @@ class Recorder:
             return
         if min(times) < 0:
             raise ValueError(f"{topic}: negative log time {min(times)} ns")
-        cid = self._channels.get(topic)
-        if cid is None:
-            cid = self._channel(topic)
-        seq = self._seq[topic]
+        ch = self._channels.get(topic)
+        if ch is None:
+            ch = self._channel(topic)
+        cid, seq = ch
         add = self._add_message
         taps = self.taps
         for i, t in enumerate(times):
@@ -278,14 +409,14 @@ class Recorder:
             add(cid, t, msg, t, seq + i)
             for tap in taps:
                 tap(topic, t, msg)
-        self._seq[topic] = seq + len(times)
+        ch[1] = seq + len(times)
         self.message_count += len(times)
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
 
     def write_json(self, topic: str, time_ns: int, message: Mapping[str, Any]) -> None:
         """Write one JSON message on a low-rate topic."""
-        self._add(topic, time_ns, json.dumps(message, separators=(",", ":")).encode())
+        self.write_bytes(topic, time_ns, json.dumps(message, separators=(",", ":")).encode())
 
     def log(self, time_ns: int, level: str, name: str, message: str) -> None:
         """An event as ``foxglove.Log`` on ``/events`` (level DEBUG..FATAL)."""
@@ -308,17 +439,22 @@ class Recorder:
         Formatted directly (frame names are plain identifiers, numbers finite):
         ``json.dumps`` of the same dict costs ten times more per cycle.
         """
-        t, q = pose_to_transform(pose)
-        if not all(math.isfinite(v) for v in (*t.values(), *q.values())):
+        v = pose_floats(pose)
+        isfinite = math.isfinite
+        if not (isfinite(v[0]) and isfinite(v[1]) and isfinite(v[2]) and isfinite(v[3])
+                and isfinite(v[4]) and isfinite(v[5]) and isfinite(v[6])):
             raise ValueError(f"/tf: {child} pose is not finite")
+        frames = self._frames.get((parent, child))
+        if frames is None:
+            frames = self._frames[(parent, child)] = (
+                f'"parent_frame_id":{json.dumps(parent)},"child_frame_id":{json.dumps(child)},')
         sec, nsec = divmod(time_ns, NS_PER_S)
         text = (
-            f'{{"timestamp":{{"sec":{sec},"nsec":{nsec}}},'
-            f'"parent_frame_id":{json.dumps(parent)},"child_frame_id":{json.dumps(child)},'
-            f'"translation":{{"x":{t["x"]!r},"y":{t["y"]!r},"z":{t["z"]!r}}},'
-            f'"rotation":{{"x":{q["x"]!r},"y":{q["y"]!r},"z":{q["z"]!r},"w":{q["w"]!r}}}}}'
+            f'{{"timestamp":{{"sec":{sec},"nsec":{nsec}}},{frames}'
+            f'"translation":{{"x":{v[0]!r},"y":{v[1]!r},"z":{v[2]!r}}},'
+            f'"rotation":{{"x":{v[3]!r},"y":{v[4]!r},"z":{v[5]!r},"w":{v[6]!r}}}}}'
         )
-        self._add("/tf", time_ns, text.encode())
+        self.write_bytes("/tf", time_ns, text.encode())
 
     def metadata(self, name: str, values: Mapping[str, str]) -> None:
         """An MCAP metadata record (string to string map)."""
@@ -333,7 +469,7 @@ class Recorder:
         """Close the open chunk and push everything to the OS."""
         if self.finished:
             return
-        self._writer.flush()  # type: ignore[no-untyped-call]
+        self._writer.flush()
         self._fh.flush()
         self._last_flush = self._clock()
 
@@ -343,7 +479,7 @@ class Recorder:
             return
         self.finished = True
         try:
-            self._writer.finish()  # type: ignore[no-untyped-call]
+            self._writer.finish()
         finally:
             self._fh.close()
 

@@ -13,7 +13,9 @@ and ``mcap_ros2`` decode the same bytes from the schema text.
 from __future__ import annotations
 
 import json
+import struct
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -33,6 +35,12 @@ _PRIMITIVES: dict[str, str] = {
     "int8": "i1",
     "uint8": "u1",
     "bool": "u1",
+}
+
+#: ``struct`` codes of the same primitives (little endian, no implicit padding).
+_STRUCT_CODES: dict[str, str] = {
+    "float64": "d", "float32": "f", "int64": "q", "uint64": "Q", "int32": "i",
+    "uint32": "I", "int16": "h", "uint16": "H", "int8": "b", "uint8": "B", "bool": "B",
 }
 
 
@@ -88,6 +96,22 @@ class MessageSpec:
         return np.dtype(
             {"names": names, "formats": formats, "offsets": offsets, "itemsize": 4 + pos}
         )
+
+    @cached_property
+    def layout(self) -> struct.Struct:
+        """The same layout as :attr:`dtype` as a ``struct.Struct``: ``pack(CDR_HEADER,
+        *values)`` with the fields' values flattened in order (an array field's
+        elements one by one) gives the bytes of the record holding those values."""
+        fmt, pos = ["<4s"], 0
+        for f in self.fields:
+            size = np.dtype(_PRIMITIVES[f.type]).itemsize
+            align = min(size, 8)
+            pad = (pos + align - 1) // align * align - pos
+            if pad:
+                fmt.append(f"{pad}x")
+            fmt.append(f"{f.count}{_STRUCT_CODES[f.type]}")
+            pos += pad + size * f.count
+        return struct.Struct("".join(fmt))
 
     def new_record(self) -> np.ndarray:
         """A zeroed one-element record array with the CDR header set."""

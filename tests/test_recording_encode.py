@@ -1,0 +1,77 @@
+"""The recorder's fast encodings write the very bytes of the numpy records they replace."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from ffexp.recording import Recorder, load
+from ffexp.recording.encode import FieldsEncoder
+from ffexp.recording.schema import CDR_HEADER, MessageSpec
+from ffexp.recording.topics import CDR_TOPICS
+
+
+def _values(spec: MessageSpec, rng: np.random.Generator) -> dict[str, object]:
+    """Random plain values of every field (arrays of the field's type, Python scalars)."""
+    out: dict[str, object] = {}
+    for f in spec.fields:
+        dtype = spec.dtype.fields[f.name][0].base  # type: ignore[index]
+        if dtype.kind == "f":
+            arr = (rng.normal(size=f.count) * 1e3).astype(dtype)
+        else:
+            arr = rng.integers(0, np.iinfo(dtype).max, size=f.count, endpoint=True).astype(dtype)
+        out[f.name] = arr if f.count > 1 else arr[0].item()
+    return out
+
+
+def _record(spec: MessageSpec, values: dict[str, object]) -> bytes:
+    rec = spec.new_record()
+    for f in spec.fields:
+        v = values[f.name]
+        rec[f.name] = np.reshape(v, -1) if f.count > 1 else v  # type: ignore[call-overload]
+    return rec.tobytes()
+
+
+@pytest.mark.parametrize("topic", sorted(CDR_TOPICS))
+def test_layout_and_encoder_bytes_equal_the_numpy_record(topic: str) -> None:
+    spec = CDR_TOPICS[topic].spec
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        values = _values(spec, rng)
+        want = _record(spec, values)
+        flat: list[object] = [CDR_HEADER]
+        for f in spec.fields:
+            v = values[f.name]
+            flat += v.tolist() if isinstance(v, np.ndarray) else [v]
+        assert spec.layout.pack(*flat) == want
+        assert FieldsEncoder(spec).encode(SimpleNamespace(**values)) == want
+
+
+def test_encoder_declines_what_numpy_would_convert_and_the_recorder_falls_back(
+        tmp_path: Path) -> None:
+    spec = CDR_TOPICS["/sim/truth"].spec
+    values = _values(spec, np.random.default_rng(3))
+    enc = FieldsEncoder(spec)
+    odd: list[dict[str, object]] = [
+        {"seated": 1.0},  # a float into a uint8 field
+        {"seated": np.bool_(True)},  # a numpy bool
+        {"target_pose": np.reshape(values["target_pose"], (4, 4))},  # type: ignore[call-overload]
+        {"tcp_twist": np.arange(6, dtype=np.float32)},  # another type: numpy converts
+        {"tcp_twist": [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]},  # a list
+    ]
+    path = tmp_path / "a.mcap"
+    wants = []
+    with Recorder(path) as rec:
+        for k, change in enumerate(odd):
+            source = SimpleNamespace(**{**values, **change})
+            if "target_pose" not in change:
+                assert enc.encode(source) is None
+            wants.append(_record(spec, {**values, **change}))
+            rec.write_fields("/sim/truth", 10**9 + k, source)
+    data = load(path).topic("/sim/truth")
+    want = np.frombuffer(b"".join(wants), dtype=spec.dtype)
+    for f in spec.fields:
+        np.testing.assert_array_equal(data[f.name].reshape(want[f.name].shape), want[f.name])

@@ -157,3 +157,58 @@ def test_pose_error_in_tool_frame() -> None:
     sp[:3, :3] = pose[:3, :3] @ Rotation.from_euler("z", 0.2).as_matrix()
     e = pose_error_tcf(pose, sp)
     np.testing.assert_allclose(e, [0.0, 0.1, 0.0, 0.0, 0.0, 0.2], atol=1e-12)
+
+
+class _ArrayForceController:
+    """The array form of eq. (9) (numpy on 6-vectors), the reference of the per-axis
+    float form: both must give the very same bits."""
+
+    def __init__(self, config: ForceControlConfig, cycle_s: float) -> None:
+        self.cycle_s = cycle_s
+        self._w_sel = np.asarray(config.force_axes, dtype=np.float64)
+        self._kp = np.asarray(config.kp, dtype=np.float64)
+        self._ki = config.ki_per_second(cycle_s)
+        self._kri = np.asarray(config.k_ri, dtype=np.float64)
+        self._f_ref = np.asarray(config.f_ref, dtype=np.float64)
+        self._out_lim = np.asarray(config.output_limit, dtype=np.float64)
+        self._int_lim = np.asarray(config.integral_limit, dtype=np.float64)
+        self._ff_sel = self._w_sel if config.contact_feedforward else np.zeros(6)
+        self._integral = np.zeros(6)
+
+    def update(self, w: np.ndarray) -> tuple[np.ndarray, ...]:
+        error = self._w_sel * (self._f_ref + w)
+        p = self._kp * error
+        ri = self._kri * (1.0 - self._w_sel) * w
+        ff = self._ff_sel * -w
+        candidate = self._integral + error * self.cycle_s
+        i_clamped = np.clip(self._ki * candidate, -self._int_lim, self._int_lim)
+        raw = p + i_clamped + ri + ff
+        out = np.clip(raw, -self._out_lim, self._out_lim)
+        keep = ~((raw != out) & (np.sign(error) == np.sign(raw)))
+        self._integral[keep] = candidate[keep]
+        nz = self._ki != 0.0
+        self._integral[nz] = np.clip(
+            self._integral[nz], -self._int_lim[nz] / np.abs(self._ki[nz]),
+            self._int_lim[nz] / np.abs(self._ki[nz]))
+        i = self._ki * self._integral
+        total = np.clip(p + i + ri + ff, -self._out_lim, self._out_lim)
+        return p, i, ri, ff, total, np.array(bool(np.any(raw != out)))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_float_form_is_bit_identical_to_the_array_form(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    cfg = ForceControlConfig(
+        f_ref=(0, 0, 5.0, 0, 0, 0), k_ri=(0, 0.2, 0, 0.5, 0.1, 0),
+        kp=(0.0, 0.0, 0.8, 0.0, 0.0, 0.0), ki=(0.0, 0.0, 3.0, 0.0, 0.0, 0.0),
+        integral_limit=(0.0, 0.0, 4.0, 0.0, 0.0, 0.0), output_limit=(2.0, 2.0, 6.0, 0.2, 0.2, 0.2))
+    ours, ref = ForceController(cfg, DT), _ArrayForceController(cfg, DT)
+    for k in range(3000):  # saturating now and then, signed zeros included
+        w = rng.normal(scale=[3.0, 8.0, 20.0, 0.5, 0.5, 0.5]) * (k % 7 != 0)
+        if k % 11 == 0:
+            w = -w
+        t = ours.update(w)
+        want = ref.update(w)
+        got = (t.p, t.i, t.ri, t.ff, t.total, np.array(t.saturated))
+        for a, b in zip(got, want, strict=True):
+            assert a.tobytes() == b.tobytes(), k

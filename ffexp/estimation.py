@@ -25,6 +25,7 @@ Tool load
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -81,15 +82,21 @@ class WrenchFilter:
 
     def __init__(self, config: WrenchFilterConfig) -> None:
         self.config = config
-        self._r = np.square(np.asarray(config.noise_std, dtype=np.float64))
-        self._q_f = np.square(np.asarray(config.wrench_walk_std, dtype=np.float64))
-        self._q_b = np.square(np.asarray(config.bias_walk_std, dtype=np.float64))
-        self._x_f = np.zeros(6)
-        self._x_b = np.zeros(6)
+        r = np.square(np.asarray(config.noise_std, dtype=np.float64))
+        self._r_arr = r
+        # per axis as floats (the elementwise arithmetic of arrays of six, done on the
+        # floats: the same IEEE operations, without a numpy call per operation)
+        self._r: list[float] = r.tolist()
+        self._q_f: list[float] = np.square(
+            np.asarray(config.wrench_walk_std, dtype=np.float64)).tolist()
+        self._q_b: list[float] = np.square(
+            np.asarray(config.bias_walk_std, dtype=np.float64)).tolist()
+        self._x_f = [0.0] * 6
+        self._x_b = [0.0] * 6
         # covariance per axis: P = [[p_ff, p_fb], [p_fb, p_bb]]
-        self._p_ff = np.full(6, 100.0)
-        self._p_fb = np.zeros(6)
-        self._p_bb = np.full(6, 100.0)
+        self._p_ff = [100.0] * 6
+        self._p_fb = [0.0] * 6
+        self._p_bb = [100.0] * 6
         self.tared = False
 
     def tare(self, samples: FloatArray) -> None:
@@ -105,12 +112,13 @@ class WrenchFilter:
         n = samples.shape[0]
         if n == 0:
             raise ValueError("tare needs at least one sample")
-        p_b = 1.0 / (1.0 / 100.0 + n / self._r)
-        self._x_b = p_b * samples.sum(axis=0) / self._r
-        self._x_f = np.zeros(6)
-        self._p_ff = self._r.copy()
-        self._p_fb = np.zeros(6)
-        self._p_bb = p_b
+        r = self._r_arr
+        p_b = 1.0 / (1.0 / 100.0 + n / r)
+        self._x_b = (p_b * samples.sum(axis=0) / r).tolist()
+        self._x_f = [0.0] * 6
+        self._p_ff = list(self._r)
+        self._p_fb = [0.0] * 6
+        self._p_bb = p_b.tolist()
         self.tared = True
 
     def update(self, samples: FloatArray, dt_s: float) -> None:
@@ -118,40 +126,59 @@ class WrenchFilter:
 
         With no samples the filter only predicts (its covariance grows).
         """
-        p_ff, p_fb, p_bb = self._p_ff, self._p_fb, self._p_bb
-        p_ff += self._q_f * dt_s
-        p_bb += self._q_b * dt_s
-        samples = samples.reshape(-1, 6)
-        n = samples.shape[0]
+        self.update_rows(np.asarray(samples, dtype=np.float64).reshape(-1, 6).tolist(), dt_s)
+
+    def update_rows(self, rows: list[list[float]], dt_s: float) -> None:
+        """:meth:`update` with the samples as rows of six floats."""
+        p_ff, p_fb, p_bb, x_f, x_b = self._p_ff, self._p_fb, self._p_bb, self._x_f, self._x_b
+        q_f, q_b = self._q_f, self._q_b
+        for k in range(6):
+            p_ff[k] += q_f[k] * dt_s
+            p_bb[k] += q_b[k] * dt_s
+        n = len(rows)
         if not n:
             return
-        z = np.add.reduce(samples, axis=0) / n if n > 1 else samples[0]  # the mean
-        s = p_ff + 2.0 * p_fb + p_bb + self._r / n
-        k_f = (p_ff + p_fb) / s
-        k_b = (p_fb + p_bb) / s
-        y = z - self._x_f - self._x_b
-        self._x_f += k_f * y
-        self._x_b += k_b * y
-        # P - K S K^T, per axis
-        p_ff -= k_f * k_f * s
-        p_fb -= k_f * k_b * s
-        p_bb -= k_b * k_b * s
+        if n > 1:  # the mean, summed row after row as numpy's reduce over axis 0 does
+            acc = list(rows[0])
+            for row in rows[1:]:
+                for k in range(6):
+                    acc[k] += row[k]
+            z = [v / n for v in acc]
+        else:
+            z = rows[0]
+        r = self._r
+        for k in range(6):
+            ff, fb, bb = p_ff[k], p_fb[k], p_bb[k]
+            s = ff + 2.0 * fb + bb + r[k] / n
+            k_f = (ff + fb) / s
+            k_b = (fb + bb) / s
+            y = z[k] - x_f[k] - x_b[k]
+            x_f[k] += k_f * y
+            x_b[k] += k_b * y
+            # P - K S K^T, per axis
+            p_ff[k] = ff - k_f * k_f * s
+            p_fb[k] = fb - k_f * k_b * s
+            p_bb[k] = bb - k_b * k_b * s
 
     @property
     def wrench(self) -> FloatArray:
         """Filtered wrench (bias removed), TCF."""
-        return self._x_f.copy()
+        return np.array(self._x_f)
 
     @property
     def bias(self) -> FloatArray:
         """Estimated sensor bias, TCF."""
-        return self._x_b.copy()
+        return np.array(self._x_b)
 
     @property
     def wrench_std(self) -> FloatArray:
         """1-sigma uncertainty of :attr:`wrench`."""
-        s: FloatArray = np.sqrt(self._p_ff)
-        return s
+        return np.array([math.sqrt(v) for v in self._p_ff])
+
+    @property
+    def bias_list(self) -> list[float]:
+        """:attr:`bias` as floats (the filter's own list: do not modify)."""
+        return self._x_b
 
 
 class MotionFilterConfig(StrictModel):

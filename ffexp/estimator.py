@@ -16,6 +16,7 @@ last cycle (pure: no I/O, no clock):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,6 +83,21 @@ class Estimate:
 _SATURATION = int(FtStatus.SATURATION)
 
 
+def _peak(squares: list[float]) -> float:
+    """``sqrt(max(squares))`` with numpy's rule for NaN (a NaN anywhere is the maximum)."""
+    top = max(squares)
+    if top != top or any(v != v for v in squares):
+        return math.nan
+    return math.sqrt(top)
+
+
+def peaks(rows: list[list[float]]) -> tuple[float, float]:
+    """The largest |f| and |t| of wrench rows: on floats, the bits of numpy's
+    ``sqrt(max((w[:, :3]**2).sum(axis=1)))`` (its sum of three adds left to right)."""
+    return (_peak([r[0] * r[0] + r[1] * r[1] + r[2] * r[2] for r in rows]),
+            _peak([r[3] * r[3] + r[4] * r[4] + r[5] * r[5] for r in rows]))
+
+
 class Estimator:
     """Compensation, tare, wrench and motion filters, contact detection.
 
@@ -117,26 +133,37 @@ class Estimator:
 
     def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int) -> Estimate:
         """One cycle. ``t_ns`` is the run time of the cycle, ``t0_ns`` the robot time of
-        the run's start (sample times are on the robot's clock)."""
+        the run's start (sample times are on the robot's clock).
+
+        The samples are handled as rows of floats (a cycle holds a handful): the
+        compensation, the peaks and the filter's update are elementwise, the same
+        IEEE operations in the same order as on the arrays.
+        """
         out = self.out
         cfg = self.config
         wf, mf = self.wrench_filter, self.motion_filter
         pose = state.tcp_pose_m
         n = len(ft)
-        comp = ft.wrench
+        raw: list[list[float]] = ft.wrench.tolist() if n else []
+        comp = raw
         if self._compensate and n:
             accel = mf.accel_base[:3] if cfg.inertial_compensation else None
-            comp = ft.wrench - self._tool_load(pose[:3, :3], accel)
+            l0, l1, l2, l3, l4, l5 = self._tool_load(pose[:3, :3], accel).tolist()
+            comp = [[w0 - l0, w1 - l1, w2 - l2, w3 - l3, w4 - l4, w5 - l5]
+                    for w0, w1, w2, w3, w4, w5 in raw]
         out.n_samples = n
         out.event = None
         out.tared_now = False
         if n:
             out.last_sample_ns = int(ft.time_ns[-1]) - t0_ns
-            out.saturated = bool((ft.status & _SATURATION).any())
-            src = comp - wf.bias if wf.tared else ft.wrench
-            sq = src * src
-            out.peak_force_n = float(np.sqrt(sq[:, :3].sum(axis=1).max()))
-            out.peak_torque_nm = float(np.sqrt(sq[:, 3:].sum(axis=1).max()))
+            out.saturated = any(s & _SATURATION for s in ft.status.tolist())
+            if wf.tared:
+                b0, b1, b2, b3, b4, b5 = wf.bias_list
+                src = [[w0 - b0, w1 - b1, w2 - b2, w3 - b3, w4 - b4, w5 - b5]
+                       for w0, w1, w2, w3, w4, w5 in comp]
+            else:
+                src = raw
+            out.peak_force_n, out.peak_torque_nm = peaks(src)
         else:
             out.saturated = False
             out.peak_force_n = out.peak_torque_nm = 0.0
@@ -144,12 +171,12 @@ class Estimator:
         out.twist_tcf = mf.twist_tcf(pose)
         if not wf.tared:
             if n:
-                self._tare.append(np.asarray(comp))
+                self._tare.append(np.array(comp))
                 if self._tare_first_ns is None:
                     self._tare_first_ns = int(ft.time_ns[0]) - t0_ns
             self._try_tare(state)
         else:
-            wf.update(comp, self.cycle_s)
+            wf.update_rows(comp, self.cycle_s)
         out.wrench = wf.wrench
         if wf.tared and not out.tared_now:
             out.event = self.detector.update(t_ns, out.wrench)

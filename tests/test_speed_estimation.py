@@ -114,3 +114,59 @@ def test_estimator_tool_load_equals_the_model() -> None:
         accel = np.random.default_rng(seed).normal(size=3)
         np.testing.assert_allclose(est._tool_load(r, accel), load.wrench(r, accel), atol=1e-14)
         np.testing.assert_allclose(est._tool_load(r, None), load.wrench(r), atol=1e-14)
+
+
+def _array_wrench_filter_step(st: dict[str, np.ndarray], r: np.ndarray, q_f: np.ndarray,
+                              q_b: np.ndarray, samples: np.ndarray, dt_s: float) -> None:
+    """The wrench filter's update as arrays of six (the form the float form replaced)."""
+    st["p_ff"] += q_f * dt_s
+    st["p_bb"] += q_b * dt_s
+    n = samples.shape[0]
+    if not n:
+        return
+    z = np.add.reduce(samples, axis=0) / n if n > 1 else samples[0]
+    p_ff, p_fb, p_bb = st["p_ff"], st["p_fb"], st["p_bb"]
+    s = p_ff + 2.0 * p_fb + p_bb + r / n
+    k_f = (p_ff + p_fb) / s
+    k_b = (p_fb + p_bb) / s
+    y = z - st["x_f"] - st["x_b"]
+    st["x_f"] += k_f * y
+    st["x_b"] += k_b * y
+    p_ff -= k_f * k_f * s
+    p_fb -= k_f * k_b * s
+    p_bb -= k_b * k_b * s
+
+
+def test_wrench_filter_floats_are_bit_identical_to_the_array_form() -> None:
+    cfg = WrenchFilterConfig()
+    rng = np.random.default_rng(5)
+    tare = rng.normal(scale=0.05, size=(300, 6)) + 0.3
+    wf = WrenchFilter(cfg)
+    wf.tare(tare)
+    r = np.square(np.asarray(cfg.noise_std))
+    st = {"x_f": np.zeros(6), "x_b": wf.bias, "p_ff": r.copy(), "p_fb": np.zeros(6),
+          "p_bb": 1.0 / (1.0 / 100.0 + 300 / r)}
+    q_f = np.square(np.asarray(cfg.wrench_walk_std))
+    q_b = np.square(np.asarray(cfg.bias_walk_std))
+    for k in range(2000):
+        samples = rng.normal(scale=2.0, size=(k % 9, 6)) + np.sin(k / 50)
+        wf.update(samples, CYCLE_S)
+        _array_wrench_filter_step(st, r, q_f, q_b, samples, CYCLE_S)
+        assert wf.wrench.tobytes() == st["x_f"].tobytes(), k
+        assert wf.bias.tobytes() == st["x_b"].tobytes(), k
+        assert wf.wrench_std.tobytes() == np.sqrt(st["p_ff"]).tobytes(), k
+
+
+def test_estimator_peaks_are_numpys() -> None:
+    """The cycle's peak force and torque on floats equal the array form's bits."""
+    from ffexp.estimator import peaks
+
+    rng = np.random.default_rng(9)
+    for k in range(3000):
+        w = rng.normal(size=(1 + k % 12, 6)) * rng.uniform(0.01, 200.0)
+        sq = w * w
+        want = (float(np.sqrt(sq[:, :3].sum(axis=1).max())),
+                float(np.sqrt(sq[:, 3:].sum(axis=1).max())))
+        assert peaks(w.tolist()) == want, k
+    w[0, 1] = np.nan
+    assert all(np.isnan(peaks(w.tolist())[:1]))

@@ -182,14 +182,13 @@ class RunLog:
         lay = self._layouts
         if lay is None:
             lay = self._layouts = {topic: rec.layout(topic) for topic in _PACKED}
-        write = rec.write_bytes
-        write("/robot/state", log_ns, self._state(lay["/robot/state"], state))
+        msgs = [("/robot/state", self._state(lay["/robot/state"], state))]
         if state.extras is not None:
             for topic in state.extras.topics():
-                rec.write_fields(topic, log_ns, state.extras)
-        write("/estimator/state", log_ns, lay["/estimator/state"].pack(
+                msgs.append((topic, rec.encode_fields(topic, state.extras)))
+        msgs.append(("/estimator/state", lay["/estimator/state"].pack(
             CDR_HEADER, *est.wrench.tolist(), *est.wrench_std.tolist(), *est.bias.tolist(),
-            *est.twist_tcf.tolist(), est.f_z, len(ft), int(est.in_contact)))
+            *est.twist_tcf.tolist(), est.f_z, len(ft), int(est.in_contact))))
 
         terms = controller.terms if phase == Phase.ALIGN else None
         values: list[object] = [CDR_HEADER]
@@ -206,17 +205,20 @@ class RunLog:
         values += setpoint.ravel().tolist()
         values.append(int(phase))
         values.append(int(bool(getattr(terms, "saturated", False))))
-        write("/control/terms", log_ns, lay["/control/terms"].pack(*values))
+        msgs.append(("/control/terms", lay["/control/terms"].pack(*values)))
         if phase == Phase.ALIGN and controller.topic is not None:
-            rec.write_fields(controller.topic.topic, log_ns, controller.extra)
+            topic = controller.topic.topic
+            msgs.append((topic, rec.encode_fields(topic, controller.extra)))
 
-        write("/control/command", log_ns, self._command(lay["/control/command"], intent, applied))
+        msgs.append(("/control/command", self._command(lay["/control/command"], intent,
+                                                       applied)))
         if applied.extras is not None:
             for topic in applied.extras.topics():
-                rec.write_fields(topic, log_ns, applied.extras)
+                msgs.append((topic, rec.encode_fields(topic, applied.extras)))
         truth = state.truth
         if truth is not None:
-            rec.write_fields("/sim/truth", log_ns, truth)
+            msgs.append(("/sim/truth", rec.encode_fields("/sim/truth", truth)))
+        rec.write_batch(log_ns, msgs)
         if t_ns >= self._next_tf_ns:
             self._next_tf_ns = t_ns + self.tf_period_ns
             rec.transform(log_ns, "base", "tool", state.tcp_pose_m)

@@ -36,3 +36,37 @@ def test_fast_writer_bytes_equal_mcaps_own() -> None:
         assert isinstance(writer, FastWriter) and writer.fast  # the fast path was taken
         assert len(ours) > 20_000
         assert ours == theirs
+
+
+def _write_batches(cls: type[Writer]) -> bytes:
+    """Messages in groups at one log time: ``FastWriter.add_messages`` for the group,
+    mcap's own ``add_message`` one by one."""
+    rng = np.random.default_rng(2)
+    out = io.BytesIO()
+    w = cls(out, chunk_size=2048, compression=CompressionType.ZSTD)
+    w.start(profile="ffexp", library="test")
+    sid = w.register_schema("s", "ros2msg", b"float64 x\n")
+    channels = [w.register_channel(f"/c{k}", "cdr", sid) for k in range(4)]
+    seq = [0] * 4
+    for k in range(800):
+        t = 10**9 + 5_000_000 * k - (3_000_000 if k % 13 == 0 else 0)
+        group = [int(c) for c in rng.integers(0, 4, size=int(rng.integers(1, 9)))]
+        datas = [rng.bytes(int(rng.integers(0, 400))) for _ in group]
+        seqs = []
+        for c in group:
+            seqs.append(seq[c])
+            seq[c] += 1
+        cids = [channels[c] for c in group]
+        if isinstance(w, FastWriter):
+            w.add_messages(cids, t, datas, seqs)
+        else:
+            for cid, data, s in zip(cids, datas, seqs, strict=True):
+                w.add_message(cid, t, data, t, s)
+    w.finish()  # type: ignore[no-untyped-call]
+    return out.getvalue()
+
+
+def test_fast_writer_batches_bytes_equal_mcaps_own() -> None:
+    ours = _write_batches(FastWriter)
+    assert len(ours) > 50_000
+    assert ours == _write_batches(Writer)

@@ -166,3 +166,18 @@ def test_the_scene_in_a_recording_reads_with_its_schema_and_agrees_with_tf(
                                    + target_in_base[:3, 3], mouth[:3, 3], atol=2e-6)
         np.testing.assert_allclose(target_in_base[:3, :3] @ fpose[:3, 2], mouth[:3, 0],
                                    atol=1e-6)
+
+
+def test_link_rows_are_the_link_transforms_bit_for_bit() -> None:
+    """What ``/tf`` gets from the floats is what the 4x4 arrays hold (signed zeros too)."""
+    from ffexp.scene3d.kinematics import link_rows, link_transforms
+
+    rng = np.random.default_rng(0)
+    for k in range(500):
+        q = rng.uniform(-3.0, 3.0, 7)
+        q[k % 7] = 0.0
+        base = np.eye(4)
+        base[:3, 3] = rng.normal(size=3)
+        want = np.array([t.tolist() for t in link_transforms(q, base)])
+        assert np.array(link_rows(q, base)).tobytes() == want.tobytes()
+        assert np.array(link_rows(q)).tobytes() == np.array(link_transforms(q)).tobytes()

@@ -125,6 +125,46 @@ class FastWriter(Writer):
             self._commit()
             self._finalize()
 
+    def add_messages(self, channel_ids: list[int], log_time: int, datas: list[bytes],
+                     sequences: list[int]) -> None:
+        """:meth:`add_message` for several messages at one log time (publish time = log
+        time), in order: the same bytes, one call."""
+        if not self.fast:
+            for cid, data, seq in zip(channel_ids, datas, sequences, strict=True):
+                super().add_message(cid, log_time, data, log_time, seq)
+            return
+        parts = self._parts
+        if parts:
+            if log_time < self._t_min:
+                self._t_min = log_time
+            elif log_time > self._t_max:
+                self._t_max = log_time
+        else:
+            self._size = self._chunks.record_writer._buffer.tell()
+            self._t_min = self._t_max = log_time
+        indices, counts, pack, head = self._index, self._counts, _MESSAGE_HEAD.pack, \
+            _MESSAGE_HEAD.size
+        size = self._size
+        for channel_id, data, sequence in zip(channel_ids, datas, sequences, strict=True):
+            index = indices.get(channel_id)
+            if index is None:
+                index = indices[channel_id] = []
+                counts[channel_id] = 0
+            index.append((log_time, size))
+            counts[channel_id] += 1
+            parts.append(pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + len(data), channel_id, sequence,
+                              log_time, log_time))
+            parts.append(data)
+            size += head + len(data)
+            if size > self._chunk_size:  # mcap's rule, after each message
+                self._size = size
+                self._commit()
+                self._finalize()
+                parts, indices, counts = self._parts, self._index, self._counts
+                size = self._size = self._chunks.record_writer._buffer.tell()
+                self._t_min = self._t_max = log_time
+        self._size = size
+
     def _commit(self) -> None:
         """Hand the pending batch to mcap's chunk builder and statistics."""
         parts = self._parts
@@ -199,7 +239,11 @@ def pose_floats(pose: np.ndarray) -> tuple[float, float, float, float, float, fl
     the pose's elements as Python floats (the same IEEE operations in the same
     order as on numpy scalars, at a fraction of their cost).
     """
-    m = pose.tolist()
+    return rows_floats(pose.tolist())
+
+
+def rows_floats(m: list[list[float]]) -> tuple[float, float, float, float, float, float, float]:
+    """:func:`pose_floats` of a pose given as its rows of floats (``pose.tolist()``)."""
     r0, r1, r2 = m[0], m[1], m[2]
     tr = r0[0] + r1[1] + r2[2]
     if tr > 0.0:
@@ -325,13 +369,40 @@ class Recorder:
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
 
+    def write_batch(self, time_ns: int, messages: list[tuple[str, bytes]]) -> None:
+        """Write encoded messages of several topics at one log time, in order (a
+        cycle's topics): :meth:`write_bytes` for each, in one call."""
+        if time_ns < 0:
+            raise ValueError(f"{messages[0][0]}: negative log time {time_ns} ns")
+        channels, cids, seqs, datas = self._channels, [], [], []
+        for topic, data in messages:
+            ch = channels.get(topic)
+            if ch is None:
+                ch = self._channel(topic)
+            cids.append(ch[0])
+            seqs.append(ch[1])
+            ch[1] += 1
+            datas.append(data)
+        self._writer.add_messages(cids, time_ns, datas, seqs)
+        self.message_count += len(datas)
+        if self.taps:
+            for topic, data in messages:
+                for tap in self.taps:
+                    tap(topic, time_ns, data)
+        if self._clock() - self._last_flush >= self._flush_interval_s:
+            self.flush()
+
     def write(self, topic: str, time_ns: int) -> None:
         """Write the current contents of :meth:`record` for ``topic``."""
         self.write_bytes(topic, time_ns, self._records[topic].tobytes())
 
     def write_fields(self, topic: str, time_ns: int, source: object) -> None:
         """Write a CDR topic whose fields are attributes of ``source`` by the same
-        names (arrays are flattened row-major, e.g. a 4x4 pose into 16 numbers).
+        names (arrays are flattened row-major, e.g. a 4x4 pose into 16 numbers)."""
+        self.write_bytes(topic, time_ns, self.encode_fields(topic, source))
+
+    def encode_fields(self, topic: str, source: object) -> bytes:
+        """The message of :meth:`write_fields`, not written.
 
         Encoded by the topic's :class:`~ffexp.recording.encode.FieldsEncoder` when
         every value is plainly of its field's type; anything else (a value numpy
@@ -341,12 +412,9 @@ class Recorder:
         if enc is None:
             enc = self._encoders[topic] = FieldsEncoder(CDR_TOPICS[topic].spec)
         data = enc.encode(source)
-        if data is None:
-            self._write_fields_numpy(topic, time_ns, source)
-        else:
-            self.write_bytes(topic, time_ns, data)
+        return self._encode_fields_numpy(topic, source) if data is None else data
 
-    def _write_fields_numpy(self, topic: str, time_ns: int, source: object) -> None:
+    def _encode_fields_numpy(self, topic: str, source: object) -> bytes:
         rec = self._records.get(topic)
         if rec is None:
             rec = self.record(topic)
@@ -362,7 +430,7 @@ class Recorder:
             for name in self._field_names(topic):
                 value = getattr(source, name)
                 rec[name] = value.reshape(-1) if isinstance(value, ndarray) else value
-        self.write(topic, time_ns)
+        return rec.tobytes()
 
     @staticmethod
     def _plan(rec: np.ndarray, names: tuple[str, ...],
@@ -439,7 +507,12 @@ class Recorder:
         Formatted directly (frame names are plain identifiers, numbers finite):
         ``json.dumps`` of the same dict costs ten times more per cycle.
         """
-        v = pose_floats(pose)
+        self.transform_rows(time_ns, parent, child, pose.tolist())
+
+    def transform_rows(self, time_ns: int, parent: str, child: str,
+                       rows: list[list[float]]) -> None:
+        """:meth:`transform` of a pose given as its rows of floats (``pose.tolist()``)."""
+        v = rows_floats(rows)
         isfinite = math.isfinite
         if not (isfinite(v[0]) and isfinite(v[1]) and isfinite(v[2]) and isfinite(v[3])
                 and isfinite(v[4]) and isfinite(v[5]) and isfinite(v[6])):

@@ -26,7 +26,7 @@ from drivers.sim.scene import Scene
 from ffexp.recording import Recorder
 from ffexp.recording.topics_target import TRACKED_FRAME
 from ffexp.scene3d.entities import LINK_FRAMES, scene_update
-from ffexp.scene3d.kinematics import JOINTS, base_pose, link_transforms, translation
+from ffexp.scene3d.kinematics import JOINTS, base_pose, link_rows, translation
 
 __all__ = ["NOMINAL_FRAME", "SCENE_TOPIC", "TRUTH_FRAME", "SceneWriter"]
 
@@ -92,7 +92,7 @@ class SceneWriter:
         if log_ns >= self._next_tf_ns and len(q) == JOINTS:
             self._next_tf_ns = log_ns + self.tf_period_ns
             parent = "base"
-            for frame, pose in zip(LINK_FRAMES, link_transforms(q, self.base), strict=True):
-                self.rec.transform(log_ns, parent, frame, pose)
+            for frame, rows in zip(LINK_FRAMES, link_rows(q, self.base), strict=True):
+                self.rec.transform_rows(log_ns, parent, frame, rows)
                 parent = frame
 

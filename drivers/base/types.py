@@ -37,8 +37,11 @@ def _zeros(n: int) -> F64:
     return np.zeros(n, dtype=np.float64)
 
 
+_EYE4 = np.eye(4, dtype=np.float64)
+
+
 def _eye4() -> F64:
-    return np.eye(4, dtype=np.float64)
+    return _EYE4.copy()  # (a copy of one identity: np.eye costs more per call)
 
 
 class FtStatus(IntFlag):

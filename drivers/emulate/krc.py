@@ -86,6 +86,11 @@ _WARNINGS: Final = (
 #: Temperature the emulated drives report [deg C].
 DRIVE_TEMPERATURE_C: Final = 30.0
 _TEMPERATURE: Final = np.full(7, DRIVE_TEMPERATURE_C)
+# the fields the emulated KRC leaves at their defaults (copied: cheaper than the factories)
+_ZEROS7: Final = np.zeros(7)
+_EYE4: Final = np.eye(4)
+_ZEROS16: Final = np.zeros(16)
+_ZEROS16_I32: Final = np.zeros(16, dtype=np.int32)
 
 #: Hardware (mechanical) joint ranges of the LWR4+ A1..A7 [deg]: +-170/120
 #: (CentroEPiaggio kuka-lwr URDF; the KRC's rsidef7.dat as quoted by TUM's
@@ -166,10 +171,15 @@ def software_limits_rad(limits_deg: Sequence[float]) -> F64:
 def software_limit_error(jnt_pos_rad: F64, limits_rad: F64) -> int:
     """Error bits (:data:`~drivers.fri.link.ERROR_SOFTWARE_LIMIT`) of the joints at or
     beyond their software limit (``|q_i| >= limit_i``); 0 when none is."""
-    hit = np.abs(jnt_pos_rad[:7]) >= limits_rad
-    if not hit.any():
+    # most cycles no joint is near: plain floats are cheaper than numpy for 7 values
+    if not any(map(_at_or_beyond, jnt_pos_rad[:7].tolist(), limits_rad.tolist())):
         return 0
+    hit = np.abs(jnt_pos_rad[:7]) >= limits_rad
     return int(np.sum(1 << np.flatnonzero(hit)))
+
+
+def _at_or_beyond(value: float, limit: float) -> bool:
+    return abs(value) >= limit
 
 
 def brake_command(state: ArmState) -> ArmCommand:
@@ -221,13 +231,17 @@ def fri_measurement(
         msr_jnt_pos=s.jnt_pos_rad,
         msr_cart_pos=s.tcp_pose_m,
         cmd_jnt_pos=s.cmd_jnt_pos_rad,
+        cmd_jnt_pos_fri_offset=_ZEROS7.copy(),
         cmd_cart_pos=s.cmd_cart_pose_m,
+        cmd_cart_pos_fri_offset=_EYE4.copy(),
         msr_jnt_trq=s.jnt_trq_nm,
         est_ext_jnt_trq=s.ext_jnt_trq_nm,
         est_ext_tcp_ft=s.ext_wrench_n_nm,
         jacobian=s.jacobian,
         mass_matrix=s.mass_matrix,
         gravity=s.gravity_nm,
+        krl_real=_ZEROS16.copy(),
+        krl_int=_ZEROS16_I32.copy(),
     )
 
 

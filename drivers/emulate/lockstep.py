@@ -69,7 +69,7 @@ from drivers.fri.convert import (
 from drivers.fri.link import KrcLink, LinkEvent
 from drivers.fri.stats import LinkWatch
 from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement
-from drivers.sim.arm import ArmCommand
+from drivers.sim.arm import ArmCommand, ArmState
 from drivers.sim.controller import clip_cart_stiffness
 from drivers.sim.driver import SimFtSensor
 from drivers.sim.scene import Scene, load_scene
@@ -78,6 +78,7 @@ from drivers.sim.world import SimWorld
 __all__ = ["SimRobot", "open_sim"]
 
 _WHAT = "sim robot"
+_CARTSTIFF = int(CmdFlags.CARTSTIFF)  # ``int & IntFlag`` goes through the enum machinery
 
 
 class SimRobot(RobotDriver):
@@ -120,6 +121,8 @@ class SimRobot(RobotDriver):
         self._answered = False
         self._fri = FriCommand()
         self._applied = AppliedCommand()
+        self._state: ArmState = world.last_state
+        self._gains: tuple[bytes, np.ndarray | None, np.ndarray | None] | None = None
         self._msr = self._measurement()
 
     def _new_link(self) -> KrcLink:
@@ -132,8 +135,8 @@ class SimRobot(RobotDriver):
 
     def _measurement(self) -> FriMeasurement:
         link = self.link
-        m = fri_measurement(self.world.last_state, self.world.cycle_s, link.state, link.quality,
-                            link.error)
+        self._state = state = self.world.last_state  # held: its truth is read next
+        m = fri_measurement(state, self.world.cycle_s, link.state, link.quality, link.error)
         m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = link.rates()
         m.miss_counter = link.missed
         if self.wire_precision:
@@ -166,7 +169,7 @@ class SimRobot(RobotDriver):
 
     def _robot_state(self) -> RobotState:
         state = robot_state_from_fri(self._msr)
-        state.truth = self.world.last_state.truth
+        state.truth = self._state.truth
         return state
 
     # ------------------------------------------------------------ lifecycle
@@ -247,18 +250,30 @@ class SimRobot(RobotDriver):
             InvalidCommandError: on the next cycle, if ``command`` holds
                 non-finite values (the world refuses them).
         """
-        status = to_fri_command(command, self._msr, self._fri)
+        fri = self._fri
+        status = to_fri_command(command, self._msr, fri)
         self._answered = True
-        applied = applied_from_fri(self._fri, status, self._applied)
-        if self._fri.flags & CmdFlags.CARTSTIFF:
-            mx = self.world.scene.controller.cart_stiffness_max
-            k, clipped = clip_cart_stiffness(self._fri.cart_stiffness, mx[0], mx[1])
-            d = np.clip(self._fri.cart_damping, 0.0, 1.0)
-            if clipped or bool(np.any(d != self._fri.cart_damping)):
+        applied = applied_from_fri(fri, status, self._applied)
+        if int(fri.flags) & _CARTSTIFF:
+            # the gains rarely change: clip them again only when their bytes do
+            key = fri.cart_stiffness.tobytes() + fri.cart_damping.tobytes()
+            gains = self._gains
+            if gains is None or gains[0] != key:
+                gains = self._gains = (key, *self._clipped_gains(fri))
+            if gains[1] is not None:
                 applied.status |= ApplyStatus.CLIPPED
-                applied.command.stiffness_npm_nmprad[:] = k
-                applied.command.damping_ratio[:] = d
+                applied.command.stiffness_npm_nmprad[:] = gains[1]
+                applied.command.damping_ratio[:] = gains[2]
         return applied
+
+    def _clipped_gains(self, fri: FriCommand) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The stiffness and damping the world will apply, or ``None``s if neither clips."""
+        mx = self.world.scene.controller.cart_stiffness_max
+        k, clipped = clip_cart_stiffness(fri.cart_stiffness, mx[0], mx[1])
+        d = np.clip(fri.cart_damping, 0.0, 1.0)
+        if clipped or bool(np.any(d != fri.cart_damping)):
+            return k, d
+        return None, None
 
 
 def _stop_message(error: int, q: np.ndarray, limits_rad: np.ndarray) -> str:

@@ -60,6 +60,7 @@ __all__ = [
 CARTESIAN_FLAGS: Final = CmdFlags.CARTPOS | CmdFlags.TCPFT | CmdFlags.CARTSTIFF | CmdFlags.CARTDAMP
 #: Flags of a mirror (:meth:`FriCommand.hold`).
 MIRROR_FLAGS: Final = CmdFlags.JNTPOS | CmdFlags.CARTPOS
+_TCPFT: Final = int(CmdFlags.TCPFT)  # ``int & IntFlag`` goes through the enum machinery
 
 
 def commanding(msr: FriMeasurement) -> bool:
@@ -114,7 +115,7 @@ def applied_from_fri(out: FriCommand, status: ApplyStatus, dst: AppliedCommand) 
     c.pose_m[:] = out.cart_pos
     c.stiffness_npm_nmprad[:] = out.cart_stiffness
     c.damping_ratio[:] = out.cart_damping
-    if out.flags & CmdFlags.TCPFT:
+    if int(out.flags) & _TCPFT:
         c.wrench_n_nm[:] = out.add_tcp_ft
     else:
         c.wrench_n_nm[:] = 0.0

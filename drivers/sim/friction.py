@@ -54,6 +54,12 @@ class JointFriction:
         self.stribeck_radps = np.maximum(np.asarray(self.stribeck_radps, dtype=np.float64), 1e-12)
         self._excess = self.static_nm - self.coulomb_nm
         self._n = int(self.static_nm.shape[0])
+        self._work = np.zeros(self._n)
+
+    @property
+    def joints(self) -> int:
+        """How many joints (DOF addresses 0..n-1) the friction acts on."""
+        return self._n
 
     def dry_level_nm(self, speed_radps: F64) -> F64:
         """The dry (static-to-Coulomb) level at joint speed ``speed_radps`` [N m]."""
@@ -77,4 +83,25 @@ class JointFriction:
     def apply(self, model: mujoco.MjModel, qvel: F64) -> None:
         """Set the dry level from the current joint speeds (call once per control cycle)."""
         n = self._n
-        model.dof_frictionloss[:n] = self.dry_level_nm(qvel[:n])
+        self.apply_into(qvel[:n], model.dof_frictionloss[:n])
+
+    def apply_into(self, speed_radps: F64, out: F64) -> None:
+        """:meth:`dry_level_nm` of ``speed_radps`` (``n`` values) written into ``out``
+        (the model's ``dof_frictionloss[:n]``), bit for bit, without temporaries."""
+        v = self._work
+        np.abs(speed_radps, out=v)
+        np.divide(v, self.stribeck_radps, out=v)
+        np.minimum(v, 40.0, out=v)
+        _power(v, self.shape)
+        np.negative(v, out=v)
+        np.exp(v, out=v)
+        np.multiply(self._excess, v, out=v)
+        np.add(self.coulomb_nm, v, out=out)
+
+
+def _power(v: F64, shape: float) -> None:
+    """``v = v ** shape`` in place, as numpy's ``**`` computes it (a square for 2)."""
+    if shape == 2.0:
+        np.square(v, out=v)
+    elif shape != 1.0:
+        np.power(v, shape, out=v)

@@ -15,7 +15,11 @@ what a Net F/T streams, in our sign convention:
    quantisation to the counts' resolution (1/16 N, 1/752 N m for SI-145-5).
 
 All randomness comes from one seeded :class:`numpy.random.Generator`; samples
-are processed in blocks (one block per FRI cycle) without Python loops.
+are processed in blocks (one block per FRI cycle) without Python loops. The
+Gaussian draws are taken from the generator :data:`NOISE_BLOCK` samples at a
+time and used in order, which is the very stream per-block draws give (the
+generator fills arrays element by element), so a seed's samples do not depend
+on how they are blocked.
 """
 
 from __future__ import annotations
@@ -24,6 +28,10 @@ import numpy as np
 
 from drivers.base.types import F64, FtSamples, FtStatus
 from drivers.sim.scene import FtSensorSettings
+
+#: Samples' worth of Gaussian draws taken from the generator at once (12 per sample:
+#: 6 drift increments, 6 white noise values).
+NOISE_BLOCK = 512
 
 
 class FtSensorModel:
@@ -52,7 +60,7 @@ class FtSensorModel:
         b_f, b_t = settings.bias_std
         self.bias = rng.normal(0.0, 1.0, 6) * np.array([b_f] * 3 + [b_t] * 3)
         self.drift = np.zeros(6)
-        self.tare_offset = np.zeros(6)
+        self._tare = np.zeros(6)
         self._r = np.asarray(r_site_in_tcf, dtype=np.float64)
         rx, ry, rz = self._r
         # Row-vector tool transform: [f, t_tcp] = [f, t_site] @ xform, t_tcp = t_site + r x f.
@@ -65,6 +73,31 @@ class FtSensorModel:
         self._counts = np.zeros(0, dtype=np.int64)
         self.seq = 0
         self.last_wrench: F64 | None = None
+        self._gauss = np.zeros((0, 12))  # scaled draws not used yet start at row _used
+        self._used = 0
+        self._tared = False
+
+    @property
+    def tare_offset(self) -> F64:
+        """Software bias subtracted from every sample (Net F/T 0x0042) [N, N m]."""
+        return self._tare
+
+    @tare_offset.setter
+    def tare_offset(self, value: F64) -> None:
+        self._tare = np.asarray(value, dtype=np.float64)
+        self._tared = bool(np.any(self._tare != 0.0))
+
+    def _draws(self, n: int) -> F64:
+        """The next ``n`` rows of scaled draws (drift increments, white noise): a view."""
+        i = self._used
+        if self._gauss.shape[0] - i < n:
+            left = self._gauss[i:]
+            new = self._rng.standard_normal((max(NOISE_BLOCK, n - left.shape[0]), 12))
+            new *= self._scale
+            self._gauss = np.concatenate((left, new)) if left.shape[0] else new
+            i = 0
+        self._used = i + n
+        return self._gauss[i:i + n]
 
     def process(self, raw_parent_on_child: F64, t0_ns: int) -> FtSamples:
         """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``.
@@ -76,11 +109,10 @@ class FtSensorModel:
         n = raw_parent_on_child.shape[0]
         if n == 0:
             return FtSamples()
-        gauss = self._rng.standard_normal((n, 12))
-        gauss *= self._scale
+        gauss = self._draws(n)
         drift = np.add.accumulate(gauss[:, :6], axis=0)  # cumsum
         drift += self.drift
-        self.drift = drift[-1].copy()
+        self.drift = drift[-1]
         # environment (incl. tool load) on the tool, sensor frame
         w = gauss[:, 6:] - raw_parent_on_child
         w += drift
@@ -94,7 +126,8 @@ class FtSensorModel:
         # tool transform (torque about the TCP = torque about the sensing point + r x f),
         # software bias, then the counts' resolution
         w = w @ self._xform
-        w -= self.tare_offset
+        if self._tared:  # (x - 0.0 is x: nothing to subtract before a tare)
+            w -= self._tare
         w *= self._inv_res
         np.rint(w, out=w)
         w *= self._res

@@ -36,20 +36,22 @@ torques/wrench are exact (no torque-sensor noise or model error).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import weakref
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
 
-from drivers.base.types import F64, FtSamples, GroundTruth
-from drivers.errors import ConfigError, InvalidCommandError, SimulationError
+from drivers.base.types import F64, FtSamples
+from drivers.errors import InvalidCommandError, SimulationError
 from drivers.sim import mjcf
-from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
+from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
+from drivers.sim.contact import configure_contact
 from drivers.sim.controller import clip_cart_stiffness, normalized_damping
 from drivers.sim.divergence import check_divergence, quiet_divergence
 from drivers.sim.ftsensor import FtSensorModel
 from drivers.sim.scene import Scene
-from drivers.sim.truth import ground_truth
+from drivers.sim.state import LazyArmState
 from drivers.sim.truth import pose as _pose
 
 #: The KRC's damping uses the Cartesian inertia of the configuration where it was
@@ -61,24 +63,24 @@ _N_ARM = 7
 _YZX = np.array([1, 2, 0])
 _ZXY = np.array([2, 0, 1])
 
+_isfinite = math.isfinite
+
+
+def _all_finite(a: F64) -> bool:
+    """Every value of a small array finite (plain floats: cheaper than numpy for a few)."""
+    return all(map(_isfinite, a.ravel().tolist()))
+
+
+def _no_state() -> LazyArmState | None:
+    return None
+
+
 _WARN_CLIPPED = int(ArmWarning.STIFFNESS_CLIPPED)
-_WARN_TORQUE = int(ArmWarning.TORQUE_LIMIT)
-_WARN_VELOCITY = int(ArmWarning.VELOCITY_LIMIT)
-_WARN_POSITION = int(ArmWarning.POSITION_LIMIT)
 _MODES = {
     "cart_impedance": ArmMode.CART_IMPEDANCE,
     "joint_position": ArmMode.JOINT_POSITION,
     "joint_impedance": ArmMode.JOINT_IMPEDANCE,
 }
-
-
-@dataclass(frozen=True)
-class ContactInfo:
-    """Funnel contact parameters as MuJoCo sees them (for the record)."""
-
-    m_eff: float
-    solref_stiffness: float
-    solref_damping: float
 
 
 class SimWorld:
@@ -115,6 +117,7 @@ class SimWorld:
         quiet_divergence(m, d)
         self._friction = scene.arm.joint_friction()
         self._friction.install(m)
+        self._frictionloss = m.dof_frictionloss[:self._friction.joints]
         self._tcp = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tcp")
         self._ft_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "ft_site")
         self._mouth = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "funnel_mouth")
@@ -144,22 +147,49 @@ class SimWorld:
         self._torque_limits = np.asarray(scene.arm.torque_limits)
         self._pos_warn = self._pos_limits - 1e-3
         self._torque_warn = self._torque_limits - 1e-9
+        self._vel_limits_l = self._vel_limits.tolist()
+        self._pos_warn_l = self._pos_warn.tolist()
+        self._torque_warn_l = self._torque_warn.tolist()
 
         # Preallocated work arrays.
-        self._jacp = np.zeros((3, m.nv))
-        self._jacr = np.zeros((3, m.nv))
+        self._jac2 = np.zeros((2, 3, m.nv))  # MuJoCo's translational, rotational Jacobian
+        self._jacp = self._jac2[0]
+        self._jacr = self._jac2[1]
         self._mfull = np.zeros((m.nv, m.nv))
         self._jfull = np.zeros((6, m.nv))
+        self._jfull2 = self._jfull.reshape(2, 3, m.nv)  # the same memory
         self._minv_jt = np.zeros((6, m.nv))
         self._kin_ok = False
         self._inertia_q = np.zeros(_N_ARM)
         self._inertia_new = True
         # views into MuJoCo's buffers written every cycle
         self._cart_damp_prm = m.actuator_biasprm[self._act_cart, 2]
+        self._cart_stiff_prm = m.actuator_biasprm[self._act_cart, 1]
+        self._jnt_trq_prm = m.actuator_biasprm[self._act_jnt, 0]
+        self._ctrl_ft = d.ctrl[self._act_ft]
+        self._mocap_pos = d.mocap_pos[self._cmd_mocap]
+        self._mocap_quat = d.mocap_quat[self._cmd_mocap]
+        self._qvel_arm = d.qvel[:_N_ARM]
+        self._qpos_arm = d.qpos[:_N_ARM]
+        self._qacc_arm = d.qacc[:_N_ARM]
+        self._actuator_arm = d.qfrc_actuator[:_N_ARM]
+        self._tcp_xpos = d.site_xpos[self._tcp]
+        self._tcp_xmat = d.site_xmat[self._tcp]
+        self._mouth_xpos = d.site_xpos[self._mouth]
+        self._mouth_xmat = d.site_xmat[self._mouth]
+        self._target_xpos = d.xpos[self._target_body]
+        self._target_xmat = d.xmat[self._target_body]
+        # what the actuators hold now (the objects last written; None: rewrite)
+        self._written: dict[str, object] = {}
+        # the last stiffness/damping given and what they became (commands repeat them)
+        self._given_k: tuple[bytes, F64, bool] | None = None
+        self._given_d: tuple[bytes, F64] | None = None
         self._bias_arm = d.qfrc_bias[:_N_ARM]
+        self._qfrc_bias = d.qfrc_bias
         self._gravcomp_arm = d.qfrc_gravcomp[:_N_ARM]
         self._applied_arm = d.qfrc_applied[:_N_ARM]
         self._ft_raw = np.zeros((self.substeps, 6))
+        self._ft_rows = tuple(self._ft_raw[i] for i in range(self.substeps))
         self._cforce = np.zeros(6)
         self._quat = np.zeros(4)
         self._sensordata = d.sensordata
@@ -168,6 +198,7 @@ class SimWorld:
         if tadr != fadr + 3:
             raise SimulationError("unexpected sensor layout")
         self._ft_adr = int(fadr)
+        self._ft_now = d.sensordata[self._ft_adr:self._ft_adr + 6]
 
         # Start state: arm at q_init, target yawed on its hinge.
         d.qpos[self._t_qadr[3]] = self.layout.target_yaw
@@ -176,7 +207,8 @@ class SimWorld:
         self._update_kinematics()
 
         # Funnel contact: physical N/m -> MuJoCo direct solref via the effective mass.
-        self.contact_info = self._configure_contact()
+        self.contact_info = configure_contact(
+            scene, self.model, float(self.cart_inertia[2, 2]), self.dt, self._funnel_geoms)
 
         # Initial command: hold the start pose with the scene's impedance.
         self.mode = _MODES[scene.fri.control]
@@ -203,7 +235,8 @@ class SimWorld:
         mujoco.mj_forward(m, d)
         self._contact, self._touching = self.contact_wrench()
         self._update_kinematics()
-        self._state: ArmState | None = None
+        self._state_ref: Callable[[], LazyArmState | None] = _no_state
+        self._held: LazyArmState | None = None
 
         self.ft_model = FtSensorModel(
             scene.ft_sensor, self.rng, np.array([0.0, 0.0, -mjcf.tool_tip_offset(scene)])
@@ -215,39 +248,12 @@ class SimWorld:
         self._ready = True
 
     # ------------------------------------------------------------------ setup
-    def _configure_contact(self) -> ContactInfo:
-        """Map the scene's contact stiffness [N/m] and damping ratio onto solref.
-
-        MuJoCo's direct solref is mass-normalised (fact sheet sec. 3): a
-        contact with constant impedance d and reference stiffness k holds a
-        quasi-static load F at penetration ``F (1 - d) / (d k m_eff)``. We pick
-        k so that this equals ``F / stiffness``, with m_eff the reduced mass
-        of the TCP (Cartesian inertia along the approach axis) and the target.
-        """
-        ct = self.scene.contact
-        lam = self.cart_inertia
-        m_tcp = float(lam[2, 2])
-        m_eff = 1.0 / (1.0 / m_tcp + 1.0 / self.scene.target.mass)
-        dimp = ct.impedance
-        k = ct.stiffness * (1.0 - dimp) / (dimp * m_eff)
-        limit = 1.0 / (2.0 * self.dt) ** 2
-        if k > limit:
-            raise ConfigError(
-                self.scene.name, "contact.stiffness",
-                f"{ct.stiffness:g} N/m maps to solref stiffness {k:.3g} > 1/(2h)^2 = {limit:.3g}; "
-                "lower it or the physics timestep",
-            )
-        b = 2.0 * ct.damping_ratio * math.sqrt(dimp * k) / dimp
-        m = self.model
-        for g in self._funnel_geoms:
-            m.geom_solref[g, 0] = -k
-            m.geom_solref[g, 1] = -b
-        return ContactInfo(m_eff=m_eff, solref_stiffness=k, solref_damping=b)
-
     def set_target_velocity(self, vx: float, vy: float, wz: float) -> None:
         """Give the target a twist in the bed plane (world frame) [m/s, rad/s]."""
-        if self._ready:
-            _ = self.last_state  # keep the end state of this cycle as it was
+        if self._ready:  # keep the end state of this cycle as it was
+            state = self.last_state
+            state.resolve()
+            self._held = state
         v = self.data.qvel
         v[self._t_vadr[0]] = vx
         v[self._t_vadr[1]] = vy
@@ -284,12 +290,10 @@ class SimWorld:
         if self._kin_ok:
             return
         m, d = self.model, self.data
-        self._tcp_pose = _pose(d.site_xpos[self._tcp], d.site_xmat[self._tcp])
-        r = self._tcp_pose[:3, :3]
+        self._tcp_pose = _pose(self._tcp_xpos, self._tcp_xmat)
         mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp)
-        jfull = self._jfull
-        np.matmul(r.T, self._jacp, out=jfull[:3])
-        np.matmul(r.T, self._jacr, out=jfull[3:])
+        # both halves in one call: [R^T jacp; R^T jacr], the TCF rows
+        np.matmul(self._tcp_pose[:3, :3].T, self._jac2, out=self._jfull2)
         mujoco.mj_fullM(m, d, self._mfull)
         self._kin_ok = True
 
@@ -300,10 +304,11 @@ class SimWorld:
         # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M.
         mujoco.mj_solveM(self.model, self.data, self._minv_jt, jfull)
         self.cart_inertia = np.linalg.inv(jfull @ self._minv_jt.T)
-        self._lam_diag = np.diag(self.cart_inertia).copy()
+        self._lam_diag = self.cart_inertia.diagonal().copy()
         self._inertia_new = True
-        self._m_diag = np.diag(self._mfull)[:_N_ARM].copy()
+        self._m_diag = self._mfull.diagonal()[:_N_ARM].copy()
         self._inertia_q[:] = self.data.qpos[:_N_ARM]
+        self._inertia_ql = self._inertia_q.tolist()
 
     def _update_kinematics(self) -> None:
         """Everything above at the current state, now."""
@@ -319,22 +324,40 @@ class SimWorld:
         cart = self._act_cart
         jnt = self._act_jnt
         if self.mode == ArmMode.CART_IMPEDANCE:
+            # Each parameter is rewritten only when its inputs are other objects than
+            # those last written (a given field is a new array; a repeated gain the same).
+            w = self._written
             if self._latched or self._inertia_new:  # the damping: its inputs changed
+                if (self._inertia_new or w.get("k_d") is not self._cart_stiff
+                        or w.get("d") is not self._cart_damp):
+                    damp = normalized_damping(self._cart_stiff, self._cart_damp, self._lam_diag)
+                    np.negative(damp, out=self._cart_damp_prm)
+                    w["k_d"] = self._cart_stiff
+                    w["d"] = self._cart_damp
                 self._inertia_new = False
-                damp = normalized_damping(self._cart_stiff, self._cart_damp, self._lam_diag)
-                np.negative(damp, out=self._cart_damp_prm)
             if self._latched:  # the rest changes only with a command
                 self._latched = False
-                d.mocap_pos[self._cmd_mocap] = self._cart_pos[:3, 3]
-                mujoco.mju_mat2Quat(self._quat, self._cart_pos[:3, :3].ravel())
-                d.mocap_quat[self._cmd_mocap] = self._quat
-                bias[cart, 1] = -self._cart_stiff
-                ctrl[self._act_ft] = self._tcp_ft
-                gain[jnt, 0] = 0.0
-                bias[jnt, 0] = self._jnt_trq
-                bias[jnt, 1] = 0.0
-                bias[jnt, 2] = 0.0
+                if w.get("pos") is not self._cart_pos:
+                    self._mocap_pos[:] = self._cart_pos[:3, 3]
+                    mujoco.mju_mat2Quat(self._quat, self._cart_pos[:3, :3].ravel())
+                    self._mocap_quat[:] = self._quat
+                    w["pos"] = self._cart_pos
+                if w.get("k") is not self._cart_stiff:
+                    np.negative(self._cart_stiff, out=self._cart_stiff_prm)
+                    w["k"] = self._cart_stiff
+                if w.get("ft") is not self._tcp_ft:
+                    self._ctrl_ft[:] = self._tcp_ft
+                    w["ft"] = self._tcp_ft
+                if w.get("jnt") is None:  # the joint gains of the joint modes off
+                    gain[jnt, 0] = 0.0
+                    bias[jnt, 1] = 0.0
+                    bias[jnt, 2] = 0.0
+                    w["jnt"] = True
+                if w.get("trq") is not self._jnt_trq:
+                    self._jnt_trq_prm[:] = self._jnt_trq
+                    w["trq"] = self._jnt_trq
         else:
+            self._written.clear()  # joint modes write over all of it
             self._latched = True
             self._inertia_new = True  # the Cartesian damping is rewritten on return
             bias[cart, 1] = 0.0
@@ -366,21 +389,31 @@ class SimWorld:
             self._jnt_pos = self.data.qpos[:_N_ARM].copy()
         self._warning = 0
         if cmd.cart_pose_m is not None:
-            p = np.asarray(cmd.cart_pose_m, dtype=np.float64)
-            if p.shape != (4, 4) or not np.isfinite(p).all():
+            p = np.array(cmd.cart_pose_m, dtype=np.float64)
+            if p.shape != (4, 4) or not _all_finite(p):
                 raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
-            self._cart_pos = p.copy()
+            self._cart_pos = p
         if cmd.cart_stiffness_npm_nmprad is not None:
             k = np.asarray(cmd.cart_stiffness_npm_nmprad, dtype=np.float64)
-            if k.shape != (6,) or not np.isfinite(k).all():
-                raise InvalidCommandError("cart_stiffness must be 6 finite values")
-            mx = self.scene.controller.cart_stiffness_max
-            self._cart_stiff, clipped = clip_cart_stiffness(k, mx[0], mx[1])
-            if clipped:
+            key = k.tobytes()
+            given = self._given_k
+            if given is None or given[0] != key or k.shape != (6,):
+                if k.shape != (6,) or not _all_finite(k):
+                    raise InvalidCommandError("cart_stiffness must be 6 finite values")
+                mx = self.scene.controller.cart_stiffness_max
+                clipped_k, clipped = clip_cart_stiffness(k, mx[0], mx[1])
+                given = self._given_k = (key, clipped_k, clipped)
+            self._cart_stiff = given[1]
+            if given[2]:
                 self._warning |= _WARN_CLIPPED
         if cmd.cart_damping_ratio is not None:
-            self._cart_damp = np.clip(
-                self._finite(cmd.cart_damping_ratio, 6, "cart_damping"), 0.0, 1.0)
+            dr = np.asarray(cmd.cart_damping_ratio, dtype=np.float64)
+            key = dr.tobytes()
+            given_d = self._given_d
+            if given_d is None or given_d[0] != key or dr.shape != (6,):
+                given_d = self._given_d = (
+                    key, np.clip(self._finite(dr, 6, "cart_damping"), 0.0, 1.0))
+            self._cart_damp = given_d[1]
         if cmd.tcp_wrench_n_nm is not None:
             self._tcp_ft = self._finite(cmd.tcp_wrench_n_nm, 6, "add_tcp_ft")
         if cmd.jnt_pos_rad is not None:
@@ -399,16 +432,16 @@ class SimWorld:
 
     @staticmethod
     def _finite(v: F64, n: int, name: str) -> F64:
-        a = np.asarray(v, dtype=np.float64)
-        if a.shape != (n,) or not np.isfinite(a).all():
+        a = np.array(v, dtype=np.float64)
+        if a.shape != (n,) or not _all_finite(a):
             raise InvalidCommandError(f"{name} must be {n} finite values")
-        return a.copy()
+        return a
 
     def _check_divergence(self) -> None:
         """Raise SimulationError if the physics diverged (:mod:`drivers.sim.divergence`)."""
         check_divergence(self.data)
 
-    def step(self, command: ArmCommand | None = None) -> ArmState:
+    def step(self, command: ArmCommand | None = None) -> LazyArmState:
         """Latch ``command`` (``None``: keep everything), run one cycle, return its end state.
 
         The same as :meth:`advance` followed by :attr:`last_state`.
@@ -423,16 +456,26 @@ class SimWorld:
         return self.last_state
 
     @property
-    def last_state(self) -> ArmState:
+    def last_state(self) -> LazyArmState:
         """The state at the end of the last cycle (the start state before the first).
 
-        Built on first access in a cycle and kept until the next one (a cycle
-        nobody reads costs no measurement).
+        Its fields are computed on first read (:mod:`drivers.sim.state`: a
+        cycle nobody reads costs no measurement, the Jacobian, mass matrix and
+        truth only when read); the same object while someone holds it.
         """
-        state = self._state
+        state = self._state_ref()
         if state is None:
-            state = self._state = self._measure()
+            state = LazyArmState(self)
+            self._state_ref = weakref.ref(state)
         return state
+
+    def _let_go(self) -> None:
+        """The data are about to change: a state still held gets its values now."""
+        state = self._state_ref()
+        if state is not None:
+            state.resolve()
+        self._state_ref = _no_state
+        self._held = None
 
     def advance(self, command: ArmCommand | None = None) -> None:
         """Latch ``command`` and run one cycle, without building its :class:`ArmState`.
@@ -444,35 +487,40 @@ class SimWorld:
         Raises:
             InvalidCommandError, SimulationError: as :meth:`step`.
         """
+        self._let_go()
         if command is not None:
             self._take(command)
-        self._state = None
         self._apply()
         m, d = self.model, self.data
-        self._friction.apply(m, d.qvel)
-        raw = self._ft_raw
-        sd = self._sensordata
-        a = self._ft_adr
+        self._friction.apply_into(self._qvel_arm, self._frictionloss)
+        ft_now = self._ft_now
         step = mujoco.mj_step
-        for i in range(self.substeps):
+        for row in self._ft_rows:
             step(m, d)
-            raw[i] = sd[a:a + 6]
+            row[:] = ft_now
         # Contacts and constraint forces are consistent now (state of the last
         # step, 1 physics step before the cycle's end).
         self._contact, self._touching = self.contact_wrench()
         self._end_state_dynamics()
-        self._check_divergence()
-        t0 = self.cycle * self.cycle_ns
-        first = (-self._step_count) % self._ft_decim
-        rows = raw[first::self._ft_decim]
-        if rows.shape[0]:
-            self._ft_pending.append(self.ft_model.process(rows, t0 + first * self.step_ns))
+        check_divergence(d)
+        decim = self._ft_decim
+        if decim == 1:
+            self._ft_pending.append(
+                self.ft_model.process(self._ft_raw, self.cycle * self.cycle_ns))
+        else:
+            first = (-self._step_count) % decim
+            rows = self._ft_raw[first::decim]
+            if rows.shape[0]:
+                self._ft_pending.append(self.ft_model.process(
+                    rows, self.cycle * self.cycle_ns + first * self.step_ns))
         self._step_count += self.substeps
         self.cycle += 1
         self._kin_ok = False
-        q = d.qpos[:_N_ARM]
-        if np.abs(q - self._inertia_q).max() > INERTIA_REUSE_RAD:
-            self._update_inertia()
+        # a joint moved more than INERTIA_REUSE_RAD (plain floats: 7 values)
+        for qi, q0 in zip(self._qpos_arm.tolist(), self._inertia_ql, strict=True):
+            if abs(qi - q0) > INERTIA_REUSE_RAD:
+                self._update_inertia()
+                break
 
     def _end_state_dynamics(self) -> None:
         """Kinematics, mass matrix (factorised) and bias forces of the end state.
@@ -488,7 +536,7 @@ class SimWorld:
         mujoco.mj_factorM(m, d)
         mujoco.mj_comVel(m, d)
         mujoco.mj_passive(m, d)  # qfrc_gravcomp
-        mujoco.mj_rne(m, d, 0, d.qfrc_bias)
+        mujoco.mj_rne(m, d, 0, self._qfrc_bias)
 
     def ft_samples(self) -> FtSamples:
         """Every F/T sample produced since the last call."""
@@ -515,9 +563,15 @@ class SimWorld:
         subtree centre of mass to the TCP.
         """
         m, d = self.model, self.data
-        if d.ncon == 0:
+        ncon = d.ncon
+        if ncon == 0:
             return np.zeros(6), False
-        if not self._is_tool_geom[d.contact.geom].any():
+        geom = d.contact.geom
+        if ncon <= 16:  # a few contacts (the target's pads): plain ints are cheaper
+            tool = self._tool_geoms
+            if not any(g in tool for g in geom.ravel().tolist()):
+                return np.zeros(6), False
+        elif not self._is_tool_geom[geom].any():
             return np.zeros(6), False
         mujoco.mj_rnePostConstraint(m, d)
         cfrc = d.cfrc_ext[self._tool_body]  # [torque about the subtree com, force], world
@@ -529,52 +583,6 @@ class SimWorld:
         out[:3] = f @ rot
         out[3:] = torque @ rot
         return out, True
-
-    def _truth(self, contact: F64, touching: bool, tcp_twist: F64) -> GroundTruth:
-        d = self.data
-        return ground_truth(
-            _pose(d.xpos[self._target_body], d.xmat[self._target_body]),
-            d.qvel[self._t_twist_adr], self.tcp_pose, d.site_xpos[self._mouth],
-            d.site_xmat[self._mouth], self.layout.funnel_seat_depth, contact, touching, tcp_twist,
-        )
-
-    def _measure(self) -> ArmState:
-        d = self.data
-        q = d.qpos[:_N_ARM].copy()
-        qd = d.qvel[:_N_ARM]
-        jac = self.jacobian
-        mass = self.mass_matrix
-        contact, touching = self._contact, self._touching
-        tau_ext = jac.T @ contact
-        gravity = d.qfrc_gravcomp[:_N_ARM].copy()
-        # Link-side torque sensors: M qdd + c + g = tau_msr + tau_ext.
-        tau_msr = mass @ d.qacc[:_N_ARM] + d.qfrc_bias[:_N_ARM] - tau_ext
-        warning = self._warning
-        if (np.abs(qd) > self._vel_limits).any():
-            warning |= _WARN_VELOCITY
-        if (np.abs(q) > self._pos_warn).any():
-            warning |= _WARN_POSITION
-        if (np.abs(d.qfrc_actuator[:_N_ARM]) >= self._torque_warn).any():
-            warning |= _WARN_TORQUE
-        cart = self.mode == ArmMode.CART_IMPEDANCE
-        tcp_twist = jac @ qd
-        return ArmState(
-            cycle=self.cycle,
-            time_ns=self.cycle * self.cycle_ns,
-            mode=self.mode,
-            jnt_pos_rad=q,
-            tcp_pose_m=self.tcp_pose,
-            cmd_jnt_pos_rad=q.copy() if cart else self._jnt_pos.copy(),
-            cmd_cart_pose_m=self._cart_pos.copy() if cart else self.tcp_pose.copy(),
-            jnt_trq_nm=tau_msr,
-            ext_jnt_trq_nm=tau_ext,
-            ext_wrench_n_nm=contact.copy(),
-            jacobian=jac,
-            mass_matrix=mass,
-            gravity_nm=gravity,
-            warning=ArmWarning(warning),
-            truth=self._truth(contact, touching, tcp_twist),
-        )
 
     @property
     def cycle_s(self) -> float:

@@ -133,7 +133,8 @@ def test_lazy_end_state_equals_reading_it_at_once() -> None:
     held: list[ArmState | None] = [b.last_state]
     for i in range(cycles):
         b.advance(_script(i, p0))
-        s = b.last_state
+        s: ArmState | None = b.last_state
+        assert s is not None
         if i % 4 == 0:
             _ = s.truth  # one group first (it needs the Jacobian too)
         elif i % 4 == 1:

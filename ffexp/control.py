@@ -276,6 +276,9 @@ class ImpedanceController:
         d = np.asarray(config.direction, dtype=np.float64)
         self._dir = d / np.linalg.norm(d)
         self._lim = np.asarray(config.output_limit, dtype=np.float64)
+        # per axis as floats for the output (the array form's elementwise operations)
+        self._axes = list(zip(self._k.tolist(), self._b.tolist(), (-self._lim).tolist(),
+                              self._lim.tolist(), strict=True))
         self._start: FloatArray | None = None
         self.setpoint = np.eye(4)
 
@@ -297,5 +300,9 @@ class ImpedanceController:
         """Commanded wrench (TCF) for the tool pose and its twist in TCF."""
         self.setpoint = self.setpoint_at(elapsed_s)
         e = pose_error_tcf(pose, self.setpoint)
-        out: FloatArray = np.clip(self._k * e - self._b * twist_tcf, -self._lim, self._lim)
-        return out
+        # np.clip(K e - B twist, -lim, lim), per axis on floats (the same operations)
+        return np.array([
+            _clip(k * ek - b * vk, lo, hi)
+            for (k, b, lo, hi), ek, vk in zip(self._axes, e.tolist(),
+                                              np.asarray(twist_tcf, dtype=np.float64).tolist(),
+                                              strict=True)])

@@ -58,6 +58,8 @@ class Cycle:
         self.total = np.zeros(6)  # the wrench sent this cycle (reused)
         self.hold_k = np.asarray(p.krc.hold_stiffness, dtype=np.float64)
         self.hold_d = np.asarray(p.krc.hold_damping, dtype=np.float64)
+        self.cart_k = np.asarray(p.krc.cart_stiffness, dtype=np.float64)
+        self.cart_d = np.asarray(p.krc.cart_damping, dtype=np.float64)
         # the safe stop's ramp: from the last command at the stop's time
         self.stop_ns = 0
         self.from_k, self.from_d, self.from_w = np.zeros(6), np.zeros(6), np.zeros(6)
@@ -173,7 +175,7 @@ class Cycle:
             task.end(t_ns, stop)
         task.step(t_ns, state, est, target)
         self.flush_notes()
-        phase, krc, cmd = task.phase, self.p.krc, self.cmd
+        phase, cmd = task.phase, self.cmd
         self.approach_wrench: np.ndarray | None = None
         if phase == Phase.CONNECT:
             self.total[:] = 0.0
@@ -182,8 +184,8 @@ class Cycle:
         if phase.ended:
             self._safe_stop(t_ns, cmd)
         else:
-            cmd.stiffness_npm_nmprad[:] = krc.cart_stiffness
-            cmd.damping_ratio[:] = krc.cart_damping
+            cmd.stiffness_npm_nmprad[:] = self.cart_k
+            cmd.damping_ratio[:] = self.cart_d
             if phase == Phase.APPROACH:
                 self.approach_wrench = self.approach.command(t_ns, state.tcp_pose_m, est.twist_tcf)
                 cmd.wrench_n_nm[:] = self.approach_wrench

@@ -50,7 +50,7 @@ class SafetyMonitor:
 
     def __init__(self, limits: Limits) -> None:
         self.limits = limits
-        self._workspace = np.asarray(limits.workspace_m, dtype=np.float64)
+        self._workspace: list[float] = np.asarray(limits.workspace_m, dtype=np.float64).tolist()
         self._bad_link_cycles = 0
         self._origin: F64 | None = None
 
@@ -99,7 +99,7 @@ class SafetyMonitor:
             if self._origin is not None:
                 o = self._origin
                 offset = o[:3, :3].T @ (state.tcp_pose_m[:3, 3] - o[:3, 3])
-                if np.any(np.abs(offset) > self._workspace):
+                if any(abs(v) > w for v, w in zip(offset.tolist(), self._workspace, strict=True)):
                     return Stop(
                         StopReason.WORKSPACE_LIMIT,
                         f"workspace limit: offset {np.round(offset, 3).tolist()} m",

@@ -212,3 +212,24 @@ def test_float_form_is_bit_identical_to_the_array_form(seed: int) -> None:
         got = (t.p, t.i, t.ri, t.ff, t.total, np.array(t.saturated))
         for a, b in zip(got, want, strict=True):
             assert a.tobytes() == b.tobytes(), k
+
+
+def test_impedance_output_is_bit_identical_to_the_array_form() -> None:
+    """``np.clip(K e - B twist, -lim, lim)`` per axis on floats: the same bits."""
+    cfg = ImpedanceConfig(stiffness=(300.0, 300.0, 500.0, 20.0, 20.0, 0.0),
+                          damping=(40.0, 40.0, 60.0, 2.0, 2.0, 0.0),
+                          output_limit=(5.0, 5.0, 10.0, 0.5, 0.5, 0.0))
+    ctl = ImpedanceController(cfg)
+    rng = np.random.default_rng(4)
+    start = np.eye(4)
+    ctl.start(start)
+    k, b = np.asarray(cfg.stiffness), np.asarray(cfg.damping)
+    lim = np.asarray(cfg.output_limit)
+    for i in range(2000):
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_rotvec(rng.normal(scale=0.05, size=3)).as_matrix()
+        pose[:3, 3] = rng.normal(scale=0.03, size=3)
+        twist = rng.normal(scale=0.1, size=6) * (i % 5 != 0)
+        got = ctl.update(pose, twist, i * DT)
+        want = np.clip(k * pose_error_tcf(pose, ctl.setpoint) - b * twist, -lim, lim)
+        assert got.tobytes() == want.tobytes(), i

@@ -16,7 +16,10 @@ each measured in the same repeat:
 
 Prints medians: wall time and real-time factor of each, the ratios, and where
 the run's time goes (driver = the KRC and the world, of which physics; sensor
-read; step = estimation, safety, task and control; send; recording).
+read; step = estimation, safety, task and control; send; recording). Then,
+from one more run with a clock around each part (which adds ~0.3 us a call,
+so its parts are a little high and that run is not timed as a whole), the
+step's and the recording's parts in microseconds per cycle.
 """
 
 from __future__ import annotations
@@ -72,6 +75,68 @@ def run_once(ppath: Path, seconds: float, out: Path) -> tuple[float, dict[str, f
         wall = time.perf_counter() - t0
     timings["physics"] = physics[0]
     return wall, timings, result.outcome.duration_s
+
+
+#: The parts of the step and of the recording, timed in the instrumented run:
+#: (label, module, owner, method); nested parts are inside their parents.
+PARTS = (
+    ("step", "ffexp.loop", "Cycle", "step"),
+    ("  estimator", "ffexp.estimator", "Estimator", "update"),
+    ("    motion filter", "ffexp.estimation", "MotionFilter", "update"),
+    ("    wrench filter", "ffexp.estimation", "WrenchFilter", "update_rows"),
+    ("    contact detector", "ffexp.estimation", "ContactDetector", "update"),
+    ("  safety", "ffexp.safety", "SafetyMonitor", "check"),
+    ("  task", "ffexp.task", "Task", "step"),
+    ("  approach law", "ffexp.controllers.base", "Approach", "command"),
+    ("  align method", "ffexp.loop", "Cycle", "_align"),
+    ("recording: F/T samples", "ffexp.runlog", "RunLog", "samples"),
+    ("recording: cycle", "ffexp.runlog", "RunLog", "cycle"),
+    ("  encode_fields", "ffexp.recording.recorder", "Recorder", "encode_fields"),
+    ("  write_batch", "ffexp.recording.recorder", "Recorder", "write_batch"),
+    ("  /tf", "ffexp.recording.recorder", "Recorder", "transform_rows"),
+    ("  3-D scene sink", "ffexp.scene3d.writer", "SceneWriter", "cycle"),
+    ("chunk compression (zstd)", "mcap.writer", "zstandard", "compress"),
+)
+
+
+@contextmanager
+def timed_parts() -> Iterator[dict[str, list[int]]]:
+    """Accumulate wall time [ns] and calls of each of :data:`PARTS` inside the block."""
+    import importlib
+    import types
+
+    acc: dict[str, list[int]] = {}
+    undo: list[tuple[object, str, object]] = []
+    clock = time.perf_counter_ns
+    for label, module, owner_name, method in PARTS:
+        owner = getattr(importlib.import_module(module), owner_name)
+        bare = getattr(owner, method)
+        cell = acc[label] = [0, 0]
+
+        def timed(*args: object, _bare: Callable[..., object] = bare,
+                  _cell: list[int] = cell) -> object:
+            t = clock()
+            try:
+                return _bare(*args)
+            finally:
+                _cell[0] += clock() - t
+                _cell[1] += 1
+
+        if isinstance(owner, types.ModuleType):  # a module's function: patch a copy
+            shim = types.SimpleNamespace(**{k: getattr(owner, k) for k in dir(owner)
+                                            if not k.startswith("__")})
+            setattr(shim, method, timed)
+            parent = importlib.import_module(module)
+            undo.append((parent, owner_name, owner))
+            setattr(parent, owner_name, shim)
+        else:
+            undo.append((owner, method, bare))
+            setattr(owner, method, timed)
+    try:
+        yield acc
+    finally:
+        for owner, name, bare in reversed(undo):
+            setattr(owner, name, bare)
 
 
 def unrecorded_once(ppath: Path, seconds: float) -> float:
@@ -141,6 +206,15 @@ def main() -> None:
             print(f"    rest    {rest:7.2f} s  {100 * rest / wall:5.1f} %"
                   "  (KRC emulation, world bookkeeping, F/T model)")
     print(f"  {'other':<11} {wall - sum(part.values()):7.2f} s  (set-up, phase changes, closing)")
+    with tempfile.TemporaryDirectory() as tmp, timed_parts() as acc:
+        timings = {}
+        run_file(args.protocol, [f"run.timeout_s={args.seconds}", "run.stop_hold_s=0"],
+                 out_dir=Path(tmp), timings=timings)
+    cycles = max(1, round(sim_s / 0.005))
+    print(f"parts of the step and the recording (one instrumented run, us per cycle of "
+          f"{cycles}; calls per cycle):")
+    for label, (ns, calls) in acc.items():
+        print(f"  {label:<30} {ns / 1e3 / cycles:7.1f} us  {calls / cycles:5.2f}")
 
 
 if __name__ == "__main__":

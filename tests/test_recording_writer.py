@@ -1,4 +1,5 @@
-"""The Recorder's faster mcap writer writes exactly the bytes mcap's own writer does."""
+"""The Recorder's faster mcap writer writes exactly the bytes mcap's own writer does
+(its batches, and its chunks compressed in a worker thread while the next one fills)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,8 @@ def test_fast_writer_bytes_equal_mcaps_own() -> None:
         ours, writer = _write(FastWriter, compression)
         theirs, _ = _write(Writer, compression)
         assert isinstance(writer, FastWriter) and writer.fast  # the fast path was taken
+        # full zstd chunks compressed in the worker thread, written in order
+        assert writer.background == (compression == CompressionType.ZSTD)
         assert len(ours) > 20_000
         assert ours == theirs
 

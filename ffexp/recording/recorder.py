@@ -22,16 +22,19 @@ import json
 import math
 import struct
 import time
+import zlib
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from itertools import chain
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
 
 import numpy as np
+import zstandard
 from mcap.opcode import Opcode
-from mcap.records import MessageIndex
-from mcap.writer import CompressionType, Writer
+from mcap.records import Chunk, ChunkIndex, MessageIndex
+from mcap.writer import CompressionType, IndexType, Writer
 
 from drivers.base.types import NS_PER_S
 from ffexp.errors import InputError
@@ -49,6 +52,11 @@ _OPCODE_MESSAGE = int(Opcode.MESSAGE)
 #: A Message Index record's head: opcode, record length, channel id, entries' length.
 _INDEX_HEAD = struct.Struct("<BQHI")
 _OPCODE_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
+
+
+def _compress(data: bytes, crcs: bool) -> tuple[bytes, int]:
+    """A chunk's zstd compression (``zstandard.compress``, as mcap's ``Writer``) and CRC."""
+    return zstandard.compress(data), (zlib.crc32(data) if crcs else 0)
 
 
 class _MessageIndex(MessageIndex):
@@ -88,6 +96,20 @@ class FastWriter(Writer):
         self._stats: Any = stats
         self._finalize: Any = finalize
         self._chunk_size = chunk_size if isinstance(chunk_size, int) else 0
+        # a full chunk is compressed in a worker thread (zstd and the CRC release the
+        # GIL) while the next one fills; its records reach the file before anything else
+        self._rb: Any = getattr(self, "_Writer__record_builder", None)
+        self._stream: Any = getattr(self, "_Writer__stream", None)
+        self._flush_rb: Any = getattr(self, "_Writer__flush", None)
+        self._chunk_indices: Any = getattr(self, "_Writer__chunk_indices", None)
+        self._index_types: Any = getattr(self, "_Writer__index_types", None)
+        self._crcs = bool(getattr(self, "_Writer__enable_crcs", True))
+        self.background = (self.fast and self._rb is not None and self._stream is not None
+                           and callable(self._flush_rb) and self._chunk_indices is not None
+                           and self._index_types is not None
+                           and getattr(self, "_Writer__compression", None) == CompressionType.ZSTD)
+        self._pool: ThreadPoolExecutor | None = None
+        self._closing: tuple[Any, ...] | None = None  # the chunk being compressed
         # the pending batch: record bytes, per channel [(log time, offset)], counts
         self._parts: list[bytes] = []
         self._index: dict[int, list[tuple[int, int]]] = {}
@@ -123,7 +145,7 @@ class FastWriter(Writer):
         self._size = offset + _MESSAGE_HEAD.size + len(data)
         if self._size > self._chunk_size:  # mcap's rule, after the message
             self._commit()
-            self._finalize()
+            self._close_chunk()
 
     def add_messages(self, channel_ids: list[int], log_time: int, datas: list[bytes],
                      sequences: list[int]) -> None:
@@ -159,7 +181,7 @@ class FastWriter(Writer):
             if size > self._chunk_size:  # mcap's rule, after each message
                 self._size = size
                 self._commit()
-                self._finalize()
+                self._close_chunk()
                 parts, indices, counts = self._parts, self._index, self._counts
                 size = self._size = self._chunks.record_writer._buffer.tell()
                 self._t_min = self._t_max = log_time
@@ -197,33 +219,92 @@ class FastWriter(Writer):
         self._index = {}
         self._counts = {}
 
+    def _close_chunk(self) -> None:
+        """Close the full chunk as mcap's ``Writer`` does, its compression in the worker."""
+        if not self.background:
+            self._finalize()
+            return
+        self._complete()
+        cb = self._chunks
+        if cb.num_messages == 0:
+            return
+        self._stats.chunk_count += 1
+        data = cb.end()
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcap-chunk")
+        self._closing = (self._pool.submit(_compress, data, self._crcs), cb.message_start_time,
+                         cb.message_end_time, len(data), cb.message_indices)
+        cb.message_indices = {}  # the closing chunk keeps its own
+        cb.reset()
+
+    def _complete(self) -> None:
+        """Write the chunk being compressed, if any: mcap's chunk, chunk index and
+        message index records, byte for byte as its ``Writer`` writes them."""
+        closing = self._closing
+        if closing is None:
+            return
+        self._closing = None
+        future, start, end, size, indices = closing
+        compressed, crc = future.result()
+        rb, stream, flush = self._rb, self._stream, self._flush_rb
+        chunk = Chunk(compression="zstd", data=compressed, message_start_time=start,
+                      message_end_time=end, uncompressed_crc=crc, uncompressed_size=size)
+        flush()
+        chunk_start_offset = stream.tell()
+        chunk.write(rb)
+        chunk_index = ChunkIndex(
+            message_start_time=start, message_end_time=end,
+            chunk_start_offset=chunk_start_offset, chunk_length=rb.count,
+            message_index_offsets={}, message_index_length=0, compression="zstd",
+            compressed_size=len(compressed), uncompressed_size=size)
+        flush()
+        message_index_start_offset = stream.tell()
+        if self._index_types & IndexType.MESSAGE:
+            for cid, index in indices.items():
+                chunk_index.message_index_offsets[cid] = message_index_start_offset + rb.count
+                index.write(rb)
+        chunk_index.message_index_length = rb.count
+        flush()
+        self._chunk_indices.append(chunk_index)
+
     # every other call of the Writer sees the pending messages first
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
         self._commit()
+        self._complete()
         return int(super().register_schema(name, encoding, data))
 
     def register_channel(self, topic: str, message_encoding: str, schema_id: int,
                          metadata: dict[str, str] | None = None) -> int:
         self._commit()
+        self._complete()
         return int(super().register_channel(topic, message_encoding, schema_id,
                                             metadata or {}))
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         self._commit()
+        self._complete()
         super().add_metadata(name, data)
 
     def add_attachment(self, create_time: int, log_time: int, name: str, media_type: str,
                        data: bytes) -> None:
         self._commit()
+        self._complete()
         super().add_attachment(create_time, log_time, name, media_type, data)
 
     def flush(self) -> None:
         self._commit()
+        self._complete()
         super().flush()  # type: ignore[no-untyped-call]
 
     def finish(self) -> None:
         self._commit()
-        super().finish()  # type: ignore[no-untyped-call]
+        self._complete()
+        try:
+            super().finish()  # type: ignore[no-untyped-call]
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown()
+                self._pool = None
 
 
 def _stamp(time_ns: int) -> dict[str, int]:

@@ -8,7 +8,7 @@ import io
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
-from ffexp.recording.recorder import FastWriter
+from ffexp.recording.mcap_writer import FastWriter
 
 
 def _write(cls: type[Writer], compression: CompressionType) -> tuple[bytes, Writer]:

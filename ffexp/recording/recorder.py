@@ -7,13 +7,11 @@ bound crash loss only by size; :class:`Recorder` therefore also closes the
 open chunk and flushes the file at least every ``flush_interval_s`` of wall
 time (default 1 s), so a killed process loses at most about a second of data.
 
-Messages go through :class:`FastWriter`, mcap's ``Writer`` whose ``add_message``
-writes the very same bytes (record, chunk index, statistics) with one
-``struct.pack`` instead of mcap's field-by-field record writer, and hands a
-whole chunk's messages to mcap's chunk builder at once (``benchmarks/bench_recording.py``
-measures it). It uses the ``Writer``'s private chunk builder and statistics;
-if a future mcap lacks them, it falls back to mcap's own ``add_message``
-(``tests/test_recording_writer.py`` checks that both write identical files).
+Messages go through :class:`~ffexp.recording.mcap_writer.FastWriter`, mcap's
+``Writer`` with a faster way in for messages that writes the very same bytes
+(``benchmarks/bench_recording.py`` measures it). CDR messages are encoded
+without numpy records where the values allow it (:meth:`Recorder.layout`,
+:class:`~ffexp.recording.encode.FieldsEncoder`).
 """
 
 from __future__ import annotations
@@ -22,289 +20,22 @@ import json
 import math
 import struct
 import time
-import zlib
 from collections.abc import Callable, Mapping
-from concurrent.futures import ThreadPoolExecutor
-from itertools import chain
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
 
 import numpy as np
-import zstandard
-from mcap.opcode import Opcode
-from mcap.records import Chunk, ChunkIndex, MessageIndex
-from mcap.writer import CompressionType, IndexType, Writer
+from mcap.writer import CompressionType
 
 from drivers.base.types import NS_PER_S
 from ffexp.errors import InputError
 from ffexp.recording.encode import FieldsEncoder
+from ffexp.recording.mcap_writer import FastWriter
 from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS, LOG_LEVELS
 
 CHUNK_SIZE_BYTES = 1 << 20
 PROFILE = "ffexp"
-
-#: An MCAP Message record's head: opcode, record length, channel id, sequence,
-#: log time, publish time (the MCAP specification's field order, little endian).
-_MESSAGE_HEAD = struct.Struct("<BQHIQQ")
-_MESSAGE_FIXED = _MESSAGE_HEAD.size - 9  # the record length counts what follows it
-_OPCODE_MESSAGE = int(Opcode.MESSAGE)
-#: A Message Index record's head: opcode, record length, channel id, entries' length.
-_INDEX_HEAD = struct.Struct("<BQHI")
-_OPCODE_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
-
-
-def _compress(data: bytes, crcs: bool) -> tuple[bytes, int]:
-    """A chunk's zstd compression (``zstandard.compress``, as mcap's ``Writer``) and CRC."""
-    return zstandard.compress(data), (zlib.crc32(data) if crcs else 0)
-
-
-class _MessageIndex(MessageIndex):
-    """mcap's ``MessageIndex`` written with two ``struct.pack`` calls (the same bytes as
-    its own field-by-field ``write``)."""
-
-    def write(self, stream: Any) -> None:
-        n = len(self.records)
-        stream.write(_INDEX_HEAD.pack(_OPCODE_MESSAGE_INDEX, 6 + 16 * n, self.channel_id,
-                                      16 * n))
-        stream.write(struct.pack(f"<{2 * n}Q", *chain.from_iterable(self.records)))
-
-
-class FastWriter(Writer):
-    """``mcap.writer.Writer`` with a faster :meth:`add_message` (same bytes).
-
-    Messages are kept in a pending batch (record bytes, per-channel index
-    entries, time range, counts) and handed to mcap's chunk builder and
-    statistics in one go when the chunk is full or before any other call of
-    the ``Writer``; the chunk is closed after the very message after which
-    mcap's own writer would close it, so the files are identical. Everything
-    else (schemas, channels, chunking, compression, indexes, summary) is
-    mcap's. ``fast`` is False when this mcap has not the private state used.
-    """
-
-    def __init__(self, output: IO[bytes], **kw: Any) -> None:
-        super().__init__(output, **kw)
-        chunks = getattr(self, "_Writer__chunk_builder", None)
-        stats = getattr(self, "_Writer__statistics", None)
-        finalize = getattr(self, "_Writer__finalize_chunk", None)
-        chunk_size = getattr(self, "_Writer__chunk_size", None)
-        buffer = getattr(getattr(chunks, "record_writer", None), "_buffer", None)
-        self.fast = (chunks is not None and stats is not None and callable(finalize)
-                     and buffer is not None and hasattr(chunks, "message_indices")
-                     and isinstance(chunk_size, int))
-        self._chunks: Any = chunks
-        self._stats: Any = stats
-        self._finalize: Any = finalize
-        self._chunk_size = chunk_size if isinstance(chunk_size, int) else 0
-        # a full chunk is compressed in a worker thread (zstd and the CRC release the
-        # GIL) while the next one fills; its records reach the file before anything else
-        self._rb: Any = getattr(self, "_Writer__record_builder", None)
-        self._stream: Any = getattr(self, "_Writer__stream", None)
-        self._flush_rb: Any = getattr(self, "_Writer__flush", None)
-        self._chunk_indices: Any = getattr(self, "_Writer__chunk_indices", None)
-        self._index_types: Any = getattr(self, "_Writer__index_types", None)
-        self._crcs = bool(getattr(self, "_Writer__enable_crcs", True))
-        self.background = (self.fast and self._rb is not None and self._stream is not None
-                           and callable(self._flush_rb) and self._chunk_indices is not None
-                           and self._index_types is not None
-                           and getattr(self, "_Writer__compression", None) == CompressionType.ZSTD)
-        self._pool: ThreadPoolExecutor | None = None
-        self._closing: tuple[Any, ...] | None = None  # the chunk being compressed
-        # the pending batch: record bytes, per channel [(log time, offset)], counts
-        self._parts: list[bytes] = []
-        self._index: dict[int, list[tuple[int, int]]] = {}
-        self._counts: dict[int, int] = {}
-        self._size = 0  # the chunk's size with the pending records
-        self._t_min = 0
-        self._t_max = 0
-
-    def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
-                    sequence: int = 0) -> None:
-        if not self.fast:
-            super().add_message(channel_id, log_time, data, publish_time, sequence)
-            return
-        parts = self._parts
-        if parts:
-            if log_time < self._t_min:
-                self._t_min = log_time
-            elif log_time > self._t_max:
-                self._t_max = log_time
-        else:
-            self._size = self._chunks.record_writer._buffer.tell()
-            self._t_min = self._t_max = log_time
-        index = self._index.get(channel_id)
-        if index is None:
-            index = self._index[channel_id] = []
-            self._counts[channel_id] = 0
-        offset = self._size
-        index.append((log_time, offset))
-        self._counts[channel_id] += 1
-        parts.append(_MESSAGE_HEAD.pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + len(data), channel_id,
-                                        sequence, log_time, publish_time))
-        parts.append(data)
-        self._size = offset + _MESSAGE_HEAD.size + len(data)
-        if self._size > self._chunk_size:  # mcap's rule, after the message
-            self._commit()
-            self._close_chunk()
-
-    def add_messages(self, channel_ids: list[int], log_time: int, datas: list[bytes],
-                     sequences: list[int]) -> None:
-        """:meth:`add_message` for several messages at one log time (publish time = log
-        time), in order: the same bytes, one call."""
-        if not self.fast:
-            for cid, data, seq in zip(channel_ids, datas, sequences, strict=True):
-                super().add_message(cid, log_time, data, log_time, seq)
-            return
-        parts = self._parts
-        if parts:
-            if log_time < self._t_min:
-                self._t_min = log_time
-            elif log_time > self._t_max:
-                self._t_max = log_time
-        else:
-            self._size = self._chunks.record_writer._buffer.tell()
-            self._t_min = self._t_max = log_time
-        indices, counts, pack, head = self._index, self._counts, _MESSAGE_HEAD.pack, \
-            _MESSAGE_HEAD.size
-        size = self._size
-        for channel_id, data, sequence in zip(channel_ids, datas, sequences, strict=True):
-            index = indices.get(channel_id)
-            if index is None:
-                index = indices[channel_id] = []
-                counts[channel_id] = 0
-            index.append((log_time, size))
-            counts[channel_id] += 1
-            parts.append(pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + len(data), channel_id, sequence,
-                              log_time, log_time))
-            parts.append(data)
-            size += head + len(data)
-            if size > self._chunk_size:  # mcap's rule, after each message
-                self._size = size
-                self._commit()
-                self._close_chunk()
-                parts, indices, counts = self._parts, self._index, self._counts
-                size = self._size = self._chunks.record_writer._buffer.tell()
-                self._t_min = self._t_max = log_time
-        self._size = size
-
-    def _commit(self) -> None:
-        """Hand the pending batch to mcap's chunk builder and statistics."""
-        parts = self._parts
-        if not parts:
-            return
-        st, cb = self._stats, self._chunks
-        n = len(parts) // 2
-        t_min, t_max = self._t_min, self._t_max
-        if st.message_count == 0 or t_min < st.message_start_time:
-            st.message_start_time = t_min
-        if t_max > st.message_end_time:
-            st.message_end_time = t_max
-        st.message_count += n
-        counts = st.channel_message_counts
-        for cid, k in self._counts.items():
-            counts[cid] += k
-        if cb.num_messages == 0 or t_min < cb.message_start_time:
-            cb.message_start_time = t_min
-        if t_max > cb.message_end_time:
-            cb.message_end_time = t_max
-        indices = cb.message_indices
-        for cid, records in self._index.items():
-            index = indices.get(cid)
-            if index is None:
-                index = indices[cid] = _MessageIndex(channel_id=cid, records=[])
-            index.records.extend(records)
-        cb.num_messages += n
-        cb.record_writer._buffer.write(b"".join(parts))
-        self._parts = []
-        self._index = {}
-        self._counts = {}
-
-    def _close_chunk(self) -> None:
-        """Close the full chunk as mcap's ``Writer`` does, its compression in the worker."""
-        if not self.background:
-            self._finalize()
-            return
-        self._complete()
-        cb = self._chunks
-        if cb.num_messages == 0:
-            return
-        self._stats.chunk_count += 1
-        data = cb.end()
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mcap-chunk")
-        self._closing = (self._pool.submit(_compress, data, self._crcs), cb.message_start_time,
-                         cb.message_end_time, len(data), cb.message_indices)
-        cb.message_indices = {}  # the closing chunk keeps its own
-        cb.reset()
-
-    def _complete(self) -> None:
-        """Write the chunk being compressed, if any: mcap's chunk, chunk index and
-        message index records, byte for byte as its ``Writer`` writes them."""
-        closing = self._closing
-        if closing is None:
-            return
-        self._closing = None
-        future, start, end, size, indices = closing
-        compressed, crc = future.result()
-        rb, stream, flush = self._rb, self._stream, self._flush_rb
-        chunk = Chunk(compression="zstd", data=compressed, message_start_time=start,
-                      message_end_time=end, uncompressed_crc=crc, uncompressed_size=size)
-        flush()
-        chunk_start_offset = stream.tell()
-        chunk.write(rb)
-        chunk_index = ChunkIndex(
-            message_start_time=start, message_end_time=end,
-            chunk_start_offset=chunk_start_offset, chunk_length=rb.count,
-            message_index_offsets={}, message_index_length=0, compression="zstd",
-            compressed_size=len(compressed), uncompressed_size=size)
-        flush()
-        message_index_start_offset = stream.tell()
-        if self._index_types & IndexType.MESSAGE:
-            for cid, index in indices.items():
-                chunk_index.message_index_offsets[cid] = message_index_start_offset + rb.count
-                index.write(rb)
-        chunk_index.message_index_length = rb.count
-        flush()
-        self._chunk_indices.append(chunk_index)
-
-    # every other call of the Writer sees the pending messages first
-    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
-        self._commit()
-        self._complete()
-        return int(super().register_schema(name, encoding, data))
-
-    def register_channel(self, topic: str, message_encoding: str, schema_id: int,
-                         metadata: dict[str, str] | None = None) -> int:
-        self._commit()
-        self._complete()
-        return int(super().register_channel(topic, message_encoding, schema_id,
-                                            metadata or {}))
-
-    def add_metadata(self, name: str, data: dict[str, str]) -> None:
-        self._commit()
-        self._complete()
-        super().add_metadata(name, data)
-
-    def add_attachment(self, create_time: int, log_time: int, name: str, media_type: str,
-                       data: bytes) -> None:
-        self._commit()
-        self._complete()
-        super().add_attachment(create_time, log_time, name, media_type, data)
-
-    def flush(self) -> None:
-        self._commit()
-        self._complete()
-        super().flush()  # type: ignore[no-untyped-call]
-
-    def finish(self) -> None:
-        self._commit()
-        self._complete()
-        try:
-            super().finish()  # type: ignore[no-untyped-call]
-        finally:
-            if self._pool is not None:
-                self._pool.shutdown()
-                self._pool = None
 
 
 def _stamp(time_ns: int) -> dict[str, int]:

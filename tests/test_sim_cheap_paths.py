@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivers.base.placement import placement, placement_at_mouth
 from drivers.base.types import ApplyStatus, CartesianCommand
 from drivers.emulate.krc import software_limit_error
 from drivers.emulate.lockstep import SimRobot
@@ -215,3 +216,15 @@ def test_lockstep_reports_clipped_gains_every_cycle() -> None:
         if applied.status & ApplyStatus.CLIPPED:
             assert applied.command.stiffness_npm_nmprad[0] == 5000.0
     assert statuses == [True, True, True, False, False, False]
+
+
+def test_placement_at_mouth_equals_placement() -> None:
+    gen = np.random.default_rng(12)
+    for _ in range(300):
+        tcp, mouth = np.eye(4), np.eye(4)
+        for p in (tcp, mouth):
+            q, _r = np.linalg.qr(gen.normal(size=(3, 3)))
+            p[:3, :3] = q
+            p[:3, 3] = gen.normal(0.0, 0.5, 3)
+        mat9 = mouth[:3, :3].copy().ravel()
+        assert placement_at_mouth(tcp, mouth[:3, 3].copy(), mat9) == placement(tcp, mouth)

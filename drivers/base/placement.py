@@ -14,7 +14,7 @@ import numpy as np
 
 from drivers.base.types import F64
 
-__all__ = ["Placement", "placement", "wrap_angle"]
+__all__ = ["Placement", "placement", "placement_at_mouth", "wrap_angle"]
 
 
 def wrap_angle(a: float) -> float:
@@ -56,3 +56,13 @@ def placement(tcp_pose: F64, mouth_pose: F64) -> Placement:
     d = np.asarray(tcp_pose[:3, 3] - mouth_pose[:3, 3]) @ rm
     yaw = wrap_angle(math.atan2(tcp_pose[1, 2], tcp_pose[0, 2]) - math.atan2(rm[1, 0], rm[0, 0]))
     return Placement((float(d[0]), float(d[1]), float(d[2]), yaw))
+
+
+def placement_at_mouth(tcp_pose: F64, mouth_pos: F64, mouth_mat9: F64) -> Placement:
+    """:func:`placement` with the mouth frame given as a position and a row-major 3x3
+    rotation (MuJoCo's ``xpos``/``xmat``): the same values, no 4x4 built."""
+    d = (tcp_pose[:3, 3] - mouth_pos) @ mouth_mat9.reshape(3, 3)
+    x, y, z = d.tolist()
+    yaw = wrap_angle(math.atan2(tcp_pose[1, 2], tcp_pose[0, 2])
+                     - math.atan2(mouth_mat9[3], mouth_mat9[0]))
+    return Placement((x, y, z, yaw))

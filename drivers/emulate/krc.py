@@ -172,14 +172,10 @@ def software_limit_error(jnt_pos_rad: F64, limits_rad: F64) -> int:
     """Error bits (:data:`~drivers.fri.link.ERROR_SOFTWARE_LIMIT`) of the joints at or
     beyond their software limit (``|q_i| >= limit_i``); 0 when none is."""
     # most cycles no joint is near: plain floats are cheaper than numpy for 7 values
-    if not any(map(_at_or_beyond, jnt_pos_rad[:7].tolist(), limits_rad.tolist())):
+    if not any(map(float.__ge__, map(abs, jnt_pos_rad[:7].tolist()), limits_rad.tolist())):
         return 0
     hit = np.abs(jnt_pos_rad[:7]) >= limits_rad
     return int(np.sum(1 << np.flatnonzero(hit)))
-
-
-def _at_or_beyond(value: float, limit: float) -> bool:
-    return abs(value) >= limit
 
 
 def brake_command(state: ArmState) -> ArmCommand:

@@ -76,6 +76,12 @@ class FtSensorModel:
         self._gauss = np.zeros((0, 12))  # scaled draws not used yet start at row _used
         self._used = 0
         self._tared = False
+        # drift summed ahead (see _drift_rows): for the draws buffer _plan_g, blocks of
+        # _plan_n rows from row _plan_base to _plan_end; the next block at _plan_at
+        self._plan_g: F64 | None = None
+        self._plan_n = self._plan_base = self._plan_end = self._plan_at = 0
+        self._plan_rows = np.zeros((0, 6))
+        self._plan_prev: F64 | None = None
 
     @property
     def tare_offset(self) -> F64:
@@ -87,8 +93,9 @@ class FtSensorModel:
         self._tare = np.asarray(value, dtype=np.float64)
         self._tared = bool(np.any(self._tare != 0.0))
 
-    def _draws(self, n: int) -> F64:
-        """The next ``n`` rows of scaled draws (drift increments, white noise): a view."""
+    def _draws(self, n: int) -> int:
+        """Where the next ``n`` rows of scaled draws (drift increments, white noise)
+        start in :attr:`_gauss` (drawn more if needed)."""
         i = self._used
         if self._gauss.shape[0] - i < n:
             left = self._gauss[i:]
@@ -97,7 +104,37 @@ class FtSensorModel:
             self._gauss = np.concatenate((left, new)) if left.shape[0] else new
             i = 0
         self._used = i + n
-        return self._gauss[i:i + n]
+        return i
+
+    def _drift_rows(self, i: int, n: int) -> F64:
+        """The drift of rows ``i .. i+n`` of the draws, a block continuing the last.
+
+        Per block the drift is the running sum of the block's increments plus
+        the drift before it. When blocks keep their size, the rest of the drawn
+        rows are summed ahead the same way in a few array operations (each
+        value the same sum in the same order) and later blocks take their rows.
+        """
+        g = self._gauss
+        if (g is self._plan_g and i == self._plan_at and n == self._plan_n
+                and i + n <= self._plan_end and self.drift is self._plan_prev):
+            base = i - self._plan_base
+            return self._plan_rows[base:base + n]
+        k = (g.shape[0] - i) // n
+        if k < 2:
+            self._plan_g = None
+            drift = np.add.accumulate(g[i:i + n, :6], axis=0)  # cumsum
+            drift += self.drift
+            return drift
+        c = np.add.accumulate(g[i:i + k * n, :6].reshape(k, n, 6), axis=1)
+        start = np.empty((k, 6))  # the drift before each block: a running sum of block ends
+        start[0] = self.drift
+        start[1:] = c[:-1, -1]
+        start = np.add.accumulate(start, axis=0)
+        c += start[:, None, :]
+        self._plan_g, self._plan_n, self._plan_base = g, n, i
+        self._plan_end = i + k * n
+        self._plan_rows = c.reshape(k * n, 6)
+        return self._plan_rows[:n]
 
     def process(self, raw_parent_on_child: F64, t0_ns: int) -> FtSamples:
         """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``.
@@ -109,10 +146,11 @@ class FtSensorModel:
         n = raw_parent_on_child.shape[0]
         if n == 0:
             return FtSamples()
-        gauss = self._draws(n)
-        drift = np.add.accumulate(gauss[:, :6], axis=0)  # cumsum
-        drift += self.drift
-        self.drift = drift[-1]
+        i = self._draws(n)
+        gauss = self._gauss[i:i + n]
+        drift = self._drift_rows(i, n)
+        self._plan_at = i + n
+        self.drift = self._plan_prev = drift[-1]
         # environment (incl. tool load) on the tool, sensor frame
         w = gauss[:, 6:] - raw_parent_on_child
         w += drift

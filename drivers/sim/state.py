@@ -37,14 +37,8 @@ _WARN_TORQUE = int(ArmWarning.TORQUE_LIMIT)
 _WARN_VELOCITY = int(ArmWarning.VELOCITY_LIMIT)
 _WARN_POSITION = int(ArmWarning.POSITION_LIMIT)
 _FIELDS = tuple(f.name for f in dataclasses.fields(ArmState))
-
-
-def _beyond(value: float, limit: float) -> bool:
-    return abs(value) > limit
-
-
-def _at_or_beyond(value: float, limit: float) -> bool:
-    return abs(value) >= limit
+_gt = float.__gt__
+_ge = float.__ge__
 
 
 class LazyArmState(ArmState):
@@ -111,12 +105,12 @@ def _fill_joints(s: LazyArmState, w: SimWorld) -> None:
     d["cmd_jnt_pos_rad"] = q.copy() if cart else w._jnt_pos.copy()
     d["cmd_cart_pose_m"] = w._cart_pos.copy() if cart else tcp.copy()
     warning = w._warning
-    # the limits, value by value (plain floats: 7 joints)
-    if any(map(_beyond, w._qvel_arm.tolist(), w._vel_limits_l)):
+    # the limits, value by value (plain floats: 7 joints; |value| > limit)
+    if any(map(_gt, map(abs, w._qvel_arm.tolist()), w._vel_limits_l)):
         warning |= _WARN_VELOCITY
-    if any(map(_beyond, q.tolist(), w._pos_warn_l)):
+    if any(map(_gt, map(abs, q.tolist()), w._pos_warn_l)):
         warning |= _WARN_POSITION
-    if any(map(_at_or_beyond, w._actuator_arm.tolist(), w._torque_warn_l)):
+    if any(map(_ge, map(abs, w._actuator_arm.tolist()), w._torque_warn_l)):
         warning |= _WARN_TORQUE
     d["warning"] = ArmWarning(warning)
 

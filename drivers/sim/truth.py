@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from drivers.base.placement import placement
+from drivers.base.placement import placement_at_mouth
 from drivers.base.types import F64, GroundTruth
 
 __all__ = ["SEAT_DEPTH_TOL", "SEAT_LATERAL_TOL", "SEAT_YAW_TOL", "ground_truth", "pose"]
@@ -44,7 +44,7 @@ def ground_truth(
 ) -> GroundTruth:
     """The tool tip in the funnel-mouth frame (x along the funnel axis), its yaw
     against the funnel's, and whether the simulator calls it seated."""
-    insertion, lateral, vertical, yaw_err = placement(tcp_pose, pose(mouth_pos, mouth_mat9))
+    insertion, lateral, vertical, yaw_err = placement_at_mouth(tcp_pose, mouth_pos, mouth_mat9)
     seated = (
         insertion >= seat_depth_m - SEAT_DEPTH_TOL
         and abs(lateral) <= SEAT_LATERAL_TOL

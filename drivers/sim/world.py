@@ -60,8 +60,6 @@ from drivers.sim.truth import pose as _pose
 #: (3 mrad: 0.4 %; 10 mrad: off by up to 8x near a poorly conditioned axis).
 INERTIA_REUSE_RAD = 1e-3
 _N_ARM = 7
-_YZX = np.array([1, 2, 0])
-_ZXY = np.array([2, 0, 1])
 
 _isfinite = math.isfinite
 
@@ -179,6 +177,9 @@ class SimWorld:
         self._mouth_xmat = d.site_xmat[self._mouth]
         self._target_xpos = d.xpos[self._target_body]
         self._target_xmat = d.xmat[self._target_body]
+        self._tcp_rot = self._tcp_xmat.reshape(3, 3)
+        self._cfrc_tool = d.cfrc_ext[self._tool_body]
+        self._tool_com = d.subtree_com[self._tool_root]
         # what the actuators hold now (the objects last written; None: rewrite)
         self._written: dict[str, object] = {}
         # the last stiffness/damping given and what they became (commands repeat them)
@@ -574,11 +575,15 @@ class SimWorld:
         elif not self._is_tool_geom[geom].any():
             return np.zeros(6), False
         mujoco.mj_rnePostConstraint(m, d)
-        cfrc = d.cfrc_ext[self._tool_body]  # [torque about the subtree com, force], world
+        cfrc = self._cfrc_tool  # [torque about the subtree com, force], world
         f = cfrc[3:]
-        r = d.subtree_com[self._tool_root] - d.site_xpos[self._tcp]
-        torque = cfrc[:3] + r[_YZX] * f[_ZXY] - r[_ZXY] * f[_YZX]  # + r x f
-        rot = d.site_xmat[self._tcp].reshape(3, 3)
+        # torque + r x f, r from the subtree com to the TCP: plain floats (the same
+        # IEEE operations as the arrays, in the same order; 3 values)
+        cx, cy, cz, fx, fy, fz = cfrc.tolist()
+        rx, ry, rz = map(float.__sub__, self._tool_com.tolist(), self._tcp_xpos.tolist())
+        torque = np.array(((cx + ry * fz) - rz * fy, (cy + rz * fx) - rx * fz,
+                           (cz + rx * fy) - ry * fx))
+        rot = self._tcp_rot
         out = np.empty(6)
         out[:3] = f @ rot
         out[3:] = torque @ rot

@@ -12,8 +12,10 @@ the same ``MjData``, medians of:
 * ``SimWorld.advance`` + the F/T read: one FRI cycle of physics with the
   KRC's per-cycle work (command, damping from the Cartesian inertia, joint
   friction level, F/T samples, the end state's kinematics), no state built;
-* ``SimWorld.step`` + the F/T read: the same plus the whole ``ArmState``
-  (Jacobian, mass matrix, torques, ground truth), what the lockstep KRC reads;
+* ``SimWorld.step`` + the F/T read: the same plus the cycle's ``ArmState``
+  (its fields are computed when first read: here none is);
+* ``SimWorld.step`` + the F/T read + every field of the state read (joints,
+  Jacobian, mass matrix, torques, ground truth): what the lockstep KRC reads;
 * bare ``mujoco.mj_step`` of the very same compiled model and state, the
   same number of physics steps.
 
@@ -26,23 +28,35 @@ import argparse
 import copy
 import statistics
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from drivers.sim import ArmCommand, SimWorld, load_scene
+from drivers.sim.arm import ArmState
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _world_rate(world: SimWorld, cmd: ArmCommand, cycles: int, measure: bool) -> float:
-    run: Callable[[ArmCommand], object] = world.step if measure else world.advance
+def _read_all(state: ArmState) -> None:
+    _ = state.jnt_pos_rad, state.jacobian, state.truth  # one field of each group
+
+
+def _world_rate(world: SimWorld, cmd: ArmCommand, cycles: int, how: str) -> float:
     t0 = time.perf_counter()
-    for _ in range(cycles):
-        run(cmd)
-        world.ft_samples()
+    if how == "advance":
+        for _ in range(cycles):
+            world.advance(cmd)
+            world.ft_samples()
+    elif how == "step":
+        for _ in range(cycles):
+            world.step(cmd)
+            world.ft_samples()
+    else:
+        for _ in range(cycles):
+            _read_all(world.step(cmd))
+            world.ft_samples()
     return cycles * world.substeps / (time.perf_counter() - t0)
 
 
@@ -56,7 +70,8 @@ def _bare_rate(m: mujoco.MjModel, d: mujoco.MjData, steps: int) -> float:
 
 def bench_case(scene_path: Path, overrides: list[str], push_m: float, force_n: float,
                warmup: int, cycles: int, repeats: int) -> dict[str, float]:
-    """Median physics steps/s of advance, step and bare mj_step (interleaved)."""
+    """Median physics steps/s of advance, step, step with the state read and bare
+    mj_step (interleaved)."""
     world = SimWorld(load_scene(scene_path, overrides))
     pose = world.last_state.tcp_pose_m.copy()
     pose[:3, 3] += push_m * pose[:3, 2]
@@ -66,7 +81,7 @@ def bench_case(scene_path: Path, overrides: list[str], push_m: float, force_n: f
         world.advance(cmd)
         world.ft_samples()
     start = copy.copy(world.data)
-    rates: dict[str, list[float]] = {"advance": [], "step": [], "bare": []}
+    rates: dict[str, list[float]] = {"advance": [], "step": [], "read": [], "bare": []}
     for _ in range(repeats):
         for key in rates:
             mujoco.mj_copyData(world.data, world.model, start)
@@ -74,7 +89,7 @@ def bench_case(scene_path: Path, overrides: list[str], push_m: float, force_n: f
                 d = copy.copy(start)
                 rates[key].append(_bare_rate(world.model, d, cycles * world.substeps))
             else:
-                rates[key].append(_world_rate(world, cmd, cycles, key == "step"))
+                rates[key].append(_world_rate(world, cmd, cycles, key))
     return {k: statistics.median(v) for k, v in rates.items()}
 
 
@@ -101,7 +116,8 @@ def main() -> None:
         bare = r["bare"]
         print(f"{label}:")
         print(f"  bare mj_step:       {bare:8.0f} steps/s  real-time factor {bare * dt:6.1f}x")
-        for key, what in (("advance", "advance + F/T"), ("step", "step + F/T (state)")):
+        for key, what in (("advance", "advance + F/T"), ("step", "step + F/T"),
+                          ("read", "step + F/T + read")):
             print(f"  {what:<19} {r[key]:8.0f} steps/s  real-time factor {r[key] * dt:6.1f}x"
                   f"  ratio to bare {r[key] / bare:.2f}")
 

@@ -75,3 +75,41 @@ def test_encoder_declines_what_numpy_would_convert_and_the_recorder_falls_back(
     want = np.frombuffer(b"".join(wants), dtype=spec.dtype)
     for f in spec.fields:
         np.testing.assert_array_equal(data[f.name].reshape(want[f.name].shape), want[f.name])
+
+
+def _old_pose_to_transform(pose: np.ndarray) -> tuple[float, ...]:
+    """The former array form of the quaternion (Shepperd's method on numpy scalars)."""
+    import math
+
+    r = pose[:3, :3]
+    tr = float(r[0, 0] + r[1, 1] + r[2, 2])
+    if tr > 0.0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        q = [(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s]
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(max(1.0 + r[i, i] - r[j, j] - r[k, k], 1e-300))
+        q = [0.0, 0.0, 0.0, (r[k, j] - r[j, k]) / s]
+        q[i] = 0.25 * s
+        q[j] = (r[j, i] + r[i, j]) / s
+        q[k] = (r[k, i] + r[i, k]) / s
+    return (float(pose[0, 3]), float(pose[1, 3]), float(pose[2, 3]), *map(float, q))
+
+
+def test_pose_floats_equal_the_array_form_bit_for_bit() -> None:
+    from scipy.spatial.transform import Rotation
+
+    from ffexp.recording.recorder import pose_floats
+
+    rng = np.random.default_rng(11)
+    flips = [np.diag(d) for d in ((1, -1, -1), (-1, 1, -1), (-1, -1, 1))]
+    for k in range(3000):
+        pose = np.eye(4)
+        rot = Rotation.random(random_state=k).as_matrix()
+        pose[:3, :3] = flips[k % 3] @ rot if k % 4 == 0 else rot  # trace <= 0 too
+        if k % 5 == 0:
+            pose[:3, :3] = flips[k % 3]  # ties on the diagonal
+        pose[:3, 3] = rng.normal(size=3)
+        want = _old_pose_to_transform(pose)
+        assert np.array(pose_floats(pose)).tobytes() == np.array(want).tobytes(), k

@@ -42,8 +42,8 @@ def test_fast_writer_bytes_equal_mcaps_own() -> None:
 
 
 def _write_batches(cls: type[Writer]) -> bytes:
-    """Messages in groups at one log time: ``FastWriter.add_messages`` for the group,
-    mcap's own ``add_message`` one by one."""
+    """Messages in groups: ``FastWriter.add_messages`` for the group, mcap's own
+    ``add_message`` one by one."""
     rng = np.random.default_rng(2)
     out = io.BytesIO()
     w = cls(out, chunk_size=2048, compression=CompressionType.ZSTD)
@@ -60,11 +60,14 @@ def _write_batches(cls: type[Writer]) -> bytes:
             seqs.append(seq[c])
             seq[c] += 1
         cids = [channels[c] for c in group]
+        # one log time for the group, or each its own (a sensor's samples), now and then
+        # one before the chunk's earliest
+        times = [t] * len(group) if k % 2 else [t - 200_000 * j for j in range(len(group))]
         if isinstance(w, FastWriter):
-            w.add_messages(cids, t, datas, seqs)
+            w.add_messages(cids, times, datas, seqs)
         else:
-            for cid, data, s in zip(cids, datas, seqs, strict=True):
-                w.add_message(cid, t, data, t, s)
+            for cid, ti, data, s in zip(cids, times, datas, seqs, strict=True):
+                w.add_message(cid, ti, data, ti, s)
     w.finish()  # type: ignore[no-untyped-call]
     return out.getvalue()
 

@@ -41,10 +41,11 @@ class CapturingRecorder(Recorder):
             self.captured.setdefault(topic, []).append((time_ns, record))
         super().write_bytes(topic, time_ns, data)
 
-    def write_records(self, topic: str, times_ns: np.ndarray, records: np.ndarray) -> None:
-        for t, r in zip(times_ns.tolist(), records, strict=True):
-            self.captured.setdefault(topic, []).append((int(t), r.copy()))
-        super().write_records(topic, times_ns, records)
+    def write_series(self, topic: str, times_ns: list[int], datas: list[bytes]) -> None:
+        dtype = CDR_TOPICS[topic].spec.dtype
+        for t, data in zip(times_ns, datas, strict=True):
+            self.captured.setdefault(topic, []).append((t, np.frombuffer(data, dtype=dtype)))
+        super().write_series(topic, times_ns, datas)
 
 
 def test_recording_round_trip_of_a_sim_run(tmp_path: Path) -> None:
@@ -57,6 +58,7 @@ def test_recording_round_trip_of_a_sim_run(tmp_path: Path) -> None:
         loop.run(protocol, robot, sensor, RunLog(rec, START_NS, protocol.run.tf_period_s))
     loaded = load(path)
     assert loaded.complete and not loaded.warnings
+    assert {"/ft/raw", "/robot/state", "/robot/measurement", "/sim/truth"} <= set(rec.captured)
     for topic, items in rec.captured.items():
         data = loaded.topic(topic)
         assert data.log_time_ns.tolist() == [t for t, _ in items], topic

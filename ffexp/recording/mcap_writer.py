@@ -31,6 +31,7 @@ __all__ = ["FastWriter"]
 _MESSAGE_HEAD = struct.Struct("<BQHIQQ")
 _MESSAGE_FIXED = _MESSAGE_HEAD.size - 9  # the record length counts what follows it
 _OPCODE_MESSAGE = int(Opcode.MESSAGE)
+_NO_TIME = 1 << 64  # above every log time (uint64)
 #: A Message Index record's head: opcode, record length, channel id, entries' length.
 _INDEX_HEAD = struct.Struct("<BQHI")
 _OPCODE_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
@@ -129,45 +130,42 @@ class FastWriter(Writer):
             self._commit()
             self._close_chunk()
 
-    def add_messages(self, channel_ids: list[int], log_time: int, datas: list[bytes],
+    def add_messages(self, channel_ids: list[int], log_times: list[int], datas: list[bytes],
                      sequences: list[int]) -> None:
-        """:meth:`add_message` for several messages at one log time (publish time = log
-        time), in order: the same bytes, one call."""
+        """:meth:`add_message` for several messages (publish time = log time), in order:
+        the same bytes, one call."""
         if not self.fast:
-            for cid, data, seq in zip(channel_ids, datas, sequences, strict=True):
-                super().add_message(cid, log_time, data, log_time, seq)
+            for cid, t, data, seq in zip(channel_ids, log_times, datas, sequences, strict=True):
+                super().add_message(cid, t, data, t, seq)
             return
-        parts = self._parts
+        parts, indices, counts = self._parts, self._index, self._counts
         if parts:
-            if log_time < self._t_min:
-                self._t_min = log_time
-            elif log_time > self._t_max:
-                self._t_max = log_time
+            size, t_min, t_max = self._size, self._t_min, self._t_max
         else:
-            self._size = self._chunks.record_writer._buffer.tell()
-            self._t_min = self._t_max = log_time
-        indices, counts, pack, head = self._index, self._counts, _MESSAGE_HEAD.pack, \
-            _MESSAGE_HEAD.size
-        size = self._size
-        for channel_id, data, sequence in zip(channel_ids, datas, sequences, strict=True):
-            index = indices.get(channel_id)
+            size, t_min, t_max = self._chunks.record_writer._buffer.tell(), _NO_TIME, -1
+        pack, head, limit = _MESSAGE_HEAD.pack, _MESSAGE_HEAD.size, self._chunk_size
+        for cid, t, data, seq in zip(channel_ids, log_times, datas, sequences, strict=True):
+            if t < t_min:
+                t_min = t
+            if t > t_max:
+                t_max = t
+            index = indices.get(cid)
             if index is None:
-                index = indices[channel_id] = []
-                counts[channel_id] = 0
-            index.append((log_time, size))
-            counts[channel_id] += 1
-            parts.append(pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + len(data), channel_id, sequence,
-                              log_time, log_time))
+                index = indices[cid] = []
+                counts[cid] = 0
+            index.append((t, size))
+            counts[cid] += 1
+            n = len(data)
+            parts.append(pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + n, cid, seq, t, t))
             parts.append(data)
-            size += head + len(data)
-            if size > self._chunk_size:  # mcap's rule, after each message
-                self._size = size
+            size += head + n
+            if size > limit:  # mcap's rule, after each message
+                self._size, self._t_min, self._t_max = size, t_min, t_max
                 self._commit()
                 self._close_chunk()
                 parts, indices, counts = self._parts, self._index, self._counts
-                size = self._size = self._chunks.record_writer._buffer.tell()
-                self._t_min = self._t_max = log_time
-        self._size = size
+                size, t_min, t_max = self._chunks.record_writer._buffer.tell(), _NO_TIME, -1
+        self._size, self._t_min, self._t_max = size, t_min, t_max
 
     def _commit(self) -> None:
         """Hand the pending batch to mcap's chunk builder and statistics."""

@@ -64,7 +64,7 @@ def rows_floats(m: list[list[float]]) -> tuple[float, float, float, float, float
     else:
         r = (r0, r1, r2)
         diag = [r0[0], r1[1], r2[2]]
-        i = int(np.argmax(diag))  # numpy's rule (the first maximum; NaN wins)
+        i = _argmax3(diag)
         j, k = (i + 1) % 3, (i + 2) % 3
         s = 2.0 * math.sqrt(max(1.0 + r[i][i] - r[j][j] - r[k][k], 1e-300))
         q = [0.0, 0.0, 0.0, (r[k][j] - r[j][k]) / s]
@@ -72,6 +72,15 @@ def rows_floats(m: list[list[float]]) -> tuple[float, float, float, float, float
         q[j] = (r[j][i] + r[i][j]) / s
         q[k] = (r[k][i] + r[i][k]) / s
     return (float(r0[3]), float(r1[3]), float(r2[3]), q[0], q[1], q[2], q[3])
+
+
+def _argmax3(d: list[float]) -> int:
+    """``np.argmax`` of three floats: the first maximum, or the first NaN."""
+    for k in range(3):
+        if d[k] != d[k]:
+            return k
+    i = 1 if d[1] > d[0] else 0
+    return 2 if d[2] > d[i] else i
 
 
 def pose_to_transform(pose: np.ndarray) -> tuple[dict[str, float], dict[str, float]]:
@@ -195,12 +204,34 @@ class Recorder:
             seqs.append(ch[1])
             ch[1] += 1
             datas.append(data)
-        self._writer.add_messages(cids, time_ns, datas, seqs)
+        self._writer.add_messages(cids, [time_ns] * len(datas), datas, seqs)
         self.message_count += len(datas)
         if self.taps:
             for topic, data in messages:
                 for tap in self.taps:
                     tap(topic, time_ns, data)
+        if self._clock() - self._last_flush >= self._flush_interval_s:
+            self.flush()
+
+    def write_series(self, topic: str, times_ns: list[int], datas: list[bytes]) -> None:
+        """Write encoded messages of one topic at their own log times (e.g. a cycle's
+        F/T samples): :meth:`write_bytes` for each, in one call."""
+        if not times_ns:
+            return
+        if min(times_ns) < 0:
+            raise ValueError(f"{topic}: negative log time {min(times_ns)} ns")
+        ch = self._channels.get(topic)
+        if ch is None:
+            ch = self._channel(topic)
+        n = len(times_ns)
+        seq = ch[1]
+        ch[1] = seq + n
+        self._writer.add_messages([ch[0]] * n, times_ns, datas, list(range(seq, seq + n)))
+        self.message_count += n
+        if self.taps:
+            for t, data in zip(times_ns, datas, strict=True):
+                for tap in self.taps:
+                    tap(topic, t, data)
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
 

@@ -41,6 +41,12 @@ class CapturingRecorder(Recorder):
             self.captured.setdefault(topic, []).append((time_ns, record))
         super().write_bytes(topic, time_ns, data)
 
+    def write_batch(self, time_ns: int, messages: list[tuple[str, bytes]]) -> None:
+        for topic, data in messages:
+            record = np.frombuffer(data, dtype=CDR_TOPICS[topic].spec.dtype)
+            self.captured.setdefault(topic, []).append((time_ns, record))
+        super().write_batch(time_ns, messages)
+
     def write_series(self, topic: str, times_ns: list[int], datas: list[bytes]) -> None:
         dtype = CDR_TOPICS[topic].spec.dtype
         for t, data in zip(times_ns, datas, strict=True):

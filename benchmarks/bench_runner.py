@@ -78,7 +78,8 @@ def run_once(ppath: Path, seconds: float, out: Path) -> tuple[float, dict[str, f
 
 
 #: The parts of the step and of the recording, timed in the instrumented run:
-#: (label, module, owner, method); nested parts are inside their parents.
+#: (label, module, owner: a class or module in it, method); nested parts are inside
+#: their parents; the chunk compression runs beside the loop, in the writer's thread.
 PARTS = (
     ("step", "ffexp.loop", "Cycle", "step"),
     ("  estimator", "ffexp.estimator", "Estimator", "update"),
@@ -95,7 +96,7 @@ PARTS = (
     ("  write_batch", "ffexp.recording.recorder", "Recorder", "write_batch"),
     ("  /tf", "ffexp.recording.recorder", "Recorder", "transform_rows"),
     ("  3-D scene sink", "ffexp.scene3d.writer", "SceneWriter", "cycle"),
-    ("chunk compression (zstd)", "mcap.writer", "zstandard", "compress"),
+    ("chunk compression (worker thread)", "ffexp.recording", "mcap_writer", "_compress"),
 )
 
 
@@ -103,7 +104,6 @@ PARTS = (
 def timed_parts() -> Iterator[dict[str, list[int]]]:
     """Accumulate wall time [ns] and calls of each of :data:`PARTS` inside the block."""
     import importlib
-    import types
 
     acc: dict[str, list[int]] = {}
     undo: list[tuple[object, str, object]] = []
@@ -122,16 +122,8 @@ def timed_parts() -> Iterator[dict[str, list[int]]]:
                 _cell[0] += clock() - t
                 _cell[1] += 1
 
-        if isinstance(owner, types.ModuleType):  # a module's function: patch a copy
-            shim = types.SimpleNamespace(**{k: getattr(owner, k) for k in dir(owner)
-                                            if not k.startswith("__")})
-            setattr(shim, method, timed)
-            parent = importlib.import_module(module)
-            undo.append((parent, owner_name, owner))
-            setattr(parent, owner_name, shim)
-        else:
-            undo.append((owner, method, bare))
-            setattr(owner, method, timed)
+        undo.append((owner, method, bare))  # a class's method or a module's function
+        setattr(owner, method, timed)
     try:
         yield acc
     finally:

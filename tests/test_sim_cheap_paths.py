@@ -21,7 +21,7 @@ from drivers.base.types import ApplyStatus, CartesianCommand
 from drivers.emulate.krc import software_limit_error
 from drivers.emulate.lockstep import SimRobot
 from drivers.sim import ArmCommand, SimWorld, load_scene
-from drivers.sim.arm import ArmState
+from drivers.sim.arm import ArmMode, ArmState
 from drivers.sim.friction import JointFriction
 from drivers.sim.ftsensor import NOISE_BLOCK, FtSensorModel
 from drivers.sim.scene import FtSensorSettings
@@ -175,17 +175,29 @@ def test_repeated_gains_equal_fresh_ones() -> None:
     b = SimWorld(load_scene(PAPER), seed=1)
     k = np.array([9000.0, 0.0, 10.0, 0.0, 300.0, 300.0])  # clipped: warned every cycle
     d = np.array([0.7, 0.0, 0.0, 0.0, 0.7, 0.7])
-    same = ArmCommand(cart_stiffness_npm_nmprad=k, cart_damping_ratio=d,
+    pose = a.last_state.tcp_pose_m.copy()
+    pose[2, 3] -= 0.01
+    same = ArmCommand(cart_stiffness_npm_nmprad=k, cart_damping_ratio=d, cart_pose_m=pose,
                       tcp_wrench_n_nm=np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
-    for i in range(60):
+    joints = ArmCommand(mode=ArmMode.JOINT_IMPEDANCE)
+    back = ArmCommand(mode=ArmMode.CART_IMPEDANCE)
+    for i in range(70):
         kk = k.copy() if i < 30 else k * 0.5
         fresh = ArmCommand(cart_stiffness_npm_nmprad=kk, cart_damping_ratio=d.copy(),
+                           cart_pose_m=pose.copy(),
                            tcp_wrench_n_nm=np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
         if i >= 30:
             same.cart_stiffness_npm_nmprad = k * 0.5
+        if i in (40, 41):  # to a joint mode and back: the same pose again after it
+            fresh = same = joints if i == 40 else back
         sa, sb = a.step(fresh), b.step(same)
+        if i == 41:
+            same = ArmCommand(cart_stiffness_npm_nmprad=k * 0.5, cart_damping_ratio=d,
+                              cart_pose_m=pose, tcp_wrench_n_nm=np.array([0.0, 0, 1, 0, 0, 0]))
         assert _values(sa) == _values(sb)
         assert bool(sb.warning & 0x0001) == (i < 30)
+        if i not in (40, 41):  # the set-point in use is the pose given (again after the switch)
+            assert sb.cmd_cart_pose_m.tobytes() == pose.tobytes()
     with pytest.raises(Exception, match="cart_stiffness"):
         b.step(ArmCommand(cart_stiffness_npm_nmprad=np.array([np.nan] * 6)))
 

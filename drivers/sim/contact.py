@@ -1,5 +1,6 @@
-"""The funnel contact's MuJoCo parameters from the scene's physical ones. Pure maths
-and a write into the compiled model's ``geom_solref``; no I/O."""
+"""The funnel contact: its MuJoCo parameters from the scene's physical ones
+(:func:`configure_contact`, a write into the compiled model's ``geom_solref``) and
+the wrench the target exerts on the tool (:class:`ToolContact`). No I/O."""
 
 from __future__ import annotations
 
@@ -8,11 +9,13 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import mujoco
+import numpy as np
 
+from drivers.base.types import F64
 from drivers.errors import ConfigError
 from drivers.sim.scene import Scene
 
-__all__ = ["ContactInfo", "configure_contact"]
+__all__ = ["ContactInfo", "ToolContact", "configure_contact"]
 
 
 @dataclass(frozen=True)
@@ -51,3 +54,63 @@ def configure_contact(scene: Scene, model: mujoco.MjModel, m_tcp: float, dt: flo
         model.geom_solref[g, 0] = -k
         model.geom_solref[g, 1] = -b
     return ContactInfo(m_eff=m_eff, solref_stiffness=k, solref_damping=b)
+
+
+class ToolContact:
+    """The true wrench the target exerts on the tool (TCF at the TCP), from ``data``.
+
+    Args:
+        model, data: the world's.
+        tool_body: the tool's body id.
+        tool_geoms: the tool's colliding geoms.
+        tcp: the TCP site id.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, tool_body: int,
+                 tool_geoms: set[int], tcp: int) -> None:
+        self._m, self._d = model, data
+        self._tool_geoms = tool_geoms
+        self._is_tool_geom = np.zeros(model.ngeom, dtype=bool)
+        self._is_tool_geom[list(tool_geoms)] = True
+        # views into MuJoCo's buffers
+        self._cfrc_tool = data.cfrc_ext[tool_body]
+        self._tool_com = data.subtree_com[int(model.body_rootid[tool_body])]
+        self._tcp_xpos = data.site_xpos[tcp]
+        self._tcp_rot = data.site_xmat[tcp].reshape(3, 3)
+
+    def wrench(self) -> tuple[F64, bool]:
+        """The wrench and whether touching, at the current state.
+
+        Valid only right after ``mj_step``/``mj_forward`` (contacts and
+        constraint forces must come from the same collision pass). Touching:
+        a tool geom is in the contact list (within the margin counts). The
+        wrench is the tool body's external force from MuJoCo's
+        ``mj_rnePostConstraint`` (the sum of its contacts' forces, which only
+        the target funnel makes: the contype convention), moved from the
+        subtree centre of mass to the TCP.
+        """
+        d = self._d
+        ncon = d.ncon
+        if ncon == 0:
+            return np.zeros(6), False
+        geom = d.contact.geom
+        if ncon <= 16:  # a few contacts (the target's pads): plain ints are cheaper
+            tool = self._tool_geoms
+            if not any(g in tool for g in geom.ravel().tolist()):
+                return np.zeros(6), False
+        elif not self._is_tool_geom[geom].any():
+            return np.zeros(6), False
+        mujoco.mj_rnePostConstraint(self._m, d)
+        cfrc = self._cfrc_tool  # [torque about the subtree com, force], world
+        f = cfrc[3:]
+        # torque + r x f, r from the subtree com to the TCP: plain floats (the same
+        # IEEE operations as on arrays, in the same order; 3 values)
+        cx, cy, cz, fx, fy, fz = cfrc.tolist()
+        rx, ry, rz = map(float.__sub__, self._tool_com.tolist(), self._tcp_xpos.tolist())
+        torque = np.array(((cx + ry * fz) - rz * fy, (cy + rz * fx) - rx * fz,
+                           (cz + rx * fy) - ry * fx))
+        rot = self._tcp_rot
+        out = np.empty(6)
+        out[:3] = f @ rot
+        out[3:] = torque @ rot
+        return out, True

@@ -39,6 +39,10 @@ _WARN_POSITION = int(ArmWarning.POSITION_LIMIT)
 _FIELDS = tuple(f.name for f in dataclasses.fields(ArmState))
 _gt = float.__gt__
 _ge = float.__ge__
+#: ArmWarning(bits) for every combination of the 4 bits (the same objects; a lookup
+#: is cheaper than the enum's constructor)
+_ARM_WARNINGS = tuple(
+    ArmWarning(bits) for bits in range(1 << max(int(w) for w in ArmWarning).bit_length()))
 
 
 class LazyArmState(ArmState):
@@ -112,7 +116,7 @@ def _fill_joints(s: LazyArmState, w: SimWorld) -> None:
         warning |= _WARN_POSITION
     if any(map(_ge, map(abs, w._actuator_arm.tolist()), w._torque_warn_l)):
         warning |= _WARN_TORQUE
-    d["warning"] = ArmWarning(warning)
+    d["warning"] = _ARM_WARNINGS[warning]
 
 
 def _fill_dynamics(s: LazyArmState, w: SimWorld) -> None:
@@ -139,7 +143,7 @@ def _fill_truth(s: LazyArmState, w: SimWorld) -> None:
     w._kinematics()
     s.__dict__["truth"] = ground_truth(
         pose(w._target_xpos, w._target_xmat),
-        w.data.qvel[w._t_twist_adr], w._tcp_pose, w._mouth_xpos, w._mouth_xmat,
+        w._qvel.take(w._t_twist_adr), w._tcp_pose, w._mouth_xpos, w._mouth_xmat,
         w.layout.funnel_seat_depth, w._contact, w._touching, tcp_twist,
     )
 

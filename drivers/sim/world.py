@@ -46,7 +46,7 @@ from drivers.base.types import F64, FtSamples
 from drivers.errors import InvalidCommandError, SimulationError
 from drivers.sim import mjcf
 from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
-from drivers.sim.contact import configure_contact
+from drivers.sim.contact import ToolContact, configure_contact
 from drivers.sim.controller import clip_cart_stiffness, normalized_damping
 from drivers.sim.divergence import check_divergence, quiet_divergence
 from drivers.sim.ftsensor import FtSensorModel
@@ -129,9 +129,6 @@ class SimWorld:
         self._t_twist_adr = self._t_vadr[[0, 1, 3]]
         self._tool_geoms = {g for g in range(m.ngeom) if m.geom_bodyid[g] == self._tool_body
                             and m.geom_contype[g] != 0}
-        self._is_tool_geom = np.zeros(m.ngeom, dtype=bool)
-        self._is_tool_geom[list(self._tool_geoms)] = True
-        self._tool_root = int(m.body_rootid[self._tool_body])
         self._funnel_geoms = {
             g for g in range(m.ngeom)
             if m.geom_contype[g] != 0 and m.geom_bodyid[g] != self._target_body
@@ -158,7 +155,7 @@ class SimWorld:
         self._jfull2 = self._jfull.reshape(2, 3, m.nv)  # the same memory
         self._minv_jt = np.zeros((6, m.nv))
         self._kin_ok = False
-        self._inertia_q = np.zeros(_N_ARM)
+        self._damp_work = np.zeros(6)
         self._inertia_new = True
         # views into MuJoCo's buffers written every cycle
         self._cart_damp_prm = m.actuator_biasprm[self._act_cart, 2]
@@ -169,6 +166,7 @@ class SimWorld:
         self._mocap_quat = d.mocap_quat[self._cmd_mocap]
         self._qvel_arm = d.qvel[:_N_ARM]
         self._qpos_arm = d.qpos[:_N_ARM]
+        self._qvel = d.qvel
         self._qacc_arm = d.qacc[:_N_ARM]
         self._actuator_arm = d.qfrc_actuator[:_N_ARM]
         self._tcp_xpos = d.site_xpos[self._tcp]
@@ -177,9 +175,7 @@ class SimWorld:
         self._mouth_xmat = d.site_xmat[self._mouth]
         self._target_xpos = d.xpos[self._target_body]
         self._target_xmat = d.xmat[self._target_body]
-        self._tcp_rot = self._tcp_xmat.reshape(3, 3)
-        self._cfrc_tool = d.cfrc_ext[self._tool_body]
-        self._tool_com = d.subtree_com[self._tool_root]
+        self._tool_contact = ToolContact(m, d, self._tool_body, self._tool_geoms, self._tcp)
         # what the actuators hold now (the objects last written; None: rewrite)
         self._written: dict[str, object] = {}
         # the last stiffness/damping given and what they became (commands repeat them)
@@ -215,9 +211,11 @@ class SimWorld:
         self.mode = _MODES[scene.fri.control]
         ctl = scene.controller
         self._cart_pos = self.tcp_pose.copy()
+        self._cart_pos_key = b""  # the bytes of the pose last given ("": none)
         self._cart_stiff = np.asarray(ctl.cart_stiffness, dtype=np.float64)
         self._cart_damp = np.asarray(ctl.cart_damping, dtype=np.float64)
         self._tcp_ft = np.zeros(6)
+        self._tcp_ft_key = b""
         self._jnt_pos = d.qpos[:_N_ARM].copy()
         self._jnt_trq = np.zeros(7)
         self._jnt_stiff = np.full(7, ctl.jnt_position_stiffness)
@@ -308,8 +306,7 @@ class SimWorld:
         self._lam_diag = self.cart_inertia.diagonal().copy()
         self._inertia_new = True
         self._m_diag = self._mfull.diagonal()[:_N_ARM].copy()
-        self._inertia_q[:] = self.data.qpos[:_N_ARM]
-        self._inertia_ql = self._inertia_q.tolist()
+        self._inertia_ql = self._qpos_arm.tolist()  # where it was computed
 
     def _update_kinematics(self) -> None:
         """Everything above at the current state, now."""
@@ -331,10 +328,7 @@ class SimWorld:
             if self._latched or self._inertia_new:  # the damping: its inputs changed
                 if (self._inertia_new or w.get("k_d") is not self._cart_stiff
                         or w.get("d") is not self._cart_damp):
-                    damp = normalized_damping(self._cart_stiff, self._cart_damp, self._lam_diag)
-                    np.negative(damp, out=self._cart_damp_prm)
-                    w["k_d"] = self._cart_stiff
-                    w["d"] = self._cart_damp
+                    self._write_cart_damping()
                 self._inertia_new = False
             if self._latched:  # the rest changes only with a command
                 self._latched = False
@@ -378,6 +372,24 @@ class SimWorld:
         # f_dyn: Coriolis/centrifugal (gravity is compensated inside every step).
         np.subtract(self._bias_arm, self._gravcomp_arm, out=self._applied_arm)
 
+    def _write_cart_damping(self) -> None:
+        """``-normalized_damping(K, d, diag Lambda)`` into the Cartesian actuators, the
+        same operations in the same order; the factors of K and d are kept while those
+        are the same objects (``-(a b)`` is ``(-a) b`` in IEEE arithmetic)."""
+        w = self._written
+        k, dr = self._cart_stiff, self._cart_damp
+        if w.get("k_d") is not k:
+            self._k_pos = np.maximum(k, 0.0)
+            w["k_d"] = k
+        if w.get("d") is not dr:
+            self._neg_2d = np.negative(2.0 * dr)
+            w["d"] = dr
+        t = self._damp_work
+        np.maximum(self._lam_diag, 0.0, out=t)
+        np.multiply(self._k_pos, t, out=t)
+        np.sqrt(t, out=t)
+        np.multiply(self._neg_2d, t, out=self._cart_damp_prm)
+
     def _take(self, cmd: ArmCommand) -> None:
         """Latch the fields ``cmd`` gives (the others keep their values)."""
         self._latched = True
@@ -387,13 +399,20 @@ class SimWorld:
                 raise InvalidCommandError(f"control mode {cmd.mode!r} not supported")
             self.mode = ArmMode(cmd.mode)
             self._cart_pos = self.tcp_pose.copy()
+            self._cart_pos_key = b""
             self._jnt_pos = self.data.qpos[:_N_ARM].copy()
         self._warning = 0
+        # A pose or wrench with the bytes of the latched one keeps the latched object
+        # (validated already; the actuators then need no rewrite).
         if cmd.cart_pose_m is not None:
-            p = np.array(cmd.cart_pose_m, dtype=np.float64)
-            if p.shape != (4, 4) or not _all_finite(p):
-                raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
-            self._cart_pos = p
+            p = np.asarray(cmd.cart_pose_m, dtype=np.float64)
+            key = p.tobytes()
+            if key != self._cart_pos_key or p.shape != (4, 4):
+                p = np.array(p)
+                if p.shape != (4, 4) or not _all_finite(p):
+                    raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
+                self._cart_pos = p
+                self._cart_pos_key = key
         if cmd.cart_stiffness_npm_nmprad is not None:
             k = np.asarray(cmd.cart_stiffness_npm_nmprad, dtype=np.float64)
             key = k.tobytes()
@@ -416,7 +435,11 @@ class SimWorld:
                     key, np.clip(self._finite(dr, 6, "cart_damping"), 0.0, 1.0))
             self._cart_damp = given_d[1]
         if cmd.tcp_wrench_n_nm is not None:
-            self._tcp_ft = self._finite(cmd.tcp_wrench_n_nm, 6, "add_tcp_ft")
+            ft = np.asarray(cmd.tcp_wrench_n_nm, dtype=np.float64)
+            key = ft.tobytes()
+            if key != self._tcp_ft_key or ft.shape != (6,):
+                self._tcp_ft = self._finite(ft, 6, "add_tcp_ft")
+                self._tcp_ft_key = key
         if cmd.jnt_pos_rad is not None:
             self._jnt_pos = np.clip(self._finite(cmd.jnt_pos_rad, 7, "jnt_pos"),
                                     -self._pos_limits, self._pos_limits)
@@ -553,41 +576,10 @@ class SimWorld:
 
     # ------------------------------------------------------------ measurement
     def contact_wrench(self) -> tuple[F64, bool]:
-        """True wrench the target exerts on the tool (TCF at the TCP), and whether touching.
-
-        Valid only right after ``mj_step``/``mj_forward`` (contacts and
-        constraint forces must come from the same collision pass). Touching:
-        a tool geom is in the contact list (within the margin counts). The
-        wrench is the tool body's external force from MuJoCo's
-        ``mj_rnePostConstraint`` (the sum of its contacts' forces, which only
-        the target funnel makes: the contype convention), moved from the
-        subtree centre of mass to the TCP.
-        """
-        m, d = self.model, self.data
-        ncon = d.ncon
-        if ncon == 0:
-            return np.zeros(6), False
-        geom = d.contact.geom
-        if ncon <= 16:  # a few contacts (the target's pads): plain ints are cheaper
-            tool = self._tool_geoms
-            if not any(g in tool for g in geom.ravel().tolist()):
-                return np.zeros(6), False
-        elif not self._is_tool_geom[geom].any():
-            return np.zeros(6), False
-        mujoco.mj_rnePostConstraint(m, d)
-        cfrc = self._cfrc_tool  # [torque about the subtree com, force], world
-        f = cfrc[3:]
-        # torque + r x f, r from the subtree com to the TCP: plain floats (the same
-        # IEEE operations as the arrays, in the same order; 3 values)
-        cx, cy, cz, fx, fy, fz = cfrc.tolist()
-        rx, ry, rz = map(float.__sub__, self._tool_com.tolist(), self._tcp_xpos.tolist())
-        torque = np.array(((cx + ry * fz) - rz * fy, (cy + rz * fx) - rx * fz,
-                           (cz + rx * fy) - ry * fx))
-        rot = self._tcp_rot
-        out = np.empty(6)
-        out[:3] = f @ rot
-        out[3:] = torque @ rot
-        return out, True
+        """True wrench the target exerts on the tool (TCF at the TCP), and whether touching
+        (:meth:`drivers.sim.contact.ToolContact.wrench`; valid only right after
+        ``mj_step``/``mj_forward``)."""
+        return self._tool_contact.wrench()
 
     @property
     def cycle_s(self) -> float:

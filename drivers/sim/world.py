@@ -155,6 +155,7 @@ class SimWorld:
         self._jfull2 = self._jfull.reshape(2, 3, m.nv)  # the same memory
         self._minv_jt = np.zeros((6, m.nv))
         self._kin_ok = False
+        self._m_ok = True  # qM and its factor are the current state's (mj_forward made them)
         self._damp_work = np.zeros(6)
         self._inertia_new = True
         # views into MuJoCo's buffers written every cycle
@@ -293,6 +294,7 @@ class SimWorld:
         mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp)
         # both halves in one call: [R^T jacp; R^T jacr], the TCF rows
         np.matmul(self._tcp_pose[:3, :3].T, self._jac2, out=self._jfull2)
+        self._mass()
         mujoco.mj_fullM(m, d, self._mfull)
         self._kin_ok = True
 
@@ -301,6 +303,7 @@ class SimWorld:
         self._kinematics()
         jfull = self._jfull
         # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M.
+        self._mass()
         mujoco.mj_solveM(self.model, self.data, self._minv_jt, jfull)
         self.cart_inertia = np.linalg.inv(jfull @ self._minv_jt.T)
         self._lam_diag = self.cart_inertia.diagonal().copy()
@@ -547,20 +550,25 @@ class SimWorld:
                 break
 
     def _end_state_dynamics(self) -> None:
-        """Kinematics, mass matrix (factorised) and bias forces of the end state.
+        """Kinematics and bias forces of the end state (its mass matrix: :meth:`_mass`).
 
-        The parts of ``mj_step1`` the measurement and the next cycle's command
-        read, without its collision detection and constraint set-up (the next
-        ``mj_step`` redoes both); the values are bit-identical to ``mj_step1``'s.
-        """
+        The parts of ``mj_step1`` the measurement and the next cycle's command read,
+        without collisions and constraints (the next ``mj_step`` redoes both), bit for
+        bit; the mass matrix is built on first use from what ``mj_comPos`` left."""
         m, d = self.model, self.data
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
-        mujoco.mj_makeM(m, d)
-        mujoco.mj_factorM(m, d)
+        self._m_ok = False
         mujoco.mj_comVel(m, d)
         mujoco.mj_passive(m, d)  # qfrc_gravcomp
         mujoco.mj_rne(m, d, 0, self._qfrc_bias)
+
+    def _mass(self) -> None:
+        """The end state's mass matrix, factorised (once per cycle, when asked)."""
+        if not self._m_ok:
+            mujoco.mj_makeM(self.model, self.data)
+            mujoco.mj_factorM(self.model, self.data)
+            self._m_ok = True
 
     def ft_samples(self) -> FtSamples:
         """Every F/T sample produced since the last call."""

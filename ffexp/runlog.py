@@ -234,12 +234,14 @@ class RunLog:
         truth = state.truth
         if truth is not None:
             msgs.append(("/sim/truth", rec.encode_fields("/sim/truth", truth)))
-        rec.write_batch(log_ns, msgs)
         if t_ns >= self._next_tf_ns:
             self._next_tf_ns = t_ns + self.tf_period_ns
-            rec.transform(log_ns, "base", "tool", state.tcp_pose_m)
+            msgs.append(("/tf", rec.encode_transform(log_ns, "base", "tool",
+                                                     state.tcp_pose_m.tolist())))
             if truth is not None:
-                rec.transform(log_ns, "base", "target", truth.target_pose)
+                msgs.append(("/tf", rec.encode_transform(log_ns, "base", "target",
+                                                         truth.target_pose.tolist())))
+        rec.write_batch(log_ns, msgs)
         if target is not None and (target.frames != self._target_frames
                                    or target.valid != self._target_valid):
             self._target(log_ns, state, target)

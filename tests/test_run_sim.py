@@ -43,8 +43,9 @@ class CapturingRecorder(Recorder):
 
     def write_batch(self, time_ns: int, messages: list[tuple[str, bytes]]) -> None:
         for topic, data in messages:
-            record = np.frombuffer(data, dtype=CDR_TOPICS[topic].spec.dtype)
-            self.captured.setdefault(topic, []).append((time_ns, record))
+            if topic in CDR_TOPICS:
+                record = np.frombuffer(data, dtype=CDR_TOPICS[topic].spec.dtype)
+                self.captured.setdefault(topic, []).append((time_ns, record))
         super().write_batch(time_ns, messages)
 
     def write_series(self, topic: str, times_ns: list[int], datas: list[bytes]) -> None:

@@ -355,6 +355,12 @@ class Recorder:
     def transform_rows(self, time_ns: int, parent: str, child: str,
                        rows: list[list[float]]) -> None:
         """:meth:`transform` of a pose given as its rows of floats (``pose.tolist()``)."""
+        self.write_bytes("/tf", time_ns, self.encode_transform(time_ns, parent, child, rows))
+
+    def encode_transform(self, time_ns: int, parent: str, child: str,
+                         rows: list[list[float]]) -> bytes:
+        """The ``/tf`` message of :meth:`transform_rows`, not written (for
+        :meth:`write_batch`)."""
         v = rows_floats(rows)
         isfinite = math.isfinite
         if not (isfinite(v[0]) and isfinite(v[1]) and isfinite(v[2]) and isfinite(v[3])
@@ -370,7 +376,7 @@ class Recorder:
             f'"translation":{{"x":{v[0]!r},"y":{v[1]!r},"z":{v[2]!r}}},'
             f'"rotation":{{"x":{v[3]!r},"y":{v[4]!r},"z":{v[5]!r},"w":{v[6]!r}}}}}'
         )
-        self.write_bytes("/tf", time_ns, text.encode())
+        return text.encode()
 
     def metadata(self, name: str, values: Mapping[str, str]) -> None:
         """An MCAP metadata record (string to string map)."""

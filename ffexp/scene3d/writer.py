@@ -91,8 +91,9 @@ class SceneWriter:
         q = state.joint_pos_rad
         if log_ns >= self._next_tf_ns and len(q) == JOINTS:
             self._next_tf_ns = log_ns + self.tf_period_ns
-            parent = "base"
+            parent, msgs = "base", []
             for frame, rows in zip(LINK_FRAMES, link_rows(q, self.base), strict=True):
-                self.rec.transform_rows(log_ns, parent, frame, rows)
+                msgs.append(("/tf", self.rec.encode_transform(log_ns, parent, frame, rows)))
                 parent = frame
+            self.rec.write_batch(log_ns, msgs)
 

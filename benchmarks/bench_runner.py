@@ -93,9 +93,11 @@ PARTS = (
     ("recording: F/T samples", "ffexp.runlog", "RunLog", "samples"),
     ("recording: cycle", "ffexp.runlog", "RunLog", "cycle"),
     ("  encode_fields", "ffexp.recording.recorder", "Recorder", "encode_fields"),
-    ("  write_batch", "ffexp.recording.recorder", "Recorder", "write_batch"),
-    ("  /tf", "ffexp.recording.recorder", "Recorder", "transform_rows"),
+    ("  write_batch (also in the sink)", "ffexp.recording.recorder", "Recorder",
+     "write_batch"),
     ("  3-D scene sink", "ffexp.scene3d.writer", "SceneWriter", "cycle"),
+    ("  /tf encoding (also in the sink)", "ffexp.recording.recorder", "Recorder",
+     "encode_transform"),
     ("chunk compression (worker thread)", "ffexp.recording", "mcap_writer", "_compress"),
 )
 
@@ -206,7 +208,7 @@ def main() -> None:
     print(f"parts of the step and the recording (one instrumented run, us per cycle of "
           f"{cycles}; calls per cycle):")
     for label, (ns, calls) in acc.items():
-        print(f"  {label:<30} {ns / 1e3 / cycles:7.1f} us  {calls / cycles:5.2f}")
+        print(f"  {label:<36} {ns / 1e3 / cycles:7.1f} us  {calls / cycles:5.2f}")
 
 
 if __name__ == "__main__":

@@ -95,8 +95,11 @@ def test_friction_level_in_place_equals_dry_level(shape: float) -> None:
     for v in np.random.default_rng(5).normal(0.0, 0.05, (200, 7)):
         f.apply_into(v, out)
         assert out.tobytes() == f.dry_level_nm(v).tobytes()
-    f.apply_into(np.full(7, 1e300), out)  # a diverging state: the clip, no overflow
-    assert out.tobytes() == f.dry_level_nm(np.full(7, 1e300)).tobytes()
+    edge = np.array([0.02 * 27.0, -0.02 * 27.4, 0.02 * 40.0, -0.02 * 40.0001, 0.02 * 45.0,
+                     1e200, -np.inf])  # around the clip at 40 Stribeck speeds, huge
+    for v in (edge, -edge, np.full(7, 1e300), np.zeros(7), np.full(7, -0.0)):
+        f.apply_into(v, out)
+        assert out.tobytes() == f.dry_level_nm(v).tobytes()
 
 
 def _script(i: int, p0: np.ndarray) -> ArmCommand | None:

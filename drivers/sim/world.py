@@ -527,7 +527,7 @@ class SimWorld:
             row[:] = ft_now
         # Contacts and constraint forces are consistent now (state of the last
         # step, 1 physics step before the cycle's end).
-        self._contact, self._touching = self.contact_wrench()
+        self._contact, self._touching = self._tool_contact.wrench()
         self._end_state_dynamics()
         check_divergence(d)
         decim = self._ft_decim
@@ -584,9 +584,7 @@ class SimWorld:
 
     # ------------------------------------------------------------ measurement
     def contact_wrench(self) -> tuple[F64, bool]:
-        """True wrench the target exerts on the tool (TCF at the TCP), and whether touching
-        (:meth:`drivers.sim.contact.ToolContact.wrench`; valid only right after
-        ``mj_step``/``mj_forward``)."""
+        """The target's wrench on the tool and whether touching (:class:`ToolContact`)."""
         return self._tool_contact.wrench()
 
     @property

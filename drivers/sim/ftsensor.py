@@ -147,12 +147,11 @@ class FtSensorModel:
         if n == 0:
             return FtSamples()
         i = self._draws(n)
-        gauss = self._gauss[i:i + n]
         drift = self._drift_rows(i, n)
         self._plan_at = i + n
         self.drift = self._plan_prev = drift[-1]
         # environment (incl. tool load) on the tool, sensor frame
-        w = gauss[:, 6:] - raw_parent_on_child
+        w = self._gauss[i:i + n, 6:] - raw_parent_on_child
         w += drift
         w += self.bias
         if np.abs(w).max() > self._min_range:
@@ -170,10 +169,10 @@ class FtSensorModel:
         np.rint(w, out=w)
         w *= self._res
         self.last_wrench = w[-1].copy()
-        if self._offsets_ns.shape[0] < n:
+        if n != self._offsets_ns.shape[0]:
             self._counts = np.arange(n, dtype=np.int64)
             self._offsets_ns = self.period_ns * self._counts
-        t = self._offsets_ns[:n] + t0_ns
-        seq = self._counts[:n] + self.seq
-        self.seq += n
-        return FtSamples(time_ns=t, seq=seq, wrench=w, status=status)
+        seq = self.seq
+        self.seq = seq + n
+        return FtSamples(time_ns=self._offsets_ns + t0_ns, seq=self._counts + seq, wrench=w,
+                         status=status)

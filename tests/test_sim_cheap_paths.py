@@ -20,6 +20,7 @@ from drivers.base.placement import placement, placement_at_mouth
 from drivers.base.types import ApplyStatus, CartesianCommand
 from drivers.emulate.krc import software_limit_error
 from drivers.emulate.lockstep import SimRobot
+from drivers.errors import SimulationError
 from drivers.sim import ArmCommand, SimWorld, load_scene
 from drivers.sim.arm import ArmMode, ArmState
 from drivers.sim.friction import JointFriction
@@ -243,3 +244,11 @@ def test_placement_at_mouth_equals_placement() -> None:
             p[:3, 3] = gen.normal(0.0, 0.5, 3)
         mat9 = mouth[:3, :3].copy().ravel()
         assert placement_at_mouth(tcp, mouth[:3, 3].copy(), mat9) == placement(tcp, mouth)
+
+
+def test_divergence_seen_through_the_kept_warning_view() -> None:
+    w = SimWorld(load_scene(PAPER), seed=1)
+    w.step()
+    w.data.qvel[0] = np.nan
+    with pytest.raises(SimulationError, match="qvel"):
+        w.advance()

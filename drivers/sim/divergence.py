@@ -13,6 +13,8 @@ physics of a run that does not diverge.
 from __future__ import annotations
 
 import mujoco
+import numpy as np
+from numpy.typing import NDArray
 
 from drivers.errors import SimulationError
 
@@ -35,16 +37,19 @@ def quiet_divergence(m: mujoco.MjModel, d: mujoco.MjData) -> None:
         d.warning[i].number = _SEEN
 
 
-def check_divergence(d: mujoco.MjData) -> None:
+def check_divergence(d: mujoco.MjData, number: NDArray[np.int32] | None = None) -> None:
     """Raise if MuJoCo flagged a bad state since the last check.
+
+    ``number``: ``d.warning.number`` (a view into ``d``; given, it is not looked up).
 
     Raises:
         SimulationError: naming the simulated time and the bad quantities.
     """
-    w = d.warning
-    number = w.number
+    if number is None:
+        number = d.warning.number
     if number[_I_QACC] == _SEEN and number[_I_QPOS] == _SEEN and number[_I_QVEL] == _SEEN:
         return
+    w = d.warning
     bad = [name for name, i in _BAD_STATE_WARNINGS if number[i] != _SEEN]
     if bad:
         for _, i in _BAD_STATE_WARNINGS:

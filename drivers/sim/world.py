@@ -168,6 +168,7 @@ class SimWorld:
         self._qvel_arm = d.qvel[:_N_ARM]
         self._qpos_arm = d.qpos[:_N_ARM]
         self._qvel = d.qvel
+        self._warn_number = d.warning.number
         self._qacc_arm = d.qacc[:_N_ARM]
         self._actuator_arm = d.qfrc_actuator[:_N_ARM]
         self._tcp_xpos = d.site_xpos[self._tcp]
@@ -529,7 +530,7 @@ class SimWorld:
         # step, 1 physics step before the cycle's end).
         self._contact, self._touching = self._tool_contact.wrench()
         self._end_state_dynamics()
-        check_divergence(d)
+        check_divergence(d, self._warn_number)
         decim = self._ft_decim
         if decim == 1:
             self._ft_pending.append(

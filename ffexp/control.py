@@ -237,9 +237,10 @@ class ImpedanceConfig(StrictModel):
 
 def rotation_log(r: FloatArray) -> FloatArray:
     """Rotation vector (axis * angle) of a 3x3 rotation matrix."""
-    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
+    m = r.tolist()  # the trace and the differences on floats: the same operations
+    cos = _clip((m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0, -1.0, 1.0)
     angle = float(np.arccos(cos))
-    v = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    v = np.array([m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1]])
     if angle < 1e-9:
         small: FloatArray = 0.5 * v
         return small

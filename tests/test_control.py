@@ -233,3 +233,27 @@ def test_impedance_output_is_bit_identical_to_the_array_form() -> None:
         got = ctl.update(pose, twist, i * DT)
         want = np.clip(k * pose_error_tcf(pose, ctl.setpoint) - b * twist, -lim, lim)
         assert got.tobytes() == want.tobytes(), i
+
+
+def _array_rotation_log(r: np.ndarray) -> np.ndarray:
+    """The former numpy-scalar form of :func:`rotation_log`."""
+    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
+    angle = float(np.arccos(cos))
+    v = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    if angle < 1e-9:
+        return 0.5 * v
+    if np.pi - angle < 1e-6:
+        b = (r + np.eye(3)) / 2.0
+        k = int(np.argmax(np.diag(b)))
+        return b[:, k] / np.sqrt(max(b[k, k], 1e-300)) * angle
+    return v * (angle / (2.0 * np.sin(angle)))
+
+
+def test_rotation_log_is_bit_identical_to_the_array_form() -> None:
+    rng = np.random.default_rng(8)
+    for k in range(5000):
+        scale = (1e-10, 1e-4, 0.3, 3.14159265)[k % 4]
+        r = Rotation.from_rotvec(rng.normal(size=3) * scale).as_matrix()
+        if k % 7 == 0:
+            r = Rotation.from_rotvec(np.pi * np.array([0.0, 0.0, 1.0])).as_matrix()
+        assert rotation_log(r).tobytes() == _array_rotation_log(r).tobytes(), k

@@ -85,10 +85,10 @@ _SATURATION = int(FtStatus.SATURATION)
 
 def _peak(squares: list[float]) -> float:
     """``sqrt(max(squares))`` with numpy's rule for NaN (a NaN anywhere is the maximum)."""
-    top = max(squares)
-    if top != top or any(v != v for v in squares):
+    total = sum(squares)  # NaN exactly when one is (squares are >= 0: no inf - inf)
+    if total != total:
         return math.nan
-    return math.sqrt(top)
+    return math.sqrt(max(squares))
 
 
 def peaks(rows: list[list[float]]) -> tuple[float, float]:

@@ -11,8 +11,9 @@ each measured in the same repeat:
 * bare physics: the wall time of every ``mujoco.mj_step`` call inside that
   very run (the floor: the same model, the same states, the same steps);
 * the loop without a recording (``RunLog(None)``), same protocol and seed;
-* the bare world: ``SimWorld.step`` with a constant Cartesian command and the
-  F/T read, for the same simulated time (no KRC, no loop).
+* the bare world: ``SimWorld.step`` with a constant Cartesian command, its
+  whole state read and the F/T read, for the same simulated time (no KRC,
+  no loop).
 
 Prints medians: wall time and real-time factor of each, the ratios, and where
 the run's time goes (driver = the KRC and the world, of which physics; sensor
@@ -156,7 +157,7 @@ def bare_world_once(ppath: Path, seconds: float) -> float:
     cycles = round(seconds / scene.fri.cycle)
     t0 = time.perf_counter()
     for _ in range(cycles):
-        world.step(cmd)
+        world.step(cmd).resolve()  # the whole state, as the lockstep KRC reads it
         world.ft_samples()
     return time.perf_counter() - t0
 

@@ -28,7 +28,8 @@ def world():  # type: ignore[no-untyped-def]
     from drivers.sim import SimWorld, load_scene
 
     scene = load_scene(Path("data/scenes/paper.toml"),
-                       ["target.velocity=[0.03, -0.02, 0.15]", "target.mu=0.0"])
+                       ["target.velocity=[0.03, -0.02, 0.15]", "target.mu=0.0",
+                        "target.hose.stiffness=0", "target.hose.damping=0"])  # drifts freely
     return SimWorld(scene, seed=3)
 
 

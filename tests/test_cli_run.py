@@ -75,7 +75,9 @@ def test_bad_campaign_entry(tmp_path: Path) -> None:
 def test_signal_stops_safely_and_keeps_the_recording(tmp_path: Path, sig: int) -> None:
     proc = subprocess.Popen(
         [sys.executable, "-c", "from ffexp.cli import main; main()", "run",
-         str(ROOT / "protocols/method3_impedance.toml"), "--out", str(tmp_path)],
+         str(ROOT / "protocols/method3_impedance.toml"), "--out", str(tmp_path),
+         # a slow approach: the run is still going when the signal comes, however fast
+         "--set", "approach.speed_mps=0.0005", "--set", "run.timeout_s=600"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )
     deadline = time.monotonic() + 120

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from drivers.base.types import F64
 
 __all__ = ["Placement", "placement", "placement_at_mouth", "wrap_angle"]
@@ -52,10 +50,7 @@ def placement(tcp_pose: F64, mouth_pose: F64) -> Placement:
     The yaw compares headings in the horizontal plane: the tool's z axis and
     the funnel's x axis, each projected on the base frame's x-y plane.
     """
-    rm = mouth_pose[:3, :3]
-    d = np.asarray(tcp_pose[:3, 3] - mouth_pose[:3, 3]) @ rm
-    yaw = wrap_angle(math.atan2(tcp_pose[1, 2], tcp_pose[0, 2]) - math.atan2(rm[1, 0], rm[0, 0]))
-    return Placement((float(d[0]), float(d[1]), float(d[2]), yaw))
+    return placement_at_mouth(tcp_pose, mouth_pose[:3, 3], mouth_pose[:3, :3].reshape(9))
 
 
 def placement_at_mouth(tcp_pose: F64, mouth_pos: F64, mouth_mat9: F64) -> Placement:

@@ -129,10 +129,13 @@ def test_jitter_and_duplicates_in_lockstep_change_nothing_but_the_counters(tmp_p
     """Lockstep waits for every answer: delayed and doubled datagrams leave the run
     identical to a clean one; the duplicates are counted as the injector made them and
     the KRC's latency shows the delay."""
-    clean = emulated_run(tmp_path / "a", ["run.timeout_s=3"])
+    # both wait long for an answer: a reference run that missed a cycle to a stall
+    # of a loaded machine (the harness's default wait is 20 ms) is not clean
+    clean = emulated_run(tmp_path / "a", ["run.timeout_s=3"], lockstep_timeout_s=0.5)
     faults = FaultSettings(delay_s=0.002, jitter_s=0.001, duplicate=0.05, seed=4)
     noisy = emulated_run(tmp_path / "b", ["run.timeout_s=3"], faults=faults,
                          lockstep_timeout_s=0.5)
+    assert clean.emu.missed == noisy.emu.missed == 0
     assert noisy.outcome.phase == clean.outcome.phase
     assert noisy.outcome.stop_reason == clean.outcome.stop_reason
     a, b = clean.rec.topic("/robot/state"), noisy.rec.topic("/robot/state")

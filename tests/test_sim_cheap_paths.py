@@ -2,7 +2,8 @@
 
 Block-drawn F/T noise against per-block draws, the friction level written in
 place against :meth:`JointFriction.dry_level_nm`, the lazily built end state
-against one read at once, repeated gains against fresh arrays, and the KRC's
+against one read at once, repeated gains against fresh arrays, MuJoCo's sensor
+history against a copy of the sensor after each physics step, and the KRC's
 limit and clip checks against their numpy forms.
 """
 
@@ -13,6 +14,7 @@ import math
 import pickle
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -252,3 +254,46 @@ def test_divergence_seen_through_the_kept_warning_view() -> None:
     w.data.qvel[0] = np.nan
     with pytest.raises(SimulationError, match="qvel"):
         w.advance()
+
+
+def _samples_of(w: SimWorld, cmds: list[ArmCommand | None]) -> list[bytes]:
+    out = []
+    for i, cmd in enumerate(cmds):
+        if i == 40:  # a physics step outside advance: the history ring starts elsewhere
+            mujoco.mj_step(w.model, w.data)
+        w.advance(cmd)
+        s = w.ft_samples()
+        out.append(s.wrench.tobytes() + s.time_ns.tobytes() + s.seq.tobytes()
+                   + s.status.tobytes() + w.data.qpos.tobytes())
+    return out
+
+
+@pytest.mark.parametrize("overrides", [[], ["ft_sensor.rate=500"]])
+def test_sensor_history_equals_per_step_readings(overrides: list[str]) -> None:
+    # MuJoCo's sensor history (one mj_step call per cycle) against a copy of the
+    # sensor after each physics step, pressing into the funnel and saturating
+    scene = load_scene(PAPER, overrides)
+    kept, per_step = SimWorld(scene, seed=3), SimWorld(scene, seed=3)
+    assert kept._ft_steps.uses_history
+    per_step._ft_steps._hist = None  # the per-step path
+    pose = kept.last_state.tcp_pose_m.copy()
+    pose[:3, 3] += 0.06 * pose[:3, 2]
+    push = ArmCommand(cart_pose_m=pose, tcp_wrench_n_nm=np.array([0.0, 0.0, 400.0, 0, 0, 0]))
+    cmds: list[ArmCommand | None] = [push] + [None] * 99
+    assert _samples_of(kept, cmds) == _samples_of(per_step, cmds)
+
+
+def test_sample_times_and_numbers_continue_across_blocks_and_jumps() -> None:
+    model = FtSensorModel(FtSensorSettings(rate=1000.0), np.random.default_rng(1), np.zeros(3))
+    rng = np.random.default_rng(2)
+    t0, seq = 7, 0
+    for k in range(600):
+        n = int(rng.integers(0, 12)) if k % 50 == 0 else 5
+        if k % 97 == 0:
+            t0 += 1_234  # a jump: not where the last block ended
+        s = model.process(np.zeros((n, 6)), t0)
+        assert s.time_ns.tolist() == [t0 + 1_000_000 * i for i in range(n)]
+        assert s.seq.tolist() == list(range(seq, seq + n))
+        assert not (s.time_ns.flags.writeable or s.seq.flags.writeable)
+        t0 += 1_000_000 * n
+        seq += n

@@ -20,18 +20,28 @@ Gaussian draws are taken from the generator :data:`NOISE_BLOCK` samples at a
 time and used in order, which is the very stream per-block draws give (the
 generator fills arrays element by element), so a seed's samples do not depend
 on how they are blocked.
+
+:class:`FtSteps` runs a control cycle's physics steps and collects the raw
+readings of every step (MuJoCo keeps them: the sensors' ``nsample`` history).
 """
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from drivers.base.types import F64, FtSamples, FtStatus
+from drivers.errors import SimulationError
 from drivers.sim.scene import FtSensorSettings
 
 #: Samples' worth of Gaussian draws taken from the generator at once (12 per sample:
 #: 6 drift increments, 6 white noise values).
 NOISE_BLOCK = 512
+
+#: Samples' worth of timestamps and sequence numbers made at once.
+SLAB = 1024
+
+_count_nonzero = np.count_nonzero
 
 
 class FtSensorModel:
@@ -68,9 +78,6 @@ class FtSensorModel:
         self._xform[:3, 3:] = np.array([[0.0, -rz, ry], [rz, 0.0, -rx], [-ry, rx, 0.0]]).T
         self._scale = np.concatenate([self._drift_step, self._noise])
         self._inv_res = 1.0 / self._res
-        self._min_range = float(self._range.min())
-        self._offsets_ns = np.zeros(0, dtype=np.int64)
-        self._counts = np.zeros(0, dtype=np.int64)
         self.seq = 0
         self.last_wrench: F64 | None = None
         self._gauss = np.zeros((0, 12))  # scaled draws not used yet start at row _used
@@ -82,6 +89,19 @@ class FtSensorModel:
         self._plan_n = self._plan_base = self._plan_end = self._plan_at = 0
         self._plan_rows = np.zeros((0, 6))
         self._plan_prev: F64 | None = None
+        self._white = np.zeros((0, 6))  # the white-noise columns of _gauss, contiguous
+        # per block size n: bias, 1/resolution and resolution tiled to n rows (a
+        # same-shape operation is cheaper than a broadcast one, and gives the same values)
+        self._tiled_n = -1
+        self._bias_key: F64 | None = None
+        self._bias_n = self._inv_res_n = self._res_n = self._range_n = np.zeros((0, 6))
+        self._abs_n = np.zeros((0, 6))
+        self._over_n = np.zeros((0, 6), dtype=bool)
+        self._no_status = np.zeros(0, dtype=np.uint32)
+        # sample times and sequence numbers ahead (read-only; blocks take slices):
+        # entry j is sample _slab_seq0 + j, taken at _slab_t0 + j * period_ns
+        self._slab_seq0 = self._slab_t0 = 0
+        self._slab_seq = self._slab_t = np.zeros(0, dtype=np.int64)
 
     @property
     def tare_offset(self) -> F64:
@@ -102,6 +122,7 @@ class FtSensorModel:
             new = self._rng.standard_normal((max(NOISE_BLOCK, n - left.shape[0]), 12))
             new *= self._scale
             self._gauss = np.concatenate((left, new)) if left.shape[0] else new
+            self._white = np.ascontiguousarray(self._gauss[:, 6:])
             i = 0
         self._used = i + n
         return i
@@ -136,12 +157,35 @@ class FtSensorModel:
         self._plan_rows = c.reshape(k * n, 6)
         return self._plan_rows[:n]
 
+    def _tile(self, n: int) -> None:
+        """The per-row constants for blocks of ``n`` rows."""
+        self._tiled_n = n
+        self._bias_key = self.bias
+        self._bias_n = np.tile(self.bias, (n, 1))
+        self._inv_res_n = np.tile(self._inv_res, (n, 1))
+        self._res_n = np.tile(self._res, (n, 1))
+        self._range_n = np.tile(self._range, (n, 1))
+        self._abs_n = np.empty((n, 6))
+        self._over_n = np.empty((n, 6), dtype=bool)
+        self._no_status = np.zeros(n, dtype=np.uint32)
+        self._no_status.flags.writeable = False
+
+    def _slab(self, seq: int, t0_ns: int, n: int) -> None:
+        """Sample times and sequence numbers for the next blocks, from ``seq`` at ``t0_ns``."""
+        k = np.arange(max(SLAB, n), dtype=np.int64)
+        self._slab_seq0, self._slab_t0 = seq, t0_ns
+        self._slab_seq = k + seq
+        self._slab_t = k * self.period_ns + t0_ns
+        self._slab_seq.flags.writeable = False
+        self._slab_t.flags.writeable = False
+
     def process(self, raw_parent_on_child: F64, t0_ns: int) -> FtSamples:
         """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``.
 
         The per-block work is a fixed handful of array operations (a block is
-        one FRI cycle's samples); the saturation test and clip run only when
-        some value exceeds the smallest range.
+        one FRI cycle's samples); the clip runs only when some value exceeds
+        its range. The samples' ``time_ns``,
+        ``seq`` and (unsaturated) ``status`` are read-only arrays.
         """
         n = raw_parent_on_child.shape[0]
         if n == 0:
@@ -150,29 +194,136 @@ class FtSensorModel:
         drift = self._drift_rows(i, n)
         self._plan_at = i + n
         self.drift = self._plan_prev = drift[-1]
-        # environment (incl. tool load) on the tool, sensor frame
-        w = self._gauss[i:i + n, 6:] - raw_parent_on_child
+        if n != self._tiled_n or self.bias is not self._bias_key:
+            self._tile(n)
+        # environment (incl. tool load) on the tool, sensor frame: (noise - raw) + drift
+        # + bias, in this order
+        w = self._white[i:i + n] - raw_parent_on_child
         w += drift
-        w += self.bias
-        if np.abs(w).max() > self._min_range:
-            over = (np.abs(w) > self._range).any(axis=1)
+        w += self._bias_n
+        over = np.greater(np.abs(w, out=self._abs_n), self._range_n, out=self._over_n)
+        if _count_nonzero(over):
+            row_over = over.any(axis=1)
             np.clip(w, -self._range, self._range, out=w)
-            status = np.where(over, np.uint32(FtStatus.SATURATION), np.uint32(0)).astype(np.uint32)
+            status = np.where(row_over, np.uint32(FtStatus.SATURATION),
+                              np.uint32(0)).astype(np.uint32)
         else:
-            status = np.zeros(n, dtype=np.uint32)
+            status = self._no_status
         # tool transform (torque about the TCP = torque about the sensing point + r x f),
         # software bias, then the counts' resolution
         w = w @ self._xform
         if self._tared:  # (x - 0.0 is x: nothing to subtract before a tare)
             w -= self._tare
-        w *= self._inv_res
+        w *= self._inv_res_n
         np.rint(w, out=w)
-        w *= self._res
+        w *= self._res_n
         self.last_wrench = w[-1].copy()
-        if n != self._offsets_ns.shape[0]:
-            self._counts = np.arange(n, dtype=np.int64)
-            self._offsets_ns = self.period_ns * self._counts
         seq = self.seq
         self.seq = seq + n
-        return FtSamples(time_ns=self._offsets_ns + t0_ns, seq=self._counts + seq, wrench=w,
+        j = seq - self._slab_seq0
+        if not (0 <= j <= self._slab_seq.shape[0] - n
+                and t0_ns == self._slab_t0 + j * self.period_ns):
+            self._slab(seq, t0_ns, n)
+            j = 0
+        return FtSamples(time_ns=self._slab_t[j:j + n], seq=self._slab_seq[j:j + n], wrench=w,
                          status=status)
+
+
+class FtSteps:
+    """A control cycle's physics steps and the F/T sensor's raw reading after each.
+
+    With the model's force and torque sensors keeping ``substeps`` samples of
+    history (MJCF ``nsample``, no delay), one ``mj_step`` call runs the cycle and
+    the readings are copied out of MuJoCo's history buffers (the same values as
+    ``sensordata`` after each step); otherwise one call per step, ``sensordata``
+    copied after each.
+
+    Args:
+        model, data: the world's.
+        force, torque: the sensor ids (3 values each; torque right after force).
+        substeps: physics steps per cycle.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, force: int, torque: int,
+                 substeps: int) -> None:
+        self._m, self._d, self._n = model, data, substeps
+        self._sensors = (force, torque)
+        adr = int(model.sensor_adr[force])
+        if int(model.sensor_adr[torque]) != adr + 3:
+            raise SimulationError("unexpected sensor layout")
+        self.raw = np.zeros((substeps, 6))
+        """The last cycle's readings, oldest first (parent on child: force, torque)."""
+        self._raw3 = self.raw.reshape(substeps, 2, 3)  # the same memory
+        self._rows = tuple(self.raw[i] for i in range(substeps))
+        self._now = data.sensordata[adr:adr + 6]
+        self._hist = self._history_view()
+
+    def _history_view(self) -> tuple[F64, int] | None:
+        """Both sensors' history buffers as one ``(substeps, 2, 3)`` view (sample,
+        force/torque, axis) and the address of the force sensor's cursor; ``None``
+        if the model keeps no such history.
+
+        MuJoCo's layout per sensor: ``[user, cursor, times[n], values[n * dim]]``, a
+        ring whose newest sample is at the cursor (so the oldest at cursor + 1).
+        """
+        m, n = self._m, self._n
+        force, torque = self._sensors
+        hist = self._d.history
+        if (m.sensor_history[force, 0] != n or m.sensor_history[torque, 0] != n
+                or m.sensor_delay[force] != 0.0 or m.sensor_delay[torque] != 0.0):
+            return None
+        fadr, tadr = int(m.sensor_historyadr[force]), int(m.sensor_historyadr[torque])
+        if tadr <= fadr or hist.shape[0] < tadr + 2 + 4 * n:
+            return None
+        item = hist.strides[0]
+        view = np.lib.stride_tricks.as_strided(
+            hist[fadr + 2 + n:], shape=(n, 2, 3), strides=(3 * item, (tadr - fadr) * item, item),
+            writeable=False)
+        return view, fadr + 1
+
+    @property
+    def uses_history(self) -> bool:
+        """Whether the readings come from MuJoCo's sensor history (one call per cycle)."""
+        return self._hist is not None
+
+    def restart(self) -> None:
+        """After the clock was set back: the buffers' times before now (MuJoCo keeps a
+        reading only when it is newer than the newest kept)."""
+        if self._hist is None:
+            return
+        m, d, n = self._m, self._d, self._n
+        times = d.time - m.opt.timestep * np.arange(n, 0, -1, dtype=np.float64)
+        for sid in self._sensors:
+            adr = int(m.sensor_adr[sid])
+            values = np.tile(d.sensordata[adr:adr + 3], (n, 1))
+            mujoco.mj_initSensorHistory(m, d, sid, times, values,
+                                        float(d.history[m.sensor_historyadr[sid]]))
+
+    def step(self) -> None:
+        """Run the cycle's physics steps; :attr:`raw` then holds their readings.
+
+        Raises:
+            SimulationError: the history does not hold this cycle's readings (the
+                clock was set back without :meth:`restart`).
+        """
+        m, d = self._m, self._d
+        hist = self._hist
+        if hist is None:
+            now = self._now
+            step = mujoco.mj_step
+            for row in self._rows:
+                step(m, d)
+                row[:] = now
+            return
+        t_start = d.time
+        mujoco.mj_step(m, d, self._n)
+        view, cursor = hist
+        history = d.history
+        oldest = int(history[cursor]) + 1
+        if oldest == self._n:
+            oldest = 0
+        else:  # the ring started elsewhere (a step outside this class)
+            view = np.roll(view, -oldest, axis=0)
+        if history[cursor + 1 + oldest] != t_start:  # the oldest sample's time
+            raise SimulationError("F/T sensor history: not this cycle's readings")
+        np.copyto(self._raw3, view)

@@ -317,8 +317,8 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
 {ft}
 </actuator>
 <sensor>
-<force name="{FT_SENSOR_FORCE}" site="ft_site"/>
-<torque name="{FT_SENSOR_TORQUE}" site="ft_site"/>
+<force name="{FT_SENSOR_FORCE}" site="ft_site" nsample="{scene.substeps}"/>
+<torque name="{FT_SENSOR_TORQUE}" site="ft_site" nsample="{scene.substeps}"/>
 </sensor>
 </mujoco>
 """

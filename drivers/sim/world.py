@@ -43,13 +43,13 @@ import mujoco
 import numpy as np
 
 from drivers.base.types import F64, FtSamples
-from drivers.errors import InvalidCommandError, SimulationError
+from drivers.errors import InvalidCommandError
 from drivers.sim import mjcf
 from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
 from drivers.sim.contact import ToolContact, configure_contact
 from drivers.sim.controller import clip_cart_stiffness, normalized_damping
 from drivers.sim.divergence import check_divergence, quiet_divergence
-from drivers.sim.ftsensor import FtSensorModel
+from drivers.sim.ftsensor import FtSensorModel, FtSteps
 from drivers.sim.scene import Scene
 from drivers.sim.state import LazyArmState
 from drivers.sim.truth import pose as _pose
@@ -187,17 +187,12 @@ class SimWorld:
         self._qfrc_bias = d.qfrc_bias
         self._gravcomp_arm = d.qfrc_gravcomp[:_N_ARM]
         self._applied_arm = d.qfrc_applied[:_N_ARM]
-        self._ft_raw = np.zeros((self.substeps, 6))
-        self._ft_rows = tuple(self._ft_raw[i] for i in range(self.substeps))
-        self._cforce = np.zeros(6)
         self._quat = np.zeros(4)
-        self._sensordata = d.sensordata
-        fadr = m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_FORCE)]
-        tadr = m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_TORQUE)]
-        if tadr != fadr + 3:
-            raise SimulationError("unexpected sensor layout")
-        self._ft_adr = int(fadr)
-        self._ft_now = d.sensordata[self._ft_adr:self._ft_adr + 6]
+        self._ft_steps = FtSteps(
+            m, d, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_FORCE),
+            mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_TORQUE),
+            self.substeps)
+        self._ft_raw = self._ft_steps.raw
 
         # Start state: arm at q_init, target yawed on its hinge.
         d.qpos[self._t_qadr[3]] = self.layout.target_yaw
@@ -231,6 +226,7 @@ class SimWorld:
             mujoco.mj_step(m, d)
         self._check_divergence()
         d.time = 0.0
+        self._ft_steps.restart()
         vx, vy, wz = scene.target.velocity
         self.set_target_velocity(vx, vy, wz)
         mujoco.mj_forward(m, d)
@@ -519,13 +515,9 @@ class SimWorld:
         if command is not None:
             self._take(command)
         self._apply()
-        m, d = self.model, self.data
+        d = self.data
         self._friction.apply_into(self._qvel_arm, self._frictionloss)
-        ft_now = self._ft_now
-        step = mujoco.mj_step
-        for row in self._ft_rows:
-            step(m, d)
-            row[:] = ft_now
+        self._ft_steps.step()  # the cycle's physics steps, their sensor readings
         # Contacts and constraint forces are consistent now (state of the last
         # step, 1 physics step before the cycle's end).
         self._contact, self._touching = self._tool_contact.wrench()

@@ -159,3 +159,30 @@ def test_contact_direction_is_continuous_over_landing_points() -> None:
     nc = _normals_around(faceted, 0.03, az)
     deviation_c = np.degrees(np.unwrap(np.arctan2(-nc[:, 2], -nc[:, 1])) - az)
     assert np.max(np.abs(deviation_c)) > 3.0 * crease / 2
+
+
+def test_far_apart_shortcut_equals_the_contact_list() -> None:
+    # ToolContact skips the contact list while the tool is beyond the bounding
+    # spheres of all it can touch: the same wrench and touching flag as without
+    from pathlib import Path
+
+    from drivers.sim import ArmCommand, SimWorld, load_scene
+
+    scene = load_scene(Path(__file__).resolve().parent.parent / "data" / "scenes" / "paper.toml",
+                       ["target.distance=0.1"])
+    fast, plain = SimWorld(scene, seed=2), SimWorld(scene, seed=2)
+    assert fast._tool_contact._apart is not None
+    plain._tool_contact._apart = None
+    pose = fast.last_state.tcp_pose_m.copy()
+    pose[:3, 3] += 0.15 * pose[:3, 2]
+    cmd = ArmCommand(cart_pose_m=pose, tcp_wrench_n_nm=np.array([0.0, 0.0, 2.0, 0, 0, 0]))
+    skipped = touching = 0
+    for i in range(400):
+        fast.advance(cmd if i == 0 else None)
+        plain.advance(cmd if i == 0 else None)
+        assert fast._touching == plain._touching
+        assert fast._contact.tobytes() == plain._contact.tobytes()
+        touching += fast._touching
+        tx = fast.data.xpos[fast._tool_body]
+        skipped += all(float(np.sum((tx - x) ** 2)) > r2 for x, r2 in fast._tool_contact._apart)
+    assert touching > 20 and skipped > 20

@@ -56,6 +56,36 @@ def configure_contact(scene: Scene, model: mujoco.MjModel, m_tcp: float, dt: flo
     return ContactInfo(m_eff=m_eff, solref_stiffness=k, solref_damping=b)
 
 
+def _apart_bounds(model: mujoco.MjModel, data: mujoco.MjData, tool_body: int,
+                  tool_geoms: set[int]) -> list[tuple[F64, float]] | None:
+    """For each body with a geom the tool's geoms can collide with (contype and
+    conaffinity): a view of its position and the squared distance from the tool
+    body's origin within which a contact may exist: the two bodies' bounding
+    spheres (geom offset + ``rbound``) plus twice the largest margin and gap, and
+    1 mm. Beyond it MuJoCo's collision makes no contact between them. ``None``
+    (no shortcut) for explicit contact pairs or an unbounded geom (a plane)."""
+    ct, ca = model.geom_contype, model.geom_conaffinity
+    tool = sorted(tool_geoms)
+    others = [g for g in range(model.ngeom) if g not in tool_geoms
+              and any((ct[t] & ca[g]) or (ct[g] & ca[t]) for t in tool)]
+    if model.npair or not tool or any(model.geom_rbound[g] <= 0.0 for g in tool + others):
+        return None
+
+    def radius(geoms: list[int]) -> float:
+        return max(float(np.linalg.norm(model.geom_pos[g])) + float(model.geom_rbound[g])
+                   for g in geoms)
+
+    slack = 2.0 * float(max(model.geom_margin[g] + model.geom_gap[g] for g in tool + others))
+    r_tool = radius(tool)
+    out = []
+    for body in sorted({int(model.geom_bodyid[g]) for g in others}):
+        if body == tool_body:
+            return None
+        reach = r_tool + radius([g for g in others if model.geom_bodyid[g] == body]) + slack + 1e-3
+        out.append((data.xpos[body], reach * reach))
+    return out
+
+
 class ToolContact:
     """The true wrench the target exerts on the tool (TCF at the TCP), from ``data``.
 
@@ -77,6 +107,8 @@ class ToolContact:
         self._tool_com = data.subtree_com[int(model.body_rootid[tool_body])]
         self._tcp_xpos = data.site_xpos[tcp]
         self._tcp_rot = data.site_xmat[tcp].reshape(3, 3)
+        self._tool_xpos = data.xpos[tool_body]
+        self._apart = _apart_bounds(model, data, tool_body, tool_geoms)
 
     def wrench(self) -> tuple[F64, bool]:
         """The wrench and whether touching, at the current state.
@@ -93,6 +125,14 @@ class ToolContact:
         ncon = d.ncon
         if ncon == 0:
             return np.zeros(6), False
+        if self._apart is not None:  # far from all it can touch: no contact (plain floats)
+            tx, ty, tz = self._tool_xpos.tolist()
+            for xpos, reach2 in self._apart:
+                x, y, z = xpos.tolist()
+                if (tx - x) ** 2 + (ty - y) ** 2 + (tz - z) ** 2 <= reach2:
+                    break
+            else:
+                return np.zeros(6), False
         geom = d.contact.geom
         if ncon <= 16:  # a few contacts (the target's pads): plain ints are cheaper
             tool = self._tool_geoms

@@ -101,8 +101,7 @@ class LazyArmState(ArmState):
 def _fill_joints(s: LazyArmState, w: SimWorld) -> None:
     d = s.__dict__
     q = w._qpos_arm.copy()
-    w._kinematics()
-    tcp = w._tcp_pose
+    tcp = w.tcp_pose
     cart = s.mode == ArmMode.CART_IMPEDANCE
     d["jnt_pos_rad"] = q
     d["tcp_pose_m"] = tcp
@@ -140,10 +139,9 @@ def _fill_dynamics(s: LazyArmState, w: SimWorld) -> None:
 
 def _fill_truth(s: LazyArmState, w: SimWorld) -> None:
     tcp_twist = s.jacobian @ w._qvel_arm
-    w._kinematics()
     s.__dict__["truth"] = ground_truth(
         pose(w._target_xpos, w._target_xmat),
-        w._qvel.take(w._t_twist_adr), w._tcp_pose, w._mouth_xpos, w._mouth_xmat,
+        w._qvel.take(w._t_twist_adr), w.tcp_pose, w._mouth_xpos, w._mouth_xmat,
         w.layout.funnel_seat_depth, w._contact, w._touching, tcp_twist,
     )
 

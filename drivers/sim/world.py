@@ -173,6 +173,8 @@ class SimWorld:
         self._actuator_arm = d.qfrc_actuator[:_N_ARM]
         self._tcp_xpos = d.site_xpos[self._tcp]
         self._tcp_xmat = d.site_xmat[self._tcp]
+        self._tcp_rot_t = self._tcp_xmat.reshape(3, 3).T  # R^T, a view
+        self._pose_ok = False  # _tcp_pose is the current state's
         self._mouth_xpos = d.site_xpos[self._mouth]
         self._mouth_xmat = d.site_xmat[self._mouth]
         self._target_xpos = d.xpos[self._target_body]
@@ -278,19 +280,21 @@ class SimWorld:
     @property
     def tcp_pose(self) -> F64:
         """4x4 TCP pose in the base frame at the current state (do not modify)."""
-        self._kinematics()
+        if not self._pose_ok:
+            self._tcp_pose = _pose(self._tcp_xpos, self._tcp_xmat)
+            self._pose_ok = True
         return self._tcp_pose
 
     # -------------------------------------------------------------- per cycle
     def _kinematics(self) -> None:
-        """TCP pose, Jacobian (TCF) and mass matrix of the current state, once per cycle."""
+        """Jacobian (TCF) and mass matrix of the current state, once per cycle (the TCP
+        pose: :attr:`tcp_pose`)."""
         if self._kin_ok:
             return
         m, d = self.model, self.data
-        self._tcp_pose = _pose(self._tcp_xpos, self._tcp_xmat)
         mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp)
         # both halves in one call: [R^T jacp; R^T jacr], the TCF rows
-        np.matmul(self._tcp_pose[:3, :3].T, self._jac2, out=self._jfull2)
+        np.matmul(self._tcp_rot_t, self._jac2, out=self._jfull2)
         self._mass()
         mujoco.mj_fullM(m, d, self._mfull)
         self._kin_ok = True
@@ -310,7 +314,7 @@ class SimWorld:
 
     def _update_kinematics(self) -> None:
         """Everything above at the current state, now."""
-        self._kin_ok = False
+        self._kin_ok = self._pose_ok = False
         self._update_inertia()
 
     def _apply(self) -> None:
@@ -535,7 +539,7 @@ class SimWorld:
                     rows, self.cycle * self.cycle_ns + first * self.step_ns))
         self._step_count += self.substeps
         self.cycle += 1
-        self._kin_ok = False
+        self._kin_ok = self._pose_ok = False
         # a joint moved more than INERTIA_REUSE_RAD (plain floats: 7 values)
         for qi, q0 in zip(self._qpos_arm.tolist(), self._inertia_ql, strict=True):
             if abs(qi - q0) > INERTIA_REUSE_RAD:

@@ -184,8 +184,9 @@ class FtSensorModel:
 
         The per-block work is a fixed handful of array operations (a block is
         one FRI cycle's samples); the clip runs only when some value exceeds
-        its range. The samples' ``time_ns``,
-        ``seq`` and (unsaturated) ``status`` are read-only arrays.
+        its range. The samples' ``time_ns``, ``seq`` and (unsaturated)
+        ``status`` are read-only arrays. (:attr:`bias` may be replaced, not
+        changed in place: its rows are tiled once per object.)
         """
         n = raw_parent_on_child.shape[0]
         if n == 0:

@@ -41,6 +41,7 @@ from collections.abc import Callable
 
 import mujoco
 import numpy as np
+from numpy.linalg import _umath_linalg
 
 from drivers.base.types import F64, FtSamples
 from drivers.errors import InvalidCommandError
@@ -62,6 +63,7 @@ INERTIA_REUSE_RAD = 1e-3
 _N_ARM = 7
 
 _isfinite = math.isfinite
+_inv = _umath_linalg.inv  # np.linalg.inv without its Python wrapper: the same values
 
 
 def _all_finite(a: F64) -> bool:
@@ -306,7 +308,9 @@ class SimWorld:
         # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M.
         self._mass()
         mujoco.mj_solveM(self.model, self.data, self._minv_jt, jfull)
-        self.cart_inertia = np.linalg.inv(jfull @ self._minv_jt.T)
+        a = jfull @ self._minv_jt.T
+        lam = _inv(a)  # np.linalg.inv's own LAPACK gufunc; NaN: singular, let it raise
+        self.cart_inertia = lam if lam[0, 0] == lam[0, 0] else np.linalg.inv(a)
         self._lam_diag = self.cart_inertia.diagonal().copy()
         self._inertia_new = True
         self._m_diag = self._mfull.diagonal()[:_N_ARM].copy()

@@ -189,6 +189,10 @@ class MotionFilterConfig(StrictModel):
     accel_walk: float = Field(50.0, gt=0, description="Jerk noise spectral density [m/s^3].")
 
 
+#: Cycles :class:`MotionFilter` looks for its covariance to repeat before it stops looking.
+_GAIN_WATCH_CYCLES = 2000
+
+
 class MotionFilter:
     """Velocity and acceleration of the tool from its pose (base frame).
 
@@ -198,6 +202,13 @@ class MotionFilter:
     states with ``F = I6 (x) F1``, ``H = I6 (x) [1 0 0]`` and filterpy's
     ``Q_discrete_white_noise`` per axis (``tests/test_speed_estimation.py``
     checks that), without its 18x18 products.
+
+    The covariance and the gain do not depend on the measurements, and in
+    floating point the covariance's recursion falls into a cycle (at 5 ms:
+    after about 100 cycles, of 57 cycles): once the covariance after an update
+    equals an earlier one bit for bit, every later covariance and gain is the
+    one computed that many cycles before, so they are taken from that cycle
+    instead of computed (exact: the same bits as computing them).
     """
 
     def __init__(self, config: MotionFilterConfig, cycle_s: float) -> None:
@@ -216,6 +227,13 @@ class MotionFilter:
         self._rotvec = np.zeros(3)
         self._rot_prev: FloatArray | None = None
         self._theta = np.zeros(3)
+        # the covariance and gain do not depend on the measurements: once the
+        # covariance repeats bit for bit, its later values (and the gains) repeat too
+        self._watch: dict[bytes, int] | None = {}  # covariance bytes: cycle seen
+        self._watch_cycles = _GAIN_WATCH_CYCLES
+        self._history: list[tuple[FloatArray, FloatArray]] = []  # (gain, covariance)
+        self._cycle: list[tuple[FloatArray, FloatArray]] = []  # once found: its repeats
+        self._at = 0  # the next cycle's place in it
 
     def update(self, pose: FloatArray) -> None:
         """One cycle with the measured 4x4 tool pose (base frame)."""
@@ -235,15 +253,47 @@ class MotionFilter:
         z[3:] = self._theta
         # predict
         x = self._x @ self._f1_t
-        p = self._f1 @ self._p @ self._f1_t
-        p += self._q1
+        cycle = self._cycle
+        if cycle:  # the covariance repeats: its gain and covariance as computed before
+            k, p = cycle[self._at]
+            self._at = (self._at + 1) % len(cycle)
+        else:
+            k, p = self._gain()
         # update with the value of each axis
-        s = p[:, 0, 0] + self._r
-        k = p[:, :, 0] / s[:, None]
         x += k * (z - x[:, 0])[:, None]
-        p -= k[:, :, None] * p[:, None, 0, :]
         self._x = x
         self._p = p
+
+    def _gain(self) -> tuple[FloatArray, FloatArray]:
+        """The gain of this cycle and the covariance after its update, computed; once
+        the covariance equals one of an earlier cycle bit for bit, the values from that
+        cycle on are kept to be repeated (:attr:`gain_period`)."""
+        p = self._f1 @ self._p @ self._f1_t
+        p += self._q1
+        s = p[:, 0, 0] + self._r
+        k = p[:, :, 0] / s[:, None]
+        p -= k[:, :, None] * p[:, None, 0, :]
+        watch = self._watch
+        if watch is not None:
+            k.flags.writeable = p.flags.writeable = False
+            key = p.tobytes()
+            first = watch.get(key)
+            history = self._history
+            if first is not None:  # P_n == P_first: from here on, P and K repeat
+                self._cycle = [*history[first + 1:], (k, p)]
+                self._at = 0
+                self._watch, self._history = None, []
+            elif len(history) >= self._watch_cycles:
+                self._watch, self._history = None, []  # none found: always compute
+            else:
+                watch[key] = len(history)
+                history.append((k, p))
+        return k, p
+
+    @property
+    def gain_period(self) -> int:
+        """Cycles after which the filter's gain repeats bit for bit (0: not, or not yet)."""
+        return len(self._cycle)
 
     @property
     def twist_base(self) -> FloatArray:

@@ -9,6 +9,7 @@ both the same data: states and covariances must agree to rounding.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter
 from scipy.spatial.transform import Rotation
@@ -170,3 +171,28 @@ def test_estimator_peaks_are_numpys() -> None:
         assert peaks(w.tolist()) == want, k
     w[0, 1] = np.nan
     assert all(np.isnan(peaks(w.tolist())[:1]))
+
+
+def test_motion_filter_repeated_gains_are_bit_identical_to_computing_them(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Once its covariance repeats, the filter takes gain and covariance from the cycle
+    they repeat in: over a run of varied poses, every state and covariance has the bits
+    of the filter that computes them every cycle."""
+    import ffexp.estimation as estimation
+
+    cfg = MotionFilterConfig()
+    cached = MotionFilter(cfg, CYCLE_S)
+    monkeypatch.setattr(estimation, "_GAIN_WATCH_CYCLES", 0)  # never looks: computes
+    full = MotionFilter(cfg, CYCLE_S)
+    rng = np.random.default_rng(7)
+    for k in range(1500):
+        t = k * CYCLE_S
+        pose = np.eye(4)
+        pose[:3, :3] = Rotation.from_rotvec([0.3 * t, 0.1 * np.sin(t), -0.2 * t * t]).as_matrix()
+        pose[:3, 3] = [0.05 * t, -0.02 * t + 1e-5 * rng.normal(), 0.1 * np.sin(3 * t)]
+        cached.update(pose)
+        full.update(pose)
+        assert np.array_equal(cached._x, full._x)
+        assert np.array_equal(cached._p, full._p)
+    assert full.gain_period == 0
+    assert 0 < cached.gain_period < 1500  # it found the cycle (57 at 5 ms) and used it

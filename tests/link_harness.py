@@ -43,12 +43,16 @@ def emulated_run(tmp: Path, overrides: list[str], *, faults: FaultSettings | Non
                  cycle_timeout_s: float = 1.0, lockstep_timeout_s: float = 0.02,
                  silent: bool = False, robot_ip: str = LOCAL,
                  max_cycles: int | None = None,
-                 quality: QualityThresholds | None = None) -> LinkRun:
+                 quality: QualityThresholds | None = None,
+                 faults_from_start: bool = False) -> LinkRun:
     """Run ``PROTOCOL`` with ``overrides`` over UDP against the emulator; load the recording.
 
     ``silent``: no emulator at all (a robot that never answers). ``robot_ip``:
     the address the driver expects (another one than the emulator's: a robot at
     a wrong address). ``quality``: the emulated KRC's rating (default: its own).
+    ``faults_from_start``: inject from the first packet, not from the first
+    ``friStart`` (which needs 100 answered cycles in a row: in real time, a loaded
+    machine may never get there).
     """
     protocol = load_run_protocol(PROTOCOL, overrides)
     scene = load_scene(ROOT / "data" / "scenes" / "paper.toml")
@@ -67,6 +71,7 @@ def emulated_run(tmp: Path, overrides: list[str], *, faults: FaultSettings | Non
                                  pacing="lockstep" if pacing == "lockstep" else "realtime",
                                  lockstep_timeout_s=lockstep_timeout_s,
                                  faults=faults or FaultSettings(),
+                                 faults_from_start=faults_from_start,
                                  quality=quality or QualityThresholds()))
             emu.start_thread(max_cycles=max_cycles)
         with Recorder(path) as rec:

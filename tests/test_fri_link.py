@@ -225,17 +225,21 @@ def test_lockstep_10_s_over_udp_is_lossless_and_enters_cmd_once(paper_scene: Sce
 
 def test_five_percent_loss_shows_in_the_statistics_and_quality_is_bad(paper_scene: Scene) -> None:
     faults = FaultSettings(loss=0.05, seed=3)
-    with link(paper_scene, faults=faults, timeout_s=0.01, cycle_timeout_s=0.5) as (robot, emu):
+    # every lost datagram costs the lockstep wait (20 ms, not 10: fewer misses of a
+    # loaded machine's own; five in a row would end CMD); the counts below allow them
+    with link(paper_scene, faults=faults, timeout_s=0.02, cycle_timeout_s=0.5) as (robot, emu):
         got = run_constant(robot, emu, 900, tolerant=True)
         st = emu.stats
         assert st.dropped_out > 0 and st.dropped_in > 0
         assert 0.04 < st.missed / st.cycles < 0.16
-        assert st.bridged == st.missed  # every miss in CMD held the last command
         assert st.fallbacks == 0
         rs = robot.stats
         assert rs.lost == st.dropped_out  # every lost measurement is a sequence gap
         assert not rs.link_lost
     cmd_ms = cmd_phase(got)
+    # every miss in CMD held the last command (those in MON, before the faults began,
+    # are the machine's: the first CMD packet counts them)
+    assert st.bridged == st.missed - cmd_ms[0].miss_counter
     late = cmd_ms[150:]  # a full window of lossy packets
     assert all(m.state == FriState.CMD for m in cmd_ms)
     assert max(m.miss_rate for m in late) > 0.04
@@ -243,7 +247,9 @@ def test_five_percent_loss_shows_in_the_statistics_and_quality_is_bad(paper_scen
     qualities = {m.quality for m in late}
     assert FriQuality.BAD in qualities and FriQuality.UNACCEPTABLE not in qualities
     assert FriQuality.PERFECT not in qualities
-    assert late[-1].miss_counter == st.missed
+    # the KRC reports its own count: the misses before the last packet was sent, and
+    # that packet's answer itself may have come after the emulator's last wait
+    assert st.missed - late[-1].miss_counter in (0, 1)
 
 
 def test_thirty_percent_loss_drops_to_monitor_and_the_driver_reports_link_lost(

@@ -176,6 +176,11 @@ class WrenchFilter:
         return np.array([math.sqrt(v) for v in self._p_ff])
 
     @property
+    def wrench_list(self) -> list[float]:
+        """:attr:`wrench` as floats (the filter's own list: do not modify)."""
+        return self._x_f
+
+    @property
     def bias_list(self) -> list[float]:
         """:attr:`bias` as floats (the filter's own list: do not modify)."""
         return self._x_b
@@ -304,6 +309,11 @@ class MotionFilter:
     def accel_base(self) -> FloatArray:
         """Linear and angular acceleration in the base frame."""
         return self._x[:, 2].copy()
+
+    @property
+    def accel_linear_view(self) -> FloatArray:
+        """The linear part of :attr:`accel_base`, a view of the state (do not modify)."""
+        return self._x[:3, 2]
 
     def twist_tcf(self, pose: FloatArray) -> FloatArray:
         """The twist expressed in the tool frame of ``pose``."""
@@ -441,6 +451,9 @@ class ContactDetector:
         """The scalar the thresholds apply to."""
         if self.config.signal == "fz":
             return float(-wrench[2])
+        if type(wrench) is np.ndarray and wrench.dtype == np.float64:
+            f = wrench[:3]  # np.linalg.norm's own sum of squares and root, without its checks
+            return math.sqrt(f.dot(f))
         return float(np.linalg.norm(wrench[:3]))
 
     def update(self, time_ns: int, wrench: FloatArray) -> ContactEvent | None:

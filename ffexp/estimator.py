@@ -147,7 +147,7 @@ class Estimator:
         raw: list[list[float]] = ft.wrench.tolist() if n else []
         comp = raw
         if self._compensate and n:
-            accel = mf.accel_base[:3] if cfg.inertial_compensation else None
+            accel = mf.accel_linear_view if cfg.inertial_compensation else None
             l0, l1, l2, l3, l4, l5 = self._tool_load(pose[:3, :3], accel).tolist()
             comp = [[w0 - l0, w1 - l1, w2 - l2, w3 - l3, w4 - l4, w5 - l5]
                     for w0, w1, w2, w3, w4, w5 in raw]
@@ -181,7 +181,7 @@ class Estimator:
         if wf.tared and not out.tared_now:
             out.event = self.detector.update(t_ns, out.wrench)
         out.in_contact = self.detector.in_contact
-        out.f_z = -float(out.wrench[2])
+        out.f_z = -wf.wrench_list[2]
         out.wrench_std = wf.wrench_std
         out.bias = wf.bias
         out.tared = wf.tared

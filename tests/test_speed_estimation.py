@@ -196,3 +196,13 @@ def test_motion_filter_repeated_gains_are_bit_identical_to_computing_them(
         assert np.array_equal(cached._p, full._p)
     assert full.gain_period == 0
     assert 0 < cached.gain_period < 1500  # it found the cycle (57 at 5 ms) and used it
+
+
+def test_contact_detector_signal_is_numpys_norm() -> None:
+    """The force-norm signal has the bits of ``np.linalg.norm`` of the force."""
+    from ffexp.estimation import ContactDetector, ContactDetectorConfig
+
+    det = ContactDetector(ContactDetectorConfig())
+    rng = np.random.default_rng(3)
+    for w in rng.normal(size=(2000, 6)) * rng.choice([1e-4, 1.0, 1e3], size=(2000, 1)):
+        assert det.signal(w) == float(np.linalg.norm(w[:3]))

@@ -85,12 +85,26 @@ _WARNINGS: Final = (
 )
 #: Temperature the emulated drives report [deg C].
 DRIVE_TEMPERATURE_C: Final = 30.0
-_TEMPERATURE: Final = np.full(7, DRIVE_TEMPERATURE_C)
-# the fields the emulated KRC leaves at their defaults (copied: cheaper than the factories)
-_ZEROS7: Final = np.zeros(7)
-_EYE4: Final = np.eye(4)
-_ZEROS16: Final = np.zeros(16)
-_ZEROS16_I32: Final = np.zeros(16, dtype=np.int32)
+
+
+def _constant(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
+
+
+#: A measurement's fields that never change (the arrays read-only, shared by every
+#: measurement), in field order; :func:`fri_measurement` starts from a copy of it.
+_CONSTANT_FIELDS: Final = {
+    name: value.copy() if isinstance(value, list) else value
+    for name, value in vars(FriMeasurement(
+        temperature=_constant(np.full(7, DRIVE_TEMPERATURE_C)),
+        cmd_jnt_pos_fri_offset=_constant(np.zeros(7)),
+        cmd_cart_pos_fri_offset=_constant(np.eye(4)),
+        krl_real=_constant(np.zeros(16)),
+        krl_int=_constant(np.zeros(16, dtype=np.int32)),
+    )).items()
+}
+_new: Final = object.__new__
 
 #: Hardware (mechanical) joint ranges of the LWR4+ A1..A7 [deg]: +-170/120
 #: (CentroEPiaggio kuka-lwr URDF; the KRC's rsidef7.dat as quoted by TUM's
@@ -116,14 +130,22 @@ def control_mode(mode: ArmMode) -> ControlMode:
     return _TO_FRI[mode]
 
 
-def fri_warning(warning: ArmWarning) -> int:
-    """The FRI warning bits of the arm's warnings."""
-    w = int(warning)
+def _fri_warning(w: int) -> int:
     out = 0
     for arm_bit, fri_bit in _WARNINGS:
         if w & arm_bit:
             out |= fri_bit
     return out
+
+
+# the FRI bits of every combination of the arm's warning bits (a lookup per cycle)
+_FRI_WARNINGS: Final = tuple(_fri_warning(w) for w in range(1 << len(_WARNINGS)))
+
+
+def fri_warning(warning: ArmWarning) -> int:
+    """The FRI warning bits of the arm's warnings."""
+    w = int(warning)
+    return _FRI_WARNINGS[w] if w < len(_FRI_WARNINGS) else _fri_warning(w)
 
 
 # the flags as plain ints: ``int & IntFlag`` goes through the enum machinery (slow)
@@ -211,34 +233,37 @@ def fri_measurement(
     ``error``: the KRC's latched error bits (:class:`~drivers.fri.link.KrcLink`).
 
     Link statistics (answer rate, latency, ...) are left at their defaults;
-    the UDP emulator fills them from its window.
+    the UDP emulator fills them from its window. The fields the emulated KRC
+    never changes (temperatures, FRI offsets, the KRL variables) are read-only
+    arrays shared by every measurement.
     """
-    return FriMeasurement(
+    # built without the dataclass's __init__ (its 30 arguments): the constant
+    # fields, then those of this cycle (the same field order and values)
+    m: FriMeasurement = _new(FriMeasurement)
+    m.__dict__.update(
+        _CONSTANT_FIELDS,
         seq=s.cycle,
         time_ns=s.time_ns,
         state=state,
         quality=quality,
-        control=control_mode(s.mode),
+        control=_TO_FRI[s.mode],
         msr_sample_time=cycle_s,
         cmd_sample_time=cycle_s,
-        warning=fri_warning(s.warning),
         error=error,
-        temperature=_TEMPERATURE.copy(),
+        warning=fri_warning(s.warning),
         msr_jnt_pos=s.jnt_pos_rad,
         msr_cart_pos=s.tcp_pose_m,
         cmd_jnt_pos=s.cmd_jnt_pos_rad,
-        cmd_jnt_pos_fri_offset=_ZEROS7.copy(),
         cmd_cart_pos=s.cmd_cart_pose_m,
-        cmd_cart_pos_fri_offset=_EYE4.copy(),
         msr_jnt_trq=s.jnt_trq_nm,
         est_ext_jnt_trq=s.ext_jnt_trq_nm,
         est_ext_tcp_ft=s.ext_wrench_n_nm,
         jacobian=s.jacobian,
         mass_matrix=s.mass_matrix,
         gravity=s.gravity_nm,
-        krl_real=_ZEROS16.copy(),
-        krl_int=_ZEROS16_I32.copy(),
+        link_events=[],
     )
+    return m
 
 
 #: Largest command values the emulated KRC takes (beyond them it leaves command mode).

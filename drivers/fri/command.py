@@ -61,6 +61,7 @@ CARTESIAN_FLAGS: Final = CmdFlags.CARTPOS | CmdFlags.TCPFT | CmdFlags.CARTSTIFF 
 #: Flags of a mirror (:meth:`FriCommand.hold`).
 MIRROR_FLAGS: Final = CmdFlags.JNTPOS | CmdFlags.CARTPOS
 _TCPFT: Final = int(CmdFlags.TCPFT)  # ``int & IntFlag`` goes through the enum machinery
+_new: Final = object.__new__
 
 
 def commanding(msr: FriMeasurement) -> bool:
@@ -73,7 +74,7 @@ def mirror_into(msr: FriMeasurement, out: FriCommand) -> None:
     out.flags = MIRROR_FLAGS
     out.control = msr.control
     np.add(msr.cmd_jnt_pos, msr.cmd_jnt_pos_fri_offset, out=out.jnt_pos)
-    out.cart_pos[:] = msr.cmd_cart_pos
+    out.cart_pos[...] = msr.cmd_cart_pos
 
 
 def to_fri_command(
@@ -86,20 +87,20 @@ def to_fri_command(
     """
     if cmd is None:
         mirror_into(msr, out)
-        out.add_tcp_ft[:] = 0.0
+        out.add_tcp_ft[...] = 0.0
         return ApplyStatus.HELD
     if not commanding(msr):
         mirror_into(msr, out)
-        out.add_tcp_ft[:] = cmd.wrench_n_nm
-        out.cart_stiffness[:] = cmd.stiffness_npm_nmprad
-        out.cart_damping[:] = cmd.damping_ratio
+        out.add_tcp_ft[...] = cmd.wrench_n_nm
+        out.cart_stiffness[...] = cmd.stiffness_npm_nmprad
+        out.cart_damping[...] = cmd.damping_ratio
         return ApplyStatus.MIRRORED
     out.flags = CARTESIAN_FLAGS
     out.control = ControlMode.CART_IMPEDANCE
-    out.cart_pos[:] = cmd.pose_m
-    out.add_tcp_ft[:] = cmd.wrench_n_nm
-    out.cart_stiffness[:] = cmd.stiffness_npm_nmprad
-    out.cart_damping[:] = cmd.damping_ratio
+    out.cart_pos[...] = cmd.pose_m
+    out.add_tcp_ft[...] = cmd.wrench_n_nm
+    out.cart_stiffness[...] = cmd.stiffness_npm_nmprad
+    out.cart_damping[...] = cmd.damping_ratio
     return ApplyStatus.APPLIED
 
 
@@ -112,13 +113,13 @@ def applied_from_fri(out: FriCommand, status: ApplyStatus, dst: AppliedCommand) 
     ``dst.extras`` is ``out`` itself (not copied).
     """
     c = dst.command
-    c.pose_m[:] = out.cart_pos
-    c.stiffness_npm_nmprad[:] = out.cart_stiffness
-    c.damping_ratio[:] = out.cart_damping
+    c.pose_m[...] = out.cart_pos
+    c.stiffness_npm_nmprad[...] = out.cart_stiffness
+    c.damping_ratio[...] = out.cart_damping
     if int(out.flags) & _TCPFT:
-        c.wrench_n_nm[:] = out.add_tcp_ft
+        c.wrench_n_nm[...] = out.add_tcp_ft
     else:
-        c.wrench_n_nm[:] = 0.0
+        c.wrench_n_nm.fill(0.0)
     dst.status = status
     dst.extras = out
     return dst
@@ -128,16 +129,16 @@ def copy_fri_command(src: FriCommand, dst: FriCommand) -> None:
     """Copy every field of ``src`` into ``dst`` (no allocation)."""
     dst.flags = src.flags
     dst.control = src.control
-    dst.jnt_pos[:] = src.jnt_pos
-    dst.cart_pos[:] = src.cart_pos
-    dst.add_jnt_trq[:] = src.add_jnt_trq
-    dst.add_tcp_ft[:] = src.add_tcp_ft
-    dst.jnt_stiffness[:] = src.jnt_stiffness
-    dst.jnt_damping[:] = src.jnt_damping
-    dst.cart_stiffness[:] = src.cart_stiffness
-    dst.cart_damping[:] = src.cart_damping
-    dst.krl_real[:] = src.krl_real
-    dst.krl_int[:] = src.krl_int
+    dst.jnt_pos[...] = src.jnt_pos
+    dst.cart_pos[...] = src.cart_pos
+    dst.add_jnt_trq[...] = src.add_jnt_trq
+    dst.add_tcp_ft[...] = src.add_tcp_ft
+    dst.jnt_stiffness[...] = src.jnt_stiffness
+    dst.jnt_damping[...] = src.jnt_damping
+    dst.cart_stiffness[...] = src.cart_stiffness
+    dst.cart_damping[...] = src.cart_damping
+    dst.krl_real[...] = src.krl_real
+    dst.krl_int[...] = src.krl_int
     dst.krl_bool = src.krl_bool
 
 
@@ -149,11 +150,18 @@ def robot_state_from_fri(m: FriMeasurement, dst: RobotState | None = None) -> Ro
     command sample time (its measurement sample time when that is not set).
     """
     if dst is None:
-        dst = RobotState(link=LinkHealth())
-    dst.time_ns = m.time_ns
-    dst.tcp_pose_m = m.msr_cart_pos
-    dst.joint_pos_rad = m.msr_jnt_pos
-    link = dst.link
+        # a new state without the dataclass's __init__ (its default pose and joints
+        # would be built only to be replaced): every field set here, in field order
+        dst = _new(RobotState)
+        dst.time_ns = m.time_ns
+        dst.tcp_pose_m = m.msr_cart_pos
+        dst.joint_pos_rad = m.msr_jnt_pos
+        dst.link = link = _new(LinkHealth)
+    else:
+        dst.time_ns = m.time_ns
+        dst.tcp_pose_m = m.msr_cart_pos
+        dst.joint_pos_rad = m.msr_jnt_pos
+        link = dst.link
     link.commanding = m.state == FriState.CMD
     link.healthy = m.quality > FriQuality.UNACCEPTABLE
     link.cycle = m.seq

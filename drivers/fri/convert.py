@@ -82,8 +82,8 @@ def cycle_ns_from_seconds(seconds: float) -> int:
 
 def measurement_to_arrays(m: FriMeasurement, out: MsrArrays) -> None:
     """Fill ``out`` from ``m`` (the emulator side); head counters are left alone."""
-    out.krl_real[:] = m.krl_real
-    out.krl_int[:] = m.krl_int
+    out.krl_real[...] = m.krl_real
+    out.krl_int[...] = m.krl_int
     out.krl_bool = int(m.krl_bool)
     out.timestamp = m.time_ns * 1e-9
     out.state = m.state
@@ -100,19 +100,19 @@ def measurement_to_arrays(m: FriMeasurement, out: MsrArrays) -> None:
     out.control = m.control
     out.error = int(m.error)
     out.warning = int(m.warning)
-    out.temperature[:] = m.temperature
-    out.msr_jnt_pos[:] = m.msr_jnt_pos
-    out.msr_cart_pos[:] = m.msr_cart_pos
-    out.cmd_jnt_pos[:] = m.cmd_jnt_pos
-    out.cmd_jnt_pos_fri_offset[:] = m.cmd_jnt_pos_fri_offset
-    out.cmd_cart_pos[:] = m.cmd_cart_pos
-    out.cmd_cart_pos_fri_offset[:] = m.cmd_cart_pos_fri_offset
-    out.msr_jnt_trq[:] = m.msr_jnt_trq
-    out.est_ext_jnt_trq[:] = m.est_ext_jnt_trq
-    out.est_ext_tcp_ft[:] = m.est_ext_tcp_ft
-    out.jacobian[:] = m.jacobian
-    out.mass_matrix[:] = m.mass_matrix
-    out.gravity[:] = m.gravity
+    out.temperature[...] = m.temperature
+    out.msr_jnt_pos[...] = m.msr_jnt_pos
+    out.msr_cart_pos[...] = m.msr_cart_pos
+    out.cmd_jnt_pos[...] = m.cmd_jnt_pos
+    out.cmd_jnt_pos_fri_offset[...] = m.cmd_jnt_pos_fri_offset
+    out.cmd_cart_pos[...] = m.cmd_cart_pos
+    out.cmd_cart_pos_fri_offset[...] = m.cmd_cart_pos_fri_offset
+    out.msr_jnt_trq[...] = m.msr_jnt_trq
+    out.est_ext_jnt_trq[...] = m.est_ext_jnt_trq
+    out.est_ext_tcp_ft[...] = m.est_ext_tcp_ft
+    out.jacobian[...] = m.jacobian
+    out.mass_matrix[...] = m.mass_matrix
+    out.gravity[...] = m.gravity
 
 
 def arrays_to_measurement(a: MsrArrays, seq: int, time_ns: int) -> FriMeasurement:
@@ -143,21 +143,21 @@ def fill_measurement(a: MsrArrays, seq: int, time_ns: int, m: FriMeasurement) ->
     m.power = a.power
     m.error = a.error
     m.warning = a.warning
-    m.temperature[:] = a.temperature
-    m.msr_jnt_pos[:] = a.msr_jnt_pos
-    m.msr_cart_pos[:] = a.msr_cart_pos
-    m.cmd_jnt_pos[:] = a.cmd_jnt_pos
-    m.cmd_jnt_pos_fri_offset[:] = a.cmd_jnt_pos_fri_offset
-    m.cmd_cart_pos[:] = a.cmd_cart_pos
-    m.cmd_cart_pos_fri_offset[:] = a.cmd_cart_pos_fri_offset
-    m.msr_jnt_trq[:] = a.msr_jnt_trq
-    m.est_ext_jnt_trq[:] = a.est_ext_jnt_trq
-    m.est_ext_tcp_ft[:] = a.est_ext_tcp_ft
-    m.jacobian[:] = a.jacobian
-    m.mass_matrix[:] = a.mass_matrix
-    m.gravity[:] = a.gravity
-    m.krl_real[:] = a.krl_real
-    m.krl_int[:] = a.krl_int
+    m.temperature[...] = a.temperature
+    m.msr_jnt_pos[...] = a.msr_jnt_pos
+    m.msr_cart_pos[...] = a.msr_cart_pos
+    m.cmd_jnt_pos[...] = a.cmd_jnt_pos
+    m.cmd_jnt_pos_fri_offset[...] = a.cmd_jnt_pos_fri_offset
+    m.cmd_cart_pos[...] = a.cmd_cart_pos
+    m.cmd_cart_pos_fri_offset[...] = a.cmd_cart_pos_fri_offset
+    m.msr_jnt_trq[...] = a.msr_jnt_trq
+    m.est_ext_jnt_trq[...] = a.est_ext_jnt_trq
+    m.est_ext_tcp_ft[...] = a.est_ext_tcp_ft
+    m.jacobian[...] = a.jacobian
+    m.mass_matrix[...] = a.mass_matrix
+    m.gravity[...] = a.gravity
+    m.krl_real[...] = a.krl_real
+    m.krl_int[...] = a.krl_int
     m.krl_bool = a.krl_bool
 
 
@@ -187,16 +187,16 @@ def _fields(cls: type) -> tuple[str, ...]:
 def command_to_arrays(c: FriCommand, out: CmdArrays) -> None:
     """Fill ``out`` from ``c`` (the remote side); the strategy goes to ``krl.intData[0]``."""
     out.cmd_flags = int(c.flags)
-    out.jnt_pos[:] = c.jnt_pos
-    out.cart_pos[:] = c.cart_pos
-    out.add_jnt_trq[:] = c.add_jnt_trq
-    out.add_tcp_ft[:] = c.add_tcp_ft
-    out.jnt_stiffness[:] = c.jnt_stiffness
-    out.jnt_damping[:] = c.jnt_damping
-    out.cart_stiffness[:] = c.cart_stiffness
-    out.cart_damping[:] = c.cart_damping
-    out.krl_real[:] = c.krl_real
-    out.krl_int[:] = c.krl_int
+    out.jnt_pos[...] = c.jnt_pos
+    out.cart_pos[...] = c.cart_pos
+    out.add_jnt_trq[...] = c.add_jnt_trq
+    out.add_tcp_ft[...] = c.add_tcp_ft
+    out.jnt_stiffness[...] = c.jnt_stiffness
+    out.jnt_damping[...] = c.jnt_damping
+    out.cart_stiffness[...] = c.cart_stiffness
+    out.cart_damping[...] = c.cart_damping
+    out.krl_real[...] = c.krl_real
+    out.krl_int[...] = c.krl_int
     out.krl_int[STRATEGY_INDEX] = strategy_code(c.control)
     out.krl_bool = int(c.krl_bool) & 0xFFFF
 

@@ -15,8 +15,10 @@ when the robot commands again, the method's wrench is blended in from the held o
 
 from __future__ import annotations
 
+import gc
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -242,6 +244,23 @@ def _no_measurement(log: RunLog, message: str) -> RunOutcome:
                       log.events)
 
 
+@contextmanager
+def frozen_heap() -> Iterator[None]:
+    """While the block runs, the garbage collector leaves alone the objects that exist
+    when it starts (``gc.freeze``; unfrozen after it): a full collection in a run then
+    walks only what the run made, not the ~100k objects of the model, the scene and the
+    modules (one such collection cost 50 to 90 ms in a 30 s run). Nothing is frozen
+    when something else has frozen objects (a caller's own ``gc.freeze``)."""
+    if gc.get_freeze_count():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
 def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, log: RunLog, *,
         tracker: TargetTracker | None = None,
         progress: Callable[[Progress], None] | None = None,
@@ -252,7 +271,16 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
     ``tracker`` (optional) is read once per cycle without blocking. A robot that
     never sends a state (the driver's connect timeout, or its end of measurements)
     is an ABORT with :attr:`StopReason.NO_MEASUREMENT` and the driver's message.
+    The heap that exists at the start is frozen for the run (:func:`frozen_heap`).
     """
+    with frozen_heap():
+        return _run(protocol, robot, sensor, log, tracker=tracker, progress=progress,
+                    stop_requested=stop_requested, timings=timings)
+
+
+def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, log: RunLog, *,
+         tracker: TargetTracker | None, progress: Callable[[Progress], None] | None,
+         stop_requested: Callable[[], bool], timings: dict[str, float] | None) -> RunOutcome:
     tm = timings if timings is not None else {}
     for key in _PARTS:
         tm.setdefault(key, 0.0)

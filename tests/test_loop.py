@@ -316,3 +316,33 @@ def test_the_recording_is_in_log_time_order_within_chunks(tmp_path: Path, ahead_
     got = load(path).topic("/ft/raw")
     assert len(got) == 5 * 200  # every sample written once
     assert np.all(np.diff(got.log_time_ns) > 0)
+
+
+def test_the_heap_is_frozen_during_a_run_and_after_it_as_before() -> None:
+    """The run freezes the objects that exist at its start (the collector skips them)
+    and unfreezes them after it, even when the driver fails; a caller's own freeze is
+    left alone."""
+    import gc
+
+    states, fts = cycles(40)
+    seen: list[int] = []
+    rig = Rig(states, fts, fail_at=30)
+
+    def send(cmd: CartesianCommand | None) -> AppliedCommand:
+        seen.append(gc.get_freeze_count())
+        return AppliedCommand(command=CartesianCommand())
+
+    rig.robot.send.side_effect = send
+    assert gc.get_freeze_count() == 0
+    out, _log = rig.run()
+    assert out.stop_reason is StopReason.LINK_LOST
+    assert len(seen) == 30 and min(seen) > 1000  # the test's own modules and objects
+    assert gc.get_freeze_count() == 0
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        with loop.frozen_heap():
+            assert gc.get_freeze_count() == frozen
+        assert gc.get_freeze_count() == frozen
+    finally:
+        gc.unfreeze()

@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drivers.base.types import LinkHealth, RobotState
+from drivers.base.types import CartesianCommand, LinkHealth, RobotState
 from drivers.emulate.krc import DRIVE_TEMPERATURE_C, fri_measurement, fri_warning
 from drivers.emulate.lockstep import open_sim
+from drivers.errors import NotConnectedError
 from drivers.fri.command import robot_state_from_fri
 from drivers.fri.types import (
     WARN_POSITION_LIMIT,
@@ -136,3 +137,35 @@ def test_lockstep_measurement_is_the_world_state() -> None:
     ref.miss_counter = link.missed
     assert st.extras is m
     _assert_same(m, ref)
+
+
+def test_lockstep_send_before_connect_names_the_device() -> None:
+    robot, _ = open_sim(SCENE, seed=3, start_cycles=0)
+    with pytest.raises(NotConnectedError, match=r"^sim robot: send\(\) before connect/start$"):
+        robot.send(None)
+
+
+def test_lockstep_world_takes_each_cycles_command() -> None:
+    """The KRC's arm command is kept while flags, strategy and mode do not change; the
+    world still takes the values of every cycle's command."""
+    robot, _ = open_sim(SCENE, seed=3, start_cycles=0)
+    robot.connect()
+    it = robot.measurements()
+    st = next(it)
+    pose = st.tcp_pose_m.copy()
+    cmd = CartesianCommand(pose_m=pose.copy(), stiffness_npm_nmprad=np.full(6, 500.0),
+                           damping_ratio=np.full(6, 0.7), wrench_n_nm=np.zeros(6))
+    prev_pose = pose
+    for i in range(6):
+        cmd.pose_m[:3, 3] = pose[:3, 3] + [0.0, 0.0, -0.001 * i]
+        if i == 3:
+            robot.send(None)  # a mirror in between: other flags
+        else:
+            robot.send(cmd)
+        st = next(it)
+        s = robot.world.last_state
+        if i == 3:
+            assert np.array_equal(s.cmd_cart_pose_m, prev_pose)
+        else:
+            assert np.array_equal(s.cmd_cart_pose_m, cmd.pose_m)
+        prev_pose = s.cmd_cart_pose_m.copy()

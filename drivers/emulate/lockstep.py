@@ -48,7 +48,7 @@ from drivers.emulate.krc import (
     software_limits_rad,
     stop_command,
 )
-from drivers.errors import DriverError
+from drivers.errors import DriverError, NotConnectedError
 from drivers.fri.codec import (
     CmdArrays,
     MsrArrays,
@@ -68,8 +68,8 @@ from drivers.fri.convert import (
 )
 from drivers.fri.link import KrcLink, LinkEvent
 from drivers.fri.stats import LinkWatch
-from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement
-from drivers.sim.arm import ArmCommand, ArmState
+from drivers.fri.types import CmdFlags, ControlMode, FriCommand, FriMeasurement
+from drivers.sim.arm import ArmCommand, ArmMode, ArmState
 from drivers.sim.controller import clip_cart_stiffness
 from drivers.sim.driver import SimFtSensor
 from drivers.sim.scene import Scene, load_scene
@@ -110,6 +110,11 @@ class SimRobot(RobotDriver):
         self._wire = (MsrArrays(), MsrArrays(), new_msr_buffer(),
                       CmdArrays(), CmdArrays(), new_cmd_buffer())
         self.software_limits_rad = software_limits_rad(software_limits_deg)
+        # no joint is within the smallest limit: none can be at its own (a cheap test)
+        self._limit_min_rad = min(self.software_limits_rad.tolist())
+        # arm commands of the lockstep FRI command (its arrays shared), per
+        # (flags, control, arm mode): the same object while they do not change
+        self._arm_commands: dict[tuple[int, ControlMode, ArmMode], ArmCommand] = {}
         self._brake = False
         self._stopped: str | None = None
         self.max_cycles = max_cycles
@@ -122,8 +127,8 @@ class SimRobot(RobotDriver):
         self._fri = FriCommand()
         self._applied = AppliedCommand()
         self._state: ArmState = world.last_state
-        self._gains: tuple[bytes, np.ndarray | None, np.ndarray | None] | None = None
-        self._msr = self._measurement()
+        self._gains: tuple[bytes, bytes, np.ndarray | None, np.ndarray | None] | None = None
+        self._msr = self._measurement(world.last_state)
 
     def _new_link(self) -> KrcLink:
         return KrcLink(
@@ -133,9 +138,10 @@ class SimRobot(RobotDriver):
             timing=False,
         )
 
-    def _measurement(self) -> FriMeasurement:
+    def _measurement(self, state: ArmState) -> FriMeasurement:
+        """The measurement of ``state``, the world's last state (held: its truth is read next)."""
         link = self.link
-        self._state = state = self.world.last_state  # held: its truth is read next
+        self._state = state
         m = fri_measurement(state, self.world.cycle_s, link.state, link.quality, link.error)
         m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = link.rates()
         m.miss_counter = link.missed
@@ -180,7 +186,7 @@ class SimRobot(RobotDriver):
         self._answered = False
         self._brake = False
         self._stopped = None
-        self._msr = self._measurement()
+        self._msr = self._measurement(self.world.last_state)
         self._open = True
 
     def close(self) -> None:
@@ -225,19 +231,32 @@ class SimRobot(RobotDriver):
         elif event is LinkEvent.FALLBACK:
             arm = stop_command(world.last_state)
         elif self._answered and link.commanding:
-            arm = arm_command_from_fri(self._taken(), world.mode)
+            arm = self._arm_command(self._taken())
         self._answered = False
         world.advance(arm)
+        state = world.last_state
         if not link.error:
-            q = world.data.qpos[:7]
-            error = software_limit_error(q, self.software_limits_rad)
-            if error:
-                link.fault(error)
-                self._brake = True
-                self._stopped = _stop_message(error, q, self.software_limits_rad)
-        self._msr = self._measurement()
+            q = state.jnt_pos_rad
+            ql = q.tolist()
+            lo = self._limit_min_rad
+            if max(ql) >= lo or min(ql) <= -lo:
+                error = software_limit_error(q, self.software_limits_rad)
+                if error:
+                    link.fault(error)
+                    self._brake = True
+                    self._stopped = _stop_message(error, q, self.software_limits_rad)
+        self._msr = self._measurement(state)
 
-    @requires_open(_WHAT)
+    def _arm_command(self, fri: FriCommand) -> ArmCommand:
+        """:func:`~drivers.emulate.krc.arm_command_from_fri` of the command the KRC takes."""
+        if self.wire_precision:  # a new FriCommand each cycle
+            return arm_command_from_fri(fri, self.world.mode)
+        key = (int(fri.flags), fri.control, self.world.mode)
+        arm = self._arm_commands.get(key)
+        if arm is None:
+            arm = self._arm_commands[key] = arm_command_from_fri(fri, self.world.mode)
+        return arm
+
     def send(self, command: CartesianCommand | None) -> AppliedCommand:
         """Answer this cycle (``None``: hold); returns what the KRC takes.
 
@@ -250,20 +269,23 @@ class SimRobot(RobotDriver):
             InvalidCommandError: on the next cycle, if ``command`` holds
                 non-finite values (the world refuses them).
         """
+        if not self._open:  # requires_open, inline (every cycle)
+            raise NotConnectedError(f"{_WHAT}: send() before connect/start")
         fri = self._fri
         status = to_fri_command(command, self._msr, fri)
         self._answered = True
         applied = applied_from_fri(fri, status, self._applied)
         if int(fri.flags) & _CARTSTIFF:
             # the gains rarely change: clip them again only when their bytes do
-            key = fri.cart_stiffness.tobytes() + fri.cart_damping.tobytes()
+            k_key = fri.cart_stiffness.tobytes()
+            d_key = fri.cart_damping.tobytes()
             gains = self._gains
-            if gains is None or gains[0] != key:
-                gains = self._gains = (key, *self._clipped_gains(fri))
-            if gains[1] is not None:
+            if gains is None or gains[0] != k_key or gains[1] != d_key:
+                gains = self._gains = (k_key, d_key, *self._clipped_gains(fri))
+            if gains[2] is not None:
                 applied.status |= ApplyStatus.CLIPPED
-                applied.command.stiffness_npm_nmprad[:] = gains[1]
-                applied.command.damping_ratio[:] = gains[2]
+                applied.command.stiffness_npm_nmprad[...] = gains[2]
+                applied.command.damping_ratio[...] = gains[3]
         return applied
 
     def _clipped_gains(self, fri: FriCommand) -> tuple[np.ndarray | None, np.ndarray | None]:

@@ -189,10 +189,18 @@ class FtSensorModel:
         changed in place: its rows are tiled once per object.)
         """
         n = raw_parent_on_child.shape[0]
-        if n == 0:
-            return FtSamples()
-        i = self._draws(n)
-        drift = self._drift_rows(i, n)
+        i = self._used
+        if (n == self._plan_n and i == self._plan_at and self._gauss is self._plan_g
+                and i + n <= self._plan_end and self.drift is self._plan_prev):
+            # the next block of the plan (what _draws and _drift_rows would give)
+            self._used = i + n
+            base = i - self._plan_base
+            drift = self._plan_rows[base:base + n]
+        else:
+            if n == 0:
+                return FtSamples()
+            i = self._draws(n)
+            drift = self._drift_rows(i, n)
         self._plan_at = i + n
         self.drift = self._plan_prev = drift[-1]
         if n != self._tiled_n or self.bias is not self._bias_key:

@@ -237,32 +237,31 @@ def fri_measurement(
     never changes (temperatures, FRI offsets, the KRL variables) are read-only
     arrays shared by every measurement.
     """
-    # built without the dataclass's __init__ (its 30 arguments): the constant
-    # fields, then those of this cycle (the same field order and values)
+    # built without the dataclass's __init__ (its 30 arguments): a copy of the
+    # constant fields, then those of this cycle (the same field order and values)
+    d = _CONSTANT_FIELDS.copy()
+    d["seq"] = s.cycle
+    d["time_ns"] = s.time_ns
+    d["state"] = state
+    d["quality"] = quality
+    d["control"] = _TO_FRI[s.mode]
+    d["msr_sample_time"] = cycle_s
+    d["cmd_sample_time"] = cycle_s
+    d["error"] = error
+    d["warning"] = fri_warning(s.warning)
+    d["msr_jnt_pos"] = s.jnt_pos_rad
+    d["msr_cart_pos"] = s.tcp_pose_m
+    d["cmd_jnt_pos"] = s.cmd_jnt_pos_rad
+    d["cmd_cart_pos"] = s.cmd_cart_pose_m
+    d["msr_jnt_trq"] = s.jnt_trq_nm
+    d["est_ext_jnt_trq"] = s.ext_jnt_trq_nm
+    d["est_ext_tcp_ft"] = s.ext_wrench_n_nm
+    d["jacobian"] = s.jacobian
+    d["mass_matrix"] = s.mass_matrix
+    d["gravity"] = s.gravity_nm
+    d["link_events"] = []
     m: FriMeasurement = _new(FriMeasurement)
-    m.__dict__.update(
-        _CONSTANT_FIELDS,
-        seq=s.cycle,
-        time_ns=s.time_ns,
-        state=state,
-        quality=quality,
-        control=_TO_FRI[s.mode],
-        msr_sample_time=cycle_s,
-        cmd_sample_time=cycle_s,
-        error=error,
-        warning=fri_warning(s.warning),
-        msr_jnt_pos=s.jnt_pos_rad,
-        msr_cart_pos=s.tcp_pose_m,
-        cmd_jnt_pos=s.cmd_jnt_pos_rad,
-        cmd_cart_pos=s.cmd_cart_pose_m,
-        msr_jnt_trq=s.jnt_trq_nm,
-        est_ext_jnt_trq=s.ext_jnt_trq_nm,
-        est_ext_tcp_ft=s.ext_wrench_n_nm,
-        jacobian=s.jacobian,
-        mass_matrix=s.mass_matrix,
-        gravity=s.gravity_nm,
-        link_events=[],
-    )
+    m.__dict__ = d
     return m
 
 

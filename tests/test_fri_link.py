@@ -501,11 +501,16 @@ def test_real_time_pacing_keeps_the_wall_clock_cycle(paper_scene: Scene) -> None
         emu.stop()
         emu.join(timeout=30.0)
         st = emu.stats
-    # every measurement the reader did not take is counted as skipped
+        rs = robot.stats
+    # every measurement the reader did not take is counted as skipped, the one still
+    # waiting for it at the end excepted (a measurement's own counters cannot hold the
+    # skip it causes: the one it supersedes is counted after it was filled in, so
+    # ``last.skipped - first.skipped`` missed a skip just before either end; on a
+    # loaded machine the first packet was superseded before the reader took it)
+    assert rs.accepted - len(got) - rs.skipped in (0, 1)
     first, last = got[0], got[-1]
     assert isinstance(first, RemoteMeasurement) and isinstance(last, RemoteMeasurement)
     cycles = last.accepted - first.accepted + 1
-    assert cycles == len(got) + last.skipped - first.skipped
     # never faster than the wall clock; generous bounds below (two busy shared cores)
     assert 0.95 * (cycles - 1) * 0.005 <= wall <= 3 * cycles * 0.005
     assert st.missed <= 80

@@ -65,8 +65,10 @@ class CycleSink(Protocol):
     """Something that writes its own topics once per cycle beside the run log's
     (the 3-D scene of the rig); it decides its own rate."""
 
-    def cycle(self, log_ns: int, state: RobotState, target: TargetObservation | None) -> None:
-        """One cycle at log time ``log_ns``."""
+    def cycle(self, log_ns: int, state: RobotState, target: TargetObservation | None,
+              out: list[tuple[str, bytes]] | None = None) -> None:
+        """One cycle at log time ``log_ns``; its messages appended to ``out`` (the
+        run log's batch of the cycle, written after) when given, else written."""
 
 
 class RunLog:
@@ -241,14 +243,15 @@ class RunLog:
             if truth is not None:
                 msgs.append(("/tf", rec.encode_transform(log_ns, "base", "target",
                                                          truth.target_pose.tolist())))
-        rec.write_batch(log_ns, msgs)
         if target is not None and (target.frames != self._target_frames
                                    or target.valid != self._target_valid):
-            self._target(log_ns, state, target)
+            self._target(log_ns, state, target, msgs)
         for sink in self.sinks:
-            sink.cycle(log_ns, state, target)
+            sink.cycle(log_ns, state, target, msgs)
+        rec.write_batch(log_ns, msgs)  # the cycle's one write
 
-    def _target(self, log_ns: int, state: RobotState, target: TargetObservation) -> None:
+    def _target(self, log_ns: int, state: RobotState, target: TargetObservation,
+                msgs: list[tuple[str, bytes]]) -> None:
         """A new tracker observation: ``/target/pose`` and, when valid, ``/tf``."""
         assert self.rec is not None
         self._target_frames, self._target_valid = target.frames, target.valid
@@ -259,9 +262,10 @@ class RunLog:
         r["valid"] = int(target.valid)
         r["frames"] = target.frames & 0xFFFFFFFF
         r["age_s"] = (state.time_ns - target.time_ns) / NS_PER_S
-        self.rec.write("/target/pose", log_ns)
+        msgs.append(("/target/pose", r.tobytes()))
         if target.valid:
-            self.rec.transform(log_ns, "base", TRACKED_FRAME, target.pose_m)
+            msgs.append(("/tf", self.rec.encode_transform(log_ns, "base", TRACKED_FRAME,
+                                                          target.pose_m.tolist())))
 
     @staticmethod
     def _state(layout: Struct, state: RobotState) -> bytes:

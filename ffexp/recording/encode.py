@@ -13,7 +13,9 @@ the caller fills the numpy record instead.
 
 from __future__ import annotations
 
+import keyword
 import struct
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -56,9 +58,14 @@ class FieldsEncoder:
             segments.append((_ARRAY, f.name, dtype, f.count, pad_before))
         close_scalars()
         self._segments = tuple(segments)
+        self._compiled = _compile(self._segments) or self.encode_segments
 
     def encode(self, source: object) -> bytes | None:
         """The message, or ``None`` if a value is not plainly of its field's type."""
+        return self._compiled(source)
+
+    def encode_segments(self, source: object) -> bytes | None:
+        """:meth:`encode` by walking the segments (the compiled form's reference)."""
         parts = [CDR_HEADER]
         ndarray = np.ndarray
         try:
@@ -75,3 +82,40 @@ class FieldsEncoder:
         except (struct.error, TypeError, OverflowError):
             return None
         return b"".join(parts)
+
+
+def _compile(segments: tuple[tuple[int, Any, Any, Any, bytes], ...]) -> Callable[
+        [object], bytes | None] | None:
+    """:meth:`FieldsEncoder.encode_segments` for these segments as one function of straight
+    code (the same checks and parts in the same order, without the loop over segments),
+    made once per message type like ``dataclasses`` makes ``__init__``. ``None`` when a
+    field's name is not an identifier (the loop is kept)."""
+    env: dict[str, Any] = {"_nd": np.ndarray, "_head": CDR_HEADER,
+                           "_errors": (struct.error, TypeError, OverflowError)}
+    body: list[str] = []
+    parts: list[str] = ["_head"]
+    for i, (kind, a, b, count, pad) in enumerate(segments):
+        names = (a,) if kind == _ARRAY else b
+        if not all(str(n).isidentifier() and not keyword.iskeyword(n) for n in names):
+            return None
+        if kind == _ARRAY:
+            env[f"_dt{i}"] = b
+            body += [f"v{i} = s.{a}",
+                     f"if type(v{i}) is not _nd or v{i}.size != {int(count)} "
+                     f"or v{i}.dtype != _dt{i}:",
+                     "    return None"]
+            if pad:
+                env[f"_pad{i}"] = pad
+                parts.append(f"_pad{i}")
+            parts.append(f"v{i}.tobytes()")
+        else:
+            env[f"_pack{i}"] = a.pack
+            body.append(f"p{i} = _pack{i}({', '.join(f's.{n}' for n in b)})")
+            parts.append(f"p{i}")
+    code = ["def encode(s):", "    try:"]
+    code += [f"        {line}" for line in body]
+    code += ["    except _errors:", "        return None",
+             f"    return b''.join(({', '.join(parts)},))"]
+    exec("\n".join(code), env)  # generated from the spec's field names only
+    fn: Callable[[object], bytes | None] = env["encode"]
+    return fn

@@ -327,7 +327,12 @@ class Recorder:
 
     def write_json(self, topic: str, time_ns: int, message: Mapping[str, Any]) -> None:
         """Write one JSON message on a low-rate topic."""
-        self.write_bytes(topic, time_ns, json.dumps(message, separators=(",", ":")).encode())
+        self.write_bytes(topic, time_ns, self.encode_json(message))
+
+    @staticmethod
+    def encode_json(message: Mapping[str, Any]) -> bytes:
+        """The bytes :meth:`write_json` writes, not written (for :meth:`write_batch`)."""
+        return json.dumps(message, separators=(",", ":")).encode()
 
     def log(self, time_ns: int, level: str, name: str, message: str) -> None:
         """An event as ``foxglove.Log`` on ``/events`` (level DEBUG..FATAL)."""

@@ -76,24 +76,33 @@ class SceneWriter:
             self._nominal[:2, :2] = ((c, -s), (s, c))
         return layout
 
-    def cycle(self, log_ns: int, state: RobotState, target: TargetObservation | None) -> None:
-        """One cycle at log time ``log_ns``: the scene and the links' transforms when due."""
+    def cycle(self, log_ns: int, state: RobotState, target: TargetObservation | None,
+              out: list[tuple[str, bytes]] | None = None) -> None:
+        """One cycle at log time ``log_ns``: the scene and the links' transforms when due,
+        appended to ``out`` (written by the caller) when given, else written."""
         layout = self.layout
         if layout is None:
             layout = self.layout = self._start(state, target)
+        q = state.joint_pos_rad
+        tf_due = log_ns >= self._next_tf_ns and len(q) == JOINTS
+        if log_ns < self._next_scene_ns and not tf_due:
+            return  # nothing due this cycle
+        rec = self.rec
+        msgs: list[tuple[str, bytes]] = [] if out is None else out
         if log_ns >= self._next_scene_ns:
             self._next_scene_ns = log_ns + self.scene_period_ns
             msg = scene_update(self.scene, layout, log_ns, self.target_frame, self.base,
                                self.tracked_frame)
-            self.rec.write_json(SCENE_TOPIC, log_ns, msg)
+            msgs.append((SCENE_TOPIC, rec.encode_json(msg)))
             if self.target_frame == NOMINAL_FRAME:
-                self.rec.transform(log_ns, "base", NOMINAL_FRAME, self._nominal)
-        q = state.joint_pos_rad
-        if log_ns >= self._next_tf_ns and len(q) == JOINTS:
+                msgs.append(("/tf", rec.encode_transform(log_ns, "base", NOMINAL_FRAME,
+                                                         self._nominal.tolist())))
+        if tf_due:
             self._next_tf_ns = log_ns + self.tf_period_ns
-            parent, msgs = "base", []
+            parent = "base"
+            encode = rec.encode_transform
             for frame, rows in zip(LINK_FRAMES, link_rows(q, self.base), strict=True):
-                msgs.append(("/tf", self.rec.encode_transform(log_ns, parent, frame, rows)))
+                msgs.append(("/tf", encode(log_ns, parent, frame, rows)))
                 parent = frame
-            self.rec.write_batch(log_ns, msgs)
-
+        if out is None and msgs:
+            rec.write_batch(log_ns, msgs)

@@ -235,6 +235,9 @@ class SimRobot(RobotDriver):
         self._answered = False
         world.advance(arm)
         state = world.last_state
+        # the measurement reads the joints and dynamics, the runner's state the truth:
+        # every field, built at once (not group by group on a missing attribute)
+        state.resolve()
         if not link.error:
             q = state.jnt_pos_rad
             ql = q.tolist()

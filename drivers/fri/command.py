@@ -62,6 +62,7 @@ CARTESIAN_FLAGS: Final = CmdFlags.CARTPOS | CmdFlags.TCPFT | CmdFlags.CARTSTIFF 
 MIRROR_FLAGS: Final = CmdFlags.JNTPOS | CmdFlags.CARTPOS
 _TCPFT: Final = int(CmdFlags.TCPFT)  # ``int & IntFlag`` goes through the enum machinery
 _new: Final = object.__new__
+_CMD: Final = FriState.CMD
 
 
 def commanding(msr: FriMeasurement) -> bool:
@@ -89,7 +90,7 @@ def to_fri_command(
         mirror_into(msr, out)
         out.add_tcp_ft[...] = 0.0
         return ApplyStatus.HELD
-    if not commanding(msr):
+    if msr.state != _CMD or msr.power == 0:  # not commanding(msr)
         mirror_into(msr, out)
         out.add_tcp_ft[...] = cmd.wrench_n_nm
         out.cart_stiffness[...] = cmd.stiffness_npm_nmprad

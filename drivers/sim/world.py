@@ -41,7 +41,6 @@ from collections.abc import Callable
 
 import mujoco
 import numpy as np
-from numpy.linalg import _umath_linalg
 
 from drivers.base.types import F64, FtSamples
 from drivers.errors import InvalidCommandError
@@ -63,7 +62,9 @@ INERTIA_REUSE_RAD = 1e-3
 _N_ARM = 7
 
 _isfinite = math.isfinite
-_inv = _umath_linalg.inv  # np.linalg.inv without its Python wrapper: the same values
+# np.linalg.inv's LAPACK gufunc without its Python wrapper (the same values); the
+# module is private: without it, the public function
+_inv: Callable[..., F64] = getattr(getattr(np.linalg, "_umath_linalg", None), "inv", np.linalg.inv)
 
 
 def _all_finite(a: F64) -> bool:

@@ -169,3 +169,14 @@ def test_lockstep_world_takes_each_cycles_command() -> None:
         else:
             assert np.array_equal(s.cmd_cart_pose_m, cmd.pose_m)
         prev_pose = s.cmd_cart_pose_m.copy()
+
+
+def test_sim_ft_sensor_samples_before_start_names_the_device() -> None:
+    _, sensor = open_sim(SCENE, seed=3)
+    with pytest.raises(NotConnectedError, match=r"^sim F/T sensor: samples\(\) before"):
+        sensor.samples()
+    sensor.start()
+    sensor.samples()
+    sensor.stop()
+    with pytest.raises(NotConnectedError):
+        sensor.samples()

@@ -9,6 +9,7 @@ from __future__ import annotations
 from drivers.base.guards import requires_open
 from drivers.base.interfaces import FlagStream, ForceTorqueSensor
 from drivers.base.types import FtSamples
+from drivers.errors import NotConnectedError
 from drivers.sim.world import SimWorld
 
 __all__ = ["SimFtSensor"]
@@ -24,8 +25,9 @@ class SimFtSensor(FlagStream, ForceTorqueSensor):
         self.world.ft_samples()  # a fresh stream starts now
         super().start()
 
-    @requires_open("sim F/T sensor")
     def samples(self) -> FtSamples:
+        if not self._running:  # requires_open, inline (every cycle)
+            raise NotConnectedError("sim F/T sensor: samples() before connect/start")
         return self.world.ft_samples()
 
     @requires_open("sim F/T sensor")

@@ -16,6 +16,8 @@ first that holds is the one reported):
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydantic import Field
 
@@ -53,10 +55,12 @@ class SafetyMonitor:
         self._workspace: list[float] = np.asarray(limits.workspace_m, dtype=np.float64).tolist()
         self._bad_link_cycles = 0
         self._origin: F64 | None = None
+        self._box: tuple[F64, F64] | None = None  # the origin's R^T and position (views)
 
     def set_origin(self, pose: F64) -> None:
         """The pose the workspace box is centred on (where the approach starts)."""
-        self._origin = pose.copy()
+        o = self._origin = pose.copy()
+        self._box = (o[:3, :3].T, o[:3, 3])  # views of the copy
 
     def check(self, t_ns: int, phase: Phase, state: RobotState, est: Estimate) -> Stop | None:
         """The first condition that holds this cycle, or ``None``."""
@@ -90,15 +94,16 @@ class SafetyMonitor:
                 f"{'healthy' if link.healthy else 'unhealthy'} for {self._bad_link_cycles} cycles",
             )
         if phase in (Phase.APPROACH, Phase.ALIGN):
-            speed = float(np.linalg.norm(est.twist_tcf[:3]))
+            v = est.twist_tcf[:3]  # np.linalg.norm's dot product and root, without its checks
+            speed = math.sqrt(v.dot(v))
             if speed > lim.max_speed_mps:
                 return Stop(
                     StopReason.SPEED_LIMIT,
                     f"speed limit: {speed:.3f} m/s > {lim.max_speed_mps} m/s",
                 )
-            if self._origin is not None:
-                o = self._origin
-                offset = o[:3, :3].T @ (state.tcp_pose_m[:3, 3] - o[:3, 3])
+            if self._box is not None:
+                rt, p = self._box
+                offset = rt @ (state.tcp_pose_m[:3, 3] - p)
                 if any(abs(v) > w for v, w in zip(offset.tolist(), self._workspace, strict=True)):
                     return Stop(
                         StopReason.WORKSPACE_LIMIT,

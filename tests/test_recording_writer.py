@@ -42,8 +42,8 @@ def test_fast_writer_bytes_equal_mcaps_own() -> None:
 
 
 def _write_batches(cls: type[Writer]) -> bytes:
-    """Messages in groups: ``FastWriter.add_messages`` for the group, mcap's own
-    ``add_message`` one by one."""
+    """Messages in groups: ``FastWriter.add_messages`` (or ``add_messages_at``) for the
+    group, mcap's own ``add_message`` one by one."""
     rng = np.random.default_rng(2)
     out = io.BytesIO()
     w = cls(out, chunk_size=2048, compression=CompressionType.ZSTD)
@@ -64,7 +64,10 @@ def _write_batches(cls: type[Writer]) -> bytes:
         # one before the chunk's earliest
         times = [t] * len(group) if k % 2 else [t - 200_000 * j for j in range(len(group))]
         if isinstance(w, FastWriter):
-            w.add_messages(cids, times, datas, seqs)
+            if k % 4 == 1:  # a group at one time, as a cycle's topics
+                w.add_messages_at(cids, t, datas, seqs)
+            else:
+                w.add_messages(cids, times, datas, seqs)
         else:
             for cid, ti, data, s in zip(cids, times, datas, seqs, strict=True):
                 w.add_message(cid, ti, data, ti, s)

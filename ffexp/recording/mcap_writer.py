@@ -95,8 +95,7 @@ class FastWriter(Writer):
         self._closing: tuple[Any, ...] | None = None  # the chunk being compressed
         # the pending batch: record bytes, per channel [(log time, offset)], counts
         self._parts: list[bytes] = []
-        self._index: dict[int, list[tuple[int, int]]] = {}
-        self._counts: dict[int, int] = {}
+        self._index: dict[int, list[tuple[int, int]]] = {}  # its length: the channel's count
         self._size = 0  # the chunk's size with the pending records
         self._t_min = 0
         self._t_max = 0
@@ -118,10 +117,8 @@ class FastWriter(Writer):
         index = self._index.get(channel_id)
         if index is None:
             index = self._index[channel_id] = []
-            self._counts[channel_id] = 0
         offset = self._size
         index.append((log_time, offset))
-        self._counts[channel_id] += 1
         parts.append(_MESSAGE_HEAD.pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + len(data), channel_id,
                                         sequence, log_time, publish_time))
         parts.append(data)
@@ -138,11 +135,12 @@ class FastWriter(Writer):
             for cid, t, data, seq in zip(channel_ids, log_times, datas, sequences, strict=True):
                 super().add_message(cid, t, data, t, seq)
             return
-        parts, indices, counts = self._parts, self._index, self._counts
+        parts, indices = self._parts, self._index
         if parts:
             size, t_min, t_max = self._size, self._t_min, self._t_max
         else:
             size, t_min, t_max = self._chunks.record_writer._buffer.tell(), _NO_TIME, -1
+        append = parts.append
         pack, head, limit = _MESSAGE_HEAD.pack, _MESSAGE_HEAD.size, self._chunk_size
         for cid, t, data, seq in zip(channel_ids, log_times, datas, sequences, strict=True):
             if t < t_min:
@@ -152,20 +150,58 @@ class FastWriter(Writer):
             index = indices.get(cid)
             if index is None:
                 index = indices[cid] = []
-                counts[cid] = 0
             index.append((t, size))
-            counts[cid] += 1
             n = len(data)
-            parts.append(pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + n, cid, seq, t, t))
-            parts.append(data)
+            append(pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + n, cid, seq, t, t))
+            append(data)
             size += head + n
             if size > limit:  # mcap's rule, after each message
                 self._size, self._t_min, self._t_max = size, t_min, t_max
                 self._commit()
                 self._close_chunk()
-                parts, indices, counts = self._parts, self._index, self._counts
+                parts, indices = self._parts, self._index
+                append = parts.append
                 size, t_min, t_max = self._chunks.record_writer._buffer.tell(), _NO_TIME, -1
         self._size, self._t_min, self._t_max = size, t_min, t_max
+
+    def add_messages_at(self, channel_ids: list[int], log_time: int, datas: list[bytes],
+                        sequences: list[int]) -> None:
+        """:meth:`add_messages` of messages all at one log time (a cycle's topics): the
+        same bytes, without a time per message."""
+        if not self.fast:
+            for cid, data, seq in zip(channel_ids, datas, sequences, strict=True):
+                super().add_message(cid, log_time, data, log_time, seq)
+            return
+        parts, indices = self._parts, self._index
+        if parts:
+            size = self._size
+            if log_time < self._t_min:
+                self._t_min = log_time
+            if log_time > self._t_max:
+                self._t_max = log_time
+        else:
+            size = self._chunks.record_writer._buffer.tell()
+            self._t_min = self._t_max = log_time
+        append = parts.append
+        pack, head, limit = _MESSAGE_HEAD.pack, _MESSAGE_HEAD.size, self._chunk_size
+        for cid, data, seq in zip(channel_ids, datas, sequences, strict=True):
+            index = indices.get(cid)
+            if index is None:
+                index = indices[cid] = []
+            index.append((log_time, size))
+            n = len(data)
+            append(pack(_OPCODE_MESSAGE, _MESSAGE_FIXED + n, cid, seq, log_time, log_time))
+            append(data)
+            size += head + n
+            if size > limit:  # mcap's rule, after each message
+                self._size = size
+                self._commit()
+                self._close_chunk()
+                parts, indices = self._parts, self._index
+                append = parts.append
+                size = self._chunks.record_writer._buffer.tell()
+                self._t_min = self._t_max = log_time  # the rest of the batch
+        self._size = size
 
     def _commit(self) -> None:
         """Hand the pending batch to mcap's chunk builder and statistics."""
@@ -181,8 +217,8 @@ class FastWriter(Writer):
             st.message_end_time = t_max
         st.message_count += n
         counts = st.channel_message_counts
-        for cid, k in self._counts.items():
-            counts[cid] += k
+        for cid, records in self._index.items():
+            counts[cid] += len(records)
         if cb.num_messages == 0 or t_min < cb.message_start_time:
             cb.message_start_time = t_min
         if t_max > cb.message_end_time:
@@ -197,7 +233,6 @@ class FastWriter(Writer):
         cb.record_writer._buffer.write(b"".join(parts))
         self._parts = []
         self._index = {}
-        self._counts = {}
 
     def _close_chunk(self) -> None:
         """Close the full chunk as mcap's ``Writer`` does, its compression in the worker."""

@@ -204,7 +204,7 @@ class Recorder:
             seqs.append(ch[1])
             ch[1] += 1
             datas.append(data)
-        self._writer.add_messages(cids, [time_ns] * len(datas), datas, seqs)
+        self._writer.add_messages_at(cids, time_ns, datas, seqs)
         self.message_count += len(datas)
         if self.taps:
             for topic, data in messages:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 from drivers.emulate.lockstep import open_sim
 from ffexp import loop
 from ffexp.cli import app
+from ffexp.errors import InputError
 from ffexp.protocol import load_run_protocol, scene_path
 from ffexp.recording import Recorder, load
 from ffexp.recording.topics import CDR_TOPICS
@@ -86,30 +87,53 @@ def test_recording_round_trip_of_a_sim_run(tmp_path: Path) -> None:
     assert len(times) > 1000 and times == sorted(times)
 
 
+def _measurements_on_disk(path: Path, copy: Path) -> int:
+    """Measurements a kill -9 now would leave in ``path`` (read from a copy; 0 while the
+    file is not readable yet: created, nothing flushed)."""
+    if not path.is_file():
+        return 0
+    shutil.copyfile(path, copy)
+    try:
+        rec = load(copy)
+    except InputError:
+        return 0
+    return len(rec.topic("/robot/measurement")) if "/robot/measurement" in rec.topics else 0
+
+
 @pytest.mark.slow
-def test_kill_9_loses_at_most_about_a_second(tmp_path: Path) -> None:  # real-time
-    """A run killed after 5 s of wall time: recover it and analyse it."""
+def test_kill_9_keeps_what_was_flushed_and_the_file_recovers(tmp_path: Path) -> None:
+    """A run killed once its file holds more than 100 measurements: recover it and analyse
+    it. (That a flush comes at least once a second of wall time, so a kill loses at most
+    about a second, is tested with a given clock in test_recording.py.)"""
     out = tmp_path / "runs"
     proc = subprocess.Popen(
         [
             sys.executable, "-c", "from ffexp.cli import main; main()", "run",
             str(ROOT / "protocols/method3_impedance.toml"), "--out", str(out),
-            # a run that cannot end within the test's 5 s of wall time: a long
-            # timeout and an alignment tolerance no contact meets
+            # a run that does not end before the kill: a long timeout and an
+            # alignment tolerance no contact meets
             "--set", "run.timeout_s=600", "--set", "alignment.lateral_tol_m=1e-9",
         ],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
-    with pytest.raises(subprocess.TimeoutExpired):
-        proc.wait(timeout=5.0)
-    os.kill(proc.pid, signal.SIGKILL)
-    killed_at = time.time()
-    proc.wait()
+    # killed when the disk holds enough, not after a fixed wall time (on a loaded
+    # machine 5 s did not even see the file created)
+    try:
+        deadline = time.monotonic() + 240
+        seen = 0
+        while seen <= 100:
+            assert time.monotonic() < deadline and proc.poll() is None
+            time.sleep(0.2)  # real-time: polls another process's progress
+            files = list(out.glob("*.mcap"))
+            assert len(files) <= 1
+            seen = _measurements_on_disk(files[0], tmp_path / "seen.mcap") if files else 0
+    finally:
+        proc.kill()  # SIGKILL
+        proc.wait()
+    assert proc.returncode == -signal.SIGKILL
     files = list(out.glob("*.mcap"))
     assert len(files) == 1
     broken = files[0]
-    # the last flush reached the disk at most about a second before the kill
-    assert killed_at - broken.stat().st_mtime <= 1.5
     fixed = tmp_path / "fixed.mcap"
     runner = CliRunner()
     result = runner.invoke(app, ["recover", str(broken), "-o", str(fixed)])
@@ -118,7 +142,7 @@ def test_kill_9_loses_at_most_about_a_second(tmp_path: Path) -> None:  # real-ti
     rec = load(fixed)
     assert rec.complete
     seq = rec.topic("/robot/measurement")["seq"]
-    assert len(seq) > 100
+    assert len(seq) >= seen > 100  # what was on disk before the kill is kept
     assert np.all(np.diff(seq.astype(np.int64)) == 1)  # nothing missing before the cut
     result = runner.invoke(app, ["analyze", str(fixed), "--json"])
     assert result.exit_code == 0, result.stderr

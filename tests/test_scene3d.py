@@ -181,3 +181,38 @@ def test_link_rows_are_the_link_transforms_bit_for_bit() -> None:
         want = np.array([t.tolist() for t in link_transforms(q, base)])
         assert np.array(link_rows(q, base)).tobytes() == want.tobytes()
         assert np.array(link_rows(q)).tobytes() == np.array(link_transforms(q)).tobytes()
+
+
+def test_the_scene_writer_batched_writes_what_it_writes_alone(tmp_path: Path) -> None:
+    """Appended to the run log's batch of the cycle, the writer's messages are those it
+    writes alone (topics, times, bytes, order); in cycles where nothing is due it adds
+    nothing."""
+    from types import SimpleNamespace
+
+    from ffexp.recording import Recorder
+    from ffexp.scene3d import SceneWriter
+
+    scene = load_scene(ROOT / "data" / "scenes" / "paper.toml")
+    q0 = np.array([0.1, 0.6, 0.0, -1.2, 0.0, 0.9, 0.2])
+    seen: dict[str, list[tuple[str, int, bytes]]] = {"alone": [], "batched": []}
+    added: list[int] = []
+    for mode in ("alone", "batched"):
+        with Recorder(tmp_path / f"{mode}.mcap") as rec:
+            rec.taps.append(lambda topic, t, data, m=mode: seen[m].append((topic, t, data)))
+            writer = SceneWriter(rec, scene, tf_period_s=0.02, scene_period_s=0.1)
+            for k in range(100):
+                q = q0 + 0.01 * k
+                state = SimpleNamespace(tcp_pose_m=tcp_pose(scene, q), joint_pos_rad=q,
+                                        truth=None)
+                log_ns = 10**18 + k * 5_000_000
+                if mode == "alone":
+                    writer.cycle(log_ns, state, None)  # type: ignore[arg-type]
+                else:
+                    msgs: list[tuple[str, bytes]] = []
+                    writer.cycle(log_ns, state, None, msgs)  # type: ignore[arg-type]
+                    added.append(len(msgs))
+                    if msgs:
+                        rec.write_batch(log_ns, msgs)
+    assert seen["alone"] == seen["batched"]
+    assert added[:5] == [1 + 1 + 7, 0, 0, 0, 7]  # scene, its nominal target, the links
+    assert sum(n == 0 for n in added) == 75

@@ -187,6 +187,7 @@ def test_the_scene_writer_batched_writes_what_it_writes_alone(tmp_path: Path) ->
     """Appended to the run log's batch of the cycle, the writer's messages are those it
     writes alone (topics, times, bytes, order); in cycles where nothing is due it adds
     nothing."""
+    from collections.abc import Callable
     from types import SimpleNamespace
 
     from ffexp.recording import Recorder
@@ -195,10 +196,14 @@ def test_the_scene_writer_batched_writes_what_it_writes_alone(tmp_path: Path) ->
     scene = load_scene(ROOT / "data" / "scenes" / "paper.toml")
     q0 = np.array([0.1, 0.6, 0.0, -1.2, 0.0, 0.9, 0.2])
     seen: dict[str, list[tuple[str, int, bytes]]] = {"alone": [], "batched": []}
+
+    def seen_by(got: list[tuple[str, int, bytes]]) -> Callable[[str, int, bytes], None]:
+        return lambda topic, t, data: got.append((topic, t, data))
+
     added: list[int] = []
     for mode in ("alone", "batched"):
         with Recorder(tmp_path / f"{mode}.mcap") as rec:
-            rec.taps.append(lambda topic, t, data, m=mode: seen[m].append((topic, t, data)))
+            rec.taps.append(seen_by(seen[mode]))
             writer = SceneWriter(rec, scene, tf_period_s=0.02, scene_period_s=0.1)
             for k in range(100):
                 q = q0 + 0.01 * k

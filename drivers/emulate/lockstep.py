@@ -131,8 +131,9 @@ class SimRobot(RobotDriver):
         self._msr = self._measurement(world.last_state)
 
     def _new_link(self) -> KrcLink:
+        self._cycle_s = self.world.cycle_s  # the link's cycle, reported in every measurement
         return KrcLink(
-            self.world.cycle_s,
+            self._cycle_s,
             start_cycles=self.start_cycles,
             max_consecutive_misses=self.max_consecutive_misses,
             timing=False,
@@ -142,7 +143,7 @@ class SimRobot(RobotDriver):
         """The measurement of ``state``, the world's last state (held: its truth is read next)."""
         link = self.link
         self._state = state
-        m = fri_measurement(state, self.world.cycle_s, link.state, link.quality, link.error)
+        m = fri_measurement(state, self._cycle_s, link.state, link.quality, link.error)
         m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = link.rates()
         m.miss_counter = link.missed
         if self.wire_precision:

@@ -192,8 +192,8 @@ class ForceController:
             ri.append(rik)
             ff.append(ffk)
             total.append(_clip(pk + ik + rik + ffk, o_lo, o_hi))
-        self._integral[:] = integral
-        t.p[:], t.i[:], t.ri[:], t.ff[:], t.total[:] = p, i, ri, ff, total
+        self._integral[...] = integral
+        t.p[...], t.i[...], t.ri[...], t.ff[...], t.total[...] = p, i, ri, ff, total
         t.saturated = saturated
         return t
 

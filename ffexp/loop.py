@@ -140,7 +140,7 @@ class Cycle:
                                "robot not commanding in ALIGN: the method is held at its last "
                                "command")
             self.paused += 1
-            cmd.wrench_n_nm[:] = self.held
+            cmd.wrench_n_nm[...] = self.held
             return
         w = self.controller.update(t_ns, state, self.estimator.out)
         if self.paused:
@@ -158,8 +158,8 @@ class Cycle:
             np.multiply(self.offset, 1.0 - a, out=self._tmp)
             np.add(w, self._tmp, out=cmd.wrench_n_nm)
         else:
-            cmd.wrench_n_nm[:] = w
-        self.held[:] = cmd.wrench_n_nm
+            cmd.wrench_n_nm[...] = w
+        self.held[...] = cmd.wrench_n_nm
 
     def step(self, state: RobotState, ft: FtSamples,
              target: TargetObservation | None = None) -> CartesianCommand | None:
@@ -180,20 +180,20 @@ class Cycle:
         phase, cmd = task.phase, self.cmd
         self.approach_wrench: np.ndarray | None = None
         if phase == Phase.CONNECT:
-            self.total[:] = 0.0
+            self.total[...] = 0.0
             return None
-        cmd.pose_m[:] = self.hold_pose
+        cmd.pose_m[...] = self.hold_pose
         if phase.ended:
             self._safe_stop(t_ns, cmd)
         else:
-            cmd.stiffness_npm_nmprad[:] = self.cart_k
-            cmd.damping_ratio[:] = self.cart_d
+            cmd.stiffness_npm_nmprad[...] = self.cart_k
+            cmd.damping_ratio[...] = self.cart_d
             if phase == Phase.APPROACH:
                 self.approach_wrench = self.approach.command(t_ns, state.tcp_pose_m, est.twist_tcf)
-                cmd.wrench_n_nm[:] = self.approach_wrench
+                cmd.wrench_n_nm[...] = self.approach_wrench
             else:
                 self._align(t_ns, state, cmd)
-        self.total[:] = cmd.wrench_n_nm
+        self.total[...] = cmd.wrench_n_nm
         return cmd
 
     def record(self, state: RobotState, ft: FtSamples, intent: CartesianCommand | None,

@@ -102,9 +102,9 @@ class MassDamper:
 
     def step(self, drive: F64) -> VirtualState:
         s = self.state
-        s.drive[:] = drive
+        s.drive[...] = drive
         # implicit in the damping (stable for any D dt / M), explicit in the drive
-        s.velocity[:] = (s.velocity + self.dt_s * drive / self.mass) / (
+        s.velocity[...] = (s.velocity + self.dt_s * drive / self.mass) / (
             1.0 + self.dt_s * self.damping / self.mass
         )
         s.displacement += self.dt_s * s.velocity

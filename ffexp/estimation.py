@@ -230,8 +230,9 @@ class MotionFilter:
         self._z = np.zeros(6)
         self._quat = np.zeros(4)
         self._rotvec = np.zeros(3)
-        self._rot_prev: FloatArray | None = None
-        self._theta = np.zeros(3)
+        self._rot_prev = np.zeros((3, 3))  # the last cycle's rotation (once _started)
+        self._started = False
+        self._theta = self._z[3:]  # the accumulated rotation vector: z's own entries
         # the covariance and gain do not depend on the measurements: once the
         # covariance repeats bit for bit, its later values (and the gains) repeat too
         self._watch: dict[bytes, int] | None = {}  # covariance bytes: cycle seen
@@ -244,18 +245,18 @@ class MotionFilter:
         """One cycle with the measured 4x4 tool pose (base frame)."""
         r = pose[:3, :3]
         z = self._z
-        if self._rot_prev is None:
+        if not self._started:
+            self._started = True
             self._x[:] = 0.0
             self._x[:3, 0] = pose[:3, 3]
             self._x[3:, 0] = self._theta
         else:
-            # accumulate the incremental rotation, in the base frame
+            # accumulate the incremental rotation, in the base frame (into z[3:])
             mujoco.mju_mat2Quat(self._quat, (self._rot_prev.T @ r).ravel())
             mujoco.mju_quat2Vel(self._rotvec, self._quat, 1.0)  # its rotation vector
             self._theta += self._rot_prev @ self._rotvec
-        self._rot_prev = r.copy()
+        self._rot_prev[...] = r
         z[:3] = pose[:3, 3]
-        z[3:] = self._theta
         # predict
         x = self._x @ self._f1_t
         cycle = self._cycle

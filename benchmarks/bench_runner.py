@@ -20,7 +20,10 @@ the run's time goes (driver = the KRC and the world, of which physics; sensor
 read; step = estimation, safety, task and control; send; recording). Then,
 from one more run with a clock around each part (which adds ~0.3 us a call,
 so its parts are a little high and that run is not timed as a whole), the
-step's and the recording's parts in microseconds per cycle.
+step's and the recording's parts in microseconds per cycle. That clock is the
+calling thread's CPU time (``time.thread_time_ns``), not the wall clock: on
+this shared two-core machine a cycle preempted by another process would
+otherwise charge the wait to whichever part it was in.
 """
 
 from __future__ import annotations
@@ -105,12 +108,13 @@ PARTS = (
 
 @contextmanager
 def timed_parts() -> Iterator[dict[str, list[int]]]:
-    """Accumulate wall time [ns] and calls of each of :data:`PARTS` inside the block."""
+    """Accumulate the CPU time of the calling thread [ns] and the calls of each of
+    :data:`PARTS` inside the block."""
     import importlib
 
     acc: dict[str, list[int]] = {}
     undo: list[tuple[object, str, object]] = []
-    clock = time.perf_counter_ns
+    clock = time.thread_time_ns
     for label, module, owner_name, method in PARTS:
         owner = getattr(importlib.import_module(module), owner_name)
         bare = getattr(owner, method)
@@ -206,8 +210,8 @@ def main() -> None:
         run_file(args.protocol, [f"run.timeout_s={args.seconds}", "run.stop_hold_s=0"],
                  out_dir=Path(tmp), timings=timings)
     cycles = max(1, round(sim_s / 0.005))
-    print(f"parts of the step and the recording (one instrumented run, us per cycle of "
-          f"{cycles}; calls per cycle):")
+    print(f"parts of the step and the recording (one instrumented run, thread CPU time, "
+          f"us per cycle of {cycles}; calls per cycle):")
     for label, (ns, calls) in acc.items():
         print(f"  {label:<36} {ns / 1e3 / cycles:7.1f} us  {calls / cycles:5.2f}")
 

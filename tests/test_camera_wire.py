@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from emulator_process import free_udp_port, stop_emulator
+from emulator_process import free_udp_ports, stop_emulator
 
 from ffexp.analysis import metrics
 from ffexp.experiment import run_file
@@ -24,7 +24,7 @@ FFEXP = Path(sys.executable).parent / "ffexp"
 
 @pytest.mark.slow
 def test_camera_tracker_over_the_wire_judges_like_the_truth(tmp_path: Path) -> None:
-    fri_port, netft_port = free_udp_port(), free_udp_port()
+    fri_port, netft_port = free_udp_ports(2)
     cal = tmp_path / "camera.toml"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     emulator = subprocess.Popen(

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from emulator_process import free_udp_port, stop_emulator
+from emulator_process import free_udp_port, free_udp_ports, stop_emulator
 from typer.testing import CliRunner
 
 from ffexp.analysis import metrics
@@ -143,7 +143,7 @@ def test_emulate_stops_on_sigterm_while_waiting_for_the_remote() -> None:
 @pytest.mark.slow
 def test_a_paper_protocol_over_the_cli_matches_the_in_process_run(tmp_path: Path) -> None:
     seed = load_seed()
-    fri_port, netft_port = free_udp_port(), free_udp_port()
+    fri_port, netft_port = free_udp_ports(2)
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     emulator = subprocess.Popen(
         [str(FFEXP), "emulate", "--remote", f"127.0.0.1:{fri_port}", "--pacing", "lockstep",

@@ -25,6 +25,7 @@ Tool load
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Literal
@@ -139,11 +140,15 @@ class WrenchFilter:
         if not n:
             return
         if n > 1:  # the mean, summed row after row as numpy's reduce over axis 0 does
-            acc = list(rows[0])
-            for row in rows[1:]:
-                for k in range(6):
-                    acc[k] += row[k]
-            z = [v / n for v in acc]
+            a0, a1, a2, a3, a4, a5 = rows[0]
+            for r0, r1, r2, r3, r4, r5 in itertools.islice(rows, 1, None):
+                a0 += r0
+                a1 += r1
+                a2 += r2
+                a3 += r3
+                a4 += r4
+                a5 += r5
+            z = [a0 / n, a1 / n, a2 / n, a3 / n, a4 / n, a5 / n]
         else:
             z = rows[0]
         r = self._r

@@ -8,6 +8,8 @@ both the same data: states and covariances must agree to rounding.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from filterpy.common import Q_discrete_white_noise
@@ -206,3 +208,17 @@ def test_contact_detector_signal_is_numpys_norm() -> None:
     rng = np.random.default_rng(3)
     for w in rng.normal(size=(2000, 6)) * rng.choice([1e-4, 1.0, 1e3], size=(2000, 1)):
         assert det.signal(w) == float(np.linalg.norm(w[:3]))
+
+
+def test_unbiased_peaks_are_the_peaks_of_the_differences() -> None:
+    """The one-pass peaks of rows minus a bias equal :func:`peaks` of the differences."""
+    from ffexp.estimator import _unbiased_peaks, peaks
+
+    rng = np.random.default_rng(5)
+    for k in range(2000):
+        w = (rng.normal(size=(1 + k % 9, 6)) * rng.uniform(0.01, 200.0)).tolist()
+        b = rng.normal(size=6).tolist()
+        diff = [[x - y for x, y in zip(row, b, strict=True)] for row in w]
+        assert _unbiased_peaks(w, b) == peaks(diff), k
+    w[0][4] = float("nan")
+    assert math.isnan(_unbiased_peaks(w, b)[1])

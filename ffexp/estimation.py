@@ -92,6 +92,9 @@ class WrenchFilter:
             np.asarray(config.wrench_walk_std, dtype=np.float64)).tolist()
         self._q_b: list[float] = np.square(
             np.asarray(config.bias_walk_std, dtype=np.float64)).tolist()
+        self._q_dt = math.nan  # the dt_s of _qdt_f, _qdt_b
+        self._qdt_f: list[float] = []
+        self._qdt_b: list[float] = []
         self._x_f = [0.0] * 6
         self._x_b = [0.0] * 6
         # covariance per axis: P = [[p_ff, p_fb], [p_fb, p_bb]]
@@ -131,11 +134,13 @@ class WrenchFilter:
 
     def update_rows(self, rows: list[list[float]], dt_s: float) -> None:
         """:meth:`update` with the samples as rows of six floats."""
-        p_ff, p_fb, p_bb, x_f, x_b = self._p_ff, self._p_fb, self._p_bb, self._x_f, self._x_b
-        q_f, q_b = self._q_f, self._q_b
-        for k in range(6):
-            p_ff[k] += q_f[k] * dt_s
-            p_bb[k] += q_b[k] * dt_s
+        if dt_s != self._q_dt:  # the process noise over dt_s (q dt), kept for the next cycle
+            self._q_dt = dt_s
+            self._qdt_f = [q * dt_s for q in self._q_f]
+            self._qdt_b = [q * dt_s for q in self._q_b]
+        p_ff = self._p_ff = [p + q for p, q in zip(self._p_ff, self._qdt_f, strict=True)]
+        p_bb = self._p_bb = [p + q for p, q in zip(self._p_bb, self._qdt_b, strict=True)]
+        p_fb, x_f, x_b = self._p_fb, self._x_f, self._x_b
         n = len(rows)
         if not n:
             return

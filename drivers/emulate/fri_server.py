@@ -183,7 +183,7 @@ class EmulatorStats(FaultCounters):
     received: int = 0
     """Datagrams received on the KRC port (any source)."""
     late: int = 0
-    """Commands answering an older packet, dropped."""
+    """Commands answering an older packet, or arriving after the answer budget, dropped."""
     duplicates: int = 0
     stale: int = 0
     foreign: int = 0
@@ -386,6 +386,9 @@ class FriEmulator:
                 self._execute(plan)
                 if cmd is None:
                     cmd, t_rx = self._wait_command(end)
+                if cmd is not None and t_rx > end:  # it arrived after the budget and was
+                    st.late += 1                      # read late (the emulator was): a miss
+                    cmd = None
                 if cmd is None and late_send:
                     st.misses_after_late_send += 1
                 plan = self._decide(cmd, max(t_rx - t_send, 1e-9))

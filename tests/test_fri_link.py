@@ -55,6 +55,11 @@ def fri(s: RobotState) -> FriMeasurement:
     return s.extras
 
 
+def fri_remote(s: RobotState) -> RemoteMeasurement:
+    assert isinstance(s.extras, RemoteMeasurement)
+    return s.extras
+
+
 @contextmanager
 def link(
     scene: Scene,
@@ -386,6 +391,8 @@ def test_immediate_answers_and_sequence_tracking() -> None:
         st = robot.stats
         assert (st.duplicates, st.lost, st.stale, st.skipped) == (1, 2, 1, 1)
         assert st.answers == 4
+        # the measurement that superseded 2 carries that skip in its own counters
+        assert fri_remote(m1).skipped == 1 and fri_remote(m0).skipped == 0
         krc.send(krc.packet(1))  # the same old packet again: a late duplicate, not answered
         krc.send(krc.packet(4))
         assert krc.answer().refl_seq == 4
@@ -505,10 +512,8 @@ def test_real_time_pacing_keeps_the_wall_clock_cycle(paper_scene: Scene) -> None
         st = emu.stats
         rs = robot.stats
     # every measurement the reader did not take is counted as skipped, the one still
-    # waiting for it at the end excepted (a measurement's own counters cannot hold the
-    # skip it causes: the one it supersedes is counted after it was filled in, so
-    # ``last.skipped - first.skipped`` missed a skip just before either end; on a
-    # loaded machine the first packet was superseded before the reader took it)
+    # waiting for it at the end excepted (on a loaded machine even the first packet
+    # can be superseded before the reader takes it)
     assert rs.accepted - len(got) - rs.skipped in (0, 1)
     first, last = got[0], got[-1]
     assert isinstance(first, RemoteMeasurement) and isinstance(last, RemoteMeasurement)

@@ -497,12 +497,12 @@ class FriRobot(RobotDriver):
         )
         with self._cond:
             self._n.on_measurement(m)
+            if self._pending:  # it supersedes one the runner never took: in its own counters
+                self._n.skipped += 1
             self._watch.see(m, self._events)
             self._n.fill(m)
             self._last_rx_ns = t_rx
             self._last_time_ns = time_ns
-            if self._pending:
-                self._n.skipped += 1
             copy_measurement(m, self._msr)
             self._pending = self._have_msr = True
             self._cycle += 1

@@ -40,7 +40,7 @@ class LinkRun:
 
 def emulated_run(tmp: Path, overrides: list[str], *, faults: FaultSettings | None = None,
                  pacing: str = "lockstep", connect_timeout_s: float = 5.0,
-                 cycle_timeout_s: float = 1.0, lockstep_timeout_s: float = 0.02,
+                 cycle_timeout_s: float = 1.0, lockstep_timeout_s: float = 0.5,
                  silent: bool = False, robot_ip: str = LOCAL,
                  max_cycles: int | None = None,
                  quality: QualityThresholds | None = None,

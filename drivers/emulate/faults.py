@@ -86,17 +86,18 @@ class FaultyLink:
         self._k = 0
         self.active = True
 
-    def send(self, data: bytes, addr: tuple[str, int], now: float) -> None:
+    def send(self, data: bytes, addr: tuple[str, int], now: float) -> bool:
+        """Send, delay, duplicate or damage ``data``; False: dropped (nothing goes out)."""
         f = self.f
         if not f.any or not self.active:
             self._sendto(data, addr)
-            return
+            return True
         rng = self.rng
         seq = int.from_bytes(data[:2], "little")
         if f.loss and rng.random() < f.loss:
             self.stats.dropped_out += 1
             self.stats.dropped_out_seqs.append(seq)
-            return
+            return False
         if f.corrupt and rng.random() < f.corrupt:
             b = bytearray(data)
             for _ in range(int(rng.integers(1, 5))):
@@ -121,6 +122,7 @@ class FaultyLink:
             else:
                 self._k += 1
                 heapq.heappush(self.queue, (now + delay, self._k, data, addr))
+        return True
 
     def drop_incoming(self) -> bool:
         f = self.f

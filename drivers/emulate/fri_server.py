@@ -267,6 +267,7 @@ class FriEmulator:
         self._brake = False
         self._seq = world.cycle & 0xFFFF
         self._awaiting = -1
+        self._answer_dropped = False  # the injector dropped the answer to the awaited packet
         self._last_cmd_seq: int | None = None
         self._msr = MsrArrays()
         self._pb = new_msr_buffer()
@@ -352,7 +353,7 @@ class FriEmulator:
                 break
             data = self._packet()
             t_send = time.perf_counter()
-            self.link.send(data, self.settings.remote, t_send)
+            delivered = self.link.send(data, self.settings.remote, t_send)
             st.sent += 1
             late_send = False
             if not self.lockstep:
@@ -362,9 +363,13 @@ class FriEmulator:
                     st.late_sends += 1
                     late_send = True
             self._awaiting = self._seq
+            self._answer_dropped = False
             self._seq = seq_next(self._seq)
             if self.lockstep:
-                cmd, t_rx = self._wait_command(t_send + self.settings.lockstep_timeout_s)
+                # a measurement the injector dropped cannot be answered, nor an answer it
+                # dropped arrive: the cycle is a miss at once (the outcome of a full wait)
+                cmd, t_rx = self._wait_command(
+                    t_send + self.settings.lockstep_timeout_s if delivered else t_send)
                 while cmd is None and waiting_first and not self._stop.is_set():
                     self.link.send(data, self.settings.remote, time.perf_counter())
                     cmd, t_rx = self._wait_command(time.perf_counter()
@@ -434,7 +439,8 @@ class FriEmulator:
                 if self._found_wall_ns:  # arrived that long before now
                     t -= max(0, time.time_ns() - self._found_wall_ns) * 1e-9
                 return got, t
-            if now >= deadline or self._stop.is_set():
+            if now >= deadline or self._stop.is_set() or (self._answer_dropped
+                                                          and self.lockstep):
                 return None, now
             due = self.link.next_due()
             until = deadline if due is None else min(deadline, due)
@@ -490,6 +496,9 @@ class FriEmulator:
                 st.foreign += 1
                 continue
             if self.link.drop_incoming():
+                # its reflSeqCount (header bytes 2-3): the answer to the packet awaited?
+                if n >= 4 and int.from_bytes(view[2:4], "little") == self._awaiting:
+                    self._answer_dropped = True
                 continue
             a = self._cmd
             if decode_cmd_into(view[:n], a, stats=st.decode) is not DecodeStatus.OK:

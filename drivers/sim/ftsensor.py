@@ -133,13 +133,10 @@ class FtSensorModel:
         Per block the drift is the running sum of the block's increments plus
         the drift before it. When blocks keep their size, the rest of the drawn
         rows are summed ahead the same way in a few array operations (each
-        value the same sum in the same order) and later blocks take their rows.
+        value the same sum in the same order); :meth:`process` takes later
+        blocks from that plan without calling this.
         """
         g = self._gauss
-        if (g is self._plan_g and i == self._plan_at and n == self._plan_n
-                and i + n <= self._plan_end and self.drift is self._plan_prev):
-            base = i - self._plan_base
-            return self._plan_rows[base:base + n]
         k = (g.shape[0] - i) // n
         if k < 2:
             self._plan_g = None

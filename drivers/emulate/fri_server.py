@@ -363,14 +363,14 @@ class FriEmulator:
                     st.late_sends += 1
                     late_send = True
             self._awaiting = self._seq
-            self._answer_dropped = False
+            # lockstep: a measurement the injector dropped cannot be answered, nor an
+            # answer it dropped arrive: the cycle is a miss at once (a full wait's outcome)
+            self._answer_dropped = not delivered
             self._seq = seq_next(self._seq)
             if self.lockstep:
-                # a measurement the injector dropped cannot be answered, nor an answer it
-                # dropped arrive: the cycle is a miss at once (the outcome of a full wait)
-                cmd, t_rx = self._wait_command(
-                    t_send + self.settings.lockstep_timeout_s if delivered else t_send)
+                cmd, t_rx = self._wait_command(t_send + self.settings.lockstep_timeout_s)
                 while cmd is None and waiting_first and not self._stop.is_set():
+                    self._answer_dropped = False  # the remote may not be up yet: wait whole
                     self.link.send(data, self.settings.remote, time.perf_counter())
                     cmd, t_rx = self._wait_command(time.perf_counter()
                                                    + self.settings.lockstep_timeout_s)

@@ -10,9 +10,6 @@ each measured in the same repeat:
 
 * bare physics: the wall time of every ``mujoco.mj_step`` call inside that
   very run (the floor: the same model, the same states, the same steps);
-* the same run with its recording written in the loop's thread
-  (``run_file(writer_thread=False)``: the writer thread's A/B; the order of the
-  two alternates between repeats);
 * the loop without a recording (``RunLog(None)``), same protocol and seed;
 * the bare world: ``SimWorld.step`` with a constant Cartesian command, its
   whole state read and the F/T read, for the same simulated time (no KRC,
@@ -73,13 +70,12 @@ def timed_physics() -> Iterator[list[float]]:
         mujoco.mj_step = bare
 
 
-def run_once(ppath: Path, seconds: float, out: Path,
-             writer_thread: bool = True) -> tuple[float, dict[str, float], float]:
+def run_once(ppath: Path, seconds: float, out: Path) -> tuple[float, dict[str, float], float]:
     timings: dict[str, float] = {}
     with timed_physics() as physics:
         t0 = time.perf_counter()
         result = run_file(ppath, [f"run.timeout_s={seconds}", "run.stop_hold_s=0"],
-                          out_dir=out, timings=timings, writer_thread=writer_thread)
+                          out_dir=out, timings=timings)
         wall = time.perf_counter() - t0
     timings["physics"] = physics[0]
     return wall, timings, result.outcome.duration_s
@@ -87,8 +83,7 @@ def run_once(ppath: Path, seconds: float, out: Path,
 
 #: The parts of the step and of the recording, timed in the instrumented run:
 #: (label, module, owner: a class or module in it, method); nested parts are inside
-#: their parents; RunLog.cycle's parts run in the run log's writer thread (its CPU time),
-#: the chunk compression in the mcap writer's own thread.
+#: their parents; the chunk compression runs beside the loop, in the writer's thread.
 PARTS = (
     ("step", "ffexp.loop", "Cycle", "step"),
     ("  estimator", "ffexp.estimator", "Estimator", "update"),
@@ -100,8 +95,7 @@ PARTS = (
     ("  approach law", "ffexp.controllers.base", "Approach", "command"),
     ("  align method", "ffexp.loop", "Cycle", "_align"),
     ("recording: F/T samples", "ffexp.runlog", "RunLog", "samples"),
-    ("recording: cycle (in the loop: hand-off)", "ffexp.runlog", "RunLog", "cycle"),
-    ("recording: cycle (writer thread)", "ffexp.runlog", "RunLog", "_cycle"),
+    ("recording: cycle", "ffexp.runlog", "RunLog", "cycle"),
     ("  encode_fields", "ffexp.recording.recorder", "Recorder", "encode_fields"),
     ("  write_batch (also in the sink)", "ffexp.recording.recorder", "Recorder",
      "write_batch"),
@@ -178,18 +172,13 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=10.0, help="simulated time per run")
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
-    walls, serials, unrec, bares, parts = [], [], [], [], []
+    walls, unrec, bares, parts = [], [], [], []
     sim_s = args.seconds
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.repeats):
-            for threaded in ((True, False) if i % 2 == 0 else (False, True)):
-                wall, timings, sim_s = run_once(args.protocol, args.seconds,
-                                                Path(tmp) / f"{i}{threaded}", threaded)
-                if threaded:
-                    walls.append(wall)
-                    parts.append(timings)
-                else:
-                    serials.append(wall)
+            wall, timings, sim_s = run_once(args.protocol, args.seconds, Path(tmp) / str(i))
+            walls.append(wall)
+            parts.append(timings)
             unrec.append(unrecorded_once(args.protocol, sim_s))
             bares.append(bare_world_once(args.protocol, sim_s))
     wall = statistics.median(walls)
@@ -199,17 +188,14 @@ def main() -> None:
     rows = (
         ("whole run (loop + KRC + sim F/T + recording)", wall),
         ("  its bare physics (mj_step calls of the run)", physics),
-        ("whole run, recording in the loop's thread", statistics.median(serials)),
         ("loop without recording", statistics.median(unrec)),
         ("bare world (SimWorld.step + F/T, fixed command)", statistics.median(bares)),
     )
     for label, seconds in rows:
         print(f"{label:<48} {seconds:7.2f} s wall   real-time factor {sim_s / seconds:6.1f}x")
     print(f"ratio whole run / its bare physics (speed): {physics / wall:.2f}")
-    print(f"ratio whole run / recording in the loop:    {rows[2][1] / wall:.2f}"
-          "  (> 1: the writer thread pays)")
-    print(f"ratio whole run / loop without recording:   {rows[3][1] / wall:.2f}")
-    print(f"ratio whole run / bare world:               {rows[4][1] / wall:.2f}")
+    print(f"ratio whole run / loop without recording:   {rows[2][1] / wall:.2f}")
+    print(f"ratio whole run / bare world:               {rows[3][1] / wall:.2f}")
     print("where the whole run's time goes:")
     for key, seconds in part.items():
         print(f"  {key:<11} {seconds:7.2f} s  {100 * seconds / wall:5.1f} %")
@@ -219,8 +205,6 @@ def main() -> None:
             print(f"    rest    {rest:7.2f} s  {100 * rest / wall:5.1f} %"
                   "  (KRC emulation, world bookkeeping, F/T model)")
     print(f"  {'other':<11} {wall - sum(part.values()):7.2f} s  (set-up, phase changes, closing)")
-    print("  (recording: the loop's thread only: the F/T samples, handing each cycle to the "
-          "writer thread, waiting for it)")
     with tempfile.TemporaryDirectory() as tmp, timed_parts() as acc:
         timings = {}
         run_file(args.protocol, [f"run.timeout_s={args.seconds}", "run.stop_hold_s=0"],

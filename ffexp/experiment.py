@@ -106,7 +106,6 @@ def run_file(
     notice: Callable[[str], None] | None = None,
     timings: dict[str, float] | None = None,
     live: LiveOptions | None = None,
-    writer_thread: bool = True,
 ) -> RunResult:
     """Run one protocol file on a rig and record it; the recording is finished even on errors.
 
@@ -114,10 +113,7 @@ def run_file(
     before the run starts; ``timings`` collects wall time per part of the loop.
     ``live``: also serve the run to Foxglove viewers (:mod:`ffexp.live`) while it
     runs; the server stops with the run. The recording holds the rig's 3-D scene
-    (:mod:`ffexp.scene3d`). ``writer_thread``: each cycle's recording is encoded and
-    written in a thread while the next cycle's physics runs (:class:`RunLog`; the same
-    file either way); ``False`` keeps it in the loop's thread (e.g. when every core
-    already runs a run of a parallel sweep).
+    (:mod:`ffexp.scene3d`).
     """
     protocol = load_run_protocol(protocol_path, overrides)
     rig_model, rig_source = load_rig_choice(rig or RigChoice())
@@ -168,17 +164,15 @@ def run_file(
                     rec.attach(name, data, "application/toml", start_ns)
                 if server is not None:
                     rec.taps.append(server.tap)
+                log = RunLog(rec, start_ns, protocol.run.tf_period_s)
                 writer = _scene_writer(rec, protocol_path, protocol, devices, notice)
-                # the cycles are written in a thread while the next cycle runs (RunLog)
-                with RunLog(rec, start_ns, protocol.run.tf_period_s,
-                            writer_thread=writer_thread) as log:
-                    if writer is not None:
-                        log.sinks.append(writer)
-                    outcome = loop.run(
-                        protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
-                        progress=progress,
-                        stop_requested=stop_requested, timings=timings,
-                    )
+                if writer is not None:
+                    log.sinks.append(writer)
+                outcome = loop.run(
+                    protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
+                    progress=progress,
+                    stop_requested=stop_requested, timings=timings,
+                )
         finally:
             devices.close()  # the loop closes them too; this covers failures before it runs
     finally:

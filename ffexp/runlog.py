@@ -15,25 +15,12 @@ every ``tf_period_s``, ``/tf``. Verdict notes of the task go to
 
 Without a :class:`~ffexp.recording.Recorder` (tests, benchmarks) only the
 events are kept, in :attr:`RunLog.events`.
-
-With ``writer_thread``, :meth:`RunLog.cycle` hands the cycle to a worker thread
-(:class:`~ffexp.recording.background.Worker`) and returns: the cycle is encoded
-and written while the loop runs the next cycle's physics (which releases the
-GIL). Every other method first waits for that cycle to be written, so the file
-holds the same messages in the same order, at the same log times, as without
-it; an error of the worker is raised in the loop's thread by the next call of
-the run log (or :meth:`RunLog.close`). What :meth:`RunLog.cycle` was given must
-stay unchanged until that next call: the loop calls :meth:`RunLog.samples` at
-the start of every cycle, before its step changes the estimate, the controller
-and the command, and the robot's states are its own per cycle.
 """
 
 from __future__ import annotations
 
-import contextlib
 import struct
 from struct import Struct
-from types import TracebackType
 from typing import Protocol
 
 import numpy as np
@@ -51,7 +38,6 @@ from ffexp.contracts import Phase, StopReason
 from ffexp.controllers import Controller
 from ffexp.estimator import Estimate
 from ffexp.recording import Recorder
-from ffexp.recording.background import Worker
 from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import STATE_JOINTS
 from ffexp.recording.topics_target import TRACKED_FRAME
@@ -92,15 +78,10 @@ class RunLog:
         recorder: the open recording, or ``None``.
         start_utc_ns: log-time origin (run start in UTC).
         tf_period_s: period of ``/tf``.
-        writer_thread: write the cycles in a worker thread (module docstring); then
-            :meth:`close` (or the ``with`` block) ends it.
     """
 
-    def __init__(self, recorder: Recorder | None, start_utc_ns: int, tf_period_s: float, *,
-                 writer_thread: bool = False) -> None:
+    def __init__(self, recorder: Recorder | None, start_utc_ns: int, tf_period_s: float) -> None:
         self.rec = recorder
-        self._worker = (Worker("runlog-writer") if writer_thread and recorder is not None
-                        else None)
         self.start_utc_ns = start_utc_ns
         self.tf_period_ns = round(tf_period_s * NS_PER_S)
         self.events: list[tuple[float, str, str]] = []
@@ -114,31 +95,6 @@ class RunLog:
         self._target_valid = False
         self.sinks: list[CycleSink] = []
         """Further per-cycle writers (set up by :mod:`ffexp.experiment`)."""
-
-    def sync(self) -> None:
-        """Wait until the last cycle handed to the writer thread is written; raise
-        its error, if it failed (a no-op without the thread)."""
-        worker = self._worker
-        if worker is not None and worker.busy:
-            worker.wait()
-
-    def close(self) -> None:
-        """Write what the writer thread holds and end it (raising its error, if any);
-        idempotent. The recorder stays open."""
-        worker = self._worker
-        if worker is not None:
-            worker.close()
-
-    def __enter__(self) -> RunLog:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        if exc is None:
-            self.close()
-            return
-        with contextlib.suppress(Exception):  # the block's error is the one raised
-            self.close()
 
     def note(self, t_ns: int, note: Note) -> None:
         """An event, or a phase change (``/runner/phase`` and an event)."""
@@ -154,7 +110,6 @@ class RunLog:
         """Who judges, or the run's verdict, on ``/alignment/verdict``."""
         self.verdicts.append(v)
         if self.rec is not None:
-            self.sync()
             evidence = {k: float(x) for k, x in v.evidence.items() if np.isfinite(x)}
             self.rec.write_json("/alignment/verdict", self.start_utc_ns + t_ns, {
                 "label": v.label, "source": v.source, "reason": v.reason, "truth": v.truth,
@@ -163,13 +118,11 @@ class RunLog:
     def event(self, t_ns: int, level: str, name: str, message: str) -> None:
         self.events.append((t_ns / NS_PER_S, name, message))
         if self.rec is not None:
-            self.sync()
             self.rec.log(self.start_utc_ns + t_ns, level, name, message)
 
     def phase(self, t_ns: int, change: PhaseChange, *, announce: bool = True) -> None:
         stop = change.stop
         if self.rec is not None:
-            self.sync()
             self.rec.write_json(
                 "/runner/phase",
                 self.start_utc_ns + t_ns,
@@ -189,12 +142,8 @@ class RunLog:
     def samples(self, t0_ns: int, ft: FtSamples) -> None:
         """Every F/T sample of a cycle on ``/ft/raw`` at its own time (robot clock
         minus ``t0_ns``, the run's start): call it before the cycle's notes and
-        :meth:`cycle`, so the recording stays in log-time order. It waits for the
-        last cycle handed to the writer thread (:meth:`sync`), samples or not."""
+        :meth:`cycle`, so the recording stays in log-time order."""
         rec = self.rec
-        worker = self._worker
-        if worker is not None and worker.busy:
-            worker.wait()
         n = len(ft)
         if rec is None or not n:
             return
@@ -243,27 +192,10 @@ class RunLog:
         """Everything of one cycle but its F/T samples (:meth:`samples`).
         ``approach_wrench`` is the approach law's output when it acted this
         cycle; the controller's terms are recorded in ALIGN. ``t0_ns``, the
-        robot time of the run's start, is not used here (kept for callers).
-        With the writer thread, handed to it: the arguments must not change until
-        the run log's next call (module docstring)."""
-        if self.rec is None:
-            return
-        worker = self._worker
-        if worker is not None:
-            worker.post(self._cycle, (t_ns, state, len(ft), est, phase, controller,
-                                      approach_wrench, setpoint, total, intent, applied,
-                                      target))
-            return
-        self._cycle(t_ns, state, len(ft), est, phase, controller, approach_wrench, setpoint,
-                    total, intent, applied, target)
-
-    def _cycle(self, t_ns: int, state: RobotState, n_ft: int, est: Estimate, phase: Phase,
-               controller: Controller, approach_wrench: F64 | None, setpoint: F64, total: F64,
-               intent: CartesianCommand | None, applied: AppliedCommand,
-               target: TargetObservation | None) -> None:
-        """:meth:`cycle`'s encoding and write (``n_ft``: the cycle's F/T samples)."""
+        robot time of the run's start, is not used here (kept for callers)."""
         rec = self.rec
-        assert rec is not None
+        if rec is None:
+            return
         log_ns = self.start_utc_ns + t_ns
         lay = self._layouts
         if lay is None:
@@ -274,7 +206,7 @@ class RunLog:
                 msgs.append((topic, rec.encode_fields(topic, state.extras)))
         msgs.append(("/estimator/state", lay["/estimator/state"].pack(
             CDR_HEADER, *est.wrench.tolist(), *est.wrench_std.tolist(), *est.bias.tolist(),
-            *est.twist_tcf.tolist(), est.f_z, n_ft, int(est.in_contact))))
+            *est.twist_tcf.tolist(), est.f_z, len(ft), int(est.in_contact))))
 
         terms = controller.terms if phase == Phase.ALIGN else None
         values: list[object] = [CDR_HEADER]

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import platform
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -65,9 +66,9 @@ class RunResult:
     path: Path
 
 
-def _versions() -> str:
+def _versions(revision: str) -> str:
     out = {
-        "ffexp": __version__, "source_revision": source_revision(),
+        "ffexp": __version__, "source_revision": revision,
         "python": sys.version.split()[0],
     }
     out.update(_dist_versions())
@@ -76,15 +77,39 @@ def _versions() -> str:
 
 @cache
 def _dist_versions() -> tuple[tuple[str, str], ...]:
-    """The libraries' versions, read once per process (``importlib.metadata`` parses
-    each package's metadata file: ~14 ms a run otherwise)."""
+    """The libraries' versions, read once per process: a loaded module's ``__version__``
+    (the run has imported them all), else its distribution's metadata
+    (``importlib.metadata`` scans the path for each: ~8 ms for the six)."""
     out = []
     for dist in ("numpy", "mujoco", "mcap", "filterpy", "pydantic", "scipy"):
+        version = getattr(sys.modules.get(dist), "__version__", None)
+        if isinstance(version, str):
+            out.append((dist, version))
+            continue
         try:
             out.append((dist, importlib_metadata.version(dist)))
         except importlib_metadata.PackageNotFoundError:
             out.append((dist, "absent"))
     return tuple(out)
+
+
+def _revision_beside() -> Callable[[], str]:
+    """:func:`~ffexp.revision.source_revision`, started now in a thread when not known
+    yet (``git describe`` runs beside the devices' set-up: ~10 ms); call the result
+    for its value."""
+    info = getattr(source_revision, "cache_info", None)
+    if info is None or info().currsize:  # known (or not the cached function)
+        return source_revision
+    out: list[str] = []
+    thread = threading.Thread(target=lambda: out.append(source_revision()),
+                              name="source-revision", daemon=True)
+    thread.start()
+
+    def get() -> str:
+        thread.join()
+        return out[0] if out else source_revision()  # its error, if any, raised here
+
+    return get
 
 
 def output_path(
@@ -116,6 +141,7 @@ def run_file(
     (:mod:`ffexp.scene3d`).
     """
     protocol = load_run_protocol(protocol_path, overrides)
+    revision = _revision_beside()
     rig_model, rig_source = load_rig_choice(rig or RigChoice())
     server = _live_server(live, notice) if live is not None else None
     try:
@@ -148,10 +174,10 @@ def run_file(
                         "overrides": json.dumps(list(overrides)),
                         "overrides_id": overrides_id(all_overrides),
                         "run_name": path.stem,
-                        "source_revision": source_revision(),
+                        "source_revision": revision(),
                         "seed": str(protocol.seed),
                         "start_utc": start.isoformat(),
-                        "versions": _versions(),
+                        "versions": _versions(revision()),
                         "host": platform.node(),
                         "rig": rig_source,
                         "rig_json": rig_model.model_dump_json(),

@@ -153,3 +153,22 @@ def test_kill_9_keeps_what_was_flushed_and_the_file_recovers(tmp_path: Path) -> 
     result = runner.invoke(app, ["analyze", str(broken), "--json"])
     assert result.exit_code == 0
     assert "incomplete" in result.stderr
+
+
+def test_the_recorded_library_versions_are_their_distributions_versions() -> None:
+    """``_dist_versions`` reads a loaded module's ``__version__``: the same strings as
+    ``importlib.metadata`` (what it read before); the revision started beside the
+    set-up is ``source_revision``'s."""
+    from importlib import metadata
+
+    from ffexp import experiment
+    from ffexp.revision import source_revision
+
+    experiment._dist_versions.cache_clear()
+    got = dict(experiment._dist_versions())
+    assert got == {name: metadata.version(name) for name in got}
+    source_revision.cache_clear()  # not known yet: git runs in a thread
+    revision = experiment._revision_beside()
+    assert revision is not source_revision
+    assert revision() == source_revision()
+    assert experiment._revision_beside() is source_revision  # known now: no thread

@@ -16,8 +16,9 @@ __all__ = ["SEAT_DEPTH_TOL", "SEAT_LATERAL_TOL", "SEAT_YAW_TOL", "ground_truth",
 SEAT_DEPTH_TOL = 0.005
 #: ... and this close to the funnel axis [m] ...
 SEAT_LATERAL_TOL = 0.0025
-#: ... and axes within this yaw [rad]. Lateral and yaw tolerances are the
-#: play of a 45 mm capsule cone in the 16-capsule funnel (about 1-2 mm, 2-3 deg).
+#: ... and axes within this yaw [rad]. Lateral and yaw tolerances were set from
+#: the play of the earlier capsule funnels (about 1-2 mm, 2-3 deg); they are
+#: unchanged for the smooth funnels.
 SEAT_YAW_TOL = math.radians(3.0)
 
 _EYE4 = np.eye(4)

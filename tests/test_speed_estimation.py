@@ -71,6 +71,15 @@ def test_wrench_filter_equals_the_12_state_filterpy_filter() -> None:
         np.testing.assert_allclose(wf.wrench_std, np.sqrt(np.diag(ref.P)[:6]), rtol=1e-7)
 
 
+def _tumbling_pose(t: float, rng: np.random.Generator) -> np.ndarray:
+    """A tool pose at time ``t`` that turns about all three axes and drifts, with a
+    little position noise (one draw of ``rng``): the motion filters' test input."""
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_rotvec([0.3 * t, 0.1 * np.sin(t), -0.2 * t * t]).as_matrix()
+    pose[:3, 3] = [0.05 * t, -0.02 * t + 1e-5 * rng.normal(), 0.1 * np.sin(3 * t)]
+    return pose
+
+
 def test_motion_filter_equals_the_18_state_filterpy_filter() -> None:
     cfg = MotionFilterConfig()
     mf = MotionFilter(cfg, CYCLE_S)
@@ -86,10 +95,7 @@ def test_motion_filter_equals_the_18_state_filterpy_filter() -> None:
     theta = np.zeros(3)
     r_prev = None
     for k in range(300):
-        t = k * CYCLE_S
-        pose = np.eye(4)
-        pose[:3, :3] = Rotation.from_rotvec([0.3 * t, 0.1 * np.sin(t), -0.2 * t * t]).as_matrix()
-        pose[:3, 3] = [0.05 * t, -0.02 * t + 1e-5 * rng.normal(), 0.1 * np.sin(3 * t)]
+        pose = _tumbling_pose(k * CYCLE_S, rng)
         mf.update(pose)
         r = pose[:3, :3]
         if r_prev is None:
@@ -188,10 +194,7 @@ def test_motion_filter_repeated_gains_are_bit_identical_to_computing_them(
     full = MotionFilter(cfg, CYCLE_S)
     rng = np.random.default_rng(7)
     for k in range(1500):
-        t = k * CYCLE_S
-        pose = np.eye(4)
-        pose[:3, :3] = Rotation.from_rotvec([0.3 * t, 0.1 * np.sin(t), -0.2 * t * t]).as_matrix()
-        pose[:3, 3] = [0.05 * t, -0.02 * t + 1e-5 * rng.normal(), 0.1 * np.sin(3 * t)]
+        pose = _tumbling_pose(k * CYCLE_S, rng)
         cached.update(pose)
         full.update(pose)
         assert np.array_equal(cached._x, full._x)

@@ -163,6 +163,7 @@ def run_file(
             except OSError as exc:
                 raise InputError(
                     f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None
+            source_rev = revision()
             with Recorder(path) as rec:
                 rec.metadata(
                     "run",
@@ -174,10 +175,10 @@ def run_file(
                         "overrides": json.dumps(list(overrides)),
                         "overrides_id": overrides_id(all_overrides),
                         "run_name": path.stem,
-                        "source_revision": revision(),
+                        "source_revision": source_rev,
                         "seed": str(protocol.seed),
                         "start_utc": start.isoformat(),
-                        "versions": _versions(revision()),
+                        "versions": _versions(source_rev),
                         "host": platform.node(),
                         "rig": rig_source,
                         "rig_json": rig_model.model_dump_json(),

@@ -80,7 +80,9 @@ def test_unanswered_cycles_repeat_the_last_command_then_fall_back(paper_scene_pa
     # cycle 0 answered; misses at 1..5: the 5th miss in a row leaves CMD (with a stop)
     assert states[:6] == [FriState.CMD] * 6
     assert states[6:] == [FriState.MON] * 6
-    assert 0.0 < speed[1] < speed[3] < speed[5]  # the push held through the misses
+    d = robot.delay.cycles  # the answer to cycle 0 acts from cycle d (the KRC's timing)
+    assert d >= 1 and speed[:1 + d] == [0.0] * (1 + d)
+    assert 0.0 < speed[1 + d] < speed[3] < speed[5]  # the push held through the misses
 
 
 def test_hold_and_mirror_status(paper_scene_path: Path) -> None:
@@ -105,7 +107,7 @@ def test_clipped_stiffness_is_reported(paper_scene_path: Path) -> None:
             assert applied.status == ApplyStatus.CLIPPED
             assert applied.command.stiffness_npm_nmprad[0] == 5000.0
             assert cmd.stiffness_npm_nmprad[0] == 9000.0  # the caller's command is untouched
-            if s.link.cycle == 1:
+            if s.link.cycle == 1 + robot.delay.cycles:  # the first command acts then
                 assert fri(s).warning & 0x0001  # the world clipped it too
 
 

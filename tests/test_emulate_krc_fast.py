@@ -147,8 +147,9 @@ def test_lockstep_send_before_connect_names_the_device() -> None:
 
 def test_lockstep_world_takes_each_cycles_command() -> None:
     """The KRC's arm command is kept while flags, strategy and mode do not change; the
-    world still takes the values of every cycle's command."""
-    robot, _ = open_sim(SCENE, seed=3, start_cycles=0)
+    world still takes the values of every cycle's command (no command delay: each
+    answer acts in the cycle it answers)."""
+    robot, _ = open_sim(SCENE, seed=3, start_cycles=0, overrides=["fri.command_delay_cycles=0"])
     robot.connect()
     it = robot.measurements()
     st = next(it)

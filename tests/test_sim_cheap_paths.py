@@ -64,7 +64,7 @@ def _reference_ft(settings: FtSensorSettings, seed: int, r: np.ndarray,
 
 
 def test_block_drawn_noise_equals_per_block_draws() -> None:
-    settings = FtSensorSettings()
+    settings = FtSensorSettings(delay_s=0.0)  # the reference has no delay line
     r = np.array([0.0, 0.0, -0.05])
     gen = np.random.default_rng(7)
     sizes = [5, 1, 3, 0, 700, 5, NOISE_BLOCK, 2, NOISE_BLOCK + 3] + [5] * 300

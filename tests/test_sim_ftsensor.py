@@ -9,7 +9,8 @@ from drivers.base.types import FtStatus
 from drivers.sim.ftsensor import FtSensorModel
 from drivers.sim.scene import FtSensorSettings
 
-QUIET = FtSensorSettings(noise_std=(0.0, 0.0), bias_std=(0.0, 0.0), drift_density=(0.0, 0.0))
+QUIET = FtSensorSettings(noise_std=(0.0, 0.0), bias_std=(0.0, 0.0), drift_density=(0.0, 0.0),
+                         delay_s=0.0)
 
 
 def _model(settings: FtSensorSettings, seed: int = 1, r: float = 0.0) -> FtSensorModel:
@@ -91,3 +92,18 @@ def test_same_seed_same_samples_other_seed_differs() -> None:
     c = _model(FtSensorSettings(), seed=8).process(raw, 0).wrench
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def test_delay_shifts_the_readings_by_whole_samples() -> None:
+    """A sample stamped t carries the wrench read delay_s earlier; before the first
+    reading the first one is held (the sensor read it before the stream started)."""
+    st = QUIET.model_copy(update={"delay_s": 0.003})
+    raw = np.zeros((10, 6))
+    raw[:, 2] = -np.arange(10.0)  # f_z = 0, 1, 2, ... N on the tool
+    m = _model(st)
+    first = m.process(raw[:4], 0).wrench[:, 2]
+    rest = m.process(raw[4:], 4_000_000).wrench[:, 2]
+    got = np.concatenate((first, rest))
+    res = st.resolution[0]
+    expected = np.round(np.concatenate(([0.0] * 3, np.arange(7.0))) / res) * res
+    np.testing.assert_array_equal(got, expected)

@@ -19,8 +19,10 @@ What it does each cycle, as a KRC2 LR with a KRL script would:
    (:mod:`drivers.emulate.krc`; a missed command is bridged: the world
    holds the last one).
 
-Lockstep steps the world right after the answer, so the answer to packet k
-shapes packet k+1, exactly like the in-process sim. Real time is pipelined
+Lockstep steps the world right after the answer, and the answer to packet k
+acts from the step ``fri.command_delay_cycles`` later
+(:class:`~drivers.emulate.krc.CommandDelay`, 1 as on a real KRC; 0: the
+step right after it), exactly like the in-process sim. Real time is pipelined
 like a controller that interpolates: the world's step for the next packet
 runs while the remote is answering, with the command that answered the
 previous packet, so the remote has the whole cycle to answer and the answer
@@ -73,6 +75,7 @@ import numpy as np
 from drivers.emulate.faults import FaultCounters, FaultSettings, FaultyLink
 from drivers.emulate.krc import (
     SOFTWARE_LIMITS_DEG,
+    CommandDelay,
     arm_command_from_fri,
     brake_command,
     control_mode,
@@ -265,6 +268,8 @@ class FriEmulator:
         self.link.active = settings.faults_from_start
         self._soft_limits_rad = software_limits_rad(settings.software_limits_deg)
         self._brake = False
+        # lockstep: the KRC's command timing (real time: the pipeline and the link are the delay)
+        self.delay = CommandDelay(world.scene.fri.command_delay_cycles if self.lockstep else 0)
         self._seq = world.cycle & 0xFFFF
         self._awaiting = -1
         self._answer_dropped = False  # the injector dropped the answer to the awaited packet
@@ -551,8 +556,10 @@ class FriEmulator:
         """One world step as planned."""
         if self._brake:  # stopped at a software limit switch: the brakes
             self._brake = False
+            self.delay.clear()
             self._step(brake_command(self.world.last_state), None)
         elif plan.stop:  # leaving CMD: hold the measured pose, no superposed wrench/torque
+            self.delay.clear()
             self._step(stop_command(self.world.last_state), None)
         else:
             self._step(plan.command, plan.seq)
@@ -563,6 +570,9 @@ class FriEmulator:
         t0 = time.perf_counter()
         try:
             arm = arm_command_from_fri(cmd, world.mode) if isinstance(cmd, FriCommand) else cmd
+            if isinstance(cmd, FriCommand) or cmd is None:  # the remote's: CommandDelay
+                arm, seq = self.delay.push(arm, seq)
+                cmd = arm
             world.advance(arm)
         except InvalidCommandError:
             # the KRC refuses such a command and leaves command mode
@@ -570,6 +580,7 @@ class FriEmulator:
             if self.krc.commanding:
                 st.fallbacks += 1
             self.krc.refuse()
+            self.delay.clear()
             world.advance(None)
             cmd = None
             seq = None

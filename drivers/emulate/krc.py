@@ -28,7 +28,9 @@ command, and the remote sees the same measurement for the same world state.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Sequence
+from dataclasses import fields
 from typing import Final
 
 import numpy as np
@@ -59,6 +61,7 @@ __all__ = [
     "MAX_TCP_FORCE_N",
     "MAX_TCP_TORQUE_NM",
     "SOFTWARE_LIMITS_DEG",
+    "CommandDelay",
     "arm_command_from_fri",
     "arm_mode",
     "brake_command",
@@ -175,6 +178,62 @@ def arm_command_from_fri(cmd: FriCommand, current: ArmMode) -> ArmCommand:
         jnt_stiffness_nmprad=cmd.jnt_stiffness if f & _JNTSTIFF else None,
         jnt_damping_ratio=cmd.jnt_damping if f & _JNTDAMP else None,
     )
+
+
+class CommandDelay:
+    """The KRC's command timing: a remote's answer to measurement k acts from cycle k + ``cycles``.
+
+    A real KRC sends measurement k, the remote computes and answers within
+    the cycle, and the KRC applies the answer at its next cycle at the
+    earliest (Schreiber et al., ICRA 2010 workshop, sec. V-B: above a 1 ms
+    cycle it fine-interpolates the commands over the following cycle). The
+    lockstep world steps cycle k right after the answer to measurement k,
+    so ``cycles = 0`` is a command acting within the cycle it answers and
+    ``cycles = 1`` the real KRC's earliest (scene key ``fri.command_delay_cycles``).
+
+    Each cycle's entry is the arm command the KRC takes from the remote, or
+    ``None`` (no answer, not commanding: bridged, the world holds what it
+    has). Commands of the KRC itself (a stop, the brakes) act at once and
+    discard what was in flight (:meth:`clear`). The in-process lockstep robot
+    and the lockstep UDP emulator both use this one class, so a run over UDP
+    equals the in-process run bit for bit; in real-time pacing the link's own
+    timing is the delay and none is added.
+
+    Args:
+        cycles: whole cycles between a measurement and the first cycle its
+            answer acts in (0: the same cycle).
+    """
+
+    def __init__(self, cycles: int) -> None:
+        if cycles < 0:
+            raise ValueError(f"command delay must be >= 0 cycles, got {cycles}")
+        self.cycles = cycles
+        self._queue: deque[tuple[ArmCommand | None, int | None]] = deque()
+        self.clear()
+
+    def clear(self) -> None:
+        """Nothing in flight: the next ``cycles`` cycles act on no remote command."""
+        self._queue.clear()
+        self._queue.extend([(None, None)] * self.cycles)
+
+    def push(self, arm: ArmCommand | None, seq: int | None = None
+             ) -> tuple[ArmCommand | None, int | None]:
+        """Hand in this cycle's answer (with its sequence number, if any); returns the
+        one that acts in this cycle. A delayed command is copied (the caller's arrays
+        are reused by the next answer)."""
+        if not self.cycles:
+            return arm, seq
+        queue = self._queue
+        queue.append((None if arm is None else _owned(arm), seq))
+        return queue.popleft()
+
+
+def _owned(arm: ArmCommand) -> ArmCommand:
+    """``arm`` with arrays of its own."""
+    return ArmCommand(**{
+        f.name: (v.copy() if isinstance(v, np.ndarray) else v)
+        for f in fields(arm) for v in (getattr(arm, f.name),)
+    })
 
 
 def software_limits_rad(limits_deg: Sequence[float]) -> F64:

@@ -2,8 +2,9 @@
 
 ``SimRobot.measurements()`` yields the state of the current cycle; when the
 caller asks for the next one, the world runs one cycle with the arm command
-the KRC takes from the last :meth:`SimRobot.send` (none: the world holds the
-last one). The link is the same state machine as the UDP emulator's
+the KRC took ``fri.command_delay_cycles`` cycles ago
+(:class:`~drivers.emulate.krc.CommandDelay`; 0: from the last
+:meth:`SimRobot.send`; none: the world holds the last one). The link is the same state machine as the UDP emulator's
 (:class:`~drivers.fri.link.KrcLink`, every cycle answered unless the caller
 skips a ``send``): MON until ``start_cycles`` answered cycles with PERFECT
 quality (the 100th answer at the earliest), then CMD; the command of that
@@ -40,6 +41,7 @@ from drivers.base.interfaces import RobotDriver
 from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
 from drivers.emulate.krc import (
     SOFTWARE_LIMITS_DEG,
+    CommandDelay,
     arm_command_from_fri,
     brake_command,
     control_mode,
@@ -121,6 +123,7 @@ class SimRobot(RobotDriver):
         self.start_cycles = start_cycles
         self.max_consecutive_misses = max_consecutive_misses
         self.link = self._new_link()
+        self.delay = CommandDelay(world.scene.fri.command_delay_cycles)
         self._watch = LinkWatch()
         self._open = False
         self._answered = False
@@ -183,6 +186,7 @@ class SimRobot(RobotDriver):
     def connect(self) -> None:
         """Open the link: a fresh KRC link state (MON unless ``start_cycles`` is 0)."""
         self.link = self._new_link()
+        self.delay.clear()
         self._watch = LinkWatch()
         self._answered = False
         self._brake = False
@@ -229,10 +233,13 @@ class SimRobot(RobotDriver):
         if self._brake:  # the KRC stopped the robot at the end of the last cycle
             arm = brake_command(world.last_state)
             self._brake = False
+            self.delay.clear()
         elif event is LinkEvent.FALLBACK:
             arm = stop_command(world.last_state)
-        elif self._answered and link.commanding:
-            arm = self._arm_command(self._taken())
+            self.delay.clear()
+        else:  # the remote's answer, if the KRC takes it, acts command_delay_cycles later
+            taken = self._answered and link.commanding
+            arm = self.delay.push(self._arm_command(self._taken()) if taken else None)[0]
         self._answered = False
         world.advance(arm)
         state = world.last_state

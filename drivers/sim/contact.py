@@ -10,12 +10,14 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+from scipy.optimize import brentq
 
 from drivers.base.types import F64
 from drivers.errors import ConfigError
 from drivers.sim.scene import Scene
 
-__all__ = ["ContactInfo", "ToolContact", "configure_contact"]
+__all__ = ["ContactInfo", "ToolContact", "configure_contact", "damping_ratio_for",
+           "restitution_of"]
 
 
 @dataclass(frozen=True)
@@ -27,6 +29,66 @@ class ContactInfo:
     solref_damping: float
 
 
+def _unit_impact(z: float, t: float) -> tuple[float, float]:
+    """Penetration and its rate at time ``t`` of a unit-frequency spring-damper of
+    damping ratio ``z`` that touched at unit speed (closed forms per regime)."""
+    if z < 1.0:
+        w = math.sqrt(1.0 - z * z)
+        e, s, c = math.exp(-z * t), math.sin(w * t), math.cos(w * t)
+        return e * s / w, e * (c - z * s / w)
+    if z == 1.0:
+        e = math.exp(-t)
+        return t * e, (1.0 - t) * e
+    r = math.sqrt(z * z - 1.0)
+    e1, e2 = math.exp((-z + r) * t), math.exp((-z - r) * t)
+    return (e1 - e2) / (2.0 * r), ((-z + r) * e1 - (-z - r) * e2) / (2.0 * r)
+
+
+def restitution_of(damping_ratio: float) -> float:
+    """The coefficient of restitution of a linear spring-damper contact that only
+    pushes (its force clamped at zero, as a contact's): an impact at relative
+    normal speed v leaves at e v.
+
+    The force ``k x + c x'`` returns to zero before the spring is relaxed, and the
+    bodies separate with the speed they have then, so ``e`` is above the
+    unclamped oscillator's ``exp(-z pi / sqrt(1 - z^2))`` and stays above zero
+    at any damping (critical damping: ``exp(-2) = 0.135``).
+    """
+    z = float(damping_ratio)
+    if z <= 0.0:
+        return 1.0
+
+    def force(t: float) -> float:  # over k: x + 2 z x' in units of the frequency
+        x, v = _unit_impact(z, t)
+        return x + 2.0 * z * v
+
+    t_hi = math.pi
+    while force(t_hi) >= 0.0:  # positive at 0+, negative once the damper pulls
+        t_hi *= 2.0
+    t = brentq(force, 1e-12, t_hi, xtol=1e-14, rtol=1e-14)
+    return -_unit_impact(z, t)[1]
+
+
+#: Damping ratios :func:`damping_ratio_for` searches (restitution 1 - 3e-6 to 0.0005).
+DAMPING_RATIO_RANGE = (1e-6, 1e3)
+
+
+def damping_ratio_for(restitution: float) -> float:
+    """The damping ratio whose clamped contact rebounds with ``restitution`` (the
+    inverse of :func:`restitution_of`, which falls monotonically with the ratio).
+
+    Raises:
+        ValueError: ``restitution`` outside what :data:`DAMPING_RATIO_RANGE` gives.
+    """
+    e = float(restitution)
+    lo, hi = DAMPING_RATIO_RANGE
+    e_hi, e_lo = restitution_of(lo), restitution_of(hi)
+    if not e_lo <= e <= e_hi:
+        raise ValueError(f"restitution must be in [{e_lo:.2g}, {e_hi:.6g}], got {e:g}")
+    return float(math.exp(brentq(lambda lz: restitution_of(math.exp(lz)) - e,
+                                 math.log(lo), math.log(hi), xtol=1e-13)))
+
+
 def configure_contact(scene: Scene, model: mujoco.MjModel, m_tcp: float, dt: float,
                       funnel_geoms: Iterable[int]) -> ContactInfo:
     """Map the scene's contact stiffness [N/m] and damping ratio onto solref.
@@ -36,7 +98,10 @@ def configure_contact(scene: Scene, model: mujoco.MjModel, m_tcp: float, dt: flo
     quasi-static load F at penetration ``F (1 - d) / (d k m_eff)``. We pick
     k so that this equals ``F / stiffness``, with m_eff the reduced mass
     of the TCP (``m_tcp``: the Cartesian inertia along the approach axis) and
-    the target. ``dt`` is the physics timestep.
+    the target. In an impact the constraint's acceleration is ``-d (b v + k r)``,
+    a spring-damper of stiffness ``d k`` and damping ``d b`` per unit mass; ``b``
+    gives it the damping ratio whose rebound is ``contact.restitution``
+    (:func:`damping_ratio_for`). ``dt`` is the physics timestep.
     """
     ct = scene.contact
     m_eff = 1.0 / (1.0 / m_tcp + 1.0 / scene.target.mass)
@@ -49,7 +114,7 @@ def configure_contact(scene: Scene, model: mujoco.MjModel, m_tcp: float, dt: flo
             f"{ct.stiffness:g} N/m maps to solref stiffness {k:.3g} > 1/(2h)^2 = {limit:.3g}; "
             "lower it or the physics timestep",
         )
-    b = 2.0 * ct.damping_ratio * math.sqrt(dimp * k) / dimp
+    b = 2.0 * damping_ratio_for(ct.restitution) * math.sqrt(dimp * k) / dimp
     for g in funnel_geoms:
         model.geom_solref[g, 0] = -k
         model.geom_solref[g, 1] = -b

@@ -8,7 +8,8 @@ what a Net F/T streams, in our sign convention:
 1. sign: wrench the environment exerts on the tool = minus the reading
    (static case). The reading therefore contains the tool load: its weight
    and its inertia (``-m a``), as a real sensor's does;
-2. + bias (drawn once per run) + random-walk drift + white noise;
+2. the reading ``delay_s`` old (the sensor's conversion and filter), + bias
+   (drawn once per run) + random-walk drift + white noise;
 3. saturation: any gauge axis beyond the calibration range is clipped and
    sets status bit 0x00020000 (in the sensor frame, before the tool transform);
 4. tool transform to the TCP (torque shifted by ``r x f``), then
@@ -78,6 +79,8 @@ class FtSensorModel:
         self._xform[:3, 3:] = np.array([[0.0, -rz, ry], [rz, 0.0, -rx], [-ry, rx, 0.0]]).T
         self._scale = np.concatenate([self._drift_step, self._noise])
         self._inv_res = 1.0 / self._res
+        self._delay_n = round(settings.delay_s * settings.rate)
+        self._held: F64 | None = None  # the last _delay_n readings, not yet sampled
         self.seq = 0
         self.last_wrench: F64 | None = None
         self._gauss = np.zeros((0, 12))  # scaled draws not used yet start at row _used
@@ -176,6 +179,16 @@ class FtSensorModel:
         self._slab_seq.flags.writeable = False
         self._slab_t.flags.writeable = False
 
+    def _delayed(self, raw: F64) -> F64:
+        """The readings ``delay_s`` older than ``raw``'s (the sensor's path: its
+        conversion and filter); before the first, the first reading held."""
+        held = self._held
+        if held is None:
+            held = np.repeat(raw[:1], self._delay_n, axis=0)
+        full = np.concatenate((held, raw))
+        self._held = full[raw.shape[0]:]
+        return full[:raw.shape[0]]
+
     def process(self, raw_parent_on_child: F64, t0_ns: int) -> FtSamples:
         """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``.
 
@@ -185,6 +198,8 @@ class FtSensorModel:
         ``status`` are read-only arrays. (:attr:`bias` may be replaced, not
         changed in place: its rows are tiled once per object.)
         """
+        if self._delay_n:
+            raw_parent_on_child = self._delayed(raw_parent_on_child)
         n = raw_parent_on_child.shape[0]
         i = self._used
         if (n == self._plan_n and i == self._plan_at and self._gauss is self._plan_g

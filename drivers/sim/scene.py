@@ -56,6 +56,14 @@ class FriSettings(StrictModel):
     cycle: Annotated[float, Field(ge=0.001, le=0.1)] = 0.005
     """FRI cycle [s] (``friOpen(ms)``: 1 to 100 ms). The paper runs 200 Hz."""
     control: Literal["cart_impedance", "joint_position", "joint_impedance"] = "cart_impedance"
+    command_delay_cycles: Annotated[int, Field(ge=0, le=20)] = 1
+    """Whole cycles from a measurement to the first cycle its answer acts in, in
+    lockstep (:class:`~drivers.emulate.krc.CommandDelay`). The KRC sends
+    measurement k, the remote answers within the cycle and the KRC applies the
+    answer at its next cycle at the earliest (Schreiber et al., ICRA 2010
+    workshop, sec. V-B; the fact sheet ``fri_netft.md``): 1. 0 is the
+    idealised loop in which a command acts in the cycle it answers. Real-time
+    pacing over UDP adds none (its pipeline and the link are the delay)."""
 
 
 class ControllerSettings(StrictModel):
@@ -193,6 +201,11 @@ class FtSensorSettings(StrictModel):
     """Standard deviation of the random start-up bias [N, N m]."""
     drift_density: Pair = (0.002, 2e-5)
     """Random-walk drift density [N/sqrt(s), N m/sqrt(s)]."""
+    delay_s: Annotated[float, Field(ge=0.0, le=0.1)] = 0.001
+    """Age of a sample's wrench when it is stamped [s], rounded to whole samples:
+    the Net F/T's conversion and output path (and its low-pass filter, if one is
+    set). 1 ms: one sample period at the paper's 1 kHz with no filter (an
+    assumption; the filter settings' delays: drivers/sim/NOTES.md)."""
 
 
 class ContactSettings(StrictModel):
@@ -200,7 +213,11 @@ class ContactSettings(StrictModel):
 
     stiffness: PosFloat = 2.0e4
     """Quasi-static stiffness of one contact [N/m]."""
-    damping_ratio: NonNeg = 1.0
+    restitution: Annotated[float, Field(ge=0.001, le=0.99)] = 0.5
+    """Coefficient of restitution of an impact of the funnels (relative normal
+    speed after over before); the contact's damping follows from it
+    (:func:`~drivers.sim.contact.damping_ratio_for`). 0 is a perfectly inelastic
+    contact; the range for plausible funnel materials: drivers/sim/NOTES.md."""
     friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.3
     """Coulomb coefficient between the funnels."""
     impedance: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.5

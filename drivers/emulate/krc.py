@@ -27,6 +27,7 @@ command, and the remote sees the same measurement for the same world state.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import deque
 from collections.abc import Sequence
@@ -230,10 +231,12 @@ class CommandDelay:
 
 def _owned(arm: ArmCommand) -> ArmCommand:
     """``arm`` with arrays of its own."""
-    return ArmCommand(**{
-        f.name: (v.copy() if isinstance(v, np.ndarray) else v)
-        for f in fields(arm) for v in (getattr(arm, f.name),)
-    })
+    out = copy.copy(arm)
+    for f in fields(arm):
+        v = getattr(arm, f.name)
+        if isinstance(v, np.ndarray):
+            setattr(out, f.name, v.copy())
+    return out
 
 
 def software_limits_rad(limits_deg: Sequence[float]) -> F64:

@@ -4,7 +4,8 @@
 caller asks for the next one, the world runs one cycle with the arm command
 the KRC took ``fri.command_delay_cycles`` cycles ago
 (:class:`~drivers.emulate.krc.CommandDelay`; 0: from the last
-:meth:`SimRobot.send`; none: the world holds the last one). The link is the same state machine as the UDP emulator's
+:meth:`SimRobot.send`; none: the world holds the last one). The link is the
+same state machine as the UDP emulator's
 (:class:`~drivers.fri.link.KrcLink`, every cycle answered unless the caller
 skips a ``send``): MON until ``start_cycles`` answered cycles with PERFECT
 quality (the 100th answer at the earliest), then CMD; the command of that

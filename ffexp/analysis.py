@@ -41,7 +41,11 @@ class RunMetrics:
     alignment_time_s: float | None
     first_contact_s: float | None
     contact_breaks: int
+    """Contact lost after the first contact, in the whole run (a run that goes on
+    after a momentary seat counts what follows it)."""
     break_times_s: list[float]
+    breaks_align: int
+    """Contact lost within ALIGN before the funnels were aligned."""
     mean_fz_align_n: float | None
     peak_abs_fz_n: float | None
     fz_tracking_rmse_n: float | None
@@ -138,13 +142,22 @@ def metrics(rec: Recording) -> RunMetrics:
                 aborted = str(msg.get("reason", "aborted"))
             if phase == Phase.DONE and _ended_aligned(msg):
                 aligned_at = (t_ns - t0_ns) / NS
+    events = rec.json.get("/events")
+    if aligned_at is None and events is not None:  # a run that went on after its seat
+        for t_ns, msg in zip(events.log_time_ns.tolist(), events.messages, strict=True):
+            if msg.get("name") == "aligned":
+                aligned_at = (t_ns - t0_ns) / NS
+                break
     contact = s.in_contact
     made = np.flatnonzero(~contact[:-1] & contact[1:]) + 1
     first_contact = float(s.t_s[made[0]]) if made.size else (
         float(s.t_s[0]) if contact.size and contact[0] else None
     )
     lost = np.flatnonzero(contact[:-1] & ~contact[1:]) + 1
-    breaks = [float(s.t_s[i]) for i in lost if s.phase[i - 1] == ALIGN]
+    # every break after the first contact; and those within ALIGN before the seat
+    breaks = [float(s.t_s[i]) for i in lost]
+    breaks_align = [t for i, t in zip(lost.tolist(), breaks, strict=True)
+                    if s.phase[i - 1] == ALIGN and (aligned_at is None or t <= aligned_at)]
     in_align = s.phase == ALIGN
     f_z = -s.wrench[:, 2]
     mean_fz = peak_fz = rmse = None
@@ -189,6 +202,7 @@ def metrics(rec: Recording) -> RunMetrics:
         first_contact_s=first_contact,
         contact_breaks=len(breaks),
         break_times_s=breaks,
+        breaks_align=len(breaks_align),
         mean_fz_align_n=mean_fz,
         peak_abs_fz_n=peak_fz,
         fz_tracking_rmse_n=rmse,
@@ -279,6 +293,7 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("contact [s]", "first_contact_s", 2),
     ("aligned [s]", "alignment_time_s", 0),
     ("breaks", "contact_breaks", 1),
+    ("breaks ALIGN", "breaks_align", 3),
     ("verdict", "verdict", 0),
     ("judge", "verdict_source", 2),
     ("mean f_z [N]", "mean_fz_align_n", 4),
@@ -293,7 +308,7 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
 COMPARE_KEYS: tuple[str, ...] = (
     "file", "run", "complete", "protocol", "method", "overrides", "f_ref_n", "k_xp", "k_yp",
     "aligned", "verdict", "verdict_source", "verdict_truth", "first_contact_s",
-    "alignment_time_s", "contact_breaks", "mean_fz_align_n", "peak_abs_fz_n",
+    "alignment_time_s", "contact_breaks", "breaks_align", "mean_fz_align_n", "peak_abs_fz_n",
     "peak_abs_fz_run_n", "fz_tracking_rmse_n", "target_speed_after_contact_mps",
     "target_max_speed_mps", "target_displacement_m", "final_lateral_error_m",
     "final_yaw_error_deg", "duration_s", "end", "aborted", "source_revision",
@@ -341,41 +356,63 @@ def compare_row(rec: Recording, m: RunMetrics | None = None) -> dict[str, Any]:
 #: The paper's Table res_par beside ours: (title, key, priority).
 PAPER_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("run", "run", 0), ("f_ref [N]", "f_ref_n", 3), ("k_xp", "k_xp", 4), ("k_yp", "k_yp", 4),
-    ("paper contact [s]", "paper_contact_s", 0), ("ours contact [s]", "contact_s", 0),
-    ("paper end [s]", "paper_end_s", 0), ("ours aligned [s]", "aligned_s", 0),
-    ("ours breaks", "breaks", 1), ("ours end", "end", 2),
+    ("paper", "paper_outcome", 0), ("ours", "outcome", 0), ("agree", "agree", 0),
+    ("paper start [s]", "paper_start_s", 3),
+    ("paper contact [s]", "paper_contact_s", 1), ("ours contact [s]", "contact_s", 1),
+    ("paper end [s]", "paper_end_s", 1), ("ours aligned [s]", "aligned_s", 1),
+    ("breaks", "breaks", 0), ("breaks ALIGN", "breaks_align", 2), ("ours end", "end", 2),
 )
+
+#: The outcomes a run can have in the paper's words (the protocol's ``[paper] outcome``).
+OUTCOMES = ("aligned", "contact kept breaking", "did not slide")
+#: From this many breaks after the first contact a run "kept breaking" (the paper's
+#: Method III: contact "multiple", "the end-effector kept losing contact").
+KEPT_BREAKING = 3
+
+
+def outcome(m: RunMetrics) -> str:
+    """The run's outcome in the paper's words: contact kept breaking (at least
+    :data:`KEPT_BREAKING` breaks after the first contact, whatever else happened),
+    aligned, or did not slide (no alignment: the tool stuck on the funnel wall or
+    never seated); an aborted run is its abort reason."""
+    if m.contact_breaks >= KEPT_BREAKING:
+        return "contact kept breaking"
+    if m.aligned:
+        return "aligned"
+    if m.aborted is not None:
+        return m.aborted
+    return "did not slide"
 
 
 def paper_row(rec: Recording, m: RunMetrics | None = None) -> dict[str, Any] | None:
-    """The paper's values for this run beside ours (times since the start of the
-    experiment), from the recorded protocol's ``paper`` table; None without one."""
+    """The paper's values for this run beside ours, from the recorded protocol's
+    ``paper`` table (its times as the paper gives them, on its clock, which starts
+    the experiment at ``paper_start_s``; ours since the tare); None without one."""
     m = metrics(rec) if m is None else m
     proto = run_info(rec).get("protocol_resolved", {})
     paper = proto.get("paper") or {}
     if not paper:
         return None
-    start = paper.get("start_s")
-
-    def rel(key: str) -> object:
-        v = paper.get(key)
-        if isinstance(v, int | float) and isinstance(start, int | float):
-            return float(v) - float(start)
-        return v
-
     align = proto.get("align", {})
     k_ri = align.get("k_ri")
     f_ref = align.get("f_ref")
     force = controllers.tracks_force_reference(m.method)
+    ours = outcome(m)
+    theirs = paper.get("outcome")
     return {
         "run": run_name(rec),
+        "paper_outcome": theirs,
+        "outcome": ours,
+        "agree": None if theirs is None else ("yes" if theirs == ours else "NO"),
         "f_ref_n": f_ref[2] if force and f_ref else None,
         "k_xp": k_ri[3] if k_ri else None,
         "k_yp": k_ri[1] if k_ri else None,
-        "paper_contact_s": rel("contact_s"),
+        "paper_start_s": paper.get("start_s"),
+        "paper_contact_s": paper.get("contact_s"),
         "contact_s": m.first_contact_s,
-        "paper_end_s": rel("end_s"),
+        "paper_end_s": paper.get("end_s"),
         "aligned_s": m.alignment_time_s,
         "breaks": m.contact_breaks,
+        "breaks_align": m.breaks_align,
         "end": end_label(m),
     }

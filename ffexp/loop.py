@@ -51,7 +51,8 @@ class Cycle:
         self.log = log
         self.estimator = Estimator(p.estimation, cycle_s, p.run.tare_s)
         self.safety = SafetyMonitor(p.limits)
-        self.task = Task(p.alignment, p.run.timeout_s, p.run.stop_hold_s)
+        self.task = Task(p.alignment, p.run.timeout_s, p.run.stop_hold_s,
+                         end_on_aligned=p.run.end_on_aligned)
         self.approach = controllers.Approach(p.approach)
         ctx = controllers.ControlContext(cycle_s, self.approach)
         self.controller = controllers.build(p.align, ctx)

@@ -65,6 +65,11 @@ class RunSettings(StrictModel):
         description="After the robot stopped commanding for a few cycles in ALIGN and came "
                     "back, the method's wrench is blended in from the held one over this time.")
     tf_period_s: float = Field(0.02, gt=0, description="Period of /tf transforms in the log.")
+    end_on_aligned: bool = Field(
+        True, description="End the run (DONE) once the funnels have been aligned for "
+                          "alignment.hold_s. false: a momentary seat is noted (an 'aligned' "
+                          "event) and the run goes on to timeout_s, so contact that keeps "
+                          "breaking afterwards is seen (the paper's Method III ran to 48 s).")
 
 
 class RunProtocol(StrictModel):

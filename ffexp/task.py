@@ -6,8 +6,9 @@ notes it leaves (events and phase changes, in order) to the run log.
 Phases (:class:`ffexp.contracts.Phase`): CONNECT until the estimator has
 tared with the robot commanding; APPROACH until contact; ALIGN while in
 contact (contact lost goes back to APPROACH and counts a break, as the paper
-does); DONE when aligned for ``alignment.hold_s`` or at the timeout; ABORT
-on any :class:`~ffexp.contracts.Stop` the loop passes in.
+does); DONE when aligned for ``alignment.hold_s`` (unless ``end_on_aligned``
+is off: then the seat is an ``aligned`` event and the run goes on) or at the
+timeout; ABORT on any :class:`~ffexp.contracts.Stop` the loop passes in.
 
 The verdict comes from whichever source sees the target (``[alignment]
 source = "auto"``): ground truth in a simulator; else the rig's target
@@ -126,10 +127,14 @@ class Task:
         alignment: the protocol's tolerances.
         timeout_s: run time after which the run ends (DONE, timeout).
         stop_hold_s: how long the safe stop is held before the run ends.
+        end_on_aligned: end the run once aligned (DONE); False: note the seat and
+            go on to the timeout (breaks after it still count).
     """
 
-    def __init__(self, alignment: Alignment, timeout_s: float, stop_hold_s: float) -> None:
+    def __init__(self, alignment: Alignment, timeout_s: float, stop_hold_s: float,
+                 end_on_aligned: bool = True) -> None:
         self.alignment = alignment
+        self.end_on_aligned = end_on_aligned
         self.timeout_ns = round(timeout_s * NS_PER_S)
         self.stop_hold_ns = round(stop_hold_s * NS_PER_S)
         self.phase = Phase.CONNECT
@@ -243,11 +248,13 @@ class Task:
             if self.aligned_now(state, est):
                 if self._aligned_since_ns is None:
                     self._aligned_since_ns = t_ns
-                if t_ns - self._aligned_since_ns >= self.alignment.hold_s * NS_PER_S:
+                if (t_ns - self._aligned_since_ns >= self.alignment.hold_s * NS_PER_S
+                        and not self.aligned):
                     self.aligned = True
                     self.notes.append(Event("INFO", "aligned",
                                             f"funnels aligned (judged by {self.verdict_source})"))
-                    self.end(t_ns, Stop(StopReason.ALIGNED, "aligned"))
+                    if self.end_on_aligned:
+                        self.end(t_ns, Stop(StopReason.ALIGNED, "aligned"))
             else:
                 self._aligned_since_ns = None
 

@@ -27,18 +27,19 @@ def test_campaign_prints_the_papers_table_and_writes_figures(tmp_path: Path) -> 
          "--out", str(tmp_path)],
     )
     assert result.exit_code == 0, result.stderr
-    assert "paper Table res_par" in result.stdout
+    assert "the paper (Table res_par" in result.stdout and "agree" in result.stdout
     (camp,) = tmp_path.glob("paper-*")
-    for name in ("method1_case1", "method1_case2", "method2", "method3_impedance"):
+    for name in ("method1_case1", "method1_case2", "method2", "method2_f08",
+                 "method3_impedance"):
         assert name in result.stdout
-        (rec,) = camp.glob(f"{name}-*.mcap")
+        (rec,) = camp.glob(f"{name}-[!f]*.mcap")  # method2-..., not method2_f08-...
         for kind in ("wrench", "applied"):
             assert (camp / "figures" / f"{rec.stem}_{kind}.png").read_bytes()[:4] == b"\x89PNG"
             assert (camp / "figures" / f"{rec.stem}_{kind}.svg").is_file()
     assert (camp / "figures/paper_all_wrench.png").read_bytes()[:4] == b"\x89PNG"
     manifest = json.loads((camp / "campaign.json").read_text())
     assert [r["protocol"] for r in manifest["runs"]] == [
-        "method1_case1", "method1_case2", "method2", "method3_impedance"]
+        "method1_case1", "method1_case2", "method2", "method2_f08", "method3_impedance"]
 
 
 @pytest.mark.parametrize(

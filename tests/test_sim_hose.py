@@ -72,3 +72,41 @@ def test_bed_friction_holds_a_push_below_mu_m_g_against_the_hose() -> None:
     assert PUSH_N < 0.01 * m * 9.81
     y = _push_y(w, 1.0)
     assert abs(y[-1]) < 1e-4
+
+
+def test_the_nominal_restraint_is_within_the_papers_impulse_test() -> None:
+    """docs/fidelity.md: bed friction, the hose's spring at the end of a 10 cm glide and
+    its drag at 5 cm/s together decelerate the target by less than the camera resolved
+    (mu < 0.01, i.e. 0.01 g); the nominal scene's target is inside that bound."""
+    from pathlib import Path
+
+    from drivers.sim.scene import IMPULSE_TEST_MU_BOUND, load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "data/scenes/paper.toml")
+    g = scene.physics.gravity
+    assert scene.target.impulse_test_deceleration(g) <= IMPULSE_TEST_MU_BOUND * g
+    # the issue's 200 N/m, 20 N s/m hose fails the same test several times over
+    held = scene.target.model_copy(update={"hose": scene.target.hose.model_copy(
+        update={"stiffness": 200.0, "damping": 20.0})})
+    assert held.impulse_test_deceleration(g) > 10 * IMPULSE_TEST_MU_BOUND * g
+
+
+def test_a_glide_decelerates_as_the_bound_adds_it_up() -> None:
+    """The simulated glide's deceleration at 10 cm from rest, moving at v, is
+    mu g + (k x + c v) / m: the sum the impulse-test bound is taken over."""
+    k, c, mu = 2.0, 1.0, 0.004
+    scene = Scene.model_validate({"target": {"mu": mu, "distance": 0.3, "velocity": [0.0, 0.1, 0.0],
+                                             "hose": {"stiffness": k, "damping": c}}})
+    w = SimWorld(scene)
+    body = mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_BODY, "target")
+    m = _moving_mass_kg(w)
+    y0 = float(w.data.xpos[body, 1])
+    ys, vs = [], []
+    for _ in range(round(0.9 / w.cycle_s)):
+        w.step()
+        ys.append(float(w.data.xpos[body, 1]) - y0)
+        vs.append(float(w.data.qvel[w._t_vadr[1]]))
+    i = int(np.argmin(np.abs(np.asarray(ys) - 0.06)))  # 6 cm out, still gliding
+    a = -(vs[i + 1] - vs[i - 1]) / (2 * w.cycle_s)
+    expected = mu * scene.physics.gravity + (k * ys[i] + c * vs[i]) / m
+    assert vs[i] > 0.0 and a == pytest.approx(expected, rel=0.05)

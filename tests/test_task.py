@@ -17,8 +17,8 @@ from ffexp.task import Alignment, PhaseChange, Task
 NS = 1_000_000_000
 
 
-def in_align(alignment: Alignment) -> Task:
-    task = Task(alignment, timeout_s=30.0, stop_hold_s=0.1)
+def in_align(alignment: Alignment, end_on_aligned: bool = True) -> Task:
+    task = Task(alignment, timeout_s=30.0, stop_hold_s=0.1, end_on_aligned=end_on_aligned)
     s = RobotState(tcp_pose_m=pose_at(0.0))
     task.step(0, s, Estimate(tared_now=True, tared=True))
     task.step(5_000_000, s, Estimate(tared=True, in_contact=True,
@@ -107,6 +107,23 @@ def test_contact_loss_counts_a_break_and_notes_in_order() -> None:
     assert kinds == ["Event", "PhaseChange"]
     change = task.notes[1]
     assert isinstance(change, PhaseChange) and change.reason == "contact lost (break #1)"
+
+
+def test_a_run_that_goes_on_notes_its_seat_and_keeps_counting_breaks() -> None:
+    """end_on_aligned off (the paper's Method III ran on): the seat is one 'aligned'
+    event, the phase stays ALIGN, a later loss is a break, the timeout ends the run."""
+    task = in_align(Alignment(hold_s=0.2), end_on_aligned=False)
+    hold(task, truth(0.0, 0.0, 0.03), 0.5)
+    assert task.aligned and task.phase is Phase.ALIGN and task.stop is None
+    events = [n.name for n in task.notes if type(n).__name__ == "Event"]
+    assert events.count("aligned") == 1  # noted once, not every cycle after the hold
+    t = task._test_clock_ns + 5_000_000  # type: ignore[attr-defined]
+    task.step(t, RobotState(tcp_pose_m=pose_at(0.0)),
+              Estimate(tared=True, in_contact=False, event=ContactEvent("broken", t, 1.0)))
+    assert task.phase is Phase.APPROACH and task.breaks == 1
+    task.check_timeout(30 * NS)
+    assert task.stop is not None and task.stop.reason is StopReason.TIMEOUT
+    assert task.verdict is not None and task.verdict.label == "aligned"
 
 
 def test_end_once_and_hold_before_finishing() -> None:

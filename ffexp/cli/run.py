@@ -309,9 +309,10 @@ def _paper_table(recs: Sequence[Recording], wide: bool) -> None:
     from ffexp.cli.tables import Column, compact_runs, console, fitted_table
 
     con = console(wide=wide)
-    cols = [Column(t, k, p, digits=2) for t, k, p in PAPER_COLUMNS]
+    cols = [Column(t, k, p, digits=3) for t, k, p in PAPER_COLUMNS]
     rows, _day = compact_runs([row for row in (paper_row(r) for r in recs) if row is not None])
-    title = "paper Table res_par vs ours (times since the start of the experiment)"
+    title = ("the paper (Table res_par, its clock) vs ours (since the tare): outcome, "
+             "agreement, times, breaks")
     con.print(fitted_table(con, title, cols, rows))
 
 

@@ -69,7 +69,8 @@ class Relative(StrictModel):
 
 
 class ClaimSettings(StrictModel):
-    iii_min_breaks: int = Field(2, ge=1)
+    iii_min_breaks: int = Field(3, ge=1)
+    i1_max_breaks: int = Field(1, ge=0)
     fz_tolerance: float = Field(0.15, gt=0)
     limit_factor: float = Field(2.0, gt=1)
     f_ref_low_n: float = Field(0.8, description="The f_ref at which I aligns and II does not.")
@@ -233,7 +234,7 @@ def evaluate(study: Study, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     """Per scene and seed: each run's outcome and each claim; the summary; the limits."""
     cfg = study.config
     settings = claims.Settings(cfg.claims.iii_min_breaks, cfg.claims.fz_tolerance,
-                               cfg.claims.limit_factor)
+                               cfg.claims.limit_factor, cfg.claims.i1_max_breaks)
     per_scene: list[dict[str, Any]] = []
     n_roles, n_seeds = len(study.targets), len(cfg.seeds)
     roles = list(study.targets)
@@ -246,6 +247,7 @@ def evaluate(study: Study, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
             for role, row in runs.items():
                 entry[f"{role} aligned"] = None if row.get("error") else bool(row.get("aligned"))
                 entry[f"{role} breaks"] = row.get("contact_breaks")
+                entry[f"{role} breaks ALIGN"] = row.get("breaks_align")
                 entry[f"{role} mean f_z"] = row.get("mean_fz_align_n")
             for c in claims.SCENE_CLAIMS:
                 entry[c.name] = c.judge(runs, settings)

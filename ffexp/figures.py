@@ -55,6 +55,8 @@ STYLE: dict[str, Any] = {
 PHASE_COLOURS = {
     Phase.APPROACH: "#dbe9f6", Phase.ALIGN: "#e3f1dc", Phase.DONE: "#eeeeee", Phase.ABORT: "#f8d7d3"
 }
+#: The phases in which the method or the approach law commands a wrench.
+COMMANDING = (int(Phase.APPROACH), int(Phase.ALIGN))
 #: The zoomed force panel shows at least +-this much around f_ref (N).
 ZOOM_MIN_N = 1.0
 
@@ -247,14 +249,22 @@ def _ref(s: RunSeries) -> np.ndarray:
     return _in_phase(s, s.f_ref[:, 2], Phase.ALIGN)
 
 
-def _zoom_limits(s: RunSeries) -> tuple[float, float]:
-    """The y range of the force-scale panel: f_ref (or the ALIGN median) +- max(1 N, 2 f_ref)."""
+def _zoom_limits(s: RunSeries, commanded: np.ndarray | None = None) -> tuple[float, float]:
+    """The y range of the force-scale panel: f_ref (or the ALIGN median) +- max(1 N, 2 f_ref),
+    widened to hold the bulk of ``commanded`` (0.5 to 99.5 %, in APPROACH and ALIGN)."""
     f_z = -s.wrench[:, 2]
     in_align = s.phase == Phase.ALIGN
     ref = float(np.nanmedian(s.f_ref[in_align, 2])) if in_align.any() else 0.0
     centre = ref if ref > 0 else (float(np.median(f_z[in_align])) if in_align.any() else 0.0)
     half = max(ZOOM_MIN_N, 2.0 * abs(centre))
-    return centre - half, centre + half
+    lo, hi = centre - half, centre + half
+    if commanded is not None:
+        values = commanded[np.isin(s.phase, COMMANDING) & np.isfinite(commanded)]
+        if values.size:
+            c_lo, c_hi = np.percentile(values, [0.5, 99.5])
+            margin = 0.05 * (max(hi, c_hi) - min(lo, c_lo))
+            lo, hi = min(lo, c_lo - margin), max(hi, c_hi + margin)
+    return float(lo), float(hi)
 
 
 # -- marks ----------------------------------------------------------------------
@@ -402,8 +412,10 @@ def applied_figure(rec: Recording, title: str) -> Figure:
         ]
         if name.startswith("(a)"):
             lines.append(ax.plot(s.t_s, _ref(s), "k--", label=r"$f_z^\mathrm{ref}$")[0])
-            ax.set_ylim(*_zoom_limits(s))
-            if mark_clipped(ax, s.t_s, contact, unit):
+            ax.set_ylim(*_zoom_limits(s, commanded=applied))
+            clipped = mark_clipped(ax, s.t_s, contact, unit)
+            commanded = np.where(np.isin(s.phase, COMMANDING), applied, np.nan)
+            if clipped + mark_clipped(ax, s.t_s, commanded, unit):
                 lines.append(clip_handle())
             ax.set_title(name + " (force scale)")
             handles = lines

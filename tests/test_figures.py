@@ -223,3 +223,28 @@ def test_keys_by_their_paper_names_with_units() -> None:
     assert figures.key_label("align.f_ref[2]") == r"$f_z^\mathrm{ref}$ (N)"
     assert figures.key_label("run.timeout_s") == "run.timeout (s)"  # by its name's unit
     assert figures.key_label("scene.target.funnel.panels") == "scene.target.funnel.panels"
+
+
+def test_every_line_the_force_scale_cuts_is_marked(tmp_path: Path) -> None:
+    rec = with_protocol(synthetic(tmp_path / "a.mcap"), METHOD_I)
+    command = rec.topics["/control/terms"].fields["total"]
+    command[200:, 2] = F_REF_N
+    command[300:302, 2] = -10.0  # a two-cycle kick of the command
+    with figures.style():
+        fig = figures.applied_figure(rec, "a")
+    ax = fig.axes[0]
+    lo, hi = ax.get_ylim()
+    marks = [ln for ln in ax.get_lines() if ln.get_marker() in ("^", "v")]
+    marked_x = np.concatenate([np.asarray(m.get_xdata(), float) for m in marks])
+    cut = 0
+    for line in ax.get_lines():
+        if line in marks:
+            continue
+        t = np.asarray(line.get_xdata(), float)
+        y = np.asarray(line.get_ydata(), float)
+        beyond = np.isfinite(y) & ((y > hi) | (y < lo))
+        if beyond.any():
+            cut += 1
+            assert np.min(np.abs(marked_x - t[beyond][np.argmax(np.abs(y[beyond]))])) < 1e-9
+    assert cut == 2  # the contact's spike (+20 N) and the command's kick (-10 N)
+    assert sorted(t.get_text() for t in ax.texts) == ["peak -10 N", "peak 20 N"]

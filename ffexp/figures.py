@@ -343,15 +343,14 @@ def _approach_note(rec: Recording) -> str:
 
 
 # -- run figures --------------------------------------------------------------
-def _titled(fig: Figure, rec: Recording, name: str, what: str) -> None:
+def _titled(fig: Figure, rec: Recording, what: str) -> None:
     fig.suptitle(f"{method_title(rec)}\n{what}")
-    fig.text(0.995, 0.995, f"run {name}", ha="right", va="top", fontsize=6, color="0.4")
 
 
 def wrench_figure(rec: Recording, title: str) -> Figure:
     """Measured contact wrench (the paper's exp_all_wrench, one run): f_z at full
     scale and at the force scale (clipped spikes marked), lateral forces, torque
-    about X; one unit per axis. ``title``: the run's name (printed small)."""
+    about X; one unit per axis. ``title``: the run's name (printed above the legend)."""
     from ffexp.analysis import series
 
     s = series(rec)
@@ -380,8 +379,8 @@ def wrench_figure(rec: Recording, title: str) -> Figure:
     ax.set_ylabel("torque X [N m]")
     ax.set_xlabel("time since the run's start [s]")
     lines = [l_fz, l_ref, *([clip_handle()] if clipped else []), l_y, l_x, l_t]
-    phase_legend(fig, [s], lines)
-    _titled(fig, rec, title, "measured contact wrench (TCF, environment on tool)")
+    phase_legend(fig, [s], lines, note=f"run {title}")
+    _titled(fig, rec, "measured contact wrench (TCF, environment on tool)")
     return fig
 
 
@@ -423,8 +422,8 @@ def applied_figure(rec: Recording, title: str) -> Figure:
             ax.set_title(name)
         ax.set_xlabel("time since the run's start [s]")
         ax.set_ylabel(label)
-    phase_legend(fig, [s], handles, note=_approach_note(rec))
-    _titled(fig, rec, title, "contact and commanded wrench")
+    phase_legend(fig, [s], handles, note=f"run {title}. {_approach_note(rec)}")
+    _titled(fig, rec, "contact and commanded wrench")
     return fig
 
 

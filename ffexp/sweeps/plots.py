@@ -228,7 +228,12 @@ def limits_figure(
             fig.colorbar(sc, ax=ax, label="aligned fraction over seeds (–)")
             ax.set_xlabel(key_label(keys[0]))
             ax.set_ylabel(key_label(keys[1]))
-        ax.legend(loc="best", fontsize=7)
+        if len(keys) == 1:
+            ax.legend(loc="best", fontsize=7)
+        else:  # below the plane: the points fill it
+            handles, labels = ax.get_legend_handles_labels()
+            fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=7,
+                       frameon=False)
         ax.set_title(title)
         return _save_png(fig, path)
 

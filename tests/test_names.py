@@ -73,10 +73,13 @@ def test_their_figure_titles_differ(same_protocol_campaign: Path) -> None:
     recs = [load(p) for p in sorted(same_protocol_campaign.glob("*.mcap"))]
     with figures.style():
         fig = figures.campaign_figure([(_run_title(r), r) for r in recs], "same3")
+    # each row is titled with its method and its own f_ref, and names its run beside
     titles = [ax.get_title(loc="left") for ax in fig.axes if ax.get_title(loc="left").startswith(
-        "method2")]
+        "Method II")]
     assert len(set(titles)) == 3
-    assert all(any(f"{f}" in t for t in titles) for f in F_REFS)
+    assert all(any(f"{f:g} N" in t for t in titles) for f in F_REFS)
+    names = " ".join(ax.get_title(loc="left") for ax in fig.axes)
+    assert all(_run_title(r) in names for r in recs)
 
 
 def test_plots_into_an_existing_directory_adds(

@@ -1,9 +1,11 @@
 """``ffexp report DIR``: one self-contained HTML page for a campaign.
 
 The page is parsed (tables, rows, embedded images, nothing fetched from
-elsewhere); when Chromium is installed it is also opened headless and its
-rendered DOM must hold the same tables and images (CI has no Chromium:
-that test skips there).
+elsewhere); when Chromium is installed (Debian's package ``chromium``; CI
+installs it) it is also rendered headless at 1280 px: its DOM must hold the
+same tables and images, nothing may stick out of the page's width (wide
+tables scroll inside their own box) and the figures take the page's width.
+Without Chromium those tests skip and say why.
 """
 
 from __future__ import annotations
@@ -101,14 +103,84 @@ def test_a_second_report_does_not_overwrite_the_first(
     assert second != report_path and report_path.read_bytes() == before
 
 
-@pytest.mark.skipif(shutil.which("chromium") is None, reason="Chromium is not installed")
-def test_report_renders_in_headless_chromium(report_path: Path, tmp_path: Path) -> None:
+CHROMIUM = shutil.which("chromium")
+#: The page width the report must read at (px).
+PAGE_PX = 1280
+#: Run in the page once it has loaded: what sticks out of the page's width, leaving
+#: out what sits inside a box that scrolls or clips sideways (a wide table in its
+#: scroll box is fine; the box itself must fit).
+OVERFLOW_PROBE = """
+<script>
+window.addEventListener('load', function () {
+  var width = document.documentElement.clientWidth, bad = [];
+  function scrolls(el) {
+    for (var p = el.parentElement; p && p !== document.body; p = p.parentElement) {
+      var x = getComputedStyle(p).overflowX;
+      if (x === 'auto' || x === 'scroll' || x === 'hidden') return true;
+    }
+    return false;
+  }
+  document.body.querySelectorAll('*').forEach(function (el) {
+    var r = el.getBoundingClientRect();
+    if ((r.width || r.height) && (r.right > width + 0.5 || r.left < -0.5) && !scrolls(el))
+      bad.push(el.tagName + '.' + el.className + ' ' + Math.round(r.left) + '..' +
+               Math.round(r.right));
+  });
+  var out = document.createElement('pre');
+  out.id = 'probe';
+  out.textContent = 'PROBE ' + JSON.stringify({
+    scrollWidth: document.documentElement.scrollWidth, clientWidth: width,
+    figures: Array.prototype.map.call(document.querySelectorAll('figure img'),
+                                      function (i) { return i.getBoundingClientRect().width; }),
+    bad: bad}) + ' END';
+  document.body.appendChild(out);
+});
+</script>
+"""
+
+
+def rendered(page: Path, tmp_path: Path, width_px: int = PAGE_PX) -> tuple[str, dict[str, object]]:
+    """The DOM headless Chromium renders from ``page`` at ``width_px``, and what the
+    probe measured in it."""
+    import json
+    import re
+
+    assert CHROMIUM is not None
+    probe = tmp_path / page.name
+    probe.write_text(page.read_text().replace("</body>", OVERFLOW_PROBE + "</body>"))
     done = subprocess.run(
-        ["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--dump-dom",
-         report_path.as_uri()],
-        capture_output=True, text=True, timeout=120,
+        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu",
+         f"--user-data-dir={tmp_path / 'profile'}", f"--window-size={width_px},900",
+         "--virtual-time-budget=10000", "--dump-dom", probe.as_uri()],
+        capture_output=True, text=True, timeout=180,
     )
     assert done.returncode == 0, done.stderr[-500:]
+    found = re.search(r"PROBE (\{.*?\}) END", done.stdout)
+    assert found is not None, "the probe did not run: " + done.stdout[-300:]
+    return done.stdout, json.loads(html.unescape(found.group(1)))
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed (Debian: apt-get "
+                    "install chromium); the report's rendering at 1280 px is not checked")
+def test_report_reads_at_1280_px_in_headless_chromium(report_path: Path, tmp_path: Path) -> None:
+    dom, probe = rendered(report_path, tmp_path)
     page = Page()
-    page.feed(done.stdout)
+    page.feed(dom)
     assert page.tables == 4 and page.images
+    assert probe["bad"] == [], probe["bad"]
+    assert probe["scrollWidth"] <= probe["clientWidth"] <= PAGE_PX  # type: ignore[operator]
+    # the figures take the page's width (less its margins), no thumbnails
+    assert min(probe["figures"]) >= 0.85 * probe["clientWidth"]  # type: ignore[arg-type, operator]
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed (Debian: apt-get "
+                    "install chromium); the overflow probe is not checked")
+def test_the_probe_sees_a_page_that_overflows(report_path: Path, tmp_path: Path) -> None:
+    """The probe is no formality: the same report with a table out of its scroll box
+    is found to stick out of the page."""
+    wide = tmp_path / "wide" / report_path.name
+    wide.parent.mkdir()
+    text = report_path.read_text()
+    wide.write_text(text.replace('<div class="scroll">', "<div>"))
+    _dom, probe = rendered(wide, tmp_path)
+    assert probe["bad"] and probe["scrollWidth"] > probe["clientWidth"]  # type: ignore[operator]

@@ -217,7 +217,7 @@ def limits(
         fig = plots.limits_figure(
             search.points(), names, [tuple(r[n] for n in names) for r in found],
             f"{target.label}: {' x '.join(names)}, {len(search.seeds)} seed(s)",
-            runner.out_dir / "figures" / "limits.png")
+            runner.out_dir / "figures" / "limits.png", plots.nominal_values(target, keys))
     if as_json:
         for row in found:
             typer.echo(json_line(row))

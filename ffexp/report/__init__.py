@@ -7,6 +7,11 @@ URIs; drawn from the recordings when the directory has none), the versions
 and source revisions the runs were recorded with, and the protocols (the
 campaign file and each run's protocol file, as recorded). Nothing is fetched
 from anywhere: the page opens offline and can be mailed.
+
+It reads at 1280 px: a table wider than the page scrolls sideways inside its
+own box (the run's name stays in view), figures take the page's width, and a
+click on a figure opens it at full size over the page (a small inline script;
+the figure files, when the directory has them, are linked too).
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import base64
 import html
 import io
 import json
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -45,15 +51,37 @@ MAX_CSV_BYTES = 2_000_000
 _CSS = """
 body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1200px;color:#222;padding:0 1em}
 h1{font-size:1.5em}h2{font-size:1.2em;border-bottom:1px solid #ccc;margin-top:2em}
-table{border-collapse:collapse;font-size:0.85em;margin:0.5em 0}
+h1,h2,h3,p,figcaption,summary{overflow-wrap:break-word}
+.scroll{overflow-x:auto;max-width:100%;margin:0.5em 0}
+table{border-collapse:collapse;font-size:0.85em}
+caption{text-align:left;font-size:0.9em;color:#555;padding:0 0 0.2em}
 th,td{border:1px solid #ccc;padding:2px 6px;text-align:right}
-th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
-.side{display:flex;gap:2em;flex-wrap:wrap}.meta td{text-align:left}
-img{max-width:100%;border:1px solid #ddd;margin:0.5em 0}
-figure{display:inline-block;width:48%;margin:0.5em 1% 0.5em 0;vertical-align:top}
-figure.wide{width:98%}figcaption{font-size:0.8em;color:#555}
+td{white-space:nowrap}th{background:#f0f0f0;vertical-align:bottom}
+td:first-child,th:first-child{text-align:left;position:sticky;left:0}
+td:first-child{background:#fff}
+.meta td{text-align:left;white-space:normal;overflow-wrap:anywhere}
+figure{margin:1em 0;border:1px solid #ddd;padding:0.3em}
+figure img{display:block;width:100%;height:auto;cursor:zoom-in}
+figcaption{font-size:0.8em;color:#555}
+figure.zoomed{position:fixed;inset:0;z-index:10;margin:0;padding:1em;background:#fff;
+overflow:auto;border:0}
+figure.zoomed img{width:auto;max-width:none;cursor:zoom-out}
 pre{background:#f7f7f7;padding:0.5em;overflow-x:auto;font-size:0.8em}
 .warn{color:#a33}
+"""
+#: Click a figure: it opens at full size over the page (click or Escape: back).
+_JS = """
+document.addEventListener('click', function (e) {
+  var fig = e.target.closest('figure.fig');
+  if (!fig || e.target.closest('a')) return;
+  fig.classList.toggle('zoomed');
+});
+document.addEventListener('keydown', function (e) {
+  if (e.key !== 'Escape') return;
+  document.querySelectorAll('figure.zoomed').forEach(function (f) {
+    f.classList.remove('zoomed');
+  });
+});
 """
 
 
@@ -125,8 +153,14 @@ def _cell(value: object, digits: int = 3) -> str:
     return str(value)
 
 
-def _table(columns: Sequence[tuple[str, str]], rows: Sequence[dict[str, Any]], digits: int = 3,
+#: A table's columns: (title, row key), in order. To add a column, add it to the list.
+Columns = Sequence[tuple[str, str]]
+
+
+def _table(columns: Columns, rows: Sequence[dict[str, Any]], digits: int = 3,
            caption: str = "") -> str:
+    """``rows`` as an HTML table of ``columns``, in a box that scrolls sideways when the
+    table is wider than the page (the page itself never does)."""
     head = "".join(f"<th>{html.escape(t)}</th>" for t, _k in columns)
     body = "".join(
         "<tr>" + "".join(f"<td>{html.escape(_cell(r.get(k), digits))}</td>" for _t, k in columns)
@@ -134,7 +168,11 @@ def _table(columns: Sequence[tuple[str, str]], rows: Sequence[dict[str, Any]], d
         for r in rows
     )
     cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
-    return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+    return _scroll(f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+
+
+def _scroll(table: str) -> str:
+    return f'<div class="scroll">{table}</div>'
 
 
 def _csv_html(path: Path, root: Path) -> str:
@@ -152,14 +190,17 @@ def _csv_html(path: Path, root: Path) -> str:
         return (f"<p>{rel}: data, {len(frame)} rows of {columns} (not shown; the figures "
                 "draw it)</p>")
     table = frame.to_html(index=False, na_rep="", float_format=lambda x: f"{x:.4g}", border=0)
-    return f"<h3>{rel}</h3>{table}"
+    return f"<h3>{rel}</h3>{_scroll(table)}"
 
 
-def _img(data: bytes, alt: str, wide: bool = False) -> str:
+def _img(data: bytes, alt: str, href: str | None = None) -> str:
+    """A figure at the page's full width; a click opens it at full size over the page
+    (and ``href``, when given, links the image file)."""
     uri = "data:image/png;base64," + base64.b64encode(data).decode()
-    cls = ' class="wide"' if wide else ""
-    return (f'<figure{cls}><img src="{uri}" alt="{html.escape(alt)}"><figcaption>'
-            f"{html.escape(alt)}</figcaption></figure>")
+    link = f' (<a href="{html.escape(href)}">open the file</a>)' if href else ""
+    return (f'<figure class="fig"><img src="{uri}" alt="{html.escape(alt)}" '
+            f'title="click: full size"><figcaption>{html.escape(alt)}{link}; click the figure '
+            "for its full size</figcaption></figure>")
 
 
 def _drawn_figures(recs: Sequence[Recording], title: str) -> list[tuple[str, bytes]]:
@@ -189,20 +230,23 @@ def _versions(recs: Sequence[Recording]) -> list[dict[str, Any]]:
     return [{"package": k, "versions": ", ".join(sorted(v))} for k, v in sorted(seen.items())]
 
 
-def render(data: ReportInput) -> str:
-    """The report as one HTML document."""
+def render(data: ReportInput, out_dir: Path | None = None) -> str:
+    """The report as one HTML document (``out_dir``: where it will be written, for the
+    links to the figure files; None: no links)."""
     name = str(data.manifest.get("name") or data.directory.name)
     now = datetime.now(UTC).isoformat(timespec="seconds")
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
-        f"<title>ffexp report: {html.escape(name)}</title><style>{_CSS}</style></head><body>",
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+        f"<title>ffexp report: {html.escape(name)}</title><style>{_CSS}</style>",
+        f"<script>{_JS}</script></head><body>",
         f"<h1>ffexp report: {html.escape(name)} ({html.escape(data.kind)})</h1>",
-        '<table class="meta"><tbody>',
+        '<div class="scroll"><table class="meta"><tbody>',
         f"<tr><th>directory</th><td>{html.escape(str(data.directory))}</td></tr>",
         f"<tr><th>generated</th><td>{now}</td></tr>",
         f"<tr><th>report by ffexp</th><td>{html.escape(source_revision())}</td></tr>",
         f"<tr><th>runs</th><td>{len(data.recordings)}</td></tr>",
-        "</tbody></table>",
+        "</tbody></table></div>",
     ]
     for w in data.warnings:
         parts.append(f'<p class="warn">warning: {html.escape(w)}</p>')
@@ -228,11 +272,11 @@ def render(data: ReportInput) -> str:
         # the figures of every run together first, then each run's
         overview = [p for p in data.images if "_all_" in p.name]
         for p in [*overview, *(p for p in data.images if p not in overview)]:
-            parts.append(_img(p.read_bytes(), str(p.relative_to(data.directory)),
-                              wide=p in overview))
+            href = Path(os.path.relpath(p, out_dir)).as_posix() if out_dir else None
+            parts.append(_img(p.read_bytes(), str(p.relative_to(data.directory)), href))
     else:
         for alt, png in _drawn_figures(data.recordings, name):
-            parts.append(_img(png, alt, wide=True))
+            parts.append(_img(png, alt))
     parts.append("<h2>Versions and source revisions</h2>")
     parts.append(_table([("package", "package"), ("versions", "versions")],
                         _versions(data.recordings), caption="as recorded in the runs"))
@@ -261,7 +305,7 @@ def write_report(directory: Path, out: Path | None = None) -> Path:
     """Write the report of ``directory``; ``out`` default: ``DIR/report-<time>.html``
     (a taken name gets ``-1``, ...). Returns the path."""
     data = collect(directory)
-    page = render(data)
+    page = render(data, directory if out is None else out.parent)
     if out is None:
         out = reserve(directory, f"report-{stamp(datetime.now(UTC))}", ".html")
     try:

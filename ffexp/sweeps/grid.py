@@ -95,5 +95,5 @@ def execute(prep: Prepared, runner: Runner, figures: bool = True) -> dict[str, A
     if figures:
         title = f"{prep.target.label}: {len(rows)} runs, {len(prep.seeds)} seed(s) per point"
         figs = plots.sweep_figures(df, [k.text for k in prep.keys], runner.out_dir / "figures",
-                                   title)
+                                   title, nominal=plots.nominal_values(prep.target, prep.keys))
     return {"rows": rows, "tables": paths, "figures": figs}

@@ -358,7 +358,9 @@ def write(study: Study, result: Mapping[str, Any], out_dir: Path) -> list[Path]:
         c.name for c in claims.SCENE_CLAIMS]
     mapped = plots.scene_map(table.frame(result["scenes"]), [k.text for k in study.keys],
                              outcomes, f"{study.config.name}: outcomes over the scenes",
-                             out_dir / "figures" / "scenes.png")
+                             out_dir / "figures" / "scenes.png",
+                             nominal=plots.nominal_values(next(iter(study.targets.values())),
+                                                          study.keys))
     if mapped is not None:
         paths.append(mapped)
     return paths

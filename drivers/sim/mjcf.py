@@ -85,14 +85,12 @@ TARGET_JOINTS = ("target_x", "target_y", "target_z", "target_yaw")
 FT_SENSOR_FORCE = "ft_force"
 FT_SENSOR_TORQUE = "ft_torque"
 
-#: Funnel contacts closer than this (per geom; a pair adds both) are reported
-#: (``margin``) and the ground truth calls them "in contact", so sliding over
-#: the panel creases (or the capsule ridges) is not counted as contact breaks.
-#: The contact's spring acts from there (MuJoCo's violation is the distance
-#: minus the margin) and gap is 0: its force grows from zero. (A gap equal to
-#: the margin made it inactive in the band but, once the surfaces touched, already
-#: compressed by the pair's margin: a preload of the stiffness times 0.4 mm (8 N at
-#: 2e4 N/m) that threw slow impacts back faster than they came.)
+#: Funnel contacts closer than this are reported (``margin``) but exert no
+#: force until they touch (``gap``): the ground truth calls them "in contact",
+#: so sliding over the panel creases (or the capsule ridges) is not counted as
+#: contact breaks. Measured in MuJoCo 4.0 (a pair sums both geoms' values): a
+#: pair is listed from 0.8 mm (margin + gap) and takes force from 0.4 mm (its
+#: margin), where its spring (distance minus margin) starts from zero force.
 TOUCH_MARGIN = 2e-4
 
 # Collision groups: tool funnel <-> target funnel, pads <-> glass, nothing else.
@@ -298,7 +296,7 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
 <default>
   <default class="funnel">
     <geom condim="3" friction="{_f(ct.friction)} 0.005 0.0001" solref="-1000 -60"
-          margin="{_f(TOUCH_MARGIN)}" gap="0"
+          margin="{_f(TOUCH_MARGIN)}" gap="{_f(TOUCH_MARGIN)}"
           solimp="{_f(ct.impedance)} {_f(ct.impedance)} 0.001 0.5 2" mass="0"
           rgba="0.3 0.5 0.9 1"/>
   </default>

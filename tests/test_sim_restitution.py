@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from drivers.errors import ConfigError
 from drivers.sim import funnels
 from drivers.sim.contact import (
     DAMPING_RATIO_RANGE,
@@ -289,3 +290,16 @@ def test_one_contact_holds_a_load_with_the_quasi_static_stiffness(impedance: flo
     depth = -float(d.contact[0].dist)
     assert int(d.contact[0].geom[1]) == sphere or int(d.contact[0].geom[0]) == sphere
     assert depth == pytest.approx(load_n / stiffness, rel=0.01)
+
+
+@pytest.mark.parametrize(("field", "contact"), [
+    ("contact.restitution", {"restitution": 0.001}),  # its damping over 1/h
+    ("contact.stiffness", {"stiffness": 2.0e6}),  # its stiffest mode over 1/(2h)^2
+])
+def test_contact_the_timestep_cannot_integrate_is_refused(
+        field: str, contact: dict[str, float]) -> None:
+    m = mujoco.MjModel.from_xml_string(
+        '<mujoco><option timestep="0.001"/><worldbody><geom size="0.01"/></worldbody></mujoco>')
+    scene = Scene.model_validate({"contact": contact})
+    with pytest.raises(ConfigError, match=field.replace(".", r"\.")):
+        configure_contact(scene, m, 8.9, m.opt.timestep, [0])

@@ -85,10 +85,12 @@ TARGET_JOINTS = ("target_x", "target_y", "target_z", "target_yaw")
 FT_SENSOR_FORCE = "ft_force"
 FT_SENSOR_TORQUE = "ft_torque"
 
-#: Funnel contacts closer than this are reported (``margin``) but exert no
-#: force until they touch (``gap``): the ground truth calls them "in contact",
-#: so sliding over the panel creases (or the capsule ridges) is not counted as
-#: contact breaks.
+#: Funnel contacts within margin + gap are reported (MuJoCo 4.0 sums the two
+#: geoms' values: 0.8 mm for a pair) and the ground truth calls them "in
+#: contact", so sliding over the panel creases (or the capsule ridges) is not
+#: counted as contact breaks. Only from within the pair's margin (0.4 mm) do they
+#: push, with a spring on the distance minus the margin that starts from zero
+#: force (measured): the funnels' contact surfaces stand 0.2 mm proud of the geoms.
 TOUCH_MARGIN = 2e-4
 
 # Collision groups: tool funnel <-> target funnel, pads <-> glass, nothing else.

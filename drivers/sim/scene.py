@@ -209,7 +209,8 @@ class FtSensorSettings(StrictModel):
 
 
 class ContactSettings(StrictModel):
-    """Funnel-funnel contact. See :mod:`drivers.sim.mjcf` for the conversion to solref."""
+    """Funnel-funnel contact. See :func:`drivers.sim.contact.configure_contact` for
+    the conversion to solref."""
 
     stiffness: PosFloat = 2.0e4
     """Quasi-static stiffness of one contact [N/m]."""
@@ -221,7 +222,13 @@ class ContactSettings(StrictModel):
     friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.3
     """Coulomb coefficient between the funnels."""
     impedance: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.5
-    """MuJoCo solimp d (constant); impact stiffness is d times the static one."""
+    """MuJoCo solimp d (constant). In an impact one contact is a spring of
+    ``1 - d`` times the quasi-static stiffness (MuJoCo's soft contact makes the
+    relative motion ``1 / (1 - d)`` times heavier); an impact that engages several
+    contacts at once has a damping ratio within ``d**(-1/4)`` of the one
+    ``restitution`` asks for (:func:`~drivers.sim.contact.configure_contact`):
+    6 % at 0.8 (rebounds within 10 %, measured: tests/test_sim_restitution.py),
+    19 % at 0.5."""
 
 
 #: The paper's friction test: a target set gliding by an impulse showed no deceleration

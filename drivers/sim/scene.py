@@ -221,7 +221,7 @@ class ContactSettings(StrictModel):
     contact; the range for plausible funnel materials: drivers/sim/NOTES.md."""
     friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.3
     """Coulomb coefficient between the funnels."""
-    impedance: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.5
+    impedance: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.8
     """MuJoCo solimp d (constant). In an impact one contact is a spring of
     ``1 - d`` times the quasi-static stiffness (MuJoCo's soft contact makes the
     relative motion ``1 / (1 - d)`` times heavier); an impact that engages several

@@ -1,21 +1,27 @@
-"""Docstrings, comments and docs cite only files that exist in this repository.
+"""Docstrings, comments and docs cite only files and names that exist in this repository.
 
 Every path like ``docs/conventions.md``, ``benchmarks/bench_x.py``,
 ``protocols/x.toml``, ``rigs/x.toml`` or ``data/...`` that a docstring or a
 comment of ``ffexp/`` or ``drivers/`` cites must exist (a glob such as
 ``protocols/method*.toml`` must match at least one file), and no module may
-point outside the repository (``../shared``, ``shared/design``). The module
-and package paths that ``docs/*.md`` cite must exist too, so the architecture
-page follows the tree.
+point outside the repository (``../shared``, ``shared/design``). The pages
+(README.md, every ``docs/**/*.md``, ``benchmarks/README.md``) may cite only
+paths that exist, link only to files that exist, and name only modules,
+classes, functions and attributes (``ffexp.recording.load``,
+``drivers.errors.FfexpError``) that exist, so the docs follow the tree. The
+README stays short, with its two Quick start commands.
 """
 
 from __future__ import annotations
 
 import ast
+import importlib
+import inspect
 import io
 import re
 import tokenize
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -27,8 +33,16 @@ FORBIDDEN = ("../shared", "shared/design")
 # A repository path: one of CITED_DIRS, not preceded by a path character (so
 # ``../data/x`` and ``foo/docs/x`` are not read as repository paths).
 _PATH = re.compile(r"(?<![\w./-])(?:" + "|".join(CITED_DIRS) + r")/[\w*.\-/]*[\w*]")
-# In docs/*.md: backticked paths of the packages, tests and the cited dirs.
-_DOC_PATH = re.compile(r"`((?:ffexp|drivers|tests|" + "|".join(CITED_DIRS) + r")/[\w*.\-/]*)`")
+# In the pages: backticked paths of the packages, tests and the cited dirs.
+_DOC_DIRS = ("ffexp", "drivers", "tests", "layouts", "schemas", *CITED_DIRS)
+_DOC_PATH = re.compile(r"`((?:" + "|".join(_DOC_DIRS) + r")/[\w*.\-/]*)`")
+# In the pages: a dotted Python name of the packages at the start of an inline
+# literal (`ffexp.recording.load`, `drivers.errors.FfexpError`, `ffexp.cli._common`).
+_DOC_NAME = re.compile(r"`((?:ffexp|drivers)(?:\.[A-Za-z_]\w*)+)")
+# A markdown link's target: [text](target).
+_LINK = re.compile(r"\]\(([^)\s]+)\)")
+# Fenced code blocks: not prose, not checked for names.
+_FENCE = re.compile(r"^```.*?^```", flags=re.S | re.M)
 
 
 def docstrings_and_comments(source: str) -> list[tuple[int, str]]:
@@ -143,11 +157,102 @@ def test_no_module_points_outside_the_repository() -> None:
     assert not found, "use docs/conventions.md or docs/architecture.md:\n" + "\n".join(found)
 
 
-@pytest.mark.parametrize("page", ["conventions.md", "architecture.md"])
-def test_docs_cite_existing_paths(page: str) -> None:
-    text = (ROOT / "docs" / page).read_text(encoding="utf-8")
+# --------------------------------------------------------------------------- the pages
+
+
+# Pages the docs build writes (docs/_ext), and its output: not in git.
+GENERATED = (ROOT / "docs" / "reference" / "api", ROOT / "docs" / "reference" / "cli.md",
+             ROOT / "docs" / "_build")
+
+
+def is_generated(path: Path) -> bool:
+    path = path.resolve()
+    return any(path == g or g in path.parents for g in GENERATED)
+
+
+def pages() -> list[Path]:
+    """Every hand-written page: the README, docs/**/*.md (not the pages the build
+    writes), benchmarks/README.md."""
+    docs = [p for p in sorted((ROOT / "docs").rglob("*.md")) if not is_generated(p)]
+    return [ROOT / "README.md", *docs, ROOT / "benchmarks" / "README.md"]
+
+
+def page_id(path: Path) -> str:
+    return str(path.relative_to(ROOT))
+
+
+def resolves(name: str) -> bool:
+    """``name`` is an importable module, or an attribute reachable from one: a class's
+    member, a dataclass or model field, or an attribute its ``__init__`` sets."""
+    parts = name.split(".")
+    for cut in range(len(parts), 0, -1):
+        try:
+            obj: Any = importlib.import_module(".".join(parts[:cut]))
+        except ImportError:
+            continue
+        for attr in parts[cut:]:
+            if hasattr(obj, attr):
+                obj = getattr(obj, attr)
+            elif inspect.isclass(obj) and (
+                attr in getattr(obj, "__annotations__", {})
+                or re.search(rf"self\.{attr}\s*[:=]", inspect.getsource(obj))
+            ):
+                return attr == parts[-1]  # an instance attribute: nothing further to walk
+            else:
+                return False
+        return True
+    return False
+
+
+def cited_names(text: str) -> list[str]:
+    """Dotted package names at the start of inline literals, outside code fences."""
+    return _DOC_NAME.findall(_FENCE.sub("", text))
+
+
+def test_name_pattern_and_resolution() -> None:
+    text = ("`ffexp.recording.load(\"x\")`, `drivers.errors.FfexpError`, `ffexp run`, "
+            "`import ffexp`\n```python\nffexp.not_checked\n```\n`ffexp.no_such_module`")
+    assert cited_names(text) == ["ffexp.recording.load", "drivers.errors.FfexpError",
+                                 "ffexp.no_such_module"]
+    assert resolves("ffexp.recording.load")
+    assert resolves("drivers.errors.FfexpError")
+    assert resolves("ffexp.recording.Recorder.taps")  # set in __init__
+    assert not resolves("ffexp.no_such_module")
+    assert not resolves("drivers.errors.NoSuchError")
+    assert not resolves("ffexp.recording.Recorder.no_such_attribute")
+
+
+@pytest.mark.parametrize("page", pages(), ids=page_id)
+def test_pages_cite_existing_paths(page: Path) -> None:
+    text = page.read_text(encoding="utf-8")
     missing = [p for p in _DOC_PATH.findall(text) if "<" not in p and not path_exists(p)]
-    assert not missing, f"docs/{page} cites paths that do not exist: {missing}"
+    assert not missing, f"{page_id(page)} cites paths that do not exist: {missing}"
+
+
+@pytest.mark.parametrize("page", pages(), ids=page_id)
+def test_pages_name_existing_modules_and_objects(page: Path) -> None:
+    names = cited_names(page.read_text(encoding="utf-8"))
+    missing = [name for name in names if not resolves(name)]
+    assert not missing, f"{page_id(page)} names what does not exist: {missing}"
+
+
+@pytest.mark.parametrize("page", pages(), ids=page_id)
+def test_pages_link_to_existing_files(page: Path) -> None:
+    missing = []
+    for target in _LINK.findall(page.read_text(encoding="utf-8")):
+        if "://" in target or target.startswith("#"):
+            continue
+        path = page.parent / target.split("#", 1)[0]
+        if not path.exists() and not is_generated(path):
+            missing.append(target)
+    assert not missing, f"{page_id(page)} links to files that do not exist: {missing}"
+
+
+def test_the_docs_pages_are_found() -> None:
+    found = {page_id(p) for p in pages()}
+    assert {"docs/architecture.md", "docs/conventions.md", "docs/sweeps.md",
+            "docs/index.md", "benchmarks/README.md"} <= found
+    assert "docs/reference/cli.md" not in found
 
 
 # --------------------------------------------------------------------------- the README
@@ -157,12 +262,20 @@ def readme() -> str:
     return (ROOT / "README.md").read_text(encoding="utf-8")
 
 
+def test_readme_is_short() -> None:
+    size = len(readme().encode("utf-8"))
+    assert size <= 6 * 1024, f"README.md is {size} bytes; the rest belongs in docs/"
+
+
 def test_quick_start_is_two_commands() -> None:
     text = readme()
-    quick = text[text.index("## Quick start"):text.index("## What is here")]
+    quick = text[text.index("## Quick start"):text.index("## Commands")]
     blocks = re.findall(r"```bash\n(.*?)```", quick, flags=re.S)
-    assert len(blocks) == 2 and all(b.count("\n") == 1 for b in blocks)
-    assert "ffexp campaign protocols/paper.toml" in blocks[0]
+    assert blocks == [
+        "python3 -m venv .venv && .venv/bin/pip install -e . && "
+        ".venv/bin/ffexp campaign protocols/paper.toml\n",
+        'python3 -m venv .venv && .venv/bin/pip install -e ".[test]" && .venv/bin/pytest\n',
+    ]
 
 
 def test_every_command_in_the_readme_table_exists() -> None:
@@ -173,7 +286,7 @@ def test_every_command_in_the_readme_table_exists() -> None:
     text = readme()
     table = text[text.index("| command | what it does |"):text.index("### Exit codes")]
     commands = re.findall(r"^\| `ffexp ([a-z-]+(?: [a-z0-9-]+)?)", table, flags=re.M)
-    assert len(commands) >= 12
+    assert len(commands) >= 10
     for command in commands:
         words = command.split()
         if words[0] in ("simulate", "friction"):
@@ -184,10 +297,11 @@ def test_every_command_in_the_readme_table_exists() -> None:
         assert result.exit_code == 0, (command, result.output)
 
 
-def test_the_exit_code_table_matches_the_code() -> None:
+@pytest.mark.parametrize("page", ["README.md", "docs/reference/exit-codes.md"])
+def test_the_exit_code_table_matches_the_code(page: str) -> None:
     from ffexp.cli import _common as c
 
-    text = readme()
+    text = (ROOT / page).read_text(encoding="utf-8")
     table = text[text.index("| code | meaning |"):]
     codes = re.findall(r"^\| (\d+|128\+N) \|", table, flags=re.M)
     assert codes == [str(c.EXIT_OK), str(c.EXIT_FAILURE), str(c.EXIT_BAD_INPUT),

@@ -131,7 +131,8 @@ class LiveServer:
         try:
             self._server = foxglove.start_server(
                 name="ffexp", host=opts.host, port=opts.port, context=self._context,
-                message_backlog_size=BACKLOG_PER_CLIENT, server_listener=cast("ServerListener", _Listener(self)),
+                message_backlog_size=BACKLOG_PER_CLIENT,
+                server_listener=cast("ServerListener", _Listener(self)),
             )
         except RuntimeError as exc:
             reason = str(exc).removeprefix("FoxgloveError: ")

@@ -147,7 +147,8 @@ def test_export_reads_back_with_the_values_load_gives(run: Path, tmp_path: Path,
     assert result.exit_code == 0, result.output
     rec = load(run)
     names = {p.name for p in tmp_path.iterdir()}
-    assert names == {f"{t.strip('/').replace('/', '_')}.{fmt}" for t in [*rec.topics, *rec.json]}
+    assert names == {f"{t.strip('/').replace('/', '_')}.{fmt}"
+                     for t in [*rec.topics, *rec.json]} | {"recording.json"}
     for topic in ("/estimator/state", "/robot/state", "/ft/raw"):
         path = tmp_path / f"{topic.strip('/').replace('/', '_')}.{fmt}"
         table = (pd.read_parquet(path) if fmt == "parquet"

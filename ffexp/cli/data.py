@@ -159,14 +159,16 @@ def export(
     """One table per topic (numeric columns, arrays split into name_0..name_k, t_s in
     seconds from the run start), as Parquet or CSV. Exit 0, or 2 on bad input."""
     from ffexp.errors import ConfigError
-    from ffexp.export import FORMATS, default_dir
+    from ffexp.export import FORMATS, SUMMARY_TOPICS, default_dir
     from ffexp.export import export as run_export
     from ffexp.recording import load
 
     if fmt not in FORMATS:
         raise ConfigError("--format", fmt, f"choose one of {', '.join(FORMATS)}")
-    # the first cycle's topics too: t_s counts from the run start whatever is exported
-    rec = load(recording, [*topics, "/robot/state", "/control/command"] if topics else None)
+    # the first cycle's topics too: t_s counts from the run start whatever is exported;
+    # and what says whether the run's end is recorded, and the trial's validity
+    wanted = [*topics, *SUMMARY_TOPICS, "/control/command"] if topics else None
+    rec = load(recording, wanted)
     _warn(rec.warnings)
     for path in run_export(rec, fmt, out or default_dir(recording), topics):
         typer.echo(str(path))

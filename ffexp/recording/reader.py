@@ -73,7 +73,8 @@ class Recording:
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     attachments: dict[str, bytes] = field(default_factory=dict)
     complete: bool = True
-    """False when the file was not finished (recovered up to its last complete chunk)."""
+    """False when the file was not finished (read up to its last complete chunk), or when
+    a run's recording lacks the run's end (a killed run's file, even once recovered)."""
     warnings: list[str] = field(default_factory=list)
 
     def topic(self, name: str) -> TopicData:
@@ -243,15 +244,13 @@ def load(
     wanted = None if topics is None else list(topics)
     stream, indexed = _finished_messages(path, wanted, start_ns, end_ns)
     rec = Recording(path=path)
+    cut = ""
     if not indexed:
         stream = _read_stream(path)
         rec.complete = False
         last = max((m.log_time for m in stream.messages), default=None)
-        upto = f" up to log time {last} ns" if last is not None else ""
-        rec.warnings.append(
-            f"{path}: recording is incomplete ({stream.error or 'no summary'}); "
-            f"read {len(stream.messages)} messages{upto}; `ffexp recover` rewrites it"
-        )
+        cut = (f"{path}: recording is incomplete ({stream.error or 'no summary'}); "
+               f"read {len(stream.messages)} messages")
         stream.messages = [
             m
             for m in stream.messages
@@ -261,7 +260,38 @@ def load(
             and (end_ns is None or m.log_time < end_ns)
         ]
     _decode_into(rec, stream)
+    if cut:  # times in the run's seconds (its first cycle is 0), as everywhere else
+        upto = "" if last is None else f" up to {run_seconds(rec, last):.3f} s of the run"
+        rec.warnings.insert(0, f"{cut}{upto}; `ffexp recover` rewrites it")
+    if wanted is None or RUN_END_TOPIC in wanted:
+        _check_run_end(rec)
     return rec
+
+
+def run_seconds(rec: Recording, log_time_ns: int) -> float:
+    """A log time as seconds since the run's start (:attr:`Recording.run_start_ns`)."""
+    return (log_time_ns - rec.run_start_ns) / 1e9
+
+
+#: The topic whose last phase, DONE or ABORT, says a run recording holds the run's end.
+RUN_END_TOPIC = "/runner/phase"
+_END_PHASES = frozenset({"DONE", "ABORT"})
+
+
+def _check_run_end(rec: Recording) -> None:
+    """A run's recording (one with ``run`` metadata) whose end was never written (no DONE
+    or ABORT on :data:`RUN_END_TOPIC`: the process was killed, the file recovered or cut)
+    is not complete, whether or not the file itself was finished (``ffexp recover``)."""
+    if "run" not in rec.metadata:
+        return  # not a run (a friction video's recording, ...): no phases to end
+    phases = rec.json.get(RUN_END_TOPIC)
+    if phases is not None and any(m.get("phase") in _END_PHASES for m in phases.messages):
+        return
+    if rec.complete:  # a finished (recovered) file: say why it still is incomplete
+        rec.warnings.append(
+            f"{rec.path}: the run's end is not recorded (no DONE or ABORT on "
+            f"{RUN_END_TOPIC}): the run ended abnormally")
+    rec.complete = False
 
 
 def _decode_into(rec: Recording, stream: _Stream) -> None:

@@ -152,6 +152,9 @@ def recover_cmd(
     dst = output or recording.with_suffix(".recovered.mcap")
     result = recover(recording, dst)
     state = "complete file" if result.complete else "unfinished file"
+    if result.corrupt_chunks:
+        state += (f", corrupt chunk(s) {', '.join(map(str, result.corrupt_chunks))} "
+                  "left out")
     line = (
         f"{recording}: {state}; recovered {result.messages} messages on {result.channels} "
         f"channels into {dst}"
@@ -163,9 +166,10 @@ def recover_cmd(
     from ffexp.recording import load
     from ffexp.recording.reader import RUN_END_TOPIC
 
-    if not load(dst, [RUN_END_TOPIC]).complete:
-        typer.echo(f"{dst}: the run's end is not in it: it analyses as complete: no, "
-                   "its trial validity unknown (the run ended abnormally)")
+    fixed = load(dst, [RUN_END_TOPIC])
+    if not fixed.complete:
+        why = "; ".join(w.removeprefix(f"{dst}: ") for w in fixed.warnings)
+        typer.echo(f"{dst}: it analyses as complete: no, its trial validity unknown ({why})")
 
 
 @cli_errors

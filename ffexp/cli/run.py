@@ -19,6 +19,7 @@ from ffexp.cli._common import (
     EXIT_TIMED_OUT,
     SET_HELP,
     StopFlag,
+    check_cpus,
     cli_errors,
     stop_signals,
 )
@@ -146,6 +147,7 @@ def run(
     1 a device or simulation failure, 128+N on signal N.
     """
     _check_out(out)
+    check_cpus("--cpu", cpu)
     choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft, tracker, camera)
     live_options = _live_options(live, live_address)
     with stop_signals(StopFlag()) as flag, live_view(live_options) as server:

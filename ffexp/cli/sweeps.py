@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from ffexp.cli._common import SET_HELP, StopFlag, cli_errors, stop_signals
+from ffexp.cli._common import SET_HELP, StopFlag, cli_errors, count, stop_signals
 
 if TYPE_CHECKING:
     from ffexp.sweeps.engine import Runner
@@ -123,6 +123,8 @@ def sweep(
     from ffexp.sweeps.grid import execute, prepare
     from ffexp.sweeps.session import spinner
 
+    count("--seeds", seeds)
+    count("--sample", sample)
     out = out if out is not None else Path("runs") / "sweeps" / protocol.stem
     _check_out(out)
     spec = parse_executor(executor)
@@ -187,6 +189,8 @@ def limits(
     from ffexp.sweeps.plan import Target, seeds_of
     from ffexp.sweeps.searches import LimitSearch
 
+    for option, n in (("--seeds", seeds), ("--coarse", coarse), ("--rays", n_rays)):
+        count(option, n)
     out = out if out is not None else Path("runs") / "sweeps" / f"{protocol.stem}-limits"
     _check_out(out)
     spec = parse_executor(executor)

@@ -23,8 +23,10 @@ if TYPE_CHECKING:
     from ffexp.sweeps.session import Display
 
 EXECUTOR_HELP = (
-    "local[:WORKERS] (a process pool; default all CPUs), or Ray: ray | ray:auto (the running "
-    "cluster), ray:HOST:PORT, ray://HOST:PORT (client), ray:local (start one here)."
+    "local[:WORKERS] (a process pool; default all CPUs), or Ray: ray (join the running "
+    "cluster, else start one here, as ray.init()), ray:auto (only join; an error when none "
+    "runs), ray:HOST:PORT (join that cluster), ray://HOST:PORT (client), ray:local (always "
+    "start one here)."
 )
 OUT_HELP = (
     "Sweep directory (runs, results.csv/.parquet, figures). Runs already in it are not run "

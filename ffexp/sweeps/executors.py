@@ -5,10 +5,12 @@
   with N workers (default: the CPUs this process may use), forked by a
   ``forkserver`` that imported the simulator once (no fork of this process,
   which runs threads; no import per worker).
-- ``ray`` / ``ray:auto``: the running Ray cluster (``RAY_ADDRESS`` or the latest
-  ``ray start`` on this machine); ``ray:HOST:PORT`` a cluster's GCS address;
-  ``ray://HOST:PORT`` a Ray client server; ``ray:local`` a Ray instance started
-  here for this sweep. A process that already called ``ray.init`` is reused.
+- ``ray``: as Ray's own ``ray.init()``: join the running cluster (``RAY_ADDRESS``,
+  else the latest ``ray start`` on this machine), or else start a Ray instance
+  here for this sweep; ``ray:auto`` only joins (an error when no cluster runs,
+  as ``ray.init(address="auto")``); ``ray:HOST:PORT`` joins a cluster's GCS
+  address; ``ray://HOST:PORT`` a Ray client server; ``ray:local`` always starts a
+  Ray instance here. A process that already called ``ray.init`` is reused.
 
 Ray is optional (``pip install -e ".[ray]"``) and imported only when asked for.
 """
@@ -46,7 +48,7 @@ class ExecutorSpec:
     def label(self) -> str:
         if self.kind == "local":
             return f"local:{self.workers}"
-        return f"ray:{self.address}"
+        return f"ray:{self.address}" if self.address else "ray"
 
 
 def available_cpus() -> int:
@@ -70,7 +72,9 @@ def parse_executor(text: str) -> ExecutorSpec:
             raise ConfigError(OPTION, text, "expected local or local:N with N >= 1 workers")
         return ExecutorSpec("local", n)
     if kind == "ray":
-        address = rest or "auto"
+        if not rest:
+            return ExecutorSpec("ray", address="")  # join a running cluster, else start one
+        address = rest
         if address not in ("auto", "local") and not address.startswith("//"):
             host, sep, port = address.rpartition(":")
             if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
@@ -134,18 +138,24 @@ class RayExecutor(Executor):
                               'Ray is not installed (pip install -e ".[ray]")') from None
         if ray.is_initialized():
             return cls(ray, started_here=False)
-        if address not in ("auto", "local"):
+        option_value = f"ray:{address}" if address else "ray"
+        if address not in ("", "auto", "local"):
             _check_reachable(address)
+        quiet: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
         try:
             if address == "local":
-                ray.init(num_cpus=available_cpus(), include_dashboard=False,
-                         logging_level=logging.ERROR, log_to_driver=False)
+                ray.init(num_cpus=available_cpus(), include_dashboard=False, **quiet)
+            elif address == "":  # Ray's convention: join the running cluster, else start one
+                ray.init(**quiet)
             else:
-                ray.init(address=address, logging_level=logging.ERROR, log_to_driver=False)
+                ray.init(address=address, **quiet)
         except (ConnectionError, RuntimeError, ValueError) as exc:
             msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise ConfigError(OPTION, f"ray:{address}", f"cannot connect to Ray: {msg}") \
-                from None
+            if address == "auto" and isinstance(exc, ConnectionError):
+                msg = ("no running Ray cluster to join (RAY_ADDRESS unset, no `ray start` "
+                       "on this machine); start one with `ray start --head`, or give "
+                       "--executor ray to start one here")
+            raise ConfigError(OPTION, option_value, f"cannot connect to Ray: {msg}") from None
         return cls(ray, started_here=True)
 
     def submit(self, fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> Future[T]:

@@ -53,6 +53,9 @@ def _session(out: Path, spec: ExecutorSpec, label: str) -> Iterator[tuple[Runner
                 yield runner, display
         except Stopped:
             pass
+        except KeyboardInterrupt:  # the second signal: the workers were ended
+            if not flag():
+                raise
         code = flag.exit_code()
         if code is not None:
             typer.echo(f"{label}: stopped; finished runs are kept in {out} (run the same "

@@ -94,12 +94,10 @@ def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
     if spec.kind == "local":
         import multiprocessing
 
-        from ffexp.sweeps.worker import worker_init
-
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(list(PRELOAD))
+        start_forkserver()
         pool = ProcessPoolExecutor(max_workers=spec.workers, mp_context=ctx,
-                                   initializer=worker_init)
+                                   initializer=init_worker)
         return pool, spec.workers
     ex = RayExecutor.connect(spec.address)
     return ex, ex.slots
@@ -181,8 +179,45 @@ class RayExecutor(Executor):
 
 
 def end_workers(executor: Executor) -> None:
-    """Stop the running runs now (a second Ctrl-C): end a pool's worker processes."""
+    """Stop the running runs now (a second Ctrl-C): end a pool's worker processes (with
+    SIGKILL: they ignore SIGINT and SIGTERM, see :func:`init_worker`)."""
     processes = getattr(executor, "_processes", None) or {}
     for proc in list(processes.values()):
-        proc.terminate()
+        proc.kill()
     executor.shutdown(wait=False, cancel_futures=True)
+
+
+def start_forkserver() -> None:
+    """Start the pool's fork server (if not yet), with its preloaded modules and SIGTERM
+    ignored, which it and every worker forked from it keep: a ``kill -TERM`` of the whole
+    process group (or cgroup, as a service manager sends it) leaves them to the sweep,
+    which stops as for Ctrl-C. Only the main thread may change a handler: from another
+    thread the server starts as it is (its workers still ignore SIGTERM,
+    :func:`init_worker`)."""
+    import multiprocessing
+    import signal
+    import threading
+    from multiprocessing import forkserver
+
+    multiprocessing.get_context("forkserver").set_forkserver_preload(list(PRELOAD))
+    if threading.current_thread() is not threading.main_thread():
+        forkserver.ensure_running()
+        return
+    old = signal.signal(signal.SIGTERM, signal.SIG_IGN)  # an ignored signal stays so in exec
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def init_worker() -> None:
+    """A pool worker ignores SIGINT and SIGTERM (a terminal's Ctrl-C and a
+    ``kill -TERM`` of the process group reach it too): the sweep decides, letting the
+    running runs finish, or ending the workers on a second signal; a run a signal
+    ended is "stopped", never a failed run."""
+    import signal
+
+    from ffexp.sweeps.worker import worker_init
+
+    worker_init()
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)

@@ -187,6 +187,9 @@ def metrics(rec: Recording) -> RunMetrics:
         peak_run = float(np.max(np.abs(f_z[after_tare])))
         peak_w_run = np.max(np.abs(s.wrench[after_tare]), axis=0).tolist()
     v = final_verdict(rec)
+    replayed = rec.metadata.get("replay_verdict", {}).get("verdict", "")
+    if replayed.startswith("unknown"):  # an open-loop replay whose commands diverged
+        v = {**v, "label": "unknown", "source": "replay (open loop, diverged)"}
     trial = check_link(rec)
     return RunMetrics(
         protocol=str(info.get("protocol", rec.path.stem)),

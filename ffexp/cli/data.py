@@ -62,12 +62,7 @@ def replay(
     else:
         typer.echo(f"{result.divergence.line()} ({result.diverging_cycles} cycles "
                    f"differ, largest difference {result.max_command_diff:.3g})")
-    stop = ""
-    if result.stop_reason is not None:
-        why = result.stop_reason.value
-        stop = f" ({why})" if result.stop_message in ("", why) else \
-            f" ({why}: {result.stop_message})"
-    typer.echo(f"replayed run: {result.phase.name}{stop} at {result.end_s:.2f} s")
+    typer.echo(f"replayed run: {result.verdict}")
     typer.echo(f"recording: {result.path}")
 
 

@@ -255,6 +255,7 @@ def test_the_runner_is_told_the_plan_before_the_runs(tmp_path: Path) -> None:
     planned = 1 * 5 * 2 + rep.search_budget(study.searches[0])
     assert seen[0].planned == planned and seen[0].total == 0  # told first
     assert r.counts.done == r.counts.total  # every run it made is counted
+    assert r.counts.planned == 0  # at the end the runs made are the plan
 
 
 @pytest.mark.slow

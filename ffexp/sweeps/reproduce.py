@@ -247,6 +247,7 @@ def run(study: Study, runner: Runner) -> dict[str, Any]:
         rows = scene_rows.result()
         for fut in searches:
             fut.result()
+        runner.plan(0)  # all ran: the runs made are the plan (the estimate is done with)
     finally:  # on an interrupt, do not wait here for the runs (the session ends them)
         pool.shutdown(wait=False, cancel_futures=True)
     return evaluate(study, rows)

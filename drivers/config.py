@@ -5,6 +5,12 @@ parsed with :mod:`tomllib`, ``--set dotted.key=value`` overrides are applied,
 and the result is validated by a pydantic model that rejects unknown keys.
 Any problem becomes a :class:`~drivers.errors.ConfigError` that names the file
 and the field, e.g. ``sec3.toml: sweep.values: Input should be a valid list``.
+
+Every number of every model is finite (``nan``, ``inf`` and a literal that
+overflows to ``inf``, such as ``1e400``, are errors), and every time is in
+range: a field in seconds (``*_s``), milliseconds (``*_ms``) or a rate
+(``*_hz``, its period) at most :data:`MAX_TIME_S` seconds, so that every time
+is an int64 number of nanoseconds from the run's start.
 """
 
 from __future__ import annotations
@@ -14,17 +20,51 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, ValidationInfo, field_validator
 
 from drivers.errors import ConfigError
 
 M = TypeVar("M", bound=BaseModel)
 
 
-class StrictModel(BaseModel):
-    """Base of every configuration model: unknown keys are errors, fields frozen."""
+#: The longest time any configuration may give (about 11.6 days) [s].
+MAX_TIME_S = 1e6
+#: Per unit suffix of a field's name: the factor from the field's value to seconds.
+_TIME_UNITS: tuple[tuple[str, float], ...] = (("_ms", 1e-3), ("_s", 1.0))
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+
+def _numbers(value: Any) -> Iterable[float]:
+    """The plain numbers in a field's value (itself, or a list's or tuple's items)."""
+    if isinstance(value, bool):
+        return ()
+    if isinstance(value, int | float):
+        return (float(value),)
+    if isinstance(value, list | tuple):
+        return [float(v) for v in value if isinstance(v, int | float) and not isinstance(v, bool)]
+    return ()
+
+
+class StrictModel(BaseModel):
+    """Base of every configuration model: unknown keys are errors, fields frozen, every
+    number finite and every time (``*_s``, ``*_ms``, the period of ``*_hz``) in range."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _time_in_range(cls, value: Any, info: ValidationInfo) -> Any:
+        name = info.field_name or ""
+        for x in _numbers(value):
+            if name.endswith("_hz"):
+                if x != 0.0 and not abs(1.0 / x) <= MAX_TIME_S:
+                    raise ValueError(f"a rate below {1.0 / MAX_TIME_S:g} Hz (a period over "
+                                     f"{MAX_TIME_S:g} s) is out of range")
+                continue
+            for suffix, to_s in _TIME_UNITS:
+                if name.endswith(suffix) and not abs(x * to_s) <= MAX_TIME_S:
+                    raise ValueError(f"must be at most {MAX_TIME_S / to_s:g} "
+                                     f"{suffix.removeprefix('_')} in magnitude")
+        return value
 
 
 def parse_override(text: str) -> tuple[list[str], Any]:

@@ -260,7 +260,11 @@ def load_rig(path: Path, overrides: Iterable[str] = ()) -> Rig:
     Raises:
         ConfigError: ``"<path>: <field>: <message>"``.
     """
-    data = apply_overrides(read_toml(path), overrides)
+    raw = read_toml(path)
+    if not raw:  # an empty file is not a rig (it would silently be the built-in sim rig)
+        raise ConfigError(str(path), "", "empty rig file: a rig names its devices, "
+                          '[robot] type = "sim" | "fri1" | "mock" and [ft] type = ...')
+    data = apply_overrides(raw, overrides)
     rig = validate_rig(data, str(path))
     robot = rig.robot
     if isinstance(robot, SimRobotConfig) and robot.scene_file is not None:

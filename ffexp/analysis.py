@@ -24,6 +24,7 @@ from drivers.base.types import NS_PER_S as NS
 from ffexp import controllers
 from ffexp.contracts import Phase, StopReason
 from ffexp.errors import InputError
+from ffexp.linkcheck import check_link
 from ffexp.recording import Recording
 
 ALIGN = Phase.ALIGN
@@ -73,6 +74,11 @@ class RunMetrics:
     verdict_truth: str | None = None
     """The simulator's verdict beside it (``None`` without ground truth)."""
     verdict_evidence: dict[str, float] = field(default_factory=dict)
+    trial_valid: bool | None = None
+    """The link's verdict on the trial (:mod:`ffexp.linkcheck`); None: unknown, the run's
+    end is not recorded (``complete`` false)."""
+    trial_validity: str = ""
+    """The same in words: valid, invalid: REASONS, or unknown: the run ended abnormally."""
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), allow_nan=False, default=_json_default)
@@ -194,6 +200,10 @@ def metrics(rec: Recording) -> RunMetrics:
         peak_run = float(np.max(np.abs(f_z[after_tare])))
         peak_w_run = np.max(np.abs(s.wrench[after_tare]), axis=0).tolist()
     v = final_verdict(rec)
+    replayed = rec.metadata.get("replay_verdict", {}).get("verdict", "")
+    if replayed.startswith("unknown"):  # an open-loop replay whose commands diverged
+        v = {**v, "label": "unknown", "source": "replay (open loop, diverged)"}
+    trial = check_link(rec)
     return RunMetrics(
         protocol=str(info.get("protocol", rec.path.stem)),
         method=str(info.get("method", "")),
@@ -225,6 +235,8 @@ def metrics(rec: Recording) -> RunMetrics:
         verdict_source=v.get("source") if v else None,
         verdict_truth=(v.get("truth") or None) if v else None,
         verdict_evidence={k: float(x) for k, x in (v.get("evidence") or {}).items()} if v else {},
+        trial_valid=trial.trial_valid,
+        trial_validity=trial.validity,
     )
 
 
@@ -311,7 +323,8 @@ COMPARE_KEYS: tuple[str, ...] = (
     "alignment_time_s", "contact_breaks", "breaks_align", "mean_fz_align_n", "peak_abs_fz_n",
     "peak_abs_fz_run_n", "fz_tracking_rmse_n", "target_speed_after_contact_mps",
     "target_max_speed_mps", "target_displacement_m", "final_lateral_error_m",
-    "final_yaw_error_deg", "duration_s", "end", "aborted", "source_revision",
+    "final_yaw_error_deg", "duration_s", "end", "aborted", "trial_valid", "trial_validity",
+    "source_revision",
 )
 
 

@@ -130,20 +130,21 @@ def run_file(
     stop_requested: Callable[[], bool] = lambda: False,
     notice: Callable[[str], None] | None = None,
     timings: dict[str, float] | None = None,
-    live: LiveOptions | None = None,
+    live: LiveOptions | LiveServer | None = None,
 ) -> RunResult:
     """Run one protocol file on a rig and record it; the recording is finished even on errors.
 
     ``notice`` receives a line about the opened devices (where a link listens)
     before the run starts; ``timings`` collects wall time per part of the loop.
     ``live``: also serve the run to Foxglove viewers (:mod:`ffexp.live`) while it
-    runs; the server stops with the run. The recording holds the rig's 3-D scene
+    runs; the server stops with the run (a started :class:`~ffexp.live.LiveServer`
+    given instead is fed and left to the caller to close). The recording holds the rig's 3-D scene
     (:mod:`ffexp.scene3d`).
     """
     protocol = load_run_protocol(protocol_path, overrides)
     revision = _revision_beside()
     rig_model, rig_source = load_rig_choice(rig or RigChoice())
-    server = _live_server(live, notice) if live is not None else None
+    server = _live_server(live, notice) if isinstance(live, LiveOptions) else live
     try:
         devices = open_devices(
             rig_model,
@@ -203,7 +204,7 @@ def run_file(
         finally:
             devices.close()  # the loop closes them too; this covers failures before it runs
     finally:
-        if server is not None:
+        if server is not None and server is not live:
             server.close()  # publishes what is queued, then stops serving
     return RunResult(protocol, outcome, path)
 

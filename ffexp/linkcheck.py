@@ -6,7 +6,11 @@ or skipped by the runner, no cycle answered late (at the driver's deadline),
 no answer the KRC missed, and the robot commanding with an acceptable link
 quality every cycle. Faults outside ALIGN are reported but do not invalidate
 the trial. A recording without a single robot state is "no measurement
-received" (the robot never answered), not a missing topic.
+received" (the robot never answered), not a missing topic. A recording
+without the run's end (:attr:`Recording.complete
+<ffexp.recording.Recording.complete>` false: a killed run, recovered, or a cut
+file) is neither: its trial's validity is :data:`UNKNOWN`, since what happened
+after its last record is not known.
 
 Sources (whichever the recording has): ``/robot/link_driver`` (the UDP
 driver's own cumulative counters, :mod:`ffexp.recording.topics_link`),
@@ -40,6 +44,8 @@ DRIVER_FAULTS: tuple[tuple[str, str], ...] = (
 _MISSED = ("krc_missed", "answers the KRC missed")
 _OUT_OF_CMD = ("not_commanding", "cycles not commanding")
 _UNHEALTHY = ("unhealthy", "cycles with unacceptable link quality")
+#: The trial validity of a run whose end is not recorded.
+UNKNOWN = "unknown: the run ended abnormally"
 
 
 @dataclass(frozen=True)
@@ -58,6 +64,20 @@ class LinkVerdict:
     """Time spent in ALIGN [s]."""
     message: str = ""
     """Why nothing was measured (the driver's message), when ``measured`` is false."""
+    ended: bool = True
+    """The recording holds the run's end (else the trial's validity is unknown)."""
+
+    @property
+    def trial_valid(self) -> bool | None:
+        """Valid, invalid, or None: unknown (the run's end is not recorded)."""
+        return self.valid if self.ended or not self.valid else None
+
+    @property
+    def validity(self) -> str:
+        """``valid``, ``invalid: REASONS`` or :data:`UNKNOWN`, for tables."""
+        if self.trial_valid is None:
+            return UNKNOWN
+        return "valid" if self.valid else "invalid: " + ", ".join(self.reasons())
 
     def reasons(self) -> list[str]:
         """Why the trial is invalid, one phrase each (empty when valid)."""
@@ -73,6 +93,8 @@ class LinkVerdict:
         rest = ("; whole run: " + ", ".join(f"{n} {_label(k)}"
                                             for k, n in self.whole_run.items())
                 if self.whole_run else "; no link fault in the whole run")
+        if self.trial_valid is None:
+            return f"link: trial validity {UNKNOWN}{rest}"
         if self.valid:
             return f"link: valid trial (no link fault in {self.align_s:.2f} s of ALIGN{rest})"
         return "link: INVALID trial: " + ", ".join(self.reasons()) + rest
@@ -115,7 +137,7 @@ def check_link(rec: Recording) -> LinkVerdict:
     states = rec.topics.get("/robot/state")
     estimates = rec.topics.get("/estimator/state")
     if (states is None or len(states) == 0) and (estimates is None or len(estimates) == 0):
-        return LinkVerdict(False, False, message=_link_error(rec))
+        return LinkVerdict(False, False, message=_link_error(rec), ended=rec.complete)
     phases = rec.json.get("/runner/phase")
     if phases is not None and len(phases):
         p_t = np.asarray(phases.log_time_ns, dtype=np.int64)
@@ -149,7 +171,7 @@ def check_link(rec: Recording) -> LinkVerdict:
                 if name == "commanding" and first_cmd.size:
                     bad[: first_cmd[0]] = 0  # before the first CMD: the link's start-up
                 _count(whole, align, key, bad, mask)
-    return LinkVerdict(True, not align, align, whole, align_s)
+    return LinkVerdict(True, not align, align, whole, align_s, ended=rec.complete)
 
 
 def _link_error(rec: Recording) -> str:

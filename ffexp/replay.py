@@ -120,6 +120,29 @@ class ReplayResult:
     warnings: list[str]
     """The reader's warnings on the recording (an unfinished file)."""
 
+    @property
+    def ended(self) -> str:
+        """How the replayed task ended: ``DONE (aligned) at 8.77 s``."""
+        stop = ""
+        if self.stop_reason is not None:
+            why = self.stop_reason.value
+            stop = f" ({why})" if self.stop_message in ("", why) else \
+                f" ({why}: {self.stop_message})"
+        return f"{self.phase.name}{stop} at {self.end_s:.2f} s"
+
+    @property
+    def verdict(self) -> str:
+        """What the replay computed, in one line: the task's end when the commands were
+        the recorded ones up to it; else unknown (open loop: after the divergence the
+        measurements, and so the task's end, are the recorded run's)."""
+        div = self.divergence
+        if div is None or div.t_s > self.end_s:
+            return (f"{self.ended}; the commands are the recorded ones up to it, so this "
+                    "protocol ends so on this data")
+        return (f"unknown: the commands differ from t = {div.t_s:.3f} s on, after which the "
+                f"measurements answer the recorded commands; the task's {self.ended} "
+                "judged the recorded run's world, not this protocol's")
+
 
 def recorded_protocol(rec: Recording, overrides: Sequence[str] = ()) -> RunProtocol:
     """The protocol the recording was made with (metadata ``run.protocol_json``),
@@ -376,11 +399,13 @@ def replay(
             "diverges_on": "" if div is None else f"{div.topic} {div.field}",
             "diverging_cycles": str(commands.diverging),
         })
-    task = cyc.task
-    stop = task.stop
-    return ReplayResult(out, cycles, len(inputs), commands.first, commands.diverging,
-                        commands.max_diff, task.phase, stop.reason if stop else None,
-                        stop.message if stop else "", cyc.t_ns / NS_PER_S, rec.warnings)
+        task = cyc.task
+        stop = task.stop
+        result = ReplayResult(out, cycles, len(inputs), commands.first, commands.diverging,
+                              commands.max_diff, task.phase, stop.reason if stop else None,
+                              stop.message if stop else "", cyc.t_ns / NS_PER_S, rec.warnings)
+        recorder.metadata("replay_verdict", {"verdict": result.verdict})
+    return result
 
 
 __all__ = ["ATOL", "OPEN_LOOP", "RTOL", "Divergence", "Inputs", "ReplayResult",

@@ -319,3 +319,144 @@ def test_analyze_json_of_a_good_and_a_bad_file_prints_the_good_one(files: dict[s
     result = runner.invoke(app, ["analyze", files["rec"], files["text"], "--json"])
     assert result.exit_code == 2
     assert json.loads(result.stdout.splitlines()[0])["file"] == files["rec"]
+
+
+# -- bad input by class: every case also checks that nothing was created ----------------------
+NON_FINITE = ["nan", "inf", "-inf", "1e400"]  # 1e400 overflows to inf when parsed
+
+
+@pytest.fixture(scope="module")
+def by_class(tmp_path_factory: pytest.TempPathFactory, files: dict[str, str]) -> dict[str, str]:
+    """Files for the classes: numbers out of range in a protocol, a rig, a scene; rigs
+    that are not rigs; a recording with a corrupt chunk."""
+    d = tmp_path_factory.mktemp("by_class")
+    out: dict[str, Path] = {}
+
+    def write(name: str, text: str | bytes) -> None:
+        path = out[Path(name).stem] = d / name
+        if isinstance(text, bytes):
+            path.write_bytes(text)
+        else:
+            path.write_text(text)
+
+    base = (ROOT / "protocols/method2.toml").read_text().replace(
+        '"../data/scenes/', f'"{ROOT}/data/scenes/')
+    write("proto_nan.toml", base + "\n[run]\ntimeout_s = nan\n")
+    write("proto_1e400.toml", 'name = "x"\n[run]\ntimeout_s = 1e400\n')
+    write("proto_list_inf.toml", 'name = "x"\n[align]\nmethod = "force"\n'
+          'kp = [0.0, 0.0, inf, 0.0, 0.0, 0.0]\n')
+    write("proto_long.toml", 'name = "x"\n[run]\ntare_s = 1e300\n')
+    write("scene_nan.toml", (ROOT / "data/scenes/paper.toml").read_text().replace(
+        "gravity = 9.81", "gravity = nan", 1))
+    write("proto_scene_nan.toml", base.replace(f"{ROOT}/data/scenes/paper.toml",
+                                               str(d / "scene_nan.toml")))
+    write("rig_empty.toml", "")
+    write("rig_comments.toml", "# nothing but a comment\n\n")
+    write("rig_json.toml", '{"robot": {"type": "sim"}}\n')
+    write("rig_binary.toml", b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe")
+    write("rig_protocol.toml", 'name = "method2"\n[run]\ntimeout_s = 1.0\n')
+    write("rig_inf.toml", '[robot]\ntype = "mock"\ncycle_s = inf\n[ft]\ntype = "mock"\n')
+    write("rig_long.toml", '[robot]\ntype = "fri1"\nrobot_ip = "10.0.0.1"\n'
+          'connect_timeout_s = 1e12\n[ft]\ntype = "fri-estimate"\n')
+    data = bytearray(Path(files["rec"]).read_bytes())
+    middle = len(data) // 2
+    data[middle:middle + 16] = bytes(b ^ 0xFF for b in data[middle:middle + 16])
+    write("corrupt.mcap", bytes(data))
+    return {k: str(v) for k, v in out.items()} | {"ctmp": str(d)}
+
+
+# (command line with {placeholders} ({out}: a directory that must stay absent or empty),
+#  the words the one error line must contain)
+CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
+    "set_non_finite": [
+        *[(f"run {P} --set run.timeout_s={v} --out {{out}}", ["run.timeout_s", "finite"])
+          for v in NON_FINITE],
+        *[(f"run {P} --set align.kp=[0,0,{v},0,0,0] --out {{out}}", ["align.kp.2", "finite"])
+          for v in ("nan", "inf")],
+        (f"run {P} --set approach.speed_mps=nan --out {{out}}", ["approach.speed_mps"]),
+        (f"run {P} --set run.tare_s=1e308 --out {{out}}", ["run.tare_s", "at most"]),
+        (f"run {P} --set run.tf_period_s=1e9 --out {{out}}", ["run.tf_period_s", "at most"]),
+        (f"campaign {CAMP} --set run.timeout_s=inf --out {{out}}", ["run.timeout_s", "finite"]),
+        (f"campaign {CAMP} --set align.kp=[0,0,nan,0,0,0] --out {{out}}", ["align.kp.2"]),
+        (f"sweep {P} --vary align.k_ri[3]=0.1,0.2 --set run.timeout_s=nan --out {{out}}",
+         ["run.timeout_s"]),
+        (f"run {P} --rig {MOCK} --rig-set robot.cycle_s=nan --out {{out}}",
+         ["robot.cycle_s", "finite"]),
+    ],
+    "option_non_finite": [
+        *[(f"emulate --remote 127.0.0.1:1 --jitter-ms {v}", ["--jitter-ms", "finite"])
+          for v in NON_FINITE],
+        ("emulate --remote 127.0.0.1:1 --camera-fps inf", ["--camera-fps"]),
+        ("simulate contact-1dof --m-t nan --csv {out}/x.csv", ["--m-t"]),
+        ("simulate contact-1dof --v0 1e400 --csv {out}/x.csv", ["--v0", "finite"]),
+        ("diff {rec} {rec} --rtol nan", ["--rtol", "finite"]),
+        ("friction synth --out {out}/v.avi --v0 inf", ["--v0", "finite"]),
+        (f"friction estimate {VIDEO} --px-per-m nan --plot {{out}}/p.png", ["--px-per-m"]),
+        (f"sweep {P} --vary align.k_ri[3]=0.1 --seeds 99999999999999999999 --out {{out}}",
+         ["--seeds", "out of range"]),
+        (f"sweep {P} --vary align.k_ri[3]=0.1 --seeds 100000000 --out {{out}}", ["--seeds"]),
+        (f"limits {P} --key align.k_ri[3] --range 0:1 --coarse 0 --out {{out}}", ["--coarse"]),
+        (f"run {P} --fri-port 99999999999999999999 --out {{out}}", ["--fri-port"]),
+    ],
+    "file_numbers": [
+        ("run {proto_nan} --out {out}", ["proto_nan.toml", "run.timeout_s", "finite"]),
+        ("run {proto_1e400} --out {out}", ["proto_1e400.toml", "run.timeout_s", "finite"]),
+        ("run {proto_list_inf} --out {out}", ["proto_list_inf.toml", "align.kp.2"]),
+        ("run {proto_long} --out {out}", ["proto_long.toml", "run.tare_s", "at most"]),
+        ("run {proto_scene_nan} --out {out}", ["scene_nan.toml", "gravity", "finite"]),
+        (f"run {P} --rig {{rig_inf}} --out {{out}}", ["rig_inf.toml", "robot.cycle_s"]),
+        (f"run {P} --rig {{rig_long}} --out {{out}}",
+         ["rig_long.toml", "robot.connect_timeout_s"]),
+    ],
+    "rig_not_a_rig": [
+        *[(f"run {P} --rig {{{name}}} --out {{out}}", [f"{name}.toml"])
+          for name in ("rig_empty", "rig_comments", "rig_json", "rig_binary", "rig_protocol")],
+        (f"campaign {CAMP} --rig {{rig_empty}} --out {{out}}", ["rig_empty.toml", "empty"]),
+    ],
+    "os_refusal": [
+        (f"run {P} --rt --cpu 99 --out {{out}}", ["--cpu", "99"]),
+        (f"run {P} --rt --cpu -1 --out {{out}}", ["--cpu", "-1"]),
+        (f"run {P} --rt --cpu 0 --cpu 4096 --out {{out}}", ["--cpu", "4096"]),
+        ("emulate --remote 127.0.0.1:1 --rt --cpu 99", ["--cpu", "99"]),
+    ],
+    "corrupt_recording": [
+        (f"{cmd} {{corrupt}}{rest}", ["corrupt.mcap", "ffexp recover"])
+        for cmd, rest in (("analyze", ""), ("compare", ""), ("compare", " --csv {out}/c.csv"),
+                          ("export", " --out {out}"), ("diff", " {rec}"),
+                          ("replay", " --out {out}/r.mcap"))
+    ],
+}
+
+
+@pytest.mark.parametrize(
+    ("line", "needles"),
+    [case for cases in CLASS_CASES.values() for case in cases],
+    ids=[f"{cls}: {line}" for cls, cases in CLASS_CASES.items() for line, _ in cases])
+def test_bad_input_by_class_is_one_line_exit_2_and_creates_nothing(
+        files: dict[str, str], by_class: dict[str, str], tmp_path: Path, line: str,
+        needles: list[str]) -> None:
+    out = tmp_path / "out"
+    names = files | by_class | {"out": str(out)}
+    result = runner.invoke(app, [part.format(**names) for part in line.split()])
+    check_one_line(result.exit_code, result.stdout, result.stderr,
+                   [n.format(**names) for n in needles])
+    assert not out.exists() or not any(out.iterdir()), sorted(out.iterdir())
+    assert not list(Path.cwd().glob("runs/*.mcap.tmp"))
+
+
+def test_every_class_has_several_cases() -> None:
+    assert all(len(cases) >= 4 for cases in CLASS_CASES.values())
+
+
+@pytest.mark.parametrize("line", [
+    "run {proto_nan} --out {out}", f"run {P} --set run.timeout_s=1e400 --out {{out}}",
+    "analyze {corrupt}", f"run {P} --rt --cpu 99 --out {{out}}"])
+def test_the_classes_in_a_subprocess(files: dict[str, str], by_class: dict[str, str],
+                                     tmp_path: Path, line: str) -> None:
+    out = tmp_path / "out"
+    names = files | by_class | {"out": str(out)}
+    done = subprocess.run([sys.executable, "-m", "ffexp", *[p.format(**names)
+                                                           for p in line.split()]],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    check_one_line(done.returncode, done.stdout, done.stderr, [])
+    assert not out.exists() and not (tmp_path / "runs").exists()

@@ -8,6 +8,7 @@ import asyncio
 import json
 import os
 import re
+import signal
 import socket
 import struct
 import subprocess
@@ -283,3 +284,111 @@ def test_the_layout_file_is_the_generated_one_and_reads_existing_fields() -> Non
         else:
             assert field in JSON_TOPICS[topic].schema["properties"], path
     assert set(data["configById"]["3D!rig"]["topics"]) <= set(JSON_TOPICS)
+
+
+# -- after the run: a late viewer, the subprotocols, Ctrl-C -----------------------------------
+class LiveRun:
+    """``ffexp run --live`` in a subprocess (signals need its main thread); reads its stderr
+    line by line, each wait bounded by a deadline, never by a fixed time."""
+
+    def __init__(self, tmp_path: Path) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "ffexp", "run", str(ROOT / "protocols/method1_case1.toml"),
+             "--live-address", "127.0.0.1:0", "--set", "run.timeout_s=1", "--out",
+             str(tmp_path)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+            env={**os.environ, "PYTHONPATH": str(ROOT)})
+        self.lines: list[str] = []
+        self.url = ""
+
+    def wait_for(self, text: str) -> str:
+        assert self.proc.stderr is not None
+        for line in self.proc.stderr:  # ends when the process does
+            self.lines.append(line.rstrip())
+            m = re.search(r"server on (ws://\S+)", line)
+            if m:
+                self.url = m.group(1)
+            if text in line:
+                return line
+        raise AssertionError(f"{text!r} never came: {self.lines}")
+
+    def finish(self) -> tuple[int, str, str]:
+        out, err = self.proc.communicate(timeout=DEADLINE_S)
+        return self.proc.returncode, out, "\n".join(self.lines) + err
+
+
+async def _late_viewer(url: str, subprotocols: list[str]) -> tuple[str | None, dict[str, Any],
+                                                                    set[str]]:
+    """Connect, take the advertisements, subscribe to /tf and the scene, read the last
+    instant the server sends again, disconnect."""
+    async with websockets.connect(url, subprotocols=subprotocols, close_timeout=0.5) as ws:
+        assert json.loads(await asyncio.wait_for(ws.recv(), DEADLINE_S))["op"] == "serverInfo"
+        adv = json.loads(await asyncio.wait_for(ws.recv(), DEADLINE_S))
+        assert adv["op"] == "advertise"
+        channels = {ch["topic"]: ch for ch in adv["channels"]}
+        wanted = ["/tf", "/scene/rig"]
+        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+            {"id": k, "channelId": channels[t]["id"]} for k, t in enumerate(wanted)]}))
+        got: set[str] = set()
+        while got != set(wanted):
+            frame = await asyncio.wait_for(ws.recv(), DEADLINE_S)
+            if isinstance(frame, bytes):
+                got.add(wanted[struct.unpack_from("<I", frame, 1)[0]])
+        return ws.subprotocol, channels, got
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("offered", [
+    ["foxglove.sdk.v1"],
+    ["foxglove.sdk.v1", "foxglove.websocket.v1"],  # what the Foxglove app offers
+])
+def test_a_viewer_connecting_after_the_run_ended_gets_its_topics_and_ends_the_server(
+        tmp_path: Path, offered: list[str]) -> None:
+    run = LiveRun(tmp_path)
+    try:
+        run.wait_for("still serving")  # the run is over: no viewer could have been this fast
+        assert run.proc.poll() is None
+        assert any("Open connection -> Foxglove WebSocket -> " + run.url in x for x in run.lines)
+        subprotocol, channels, got = asyncio.run(_late_viewer(run.url, offered))
+        code, out, err = run.finish()
+    finally:
+        if run.proc.poll() is None:
+            run.proc.kill()
+    assert subprotocol == "foxglove.sdk.v1"
+    recording = next(tmp_path.glob("*.mcap"))
+    rec = load(recording)
+    assert set(rec.topics) <= set(channels)  # every recorded topic is advertised
+    assert got == {"/tf", "/scene/rig"}  # the last instant, sent again to the late viewer
+    assert code == 4, err  # the run's own exit code: timed out without aligning
+    assert "live: stopped serving (the viewer disconnected)" in err
+    assert "timeout" in out
+
+
+@pytest.mark.slow
+def test_ctrl_c_ends_serving_after_the_run_with_the_runs_exit_code(tmp_path: Path) -> None:
+    run = LiveRun(tmp_path)
+    try:
+        run.wait_for("still serving")
+        run.proc.send_signal(signal.SIGINT)
+        code, _out, err = run.finish()
+    finally:
+        if run.proc.poll() is None:
+            run.proc.kill()
+    assert code == 4 and "live: stopped serving (stopped)" in err and "Traceback" not in err
+
+
+def test_a_client_offering_only_the_old_subprotocol_is_refused() -> None:
+    """foxglove-sdk's server speaks the protocol under ``foxglove.sdk.v1`` only; a client
+    offering only ``foxglove.websocket.v1`` (the ws-protocol specification's name) gets
+    HTTP 400. The docs name foxglove.sdk.v1 (ffexp.live.server.SUBPROTOCOL)."""
+    from ffexp.live.server import SUBPROTOCOL
+
+    async def connect(url: str, offered: list[str]) -> str | None:
+        async with websockets.connect(url, subprotocols=offered, close_timeout=0.5) as ws:
+            return ws.subprotocol
+
+    with LiveServer(LiveOptions(port=0)) as server:
+        assert asyncio.run(connect(server.url, [SUBPROTOCOL])) == SUBPROTOCOL
+        with pytest.raises(websockets.InvalidStatus) as refused:
+            asyncio.run(connect(server.url, ["foxglove.websocket.v1"]))
+    assert refused.value.response.status_code == 400

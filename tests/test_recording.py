@@ -71,6 +71,9 @@ def write_all_topics(
                 pose = np.eye(4)
                 pose[:3, 3] = [k, 0, 0]
                 rec.transform(t_ns, "base", "tool", pose)
+        rec.write_json("/runner/phase", t_ns, {  # the run's end: a whole run's file
+            "phase": "DONE", "phase_id": 3, "reason": "test", "stop_reason": "timeout",
+            "aligned": False})
     return written
 
 
@@ -140,7 +143,11 @@ def test_recover_rewrites_a_valid_indexed_file(tmp_path: Path) -> None:
     result = recover(cut, tmp_path / "fixed.mcap")
     assert not result.complete and result.messages > 0
     fixed = load(tmp_path / "fixed.mcap")
-    assert fixed.complete and not fixed.warnings
+    # a valid file, but without the run's end (its DONE was in the part cut off)
+    assert not fixed.complete
+    assert [w.split(": ", 1)[1] for w in fixed.warnings] == [
+        "the run's end is not recorded (no DONE or ABORT on /runner/phase): the run ended "
+        "abnormally"]
     seqs = fixed.topics["/robot/measurement"]["seq"]
     expected = np.concatenate([r["seq"] for r in written["/robot/measurement"][: len(seqs)]])
     np.testing.assert_array_equal(seqs, expected)

@@ -17,11 +17,14 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
+from ffexp.analysis import metrics
 from ffexp.cli import app
 from ffexp.contracts import Phase
 from ffexp.diff import diff
 from ffexp.experiment import run_file
+from ffexp.export import column_names, element_names
 from ffexp.recording import load
+from ffexp.recording.topics import CDR_TOPICS
 from ffexp.replay import Inputs, replay
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -147,7 +150,8 @@ def test_export_reads_back_with_the_values_load_gives(run: Path, tmp_path: Path,
     assert result.exit_code == 0, result.output
     rec = load(run)
     names = {p.name for p in tmp_path.iterdir()}
-    assert names == {f"{t.strip('/').replace('/', '_')}.{fmt}" for t in [*rec.topics, *rec.json]}
+    assert names == {f"{t.strip('/').replace('/', '_')}.{fmt}"
+                     for t in [*rec.topics, *rec.json]} | {"recording.json"}
     for topic in ("/estimator/state", "/robot/state", "/ft/raw"):
         path = tmp_path / f"{topic.strip('/').replace('/', '_')}.{fmt}"
         table = (pd.read_parquet(path) if fmt == "parquet"
@@ -157,12 +161,21 @@ def test_export_reads_back_with_the_values_load_gives(run: Path, tmp_path: Path,
         np.testing.assert_array_equal(table["log_time_ns"], data.log_time_ns)
         np.testing.assert_array_equal(table["t_s"],
                                       (data.log_time_ns - rec.run_start_ns) / 1e9)
+        fields = {f.name: f for f in CDR_TOPICS[topic].spec.fields}
         for name, values in data.fields.items():
             flat = values.reshape(len(data), -1)
-            cols = [name] if values.ndim == 1 else [f"{name}_{k}" for k in range(flat.shape[1])]
+            f = fields[name]
+            cols = element_names(name, f.count, f.unit)
             np.testing.assert_array_equal(table[cols].to_numpy(), flat,
                                           err_msg=f"{fmt} {topic}.{name}")
-        pd.testing.assert_frame_equal(table, rec.frame(topic), check_dtype=fmt == "parquet")
+        frame = rec.frame(topic)  # the same values under the frame's name_k columns
+        frame.columns = list(table.columns)
+        pd.testing.assert_frame_equal(table, frame, check_dtype=fmt == "parquet")
+    est = pd.read_parquet(tmp_path / "estimator_state.parquet") if fmt == "parquet" else \
+        pd.read_csv(tmp_path / "estimator_state.csv")
+    assert list(est.columns[2:8]) == ["wrench_fx_n", "wrench_fy_n", "wrench_fz_n",
+                                      "wrench_tx_nm", "wrench_ty_nm", "wrench_tz_nm"]
+    assert "f_z_n" in est and "n_samples" in est
     assert rec.frame("/robot/state")["t_s"].iloc[0] == 0.0
 
 
@@ -179,3 +192,54 @@ def test_import_ffexp_gives_recording_frames_lazily(run: Path) -> None:
     n, first = done.stdout.split()
     assert int(n) == len(load(run, ["/estimator/state"]).topic("/estimator/state"))
     assert first == "wrench_0"
+
+
+@pytest.mark.parametrize(("name", "count", "unit", "names"), [
+    ("wrench", 6, "N, N m", ["wrench_fx_n", "wrench_fy_n", "wrench_fz_n", "wrench_tx_nm",
+                             "wrench_ty_nm", "wrench_tz_nm"]),
+    ("twist", 6, "m/s, rad/s", ["twist_vx_mps", "twist_vy_mps", "twist_vz_mps",
+                                "twist_wx_radps", "twist_wy_radps", "twist_wz_radps"]),
+    ("stiffness", 6, "N/m, N m/rad", ["stiffness_x_npm", "stiffness_y_npm", "stiffness_z_npm",
+                                      "stiffness_rx_nmprad", "stiffness_ry_nmprad",
+                                      "stiffness_rz_nmprad"]),
+    ("damping", 6, "", ["damping_x", "damping_y", "damping_z", "damping_rx", "damping_ry",
+                        "damping_rz"]),
+    ("jnt_pos", 7, "rad", [f"jnt_pos_j{k}_rad" for k in range(1, 8)]),
+    ("f_z", 1, "N", ["f_z_n"]), ("cycle_s", 1, "s", ["cycle_s"]), ("seq", 1, "", ["seq"]),
+    ("target_twist", 3, "m/s, rad/s", ["target_twist_0", "target_twist_1", "target_twist_2"]),
+    ("mass_matrix", 49, "kg m^2", [f"mass_matrix_{k}_kgm2" for k in range(49)]),
+])
+def test_element_names_from_count_and_unit(name: str, count: int, unit: str,
+                                           names: list[str]) -> None:
+    assert element_names(name, count, unit) == names
+
+
+def test_a_pose_names_its_translation_and_every_registry_topic_gets_unique_names() -> None:
+    pose = element_names("pose", 16, "m")
+    assert [pose[3], pose[7], pose[11]] == ["pose_x_m", "pose_y_m", "pose_z_m"]
+    assert pose[0] == "pose_r00" and pose[15] == "pose_r33" and len(set(pose)) == 16
+    for topic, t in CDR_TOPICS.items():
+        cols = [c for f in t.spec.fields for c in
+                ([f.name] if f.count == 1 else [f"{f.name}_{k}" for k in range(f.count)])]
+        renamed = column_names(topic, ["t_s", "log_time_ns", *cols])
+        assert len(renamed) == len(cols), topic  # every field named, none colliding
+        assert len(set(renamed.values())) == len(cols), topic
+
+
+def test_replay_says_the_verdict_it_computed_not_the_recorded_one(run: Path, tmp_path: Path
+                                                                   ) -> None:
+    """Through another method the commands diverge: the task's end in the replay judged
+    the recorded world, so the verdict printed (and analysed) is unknown; through the
+    recorded protocol the commands agree and the end is the replay's own."""
+    other = runner.invoke(app, ["replay", str(run), "--protocol",
+                                str(ROOT / "protocols/method3_impedance.toml"),
+                                "--out", str(tmp_path / "other.mcap")])
+    assert other.exit_code == 0, other.output
+    line = next(x for x in other.stdout.splitlines() if x.startswith("replayed run: "))
+    assert line.startswith("replayed run: unknown: the commands differ from t = "), line
+    assert metrics(load(tmp_path / "other.mcap")).verdict == "unknown"
+    same = runner.invoke(app, ["replay", str(run), "--out", str(tmp_path / "same.mcap")])
+    line = next(x for x in same.stdout.splitlines() if x.startswith("replayed run: "))
+    assert line.startswith("replayed run: DONE ") or line.startswith("replayed run: ABORT ")
+    assert "the commands are the recorded ones up to it" in line
+    assert metrics(load(tmp_path / "same.mcap")).verdict != "unknown"

@@ -230,3 +230,98 @@ def test_tiny_study_end_to_end(tmp_path: Path) -> None:
     assert (out / "figures" / "scenes.png").is_file()  # outcomes over the two grid keys
     flips = pd.read_csv(out / "flips.csv")
     assert len(flips) == 5 + n_claims and set(flips["pairs"]) <= {0, 1}  # 2 x 1 grid: 1 pair
+
+
+# -- the time left counts the runs the searches will add; a signal stops, never fails ----------
+TINY = ('name = "tiny"\nseeds = [1, 2]\n[grid]\n"scene.target.lateral" = [0.010, 0.014]\n'
+        '[[limits]]\nname = "k_xp"\nrun = "I-1"\nkey = "align.k_ri[3]"\n'
+        'range = [0.0, 2.0]\nresolution = 0.125\ncoarse = 5')
+
+
+@pytest.mark.parametrize("threshold", [0.1, 0.7, 1.3, 1.9])
+def test_a_search_budget_is_what_a_one_limit_search_runs(tmp_path: Path, threshold: float
+                                                          ) -> None:
+    """The budget of a limit search (coarse grid, one bracket bisected to the resolution)
+    is the number of points ``limits.search`` evaluates when the outcome changes once."""
+    from ffexp.sweeps import limits
+
+    study = rep.load(_config(tmp_path, TINY))
+    (search,) = study.searches
+    evaluated: list[limits.Coords] = []
+
+    def evaluate(points: list[limits.Coords]) -> list[float]:
+        evaluated.extend(points)
+        return [float(p[0] > threshold) for p in points]
+
+    limits.search(evaluate, search.segments(), coarse=search.coarse,
+                  resolution=search.resolution)
+    # 5 coarse points (0.5 apart), then 0.25, 0.125: two bisections, two seeds each
+    assert rep.search_budget(search) == len(evaluated) * len(search.seeds) == (5 + 2) * 1
+    assert rep.planned_runs(study) == 3 * 5 * 2 + 7  # scenes x roles x seeds + the search
+
+
+def test_the_time_left_counts_the_planned_runs() -> None:
+    c = engine.Counts(total=10, done=4, running=2, planned=30, run_s=4 * 3.0, slots=2)
+    # (30 planned - 4 done - 2 running / 2) runs x 3 s a run / 2 at once
+    assert engine.eta_s(c, started=0.0, now=100.0) == pytest.approx(25 * 3.0 / 2)
+    c.planned = 0  # no plan: what was submitted
+    assert engine.eta_s(c, started=0.0, now=100.0) == pytest.approx(5 * 3.0 / 2)
+    assert engine.eta_s(engine.Counts(total=5), started=0.0) is None  # nothing ran yet
+
+
+def test_the_runner_is_told_the_plan_before_the_runs(tmp_path: Path) -> None:
+    study = rep.load(_config(tmp_path, TINY), ["run.timeout_s=0.2"])
+    seen: list[engine.Counts] = []
+    with ThreadPoolExecutor(2) as ex, engine.Runner(
+            tmp_path / "out", ex, 2, on_change=lambda c: seen.append(engine.Counts(**vars(c)))
+    ) as r:
+        study.scenes = study.scenes[:1]  # the nominal scene only: quick
+        rep.run(study, r)
+    planned = 1 * 5 * 2 + rep.search_budget(study.searches[0])
+    assert seen[0].planned == planned and seen[0].total == 0  # told first
+    assert r.counts.done == r.counts.total  # every run it made is counted
+    assert r.counts.planned == 0  # at the end the runs made are the plan
+
+
+@pytest.mark.slow
+def test_runs_stopped_by_sigterm_are_stopped_not_failed(tmp_path: Path) -> None:
+    """SIGTERM to the process group (as a service manager sends it): the workers ignore
+    it, the sweep stops submitting; a second one ends the running runs: they are
+    "stopped", none "failed", nothing of them is kept, exit 143."""
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "s"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "ffexp", "sweep", str(ROOT / "protocols/method1_case1.toml"),
+         "--vary", "align.k_ri[3]=0.25,0.5,0.75", "--set", "run.timeout_s=120",
+         "--set", "approach.speed_mps=0.002", "--executor", "local:2", "--out", str(out),
+         "--no-figures"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": str(ROOT)}, start_new_session=True)
+    lines: list[str] = []
+    try:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            lines.append(line.rstrip())
+            if re.search(r", [12] running,", line) and "stopping" not in "".join(lines):
+                os.killpg(proc.pid, signal.SIGTERM)  # stop submitting
+            if line.startswith("stopping: waiting for the 2 run(s)"):
+                os.killpg(proc.pid, signal.SIGTERM)  # end the running runs
+        proc.wait(120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    text = "\n".join(lines)
+    assert proc.returncode == 143, text
+    assert "Traceback" not in text and "error:" not in text, text
+    final = [x for x in lines if " done, " in x][-1]
+    # the two running runs, and the queued one when the pool had handed it over already
+    assert re.search(r"^sweep method1_case1: 0/3 done, 0 running, 0 failed, [23] stopped,",
+                     final), final
+    assert "stopped; finished runs are kept" in text
+    assert not list((out / "runs").glob("*/row.json"))  # no stopped run counts as done

@@ -9,6 +9,7 @@ level: every command module imports this, and ``ffexp --help`` must stay fast
 from __future__ import annotations
 
 import functools
+import math
 import os
 import signal
 import sys
@@ -65,6 +66,7 @@ def cli_errors(func: Callable[P, R]) -> Callable[P, R]:
     @functools.wraps(func)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
         try:
+            check_numbers(kwargs)
             return func(*args, **kwargs)
         except (typer.Exit, typer.Abort, SystemExit):
             raise
@@ -88,6 +90,49 @@ def cli_errors(func: Callable[P, R]) -> Callable[P, R]:
     return wrapper
 
 
+#: The largest integer an option may give (what fits in 64 bits, as ports, seeds and counts
+#: end up in numpy, struct or the OS).
+MAX_INT = 2**63 - 1
+
+
+def _option_name(param: str) -> str:
+    """The command line's name of a command's parameter (``set_`` -> ``--set``)."""
+    from typer._click.globals import get_current_context
+
+    ctx = get_current_context(silent=True)
+    for p in ctx.command.params if ctx is not None else ():
+        if p.name == param and p.opts:
+            return str(max(p.opts, key=len))
+    return "--" + param.rstrip("_").replace("_", "-")
+
+
+def check_numbers(values: dict[str, object]) -> None:
+    """Every number a command got from its command line is finite (``nan``, ``inf``,
+    ``1e400`` are errors) and every integer fits in 64 bits: a ConfigError naming the
+    option, before the command does anything."""
+    from ffexp.errors import ConfigError
+
+    for name, value in values.items():
+        items = value if isinstance(value, list | tuple) else (value,)
+        for x in items:
+            if isinstance(x, float) and not math.isfinite(x):
+                raise ConfigError(_option_name(name), str(x), "must be a finite number")
+            if isinstance(x, int) and not isinstance(x, bool) and abs(x) > MAX_INT:
+                raise ConfigError(_option_name(name), str(x), "is out of range (64 bits)")
+
+
+#: The most runs one option may ask for (``--seeds``, ``--sample``): more would not end.
+MAX_COUNT = 100_000
+
+
+def count(option: str, value: int | None) -> None:
+    """Raise a ConfigError naming ``option`` unless ``value`` is None or 1..MAX_COUNT."""
+    from ffexp.errors import ConfigError
+
+    if value is not None and not 1 <= value <= MAX_COUNT:
+        raise ConfigError(option, str(value), f"must be 1..{MAX_COUNT}")
+
+
 def positive(option: str, value: float | None, *, allow_zero: bool = False) -> None:
     """Raise a ConfigError naming ``option`` unless ``value`` is finite and > 0 (>= 0)."""
     from ffexp.errors import ConfigError
@@ -98,6 +143,20 @@ def positive(option: str, value: float | None, *, allow_zero: bool = False) -> N
     if not (ok and value < float("inf")):
         bound = ">= 0" if allow_zero else "> 0"
         raise ConfigError(option, str(value), f"must be finite and {bound}")
+
+
+def check_cpus(option: str, cpus: list[int] | tuple[int, ...]) -> None:
+    """Raise a ConfigError naming ``option`` unless every CPU is one this process may
+    run on (the OS refuses the others with a bare "Invalid argument")."""
+    from ffexp.errors import ConfigError
+
+    if not cpus or not hasattr(os, "sched_getaffinity"):
+        return
+    allowed = os.sched_getaffinity(0)
+    for cpu in cpus:
+        if cpu not in allowed:
+            listed = ", ".join(str(c) for c in sorted(allowed))
+            raise ConfigError(option, str(cpu), f"not a CPU this process may run on ({listed})")
 
 
 class StopFlag:

@@ -62,12 +62,7 @@ def replay(
     else:
         typer.echo(f"{result.divergence.line()} ({result.diverging_cycles} cycles "
                    f"differ, largest difference {result.max_command_diff:.3g})")
-    stop = ""
-    if result.stop_reason is not None:
-        why = result.stop_reason.value
-        stop = f" ({why})" if result.stop_message in ("", why) else \
-            f" ({why}: {result.stop_message})"
-    typer.echo(f"replayed run: {result.phase.name}{stop} at {result.end_s:.2f} s")
+    typer.echo(f"replayed run: {result.verdict}")
     typer.echo(f"recording: {result.path}")
 
 
@@ -159,14 +154,16 @@ def export(
     """One table per topic (numeric columns, arrays split into name_0..name_k, t_s in
     seconds from the run start), as Parquet or CSV. Exit 0, or 2 on bad input."""
     from ffexp.errors import ConfigError
-    from ffexp.export import FORMATS, default_dir
+    from ffexp.export import FORMATS, SUMMARY_TOPICS, default_dir
     from ffexp.export import export as run_export
     from ffexp.recording import load
 
     if fmt not in FORMATS:
         raise ConfigError("--format", fmt, f"choose one of {', '.join(FORMATS)}")
-    # the first cycle's topics too: t_s counts from the run start whatever is exported
-    rec = load(recording, [*topics, "/robot/state", "/control/command"] if topics else None)
+    # the first cycle's topics too: t_s counts from the run start whatever is exported;
+    # and what says whether the run's end is recorded, and the trial's validity
+    wanted = [*topics, *SUMMARY_TOPICS, "/control/command"] if topics else None
+    rec = load(recording, wanted)
     _warn(rec.warnings)
     for path in run_export(rec, fmt, out or default_dir(recording), topics):
         typer.echo(str(path))

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import typer
 
-from ffexp.cli._common import StopFlag, cli_errors, positive, stop_signals
+from ffexp.cli._common import StopFlag, check_cpus, cli_errors, positive, stop_signals
 from ffexp.errors import ConfigError
 
 
@@ -94,6 +94,7 @@ def emulate(
 
     positive("--duration", duration, allow_zero=True)
     positive("--camera-fps", camera_fps)
+    check_cpus("--cpu", cpu)
     if not -1 <= camera_port <= 65535:
         raise ConfigError("--camera-port", str(camera_port), "a TCP port is -1..65535")
     positive("--timeout-ms", timeout_ms)

@@ -62,7 +62,9 @@ def analyze(
             _warn(rec.warnings)
             if as_json:
                 typer.echo(json_line({"file": str(path), "run": run_name(rec),
-                                      "measured": False, "trial_valid": False,
+                                      "complete": rec.complete, "measured": False,
+                                      "trial_valid": link.trial_valid,
+                                      "trial_validity": link.validity,
                                       "link": link.text().removeprefix("link: ")}))
             else:
                 con.print(f"{run_name(rec)}: {link.text()}")
@@ -70,7 +72,7 @@ def analyze(
         m = metrics(rec)  # an unusable file fails here, with its one error line
         _warn(rec.warnings)
         values = {"file": str(path), "run": run_name(rec), **asdict(m), "measured": True,
-                  "trial_valid": link.valid, "link": link.text().removeprefix("link: ")}
+                  "link": link.text().removeprefix("link: ")}
         values.pop("warnings")
         if as_json:
             typer.echo(json_line({**values, "warnings": m.warnings}))
@@ -141,6 +143,8 @@ def recover_cmd(
 ) -> None:
     """Rewrite every complete chunk of an unfinished recording as a valid, indexed file.
 
+    A killed run's file stays what it is once recovered: without the run's end,
+    ``analyze`` and ``compare`` show it complete: no, its trial validity unknown.
     Exit code 2 when the file holds no complete message to recover.
     """
     from ffexp.recording import recover
@@ -148,6 +152,9 @@ def recover_cmd(
     dst = output or recording.with_suffix(".recovered.mcap")
     result = recover(recording, dst)
     state = "complete file" if result.complete else "unfinished file"
+    if result.corrupt_chunks:
+        state += (f", corrupt chunk(s) {', '.join(map(str, result.corrupt_chunks))} "
+                  "left out")
     line = (
         f"{recording}: {state}; recovered {result.messages} messages on {result.channels} "
         f"channels into {dst}"
@@ -156,6 +163,13 @@ def recover_cmd(
         dst.unlink(missing_ok=True)
         raise fail(f"{recording}: no complete message to recover ({state}); nothing written")
     typer.echo(line)
+    from ffexp.recording import load
+    from ffexp.recording.reader import RUN_END_TOPIC
+
+    fixed = load(dst, [RUN_END_TOPIC])
+    if not fixed.complete:
+        why = "; ".join(w.removeprefix(f"{dst}: ") for w in fixed.warnings)
+        typer.echo(f"{dst}: it analyses as complete: no, its trial validity unknown ({why})")
 
 
 @cli_errors

@@ -19,16 +19,18 @@ from ffexp.cli._common import (
     EXIT_TIMED_OUT,
     SET_HELP,
     StopFlag,
+    check_cpus,
     cli_errors,
     stop_signals,
 )
+from ffexp.cli.live import live_view, serve_after_run
 from ffexp.cli.progress import Steps
 from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
 
 if TYPE_CHECKING:
     from ffexp.contracts import RunOutcome
     from ffexp.experiment import RunResult
-    from ffexp.live import LiveOptions
+    from ffexp.live import LiveOptions, LiveServer
     from ffexp.recording import Recording
 
 RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardware number."
@@ -41,8 +43,9 @@ CAMERA_HELP = ("Rig tracker.source with tracker.type camera: a device index, a v
 RT_HELP = ("Real-time: SCHED_FIFO where the OS allows it (said when not), the garbage "
            "collector frozen and disabled during the run.")
 CPU_HELP = "With --rt: pin the process to this CPU (repeatable)."
-LIVE_HELP = ("Serve the run live to Foxglove (WebSocket, foxglove-sdk) on 127.0.0.1:8765 "
-             "while it runs; open layouts/ffexp-layout.json there.")
+LIVE_HELP = ("Serve the run live to Foxglove (WebSocket, foxglove-sdk, subprotocol "
+             "foxglove.sdk.v1) on 127.0.0.1:8765 while it runs and after it, until the viewer "
+             "disconnects or Ctrl-C; open layouts/ffexp-layout.json there.")
 LIVE_ADDRESS_HELP = "With --live (implies it): listen on HOST:PORT (port 0: any free port)."
 
 
@@ -58,7 +61,7 @@ def outcome_exit_code(outcome: RunOutcome) -> int:
 def _one(
     steps: Steps, protocol: Path, set_: Sequence[str], rig: RigChoice, out: Path,
     flag: StopFlag, label: str, rt: bool = False, cpus: Sequence[int] = (),
-    live: LiveOptions | None = None,
+    live: LiveServer | None = None,
 ) -> RunResult:
     with steps.step(f"{label}: loading the protocol and the rig"):
         from ffexp.experiment import run_file
@@ -144,18 +147,22 @@ def run(
     1 a device or simulation failure, 128+N on signal N.
     """
     _check_out(out)
+    check_cpus("--cpu", cpu)
     choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft, tracker, camera)
     live_options = _live_options(live, live_address)
-    with stop_signals(StopFlag()) as flag, Steps() as steps:
-        result = _one(steps, protocol, set_, choice, out, flag, protocol.stem, rt, cpu,
-                      live_options)
-        recs = []
-        if _measured(result):  # a robot that never answered: the file has only events
-            with steps.step("loading the recording"):
-                recs = [_load(result.path)]
-    if recs:
-        _print_runs(recs, wide)
-    code = flag.exit_code()
+    with stop_signals(StopFlag()) as flag, live_view(live_options) as server:
+        with Steps() as steps:
+            result = _one(steps, protocol, set_, choice, out, flag, protocol.stem, rt, cpu,
+                          server)
+            recs = []
+            if _measured(result):  # a robot that never answered: the file has only events
+                with steps.step("loading the recording"):
+                    recs = [_load(result.path)]
+        code = flag.exit_code()  # a signal during the run; Ctrl-C after it only ends --live
+        if recs:
+            _print_runs(recs, wide)
+        if server is not None:
+            serve_after_run(server, flag)
     raise typer.Exit(code if code is not None else outcome_exit_code(result.outcome))
 
 

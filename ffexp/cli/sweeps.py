@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from ffexp.cli._common import SET_HELP, StopFlag, cli_errors, stop_signals
+from ffexp.cli._common import SET_HELP, StopFlag, cli_errors, count, stop_signals
 
 if TYPE_CHECKING:
     from ffexp.sweeps.engine import Runner
@@ -23,8 +23,10 @@ if TYPE_CHECKING:
     from ffexp.sweeps.session import Display
 
 EXECUTOR_HELP = (
-    "local[:WORKERS] (a process pool; default all CPUs), or Ray: ray | ray:auto (the running "
-    "cluster), ray:HOST:PORT, ray://HOST:PORT (client), ray:local (start one here)."
+    "local[:WORKERS] (a process pool; default all CPUs), or Ray: ray (join the running "
+    "cluster, else start one here, as ray.init()), ray:auto (only join; an error when none "
+    "runs), ray:HOST:PORT (join that cluster), ray://HOST:PORT (client), ray:local (always "
+    "start one here)."
 )
 OUT_HELP = (
     "Sweep directory (runs, results.csv/.parquet, figures). Runs already in it are not run "
@@ -51,6 +53,9 @@ def _session(out: Path, spec: ExecutorSpec, label: str) -> Iterator[tuple[Runner
                 yield runner, display
         except Stopped:
             pass
+        except KeyboardInterrupt:  # the second signal: the workers were ended
+            if not flag():
+                raise
         code = flag.exit_code()
         if code is not None:
             typer.echo(f"{label}: stopped; finished runs are kept in {out} (run the same "
@@ -123,6 +128,8 @@ def sweep(
     from ffexp.sweeps.grid import execute, prepare
     from ffexp.sweeps.session import spinner
 
+    count("--seeds", seeds)
+    count("--sample", sample)
     out = out if out is not None else Path("runs") / "sweeps" / protocol.stem
     _check_out(out)
     spec = parse_executor(executor)
@@ -187,6 +194,8 @@ def limits(
     from ffexp.sweeps.plan import Target, seeds_of
     from ffexp.sweeps.searches import LimitSearch
 
+    for option, n in (("--seeds", seeds), ("--coarse", coarse), ("--rays", n_rays)):
+        count(option, n)
     out = out if out is not None else Path("runs") / "sweeps" / f"{protocol.stem}-limits"
     _check_out(out)
     spec = parse_executor(executor)

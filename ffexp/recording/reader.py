@@ -6,7 +6,9 @@ use the chunk index (``SeekingReader.iter_messages``), so only the chunks that
 hold the wanted topics and times are decompressed. An unfinished file (killed
 run) has no footer; it is read record by record from the start, keeping every
 complete chunk, until the stream ends (``EndOfFile``) or breaks off in the
-middle of a record (``struct.error``).
+middle of a record (``struct.error``). Chunk CRCs are checked: a finished file with
+a corrupt chunk is an :class:`InputError` naming the file and pointing to
+``ffexp recover``, which rewrites every chunk but the corrupt ones.
 """
 
 from __future__ import annotations
@@ -22,9 +24,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import make_reader
-from mcap.records import Attachment, Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Attachment, Channel, Chunk, Message, Metadata, Schema
+from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
+from zstandard import ZstdError
 
 from ffexp.errors import InputError
 from ffexp.recording.schema import FieldSpec, MessageSpec
@@ -36,6 +39,8 @@ if TYPE_CHECKING:
 MAGIC = b"\x89MCAP0\r\n"
 # OSError: a file shorter than a footer cannot even be seeked to its summary
 _READ_ERRORS = (EndOfFile, McapError, struct.error, ValueError, MemoryError, OSError)
+# a chunk whose data cannot be decompressed, or whose CRC does not match (a ValueError)
+_CHUNK_ERRORS = (ZstdError, McapError, struct.error, ValueError, MemoryError)
 
 
 @dataclass
@@ -73,7 +78,8 @@ class Recording:
     metadata: dict[str, dict[str, str]] = field(default_factory=dict)
     attachments: dict[str, bytes] = field(default_factory=dict)
     complete: bool = True
-    """False when the file was not finished (recovered up to its last complete chunk)."""
+    """False when the file was not finished (read up to its last complete chunk), or when
+    a run's recording lacks the run's end (a killed run's file, even once recovered)."""
     warnings: list[str] = field(default_factory=list)
 
     def topic(self, name: str) -> TopicData:
@@ -166,14 +172,33 @@ class _Stream:
     attachments: list[Attachment] = field(default_factory=list)
     complete: bool = False
     error: str = ""
+    corrupt: list[int] = field(default_factory=list)
+    """Numbers (from 1) of the chunks left out: their data is corrupt."""
+
+
+def _records(reader: StreamReader, out: _Stream) -> Iterator[Any]:
+    """The reader's records, each chunk's broken up; a corrupt chunk is left out (and
+    numbered in ``out.corrupt``) and the stream goes on after it."""
+    n = 0
+    for rec in reader.records:
+        if not isinstance(rec, Chunk):
+            yield rec
+            continue
+        n += 1
+        try:
+            inner = breakup_chunk(rec, validate_crc=True)
+        except _CHUNK_ERRORS:
+            out.corrupt.append(n)
+            continue
+        yield from inner
 
 
 def _read_stream(path: Path) -> _Stream:
-    """Read every complete record of a (possibly unfinished) file."""
+    """Read every complete record of a (possibly unfinished) file, but corrupt chunks."""
     out = _Stream()
     with path.open("rb") as fh:
         try:
-            for rec in StreamReader(fh, validate_crcs=True).records:
+            for rec in _records(StreamReader(fh, validate_crcs=True, emit_chunks=True), out):
                 if isinstance(rec, Schema):
                     out.schemas[rec.id] = rec
                 elif isinstance(rec, Channel):
@@ -195,9 +220,10 @@ def _finished_messages(
 ) -> tuple[_Stream, bool]:
     """Read a finished file through its index; (stream, False) if it has none."""
     out = _Stream(complete=True)
+    summary = None
     with path.open("rb") as fh:
         try:
-            reader = make_reader(fh)
+            reader = make_reader(fh, validate_crcs=True)
             summary = reader.get_summary()
             if summary is None:
                 return out, False
@@ -217,9 +243,23 @@ def _finished_messages(
                 Metadata(name=m.name, metadata=m.metadata) for m in reader.iter_metadata()
             ]
             out.attachments = list(reader.iter_attachments())
-        except _READ_ERRORS:
+        except (*_READ_ERRORS, *_CHUNK_ERRORS) as exc:
+            if summary is not None and isinstance(exc, _CHUNK_ERRORS):
+                raise InputError(
+                    f"{path}: corrupt data ({_why(exc)}); `ffexp recover {path}` rewrites "
+                    "every readable chunk into a new file") from None
             return _Stream(), False
     return out, True
+
+
+def _why(exc: BaseException) -> str:
+    """A read error in a few words: its class, and its message when short."""
+    if isinstance(exc, CRCValidationError):
+        return "a chunk's CRC does not match its data"
+    if isinstance(exc, ZstdError):
+        return "a chunk does not decompress"
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return f"{type(exc).__name__}: {text}" if text and len(text) < 120 else type(exc).__name__
 
 
 def load(
@@ -243,15 +283,15 @@ def load(
     wanted = None if topics is None else list(topics)
     stream, indexed = _finished_messages(path, wanted, start_ns, end_ns)
     rec = Recording(path=path)
+    cut = ""
     if not indexed:
         stream = _read_stream(path)
         rec.complete = False
         last = max((m.log_time for m in stream.messages), default=None)
-        upto = f" up to log time {last} ns" if last is not None else ""
-        rec.warnings.append(
-            f"{path}: recording is incomplete ({stream.error or 'no summary'}); "
-            f"read {len(stream.messages)} messages{upto}; `ffexp recover` rewrites it"
-        )
+        cut = (f"{path}: recording is incomplete ({stream.error or 'no summary'}); "
+               f"read {len(stream.messages)} messages")
+        if stream.corrupt:
+            rec.warnings.append(f"{path}: corrupt chunk(s) {_numbers(stream.corrupt)} left out")
         stream.messages = [
             m
             for m in stream.messages
@@ -261,7 +301,51 @@ def load(
             and (end_ns is None or m.log_time < end_ns)
         ]
     _decode_into(rec, stream)
+    if cut:  # times in the run's seconds (its first cycle is 0), as everywhere else
+        upto = "" if last is None else f" up to {run_seconds(rec, last):.3f} s of the run"
+        rec.warnings.insert(0, f"{cut}{upto}; `ffexp recover` rewrites it")
+    _check_holes(rec)
+    if wanted is None or RUN_END_TOPIC in wanted:
+        _check_run_end(rec)
     return rec
+
+
+def run_seconds(rec: Recording, log_time_ns: int) -> float:
+    """A log time as seconds since the run's start (:attr:`Recording.run_start_ns`)."""
+    return (log_time_ns - rec.run_start_ns) / 1e9
+
+
+#: Metadata ``ffexp recover`` adds when it left corrupt chunks out.
+RECOVERY_METADATA = "recovery"
+#: The topic whose last phase, DONE or ABORT, says a run recording holds the run's end.
+RUN_END_TOPIC = "/runner/phase"
+_END_PHASES = frozenset({"DONE", "ABORT"})
+
+
+def _check_holes(rec: Recording) -> None:
+    """A file ``ffexp recover`` rewrote without some corrupt chunks is not complete."""
+    hole = rec.metadata.get(RECOVERY_METADATA, {}).get("corrupt_chunks")
+    if hole:
+        rec.complete = False
+        rec.warnings.append(f"{rec.path}: recovered without corrupt chunk(s) {hole} of "
+                            f"{rec.metadata[RECOVERY_METADATA].get('source', 'its source')}: "
+                            "their data is missing")
+
+
+def _check_run_end(rec: Recording) -> None:
+    """A run's recording (one with ``run`` metadata) whose end was never written (no DONE
+    or ABORT on :data:`RUN_END_TOPIC`: the process was killed, the file recovered or cut)
+    is not complete, whether or not the file itself was finished (``ffexp recover``)."""
+    if "run" not in rec.metadata:
+        return  # not a run (a friction video's recording, ...): no phases to end
+    phases = rec.json.get(RUN_END_TOPIC)
+    if phases is not None and any(m.get("phase") in _END_PHASES for m in phases.messages):
+        return
+    if rec.complete:  # a finished (recovered) file: say why it still is incomplete
+        rec.warnings.append(
+            f"{rec.path}: the run's end is not recorded (no DONE or ABORT on "
+            f"{RUN_END_TOPIC}): the run ended abnormally")
+    rec.complete = False
 
 
 def _decode_into(rec: Recording, stream: _Stream) -> None:
@@ -316,6 +400,8 @@ class RecoverResult:
     channels: int
     complete: bool
     last_log_time_ns: int | None
+    corrupt_chunks: tuple[int, ...] = ()
+    """The chunks left out (numbered from 1): their data was corrupt."""
 
 
 def recover(src: Path, dst: Path) -> RecoverResult:
@@ -346,11 +432,19 @@ def recover(src: Path, dst: Path) -> RecoverResult:
                 )
         for md in stream.metadata:
             writer.add_metadata(md.name, dict(md.metadata))
+        if stream.corrupt:  # the hole stays known: such a file is not complete
+            writer.add_metadata(RECOVERY_METADATA, {
+                "source": str(src), "corrupt_chunks": _numbers(stream.corrupt)})
         for att in stream.attachments:
             writer.add_attachment(att.create_time, att.log_time, att.name, att.media_type, att.data)
         writer.finish()  # type: ignore[no-untyped-call]
     last = max((m.log_time for m in stream.messages), default=None)
-    return RecoverResult(len(stream.messages), len(stream.channels), stream.complete, last)
+    return RecoverResult(len(stream.messages), len(stream.channels), stream.complete, last,
+                         tuple(stream.corrupt))
+
+
+def _numbers(ns: list[int]) -> str:
+    return ", ".join(str(n) for n in ns)
 
 
 def _in_order(messages: list[Message]) -> Iterator[Message]:

@@ -30,6 +30,8 @@ from ffexp.sweeps.worker import INPUTS_DIR, RUNS_DIR, TMP_PREFIX, Job, read_row,
 
 #: How often a waiting batch wakes up to look at the stop flag (s).
 POLL_S = 0.25
+#: How long the end of ended workers' runs is waited for (their counts) [s].
+SETTLE_S = 10.0
 LOCK_FILE = ".lock"
 
 
@@ -38,10 +40,20 @@ class Counts:
     """What the progress bar shows."""
 
     total: int = 0
+    """Runs submitted or found done so far."""
     done: int = 0
     skipped: int = 0
     running: int = 0
     failed: int = 0
+    stopped: int = 0
+    """Runs a signal ended before they finished (not failures: run again, they run)."""
+    planned: int = 0
+    """Runs expected in all (:meth:`Runner.plan`): a plan that grows as it runs (limit
+    searches bisect) is counted ahead, so the time left is for all of it."""
+    run_s: float = 0.0
+    """Wall time of the runs finished in this session (their own ``wall_s``)."""
+    slots: int = 1
+    """Runs at once."""
 
 
 class Stopped(Exception):
@@ -64,10 +76,11 @@ class Runner:
         self.out_dir = out_dir.resolve()
         self._executor = executor
         self.slots = max(1, slots)
-        self.counts = Counts()
+        self.counts = Counts(slots=self.slots)
         self._on_change = on_change
         self._stop_requested = stop_requested
         self._lock = threading.RLock()  # a done callback may run inside submit's lock
+        self._settled = threading.Condition(self._lock)
         self._inflight: dict[str, Future[dict[str, Any]]] = {}
         self._lock_fh: Any = None
         self._notice = notice
@@ -129,25 +142,44 @@ class Runner:
         if self._on_change is not None:
             self._on_change(self.counts)
 
+    def plan(self, runs: int) -> None:
+        """Say how many runs the whole plan will have (an estimate ahead of the runs a
+        search adds as it goes); the time left counts them."""
+        with self._lock:
+            self.counts.planned = runs
+            self._changed()
+
     def _finished(self, rid: str, fut: Future[dict[str, Any]]) -> None:
         with self._lock:
             self._inflight.pop(rid, None)
             self.counts.running = min(len(self._inflight), self.slots)
             if fut.cancelled():
                 self.counts.total -= 1
+            elif fut.exception() is not None and self._stop_requested():
+                self.counts.total -= 1  # a worker a signal ended: stopped, not failed
+                self.counts.stopped += 1
             else:
                 self.counts.done += 1
                 exc = fut.exception()
                 if exc is not None or fut.result().get("error"):
                     self.counts.failed += 1
+                else:
+                    self.counts.run_s += float(fut.result().get("wall_s") or 0.0)
             self._changed()
+            self._settled.notify_all()
+
+    def settle(self, timeout_s: float) -> bool:
+        """Wait until no run is in flight (their ends counted), at most ``timeout_s``:
+        after the workers were ended, so the last counts say what became of them."""
+        with self._settled:
+            return self._settled.wait_for(lambda: not self._inflight, timeout_s)
 
     def _note_stop(self) -> None:
         with self._lock:
             if self._stop_noted or self._notice is None:
                 return
             self._stop_noted = True
-            running = len(self._inflight)
+            running = min(len(self._inflight), self.slots)  # the others never started
         if running:
             self._notice(f"stopping: waiting for the {running} run(s) already started "
                          "(interrupt again to abandon them)")
@@ -209,9 +241,16 @@ class Runner:
 
 
 def eta_s(counts: Counts, started: float, now: float | None = None) -> float | None:
-    """Seconds left, from the rate of runs finished in this session (None before one)."""
+    """Seconds left (None before a run of this session finished): the runs left of the
+    whole plan (:attr:`Counts.planned` when more than submitted so far; a running run
+    counts half) times the mean wall time of a finished run, over the slots. Without
+    the runs' own times (a failed run has none): from the rate of finished runs."""
     ran = counts.done - counts.skipped
     if ran <= 0:
         return None
+    left = max(counts.total, counts.planned) - counts.done - counts.running / 2
+    ok = ran - counts.failed
+    if ok > 0 and counts.run_s > 0:
+        return max(0.0, left) * (counts.run_s / ok) / max(1, counts.slots)
     elapsed = (time.monotonic() if now is None else now) - started
-    return elapsed / ran * (counts.total - counts.done)
+    return elapsed / ran * max(0.0, left)

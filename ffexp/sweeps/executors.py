@@ -5,10 +5,12 @@
   with N workers (default: the CPUs this process may use), forked by a
   ``forkserver`` that imported the simulator once (no fork of this process,
   which runs threads; no import per worker).
-- ``ray`` / ``ray:auto``: the running Ray cluster (``RAY_ADDRESS`` or the latest
-  ``ray start`` on this machine); ``ray:HOST:PORT`` a cluster's GCS address;
-  ``ray://HOST:PORT`` a Ray client server; ``ray:local`` a Ray instance started
-  here for this sweep. A process that already called ``ray.init`` is reused.
+- ``ray``: as Ray's own ``ray.init()``: join the running cluster (``RAY_ADDRESS``,
+  else the latest ``ray start`` on this machine), or else start a Ray instance
+  here for this sweep; ``ray:auto`` only joins (an error when no cluster runs,
+  as ``ray.init(address="auto")``); ``ray:HOST:PORT`` joins a cluster's GCS
+  address; ``ray://HOST:PORT`` a Ray client server; ``ray:local`` always starts a
+  Ray instance here. A process that already called ``ray.init`` is reused.
 
 Ray is optional (``pip install -e ".[ray]"``) and imported only when asked for.
 """
@@ -46,7 +48,7 @@ class ExecutorSpec:
     def label(self) -> str:
         if self.kind == "local":
             return f"local:{self.workers}"
-        return f"ray:{self.address}"
+        return f"ray:{self.address}" if self.address else "ray"
 
 
 def available_cpus() -> int:
@@ -70,7 +72,9 @@ def parse_executor(text: str) -> ExecutorSpec:
             raise ConfigError(OPTION, text, "expected local or local:N with N >= 1 workers")
         return ExecutorSpec("local", n)
     if kind == "ray":
-        address = rest or "auto"
+        if not rest:
+            return ExecutorSpec("ray", address="")  # join a running cluster, else start one
+        address = rest
         if address not in ("auto", "local") and not address.startswith("//"):
             host, sep, port = address.rpartition(":")
             if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
@@ -90,12 +94,10 @@ def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
     if spec.kind == "local":
         import multiprocessing
 
-        from ffexp.sweeps.worker import worker_init
-
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(list(PRELOAD))
+        start_forkserver()
         pool = ProcessPoolExecutor(max_workers=spec.workers, mp_context=ctx,
-                                   initializer=worker_init)
+                                   initializer=init_worker)
         return pool, spec.workers
     ex = RayExecutor.connect(spec.address)
     return ex, ex.slots
@@ -134,18 +136,24 @@ class RayExecutor(Executor):
                               'Ray is not installed (pip install -e ".[ray]")') from None
         if ray.is_initialized():
             return cls(ray, started_here=False)
-        if address not in ("auto", "local"):
+        option_value = f"ray:{address}" if address else "ray"
+        if address not in ("", "auto", "local"):
             _check_reachable(address)
+        quiet: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
         try:
             if address == "local":
-                ray.init(num_cpus=available_cpus(), include_dashboard=False,
-                         logging_level=logging.ERROR, log_to_driver=False)
+                ray.init(num_cpus=available_cpus(), include_dashboard=False, **quiet)
+            elif address == "":  # Ray's convention: join the running cluster, else start one
+                ray.init(**quiet)
             else:
-                ray.init(address=address, logging_level=logging.ERROR, log_to_driver=False)
+                ray.init(address=address, **quiet)
         except (ConnectionError, RuntimeError, ValueError) as exc:
             msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise ConfigError(OPTION, f"ray:{address}", f"cannot connect to Ray: {msg}") \
-                from None
+            if address == "auto" and isinstance(exc, ConnectionError):
+                msg = ("no running Ray cluster to join (RAY_ADDRESS unset, no `ray start` "
+                       "on this machine); start one with `ray start --head`, or give "
+                       "--executor ray to start one here")
+            raise ConfigError(OPTION, option_value, f"cannot connect to Ray: {msg}") from None
         return cls(ray, started_here=True)
 
     def submit(self, fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> Future[T]:
@@ -171,8 +179,45 @@ class RayExecutor(Executor):
 
 
 def end_workers(executor: Executor) -> None:
-    """Stop the running runs now (a second Ctrl-C): end a pool's worker processes."""
+    """Stop the running runs now (a second Ctrl-C): end a pool's worker processes (with
+    SIGKILL: they ignore SIGINT and SIGTERM, see :func:`init_worker`)."""
     processes = getattr(executor, "_processes", None) or {}
     for proc in list(processes.values()):
-        proc.terminate()
+        proc.kill()
     executor.shutdown(wait=False, cancel_futures=True)
+
+
+def start_forkserver() -> None:
+    """Start the pool's fork server (if not yet), with its preloaded modules and SIGTERM
+    ignored, which it and every worker forked from it keep: a ``kill -TERM`` of the whole
+    process group (or cgroup, as a service manager sends it) leaves them to the sweep,
+    which stops as for Ctrl-C. Only the main thread may change a handler: from another
+    thread the server starts as it is (its workers still ignore SIGTERM,
+    :func:`init_worker`)."""
+    import multiprocessing
+    import signal
+    import threading
+    from multiprocessing import forkserver
+
+    multiprocessing.get_context("forkserver").set_forkserver_preload(list(PRELOAD))
+    if threading.current_thread() is not threading.main_thread():
+        forkserver.ensure_running()
+        return
+    old = signal.signal(signal.SIGTERM, signal.SIG_IGN)  # an ignored signal stays so in exec
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def init_worker() -> None:
+    """A pool worker ignores SIGINT and SIGTERM (a terminal's Ctrl-C and a
+    ``kill -TERM`` of the process group reach it too): the sweep decides, letting the
+    running runs finish, or ending the workers on a second signal; a run a signal
+    ended is "stopped", never a failed run."""
+    import signal
+
+    from ffexp.sweeps.worker import worker_init
+
+    worker_init()
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)

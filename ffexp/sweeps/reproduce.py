@@ -11,6 +11,7 @@ Scenes and limit searches run at once through one Runner.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -208,9 +209,31 @@ def _absolute(path: Path, target: Target, key: Key, values: Any, table: str) -> 
     return values.values(float(nominal))
 
 
+def search_budget(search: LimitSearch) -> int:
+    """The runs a limit search is expected to make: its coarse grid along every segment
+    and, per segment, one bracket bisected down to the resolution; every point with
+    every seed. (A segment with more changes of outcome bisects more brackets, one
+    without any fewer: an estimate, for the time left.)"""
+    segments = search.segments()
+    step = 1.0 / (search.coarse - 1)
+    points = search.coarse + (search.coarse - 1) * (len(segments) - 1)  # rays share t = 0
+    for seg in segments:
+        t_res = seg.t_resolution(search.resolution)
+        points += math.ceil(math.log2(step / t_res) - 1e-9) if step > t_res else 0
+    return points * len(search.seeds)
+
+
+def planned_runs(study: Study) -> int:
+    """Every scene's paper runs and every limit search's expected runs (before any run:
+    the searches add theirs round by round)."""
+    scenes = len(study.scenes) * len(study.targets) * len(study.config.seeds)
+    return scenes + sum(search_budget(s) for s in study.searches)
+
+
 def run(study: Study, runner: Runner) -> dict[str, Any]:
     """Every scene's paper runs and every limit search, at once; the claims."""
     cfg = study.config
+    runner.plan(planned_runs(study))
     inputs = {role: t.snapshot(runner.inputs) for role, t in study.targets.items()}
     jobs = []
     for scene in study.scenes:
@@ -225,6 +248,7 @@ def run(study: Study, runner: Runner) -> dict[str, Any]:
         rows = scene_rows.result()
         for fut in searches:
             fut.result()
+        runner.plan(0)  # all ran: the runs made are the plan (the estimate is done with)
     finally:  # on an interrupt, do not wait here for the runs (the session ends them)
         pool.shutdown(wait=False, cancel_futures=True)
     return evaluate(study, rows)

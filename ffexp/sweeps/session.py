@@ -17,8 +17,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ffexp.sweeps.engine import Counts, Runner, eta_s
-from ffexp.sweeps.executors import ExecutorSpec, end_workers, make_executor
+from ffexp.sweeps.engine import SETTLE_S, Counts, Runner, eta_s
+from ffexp.sweeps.executors import ExecutorSpec, end_workers, make_executor, start_forkserver
 
 PLAIN_PERIOD_S = 5.0
 
@@ -81,10 +81,12 @@ class Display:
         self._counts = Counts(**vars(counts))
         status = (f"running {counts.running} failed {counts.failed} "
                   f"done before {counts.skipped}")
+        if counts.stopped:
+            status += f" stopped {counts.stopped}"
         eta = _fmt_s(eta_s(counts, self.started))
         if self._progress is not None:
-            self._progress.update(self._task, total=counts.total, completed=counts.done,
-                                  status=status, eta=eta)
+            self._progress.update(self._task, total=max(counts.total, counts.planned),
+                                  completed=counts.done, status=status, eta=eta)
             return
         now = time.monotonic()
         if now - self._last_line >= PLAIN_PERIOD_S:
@@ -93,15 +95,19 @@ class Display:
 
     def _line(self, eta: str) -> None:
         c = self._counts
-        print(f"{self.label}: {c.done}/{c.total} done, {c.running} running, {c.failed} failed, "
-              f"{c.skipped} done before, ETA {eta}", file=sys.stderr, flush=True)
+        total = max(c.total + c.stopped, c.planned)
+        stopped = f", {c.stopped} stopped" if c.stopped else ""
+        print(f"{self.label}: {c.done}/{total} done, {c.running} running, {c.failed} failed"
+              f"{stopped}, {c.skipped} done before, ETA {eta}", file=sys.stderr, flush=True)
 
     def stop(self) -> None:
         if self._progress is not None:
             self._progress.stop()
             self._progress = None
-        elif self._counts.total:
-            self._line("0:00:00")
+        elif self._counts.total or self._counts.stopped:
+            c = self._counts
+            whole = c.done >= max(c.total, c.planned) and not c.stopped
+            self._line("0:00:00" if whole else "-:--")
 
 
 @contextmanager
@@ -131,6 +137,7 @@ def session(
         runner = Runner(out_dir, executor, slots, on_change=shown.update,
                         stop_requested=stop_requested, notice=shown.note)
     else:  # a process pool starts on the first run that is not done yet
+        start_forkserver()  # here, in the main thread: it ignores a process group's SIGTERM
         runner = Runner(out_dir, lambda: make_executor(spec)[0], spec.workers,
                         on_change=shown.update, stop_requested=stop_requested,
                         notice=shown.note)
@@ -144,6 +151,7 @@ def session(
                 except KeyboardInterrupt:
                     if runner.started is not None:
                         end_workers(runner.started)
+                        runner.settle(SETTLE_S)  # their runs counted as stopped
                     raise
         finally:
             if runner.started is not None:

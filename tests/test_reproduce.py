@@ -220,6 +220,12 @@ def test_tiny_study_end_to_end(tmp_path: Path) -> None:
     assert summary["claim"].tolist() == [c.name for c in claims.SCENE_CLAIMS] + ["k_xp limits"]
     n_claims = len(claims.SCENE_CLAIMS)
     assert (summary["scenes"] + summary["not judged"]).iloc[:n_claims].tolist() == [6] * n_claims
+    # each claim's verdict at the nominal scene (scene 0, its two seeds) beside the fraction
+    for c in claims.SCENE_CLAIMS:
+        at0 = scenes.loc[scenes["scene"] == 0, c.name].dropna().astype(bool).tolist()
+        want = sum(at0) > len(at0) / 2 if at0 else None
+        got = summary.loc[summary["claim"] == c.name, "nominal"].iloc[0]
+        assert (None if pd.isna(got) else bool(got)) == want, c.name
     # 3 scenes x 5 roles x 2 seeds, the limit search's runs (seed 1) on top, each once
     runs = pd.read_parquet(out / "results.parquet")
     assert runs["run_id"].nunique() >= 30 + 3

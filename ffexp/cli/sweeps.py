@@ -313,8 +313,11 @@ def _print_claims(name: str, summary: Sequence[dict[str, Any]]) -> None:
     rows = []
     for s in summary:
         frac = s["fraction"]
+        nominal = s.get("nominal")
         rows.append({
             "claim": s["claim"], "paper": s["paper"],
+            "nominal": "-" if nominal is None else ("holds" if nominal else "fails"),
+            "agree": "-" if nominal is None else ("yes" if nominal else "NO"),
             "holds": f"{s['holds']}/{s['scenes']}" + (f" ({frac:.0%})" if frac is not None
                                                       else ""),
             "note": s.get("note") or (f"{s['not judged']} not judged" if s["not judged"]
@@ -322,8 +325,10 @@ def _print_claims(name: str, summary: Sequence[dict[str, Any]]) -> None:
         })
     con = console()
     cols = [Column("claim", "claim"), Column("paper says", "paper"),
-            Column("holds in", "holds")]
-    con.print(fitted_table(con, f"{name}: the paper's claims", cols, rows))
+            Column("nominal scene", "nominal"), Column("agree", "agree"),
+            Column("holds in (scenes)", "holds")]
+    con.print(fitted_table(con, f"{name}: the paper's claims, at the nominal scene and over "
+                                "the scenes", cols, rows))
     for row in rows:
         if row["note"]:
             con.print(f"{row['claim']}: {row['note']}")

@@ -277,7 +277,13 @@ def evaluate(study: Study, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
                 entry[c.name] = c.judge(runs, settings)
             per_scene.append(entry)
     summary = claims.summarize(per_scene, claims.SCENE_CLAIMS)
-    summary.extend(_limit_claims(study, settings))
+    at_nominal = [e for e in per_scene if e["scene"] == 0] if (
+        cfg.include_nominal and study.keys) else []
+    for item in summary:  # the claim at the nominal scene (over its seeds: most of them)
+        judged = [bool(e[item["claim"]]) for e in at_nominal if e[item["claim"]] is not None]
+        item["nominal"] = sum(judged) > len(judged) / 2 if judged else None
+    for item in _limit_claims(study, settings):  # searched at the nominal scene
+        summary.append({**item, "nominal": bool(item["holds"])})
     limit_rows = [row for s in study.searches if s.result is not None
                   for row in s.limits_rows()]
     return {"scenes": per_scene, "summary": summary, "limits": limit_rows,

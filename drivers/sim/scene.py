@@ -93,14 +93,14 @@ class ArmSettings(StrictModel):
     q_init: Vec7 = (0.0, -0.3533, 0.0, 1.714, 0.0, 0.4965, 0.0)
     """Initial joint angles [rad]; the paper pose: flange horizontal along
     world +x, flange X up (so TCF X is vertical as in the paper)."""
-    friction_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0006
+    friction_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.00069
     """Fraction of Jubien's drive-side friction that remains link-side under the
-    KRC's torque control (not published: an assumption calibrated on the paper).
-    With the target held by its air hose at 0.8 N (``target.hose``), the tool
-    must turn about TCF X against this friction; the paper's "no sliding below
-    k_xp = 0.5" at 0.8 N puts it where force control alone (k_xp = 0) jams and
-    k_xp = 0.5 turns the wrist: measured window 0.0004 to 0.0008 (rot-X
-    breakaway about 0.007 N m at 0.0006); see drivers/sim/NOTES.md."""
+    KRC's torque control (not published). The paper's force-control ordering
+    (Method I case I aligns at 0.8 N, Method II does not) holds only in a band of
+    it of ratio about 1 + k_xp: Method II at 0.8 N slides below 0.000556 and
+    Method I case I stops aligning with at most one break above 0.000858 (``ffexp
+    limits``, nominal scene); 0.00069 is the band's geometric centre, so +-15 %
+    stays inside it (docs/fidelity.md, drivers/sim/NOTES.md)."""
     coulomb: Vec7 | None = None
     """Explicit joint Coulomb friction [N m]; overrides ``friction_scale``."""
     viscous: Vec7 | None = None

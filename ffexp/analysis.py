@@ -334,11 +334,12 @@ def run_name(rec: Recording) -> str:
 
 
 def end_label(m: RunMetrics) -> str:
-    """How the run ended, in one word or reason: aligned, timeout, or the abort reason."""
-    if m.aligned:
-        return "aligned"
+    """How the run ended, in one word or reason: the abort reason, aligned, or timeout
+    (a run that went on after its seat and was then aborted ends with the abort)."""
     if m.aborted is not None:
         return m.aborted
+    if m.aligned:
+        return "aligned"
     return "timeout" if m.complete else "cut"
 
 

@@ -78,7 +78,13 @@ def _one(
                 stop_requested=flag, notice=steps.note, live=live,
             )
     o = result.outcome
-    status = "aligned" if o.aligned else (o.reason or o.stop_reason.value)
+    from ffexp.contracts import StopReason
+
+    # the stop's own reason; a run that went on after its seat says it was seated too
+    ended_aligned = o.stop_reason is StopReason.ALIGNED
+    status = "aligned" if ended_aligned else (o.reason or o.stop_reason.value)
+    if o.aligned and not ended_aligned:
+        status += "; seated on the way"
     typer.echo(f"{result.path.stem}: {o.phase.name} ({status}) after {o.duration_s:.2f} s")
     typer.echo(f"recording: {result.path}")
     return result

@@ -192,6 +192,7 @@ def limits(
     from ffexp.sweeps.executors import parse_executor
     from ffexp.sweeps.keys import parse_key, parse_range
     from ffexp.sweeps.plan import Target, seeds_of
+    from ffexp.sweeps.reproduce import search_budget
     from ffexp.sweeps.searches import LimitSearch
 
     for option, n in (("--seeds", seeds), ("--coarse", coarse), ("--rays", n_rays)):
@@ -214,7 +215,9 @@ def limits(
                          n_rays, max_breaks=max_breaks)
     search.check()
     with _session(out, spec, f"limits {target.label}") as (runner, _display):
+        runner.plan(search_budget(search))  # the time left counts the bisection's runs
         search.run(runner)
+        runner.plan(0)
         found = search.limits_rows()
         table.write(table.frame(search.rows), runner.out_dir)
         (runner.out_dir / "limits.json").write_text(json.dumps({

@@ -350,6 +350,9 @@ def by_class(tmp_path_factory: pytest.TempPathFactory, files: dict[str, str]) ->
         "gravity = 9.81", "gravity = nan", 1))
     write("proto_scene_nan.toml", base.replace(f"{ROOT}/data/scenes/paper.toml",
                                                str(d / "scene_nan.toml")))
+    points = "u,v,x,y\n0,0,0,0\n100,0,0.1,0\n0,100,0,0.1\n100,100,{},0.1\n"
+    write("pts_nan.csv", points.format("nan"))
+    write("pts_inf.csv", points.format("1e400"))
     write("rig_empty.toml", "")
     write("rig_comments.toml", "# nothing but a comment\n\n")
     write("rig_json.toml", '{"robot": {"type": "sim"}}\n')
@@ -380,6 +383,10 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         (f"campaign {CAMP} --set align.kp=[0,0,nan,0,0,0] --out {{out}}", ["align.kp.2"]),
         (f"sweep {P} --vary align.k_ri[3]=0.1,0.2 --set run.timeout_s=nan --out {{out}}",
          ["run.timeout_s"]),
+        *[(f"sweep {P} --vary align.k_ri[3]={v},0.5 --out {{out}}", ["--vary", "finite"])
+          for v in ("nan", "inf", "1e400")],
+        (f"sweep {P} --vary align.f_ref=[0,0,nan,0,0,0] --out {{out}}", ["--vary", "finite"]),
+        (f"limits {P} --key align.k_ri[3] --range 0:inf --out {{out}}", ["--range"]),
         (f"run {P} --rig {MOCK} --rig-set robot.cycle_s=nan --out {{out}}",
          ["robot.cycle_s", "finite"]),
     ],
@@ -407,6 +414,8 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         (f"run {P} --rig {{rig_inf}} --out {{out}}", ["rig_inf.toml", "robot.cycle_s"]),
         (f"run {P} --rig {{rig_long}} --out {{out}}",
          ["rig_long.toml", "robot.connect_timeout_s"]),
+        *[(f"calibrate-camera {{{name}}} {{out}}/cal.toml", [f"{name}.csv", "line 5", "finite"])
+          for name in ("pts_nan", "pts_inf")],
     ],
     "rig_not_a_rig": [
         *[(f"run {P} --rig {{{name}}} --out {{out}}", [f"{name}.toml"])

@@ -97,9 +97,11 @@ MAX_INT = 2**63 - 1
 
 def _option_name(param: str) -> str:
     """The command line's name of a command's parameter (``set_`` -> ``--set``)."""
-    from typer._click.globals import get_current_context
-
-    ctx = get_current_context(silent=True)
+    try:  # typer 0.29 carries its own copy of click
+        from typer._click.globals import get_current_context
+        ctx = get_current_context(silent=True)
+    except ImportError:  # pragma: no cover - another typer: the parameter's own name
+        ctx = None
     for p in ctx.command.params if ctx is not None else ():
         if p.name == param and p.opts:
             return str(max(p.opts, key=len))

@@ -63,6 +63,24 @@ def _session(out: Path, spec: ExecutorSpec, label: str) -> Iterator[tuple[Runner
             raise typer.Exit(code)
 
 
+def _finite_values(vary: Sequence[str]) -> None:
+    """Every number of every ``--vary KEY=V1,V2,...`` finite (a ConfigError naming it)."""
+    import math
+
+    from ffexp.errors import ConfigError
+    from ffexp.sweeps.keys import parse_assignment
+
+    for text in vary:
+        _key, values = parse_assignment(text, "--vary")
+        stack: list[object] = list(values)
+        while stack:
+            v = stack.pop()
+            if isinstance(v, list):
+                stack.extend(v)
+            elif isinstance(v, float) and not math.isfinite(v):
+                raise ConfigError("--vary", text, f"{v} is not a finite number")
+
+
 def _summary_rows(rows: Sequence[dict[str, Any]], keys: Sequence[str]) -> list[dict[str, Any]]:
     """Per point (over seeds): aligned fraction, mean breaks, mean f_z, failed runs."""
     groups: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
@@ -130,6 +148,7 @@ def sweep(
 
     count("--seeds", seeds)
     count("--sample", sample)
+    _finite_values(vary)
     out = out if out is not None else Path("runs") / "sweeps" / protocol.stem
     _check_out(out)
     spec = parse_executor(executor)
@@ -192,6 +211,7 @@ def limits(
     from ffexp.sweeps.executors import parse_executor
     from ffexp.sweeps.keys import parse_key, parse_range
     from ffexp.sweeps.plan import Target, seeds_of
+    from ffexp.sweeps.reproduce import search_budget
     from ffexp.sweeps.searches import LimitSearch
 
     for option, n in (("--seeds", seeds), ("--coarse", coarse), ("--rays", n_rays)):
@@ -214,7 +234,9 @@ def limits(
                          n_rays, max_breaks=max_breaks)
     search.check()
     with _session(out, spec, f"limits {target.label}") as (runner, _display):
+        runner.plan(search_budget(search))  # the time left counts the bisection's runs
         search.run(runner)
+        runner.plan(0)
         found = search.limits_rows()
         table.write(table.frame(search.rows), runner.out_dir)
         (runner.out_dir / "limits.json").write_text(json.dumps({

@@ -24,6 +24,7 @@ from ffexp.cli._common import cli_errors
 
 def _points(path: Path) -> tuple[Any, Any]:
     import csv
+    import math
 
     import numpy as np
 
@@ -45,6 +46,8 @@ def _points(path: Path) -> tuple[Any, Any]:
             raise InputError(f"{path}: line {k}: not four numbers u, v, x, y") from None
         if len(vals) != 4:
             raise InputError(f"{path}: line {k}: needs four columns u, v, x, y")
+        if not all(math.isfinite(v) for v in vals):
+            raise InputError(f"{path}: line {k}: u, v, x, y must be finite numbers")
         rows.append(vals)
     arr = np.asarray(rows, np.float64).reshape(-1, 4)
     if arr.shape[0] < 4:

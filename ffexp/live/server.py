@@ -162,12 +162,6 @@ class LiveServer:
         host = f"[{host}]" if ":" in host else host
         return f"ws://{host}:{self.port}"
 
-    @property
-    def viewers(self) -> int:
-        """Viewers subscribed to at least one topic now."""
-        with self._lock:
-            return len({client for client, _ in self._subscribed})
-
     def end_run(self) -> None:
         """The run has ended: from now on a viewer that subscribes to a topic gets its
         last instant again (the publisher still empties the queue first)."""

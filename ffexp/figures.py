@@ -123,8 +123,11 @@ KEY_LABELS: dict[str, tuple[str, str]] = {
     "scene.target.hose.damping": ("air-hose damping", "N s/m"),
     "scene.arm.friction_scale": ("joint friction scale", "–"),
     "scene.contact.stiffness": ("contact stiffness", "N/m"),
-    "scene.contact.damping_ratio": ("contact damping ratio", "–"),
+    "scene.contact.restitution": ("contact restitution $e$", "–"),
+    "scene.contact.impedance": ("contact impedance $d$", "–"),
     "scene.contact.friction": ("funnel friction", "–"),
+    "scene.fri.command_delay_cycles": ("command delay $d$", "cycles"),
+    "scene.ft_sensor.delay_s": ("F/T path delay", "s"),
 }
 #: Name endings that carry a unit (docs/conventions.md), for keys not in KEY_LABELS.
 _SUFFIX_UNITS = (("_mps", "m/s"), ("_deg", "deg"), ("_kg", "kg"), ("_hz", "Hz"),

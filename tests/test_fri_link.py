@@ -207,7 +207,12 @@ def test_strategy_index_round_trip() -> None:
 def test_lockstep_10_s_over_udp_is_lossless_and_enters_cmd_once(paper_scene: Scene) -> None:
     """10 s of simulated time: no miss, no deadline answer, CMD from the 100th packet on."""
     n = 2000
-    with link(paper_scene, seed=7) as (robot, emu):
+    # a target held in place (a stiff restraint), so 10 s of a constant push do not
+    # carry the free target and the arm to a joint limit: this test is about the link
+    held = paper_scene.model_copy(update={"target": paper_scene.target.model_copy(update={
+        "hose": paper_scene.target.hose.model_copy(update={"stiffness": 200.0,
+                                                           "damping": 20.0})})})
+    with link(held, seed=7) as (robot, emu):
         got = run_constant(robot, emu, n)
         assert emu.stats.missed == 0 and emu.stats.starts == 1
         # the answer to packet 99 (a mirror: sent in MON) starts CMD and is the first applied,

@@ -72,6 +72,19 @@ def report_path(campaign_dir: Path) -> Path:
     return path
 
 
+def test_report_sets_the_papers_outcome_beside_ours_with_its_own_times(
+    report_path: Path
+) -> None:
+    """The paper's table carries each run's outcome in the paper's words, ours and an
+    agree mark, and the paper's times as it gives them (11.5 s, not 12)."""
+    text = report_path.read_text()
+    for header in ("<th>paper</th>", "<th>ours</th>", "<th>agree</th>", "<th>breaks ALIGN</th>"):
+        assert header in text
+    for cell in ("<td>11.5</td>", "<td>12.5</td>", "<td>17.5</td>", "<td>19.5</td>",
+                 "<td>contact kept breaking</td>", "<td>did not slide</td>"):
+        assert cell in text, cell
+
+
 def test_report_holds_the_tables_figures_versions_and_protocols(
     campaign_dir: Path, report_path: Path
 ) -> None:

@@ -254,11 +254,14 @@ def render(data: ReportInput, out_dir: Path | None = None) -> str:
     paper = [row for row in (paper_row(r, m) for r, m in zip(data.recordings, ms, strict=True))
              if row is not None]
     if paper:
-        parts.append("<h2>The paper's Table res_par beside ours</h2>")
-        parts.append("<p>Times since the start of the experiment; the paper's values come "
-                     "from each protocol's <code>[paper]</code> table.</p>")
+        parts.append("<h2>The paper beside ours</h2>")
+        parts.append("<p>Per run: the paper's outcome, ours, and whether they agree; the "
+                     "paper's times as it gives them (its clock starts the experiment at "
+                     "<em>paper start</em>), ours since the tare. The paper's values come "
+                     "from each protocol's <code>[paper]</code> table; breaks are counted "
+                     "after the first contact, and within ALIGN before the seat.</p>")
         cols = [(t, k) for t, k, _p in PAPER_COLUMNS]
-        parts.append(_table(cols, paper, digits=2, caption="paper Table res_par vs ours"))
+        parts.append(_table(cols, paper, digits=3, caption="the paper (Table res_par) vs ours"))
     if data.recordings:
         parts.append("<h2>Runs</h2>")
         rows = [compare_row(r, m) for r, m in zip(data.recordings, ms, strict=True)]

@@ -61,8 +61,6 @@ from __future__ import annotations
 
 import select
 import socket
-import struct
-import sys
 import threading
 import time
 from collections import deque
@@ -107,7 +105,7 @@ from drivers.fri.convert import (
 )
 from drivers.fri.link import KrcLink, LinkEvent, QualityThresholds
 from drivers.fri.types import FriCommand, FriMeasurement, FriQuality, FriState
-from drivers.net.udp import bind_udp
+from drivers.net.udp import bind_udp, enable_kernel_stamps, kernel_stamp_ns
 from drivers.sim.arm import ArmCommand
 from drivers.sim.world import SimWorld
 
@@ -118,23 +116,6 @@ __all__ = [
 ]
 
 _RESTART_JUMP: Final = 100
-
-#: Linux's SO_TIMESTAMPNS (asm-generic value; Python's socket module does not name
-#: it): the kernel stamps each datagram with its arrival time (CLOCK_REALTIME).
-_SO_TIMESTAMPNS: Final = 35
-_TIMESPEC = struct.Struct("@qq")
-
-
-def _kernel_stamps(sock: socket.socket) -> bool:
-    """Ask the kernel to stamp arriving datagrams; False where it cannot."""
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
-    except OSError:
-        return False
-    return True
-
 
 @dataclass(frozen=True)
 class EmulatorSettings:
@@ -278,7 +259,7 @@ class FriEmulator:
         self._pb = new_msr_buffer()
         self._cmd = CmdArrays()
         self._buf = bytearray(2048)
-        self._stamped = _kernel_stamps(self.sock)
+        self._stamped = enable_kernel_stamps(self.sock)
         self._found_wall_ns = 0  # kernel arrival stamp of the command found (0: none)
         self.step_time_s = 0.0
         self._stop = threading.Event()
@@ -486,10 +467,7 @@ class FriEmulator:
             try:
                 if self._stamped:
                     n, anc, _flags, addr = self.sock.recvmsg_into([self._buf], 64)
-                    for level, kind, data in anc:
-                        if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS:
-                            sec, nsec = _TIMESPEC.unpack_from(data)
-                            wall_ns = sec * 1_000_000_000 + nsec
+                    wall_ns = kernel_stamp_ns(anc)
                 else:
                     n, addr = self.sock.recvfrom_into(self._buf)
             except (BlockingIOError, InterruptedError):

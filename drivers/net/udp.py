@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import ipaddress
 import socket
+import struct
+import sys
+from collections.abc import Iterable
 from typing import Final
 
 from drivers.errors import AddressError
@@ -20,6 +23,8 @@ from drivers.errors import AddressError
 __all__ = [
     "RCVBUF_BYTES",
     "bind_udp",
+    "enable_kernel_stamps",
+    "kernel_stamp_ns",
     "parse_host",
     "parse_host_port",
     "parse_port",
@@ -102,3 +107,31 @@ def bind_udp(field: str, host: str, port: int) -> socket.socket:
         reason = exc.strerror or str(exc)
         raise AddressError(field, where, f"cannot bind UDP socket: {reason}") from None
     return sock
+
+
+#: Linux's SO_TIMESTAMPNS (asm-generic value; Python's socket module does not name
+#: it): the kernel stamps each datagram with its arrival time (CLOCK_REALTIME).
+_SO_TIMESTAMPNS: Final = 35
+_TIMESPEC = struct.Struct("@qq")
+
+
+def enable_kernel_stamps(sock: socket.socket) -> bool:
+    """Ask the kernel to stamp arriving datagrams; False where it cannot. With it,
+    read with ``sock.recvmsg_into(buffers, 64)`` and :func:`kernel_stamp_ns`."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+    except OSError:
+        return False
+    return True
+
+
+def kernel_stamp_ns(ancdata: Iterable[tuple[int, int, bytes]]) -> int:
+    """The kernel's arrival stamp [ns since the epoch] in a datagram's ancillary data
+    (``recvmsg``), 0 when it has none."""
+    for level, kind, data in ancdata:
+        if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS:
+            sec, nsec = _TIMESPEC.unpack_from(data)
+            return int(sec * 1_000_000_000 + nsec)
+    return 0

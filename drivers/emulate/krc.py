@@ -229,13 +229,17 @@ class CommandDelay:
         return queue.popleft()
 
 
+#: The array fields of an arm command (every field but its mode).
+_ARM_ARRAYS: Final = tuple(f.name for f in fields(ArmCommand) if f.name != "mode")
+
+
 def _owned(arm: ArmCommand) -> ArmCommand:
     """``arm`` with arrays of its own."""
     out = copy.copy(arm)
-    for f in fields(arm):
-        v = getattr(arm, f.name)
-        if isinstance(v, np.ndarray):
-            setattr(out, f.name, v.copy())
+    for name in _ARM_ARRAYS:
+        v = getattr(arm, name)
+        if v is not None:
+            setattr(out, name, np.array(v))
     return out
 
 

@@ -377,15 +377,14 @@ PAPER_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("breaks", "breaks", 0), ("breaks ALIGN", "breaks_align", 2), ("ours end", "end", 2),
 )
 
-#: The outcomes a run can have in the paper's words (the protocol's ``[paper] outcome``).
-OUTCOMES = ("aligned", "contact kept breaking", "did not slide")
 #: From this many breaks after the first contact a run "kept breaking" (the paper's
 #: Method III: contact "multiple", "the end-effector kept losing contact").
 KEPT_BREAKING = 3
 
 
 def outcome(m: RunMetrics) -> str:
-    """The run's outcome in the paper's words: contact kept breaking (at least
+    """The run's outcome in the paper's words (:data:`~ffexp.contracts.PAPER_OUTCOMES`):
+    contact kept breaking (at least
     :data:`KEPT_BREAKING` breaks after the first contact, whatever else happened),
     aligned, or did not slide (no alignment: the tool stuck on the funnel wall or
     never seated); an aborted run is its abort reason."""

@@ -10,10 +10,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from drivers.base.types import Vec6
 from drivers.config import StrictModel, load_model
+from ffexp.contracts import PAPER_OUTCOMES
 from ffexp.control import ImpedanceConfig
 from ffexp.controllers import REGISTRY, AlignConfig
 from ffexp.controllers.force import ForceRiConfig
@@ -94,8 +95,17 @@ class RunProtocol(StrictModel):
     alignment: Alignment = Alignment()
     paper: dict[str, float | str] = Field(
         default_factory=dict,
-        description="The paper's reported values for this run (Table res_par), for comparison.",
+        description="The paper's reported values for this run (Table res_par), for comparison; "
+                    f"outcome: one of {', '.join(PAPER_OUTCOMES)}.",
     )
+
+    @field_validator("paper")
+    @classmethod
+    def _paper_outcome(cls, paper: dict[str, float | str]) -> dict[str, float | str]:
+        outcome = paper.get("outcome")
+        if outcome is not None and outcome not in PAPER_OUTCOMES:
+            raise ValueError(f"outcome {outcome!r} is not one of {', '.join(PAPER_OUTCOMES)}")
+        return paper
 
     @model_validator(mode="before")
     @classmethod

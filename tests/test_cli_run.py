@@ -51,6 +51,7 @@ def test_campaign_prints_the_papers_table_and_writes_figures(tmp_path: Path) -> 
         ('name = "x"\n[align]\nmethod = "force"\nkp = "high"\n', "align.kp"),
         ('name = "x"\n[align]\nmethod = "admittance"\nmass = [1, 0, 1, 1, 1, 1]\n', "mass"),
         ('name = "x"\nmethod = "force_ri"\n[scene]\nfile = "nope.toml"\n', "nope.toml"),
+        ('name = "x"\n[paper]\noutcome = "aligend"\n', "paper"),  # not the paper's words
     ],
 )
 def test_bad_run_protocol_one_line_exit_2(tmp_path: Path, content: str, field: str) -> None:

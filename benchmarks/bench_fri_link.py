@@ -1,6 +1,6 @@
 """The FRI link in real time: the remote driver against ``ffexp emulate``, 1 ms and 5 ms.
 
-Run (the README's figures: 60 s per configuration, on a quiet machine)::
+Run (the figures in benchmarks/README.md: 60 s per configuration, on a quiet machine)::
 
     python benchmarks/bench_fri_link.py --seconds 60
 
@@ -158,7 +158,7 @@ def show(r: dict[str, object]) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0,
-                    help="measured time per configuration (README figures: 60)")
+                    help="measured time per configuration (benchmarks/README.md figures: 60)")
     ap.add_argument("--cycle-ms", default="1,5", help="FRI cycles to measure, comma-separated")
     ap.add_argument("--rt", choices=("both", "off", "on"), default="both")
     ap.add_argument("--mode", choices=("runner", "immediate"), default="runner")

@@ -148,6 +148,35 @@ def test_every_cited_path_exists() -> None:
     assert not missing, "cited paths that do not exist:\n" + "\n".join(missing)
 
 
+# In docstrings and comments: a Sphinx cross-reference (``:mod:`ffexp.loop```,
+# ``:class:`~drivers.base.types.RobotState```) or a double-backticked dotted name
+# (````drivers.errors.FfexpError````) of the packages.
+_CODE_NAME = re.compile(
+    r":(?:mod|class|func|meth|attr|data|obj|exc):`~?((?:ffexp|drivers)(?:\.[A-Za-z_]\w*)+)`"
+    r"|``((?:ffexp|drivers)(?:\.[A-Za-z_]\w*)+)``")
+
+
+def code_cited_names(text: str) -> list[str]:
+    """Dotted package names a docstring or comment cites as a cross-reference."""
+    return [a or b for a, b in _CODE_NAME.findall(text)]
+
+
+def test_code_name_pattern() -> None:
+    text = (":mod:`ffexp.loop` and :class:`~drivers.base.types.RobotState`, "
+            "``drivers.errors.FfexpError``, :func:`helper`, ``ffexp run``, `ffexp.single`")
+    assert code_cited_names(text) == ["ffexp.loop", "drivers.base.types.RobotState",
+                                      "drivers.errors.FfexpError"]
+
+
+def test_every_cited_name_exists() -> None:
+    missing = []
+    for path in modules():
+        for line, text in docstrings_and_comments(path.read_text(encoding="utf-8")):
+            missing += [f"{path.relative_to(ROOT)}:{line}: {name}"
+                        for name in code_cited_names(text) if not resolves(name)]
+    assert not missing, "cited names that do not exist:\n" + "\n".join(missing)
+
+
 def test_no_module_points_outside_the_repository() -> None:
     found = []
     for path in modules():

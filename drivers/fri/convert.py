@@ -5,8 +5,8 @@ conventions; this module only copies between its preallocated
 :class:`~drivers.fri.codec.MsrArrays` / :class:`~drivers.fri.codec.CmdArrays`
 and :class:`~drivers.fri.types.FriMeasurement` / :class:`~drivers.fri.types.FriCommand`.
 
-Two conventions of ffexp on top of FRI 1.x live here (README, "Running on a
-real KUKA KRC"):
+Two conventions of ffexp on top of FRI 1.x live here (docs/guides/krc.md, the KRL
+side):
 
 * **Control strategy request.** FRI 1.x has no command field for the
   controller. The remote writes the requested KRL strategy into

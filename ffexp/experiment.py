@@ -1,7 +1,7 @@
 """One run end to end: rig + protocol file -> devices (factory) -> loop -> one MCAP file.
 
-Also the campaign (several protocols in a row). The CLI is a thin layer over
-:func:`run_file` and :func:`run_campaign`.
+Also reads a campaign file (:func:`load_campaign`); running one is
+:func:`ffexp.campaign.run_campaign`. The CLI is a thin layer over both.
 """
 
 from __future__ import annotations

@@ -28,6 +28,7 @@ from ffexp.cli.progress import Steps
 from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
 
 if TYPE_CHECKING:
+    from ffexp.campaign import CampaignEntry
     from ffexp.contracts import RunOutcome
     from ffexp.experiment import RunResult
     from ffexp.live import LiveOptions, LiveServer
@@ -61,14 +62,15 @@ def outcome_exit_code(outcome: RunOutcome) -> int:
 def _one(
     steps: Steps, protocol: Path, set_: Sequence[str], rig: RigChoice, out: Path,
     flag: StopFlag, label: str, rt: bool = False, cpus: Sequence[int] = (),
-    live: LiveServer | None = None,
+    live: LiveServer | None = None, timeout_s: float | None = None,
 ) -> RunResult:
     with steps.step(f"{label}: loading the protocol and the rig"):
         from ffexp.experiment import run_file
         from ffexp.protocol import load_run_protocol
         from ffexp.rt import realtime
 
-        timeout_s = load_run_protocol(protocol, list(set_)).run.timeout_s
+        if timeout_s is None:
+            timeout_s = load_run_protocol(protocol, list(set_)).run.timeout_s
     with (realtime(tuple(cpus)) if rt else nullcontext()) as got:
         if got is not None:
             steps.note(f"--rt: {got}")
@@ -229,92 +231,39 @@ def campaign(
     `ffexp report` reads. Exit code: 0 when every run ran to its end (aligned
     or not), 2 bad input, 128+N on signal N.
     """
-    from datetime import UTC, datetime
-
-    from ffexp.naming import stamp
-
     with Steps() as early, early.step("starting"):  # the imports take a second or two
-        from ffexp.experiment import load_campaign, load_rig_choice
-        from ffexp.protocol import load_run_protocol
+        from ffexp.campaign import check_campaign, run_campaign
     _check_out(out)
-    results: list[RunResult] = []
     with stop_signals(StopFlag()) as flag, Steps() as steps:
+        choice = rig_choice(rig, driver, rig_set)
         with steps.step(f"checking {campaign_file.name}, its protocols and the rig"):
-            camp = load_campaign(campaign_file)
-            for entry in camp.runs:  # every protocol and the rig, before anything runs
-                load_run_protocol(campaign_file.parent / entry.protocol, [*entry.set, *set_])
-            choice = rig_choice(rig, driver, rig_set)
-            load_rig_choice(choice)
-        camp_dir = _new_dir(out, f"{camp.name}-{stamp(datetime.now(UTC))}")
-        with steps.step(f"campaign {camp.name}", total=len(camp.runs)) as advance:
-            for i, entry in enumerate(camp.runs):
-                if flag():
-                    break
-                label = f"{i + 1}/{len(camp.runs)} {Path(entry.protocol).stem}"
-                results.append(_one(
-                    steps, campaign_file.parent / entry.protocol, [*entry.set, *set_], choice,
-                    camp_dir, flag, label,
-                ))
+            checked = check_campaign(campaign_file, set_, choice)
+        camp, entries = checked
+        with steps.step(f"campaign {camp.name}", total=len(entries)) as advance:
+
+            def one(entry: CampaignEntry, camp_dir: Path) -> RunResult:
+                result = _one(steps, entry.protocol, entry.overrides, choice, camp_dir, flag,
+                              entry.label, timeout_s=entry.timeout_s)
                 advance()
-        with steps.step("loading the recordings", total=len(results)) as advance:
+                return result
+
+            done = run_campaign(campaign_file, set_, rig=choice, out_parent=out, run_one=one,
+                                stop_requested=flag, checked=checked)
+        with steps.step("loading the recordings", total=len(done.results)) as advance:
             recs = []
-            for r in results:
+            for r in done.results:
                 if _measured(r):
                     recs.append(_load(r.path))
                 advance()
-        _write_manifest(camp_dir, campaign_file, camp.name, results)
         _paper_table(recs, wide)
         _print_runs(recs, wide)
-        figures = _campaign_figures(steps, camp.name, recs, camp_dir / "figures") if draw else []
+        figures = (_campaign_figures(steps, camp.name, recs, done.directory / "figures")
+                   if draw else [])
     if figures:
         typer.echo(f"figures: {len(figures)} files (PNG and SVG) in {figures[0].parent}")
-    typer.echo(f"campaign: {camp_dir} (ffexp report {camp_dir})")
+    typer.echo(f"campaign: {done.directory} (ffexp report {done.directory})")
     code = flag.exit_code()
     raise typer.Exit(code if code is not None else EXIT_OK)
-
-
-def _new_dir(parent: Path, name: str) -> Path:
-    """A new directory ``parent/name`` (or ``name-1``, ...), never an existing one."""
-    from ffexp.errors import InputError
-
-    k = 0
-    while True:
-        path = parent / (name if k == 0 else f"{name}-{k}")
-        try:
-            path.mkdir(parents=True)
-        except FileExistsError:
-            k += 1
-            continue
-        except OSError as exc:
-            raise InputError(f"{parent}: cannot create a directory: {exc.strerror}") from None
-        return path
-
-
-def _write_manifest(
-    camp_dir: Path, campaign_file: Path, name: str, results: Sequence[RunResult]
-) -> None:
-    """``campaign.json``: the campaign file, its text and the runs (for ``ffexp report``)."""
-    import json
-
-    from ffexp.revision import source_revision
-
-    manifest = {
-        "kind": "campaign",
-        "name": name,
-        "campaign_file": str(campaign_file),
-        "campaign_toml": campaign_file.read_text(),
-        "source_revision": source_revision(),
-        "runs": [
-            {
-                "recording": r.path.name,
-                "protocol": r.protocol.name,
-                "aligned": r.outcome.aligned,
-                "end": r.outcome.stop_reason.value,
-            }
-            for r in results
-        ],
-    }
-    (camp_dir / "campaign.json").write_text(json.dumps(manifest, indent=2) + "\n")
 
 
 def _paper_table(recs: Sequence[Recording], wide: bool) -> None:

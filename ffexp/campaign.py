@@ -1,0 +1,150 @@
+"""A campaign: several run protocols in a row, into one directory with its manifest.
+
+:func:`run_campaign` checks every protocol and the rig before anything runs,
+creates ``OUT/<campaign>-<time>/`` (never an existing directory), runs each
+entry with :func:`ffexp.experiment.run_file` and writes ``campaign.json``
+there (the campaign file, its text, the source revision and each run's
+recording and end), which ``ffexp report`` reads, as a sweep writes
+``sweep.json``. The CLI (``ffexp campaign``) only adds progress, tables and
+figures around it.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+from ffexp.errors import InputError
+from ffexp.experiment import RunResult, load_campaign, load_rig_choice, run_file
+from ffexp.naming import stamp
+from ffexp.protocol import CampaignProtocol, load_run_protocol
+from ffexp.revision import source_revision
+from ffexp.rig_choice import RigChoice
+
+__all__ = ["MANIFEST", "CampaignEntry", "CampaignResult", "check_campaign", "new_directory",
+           "run_campaign", "write_manifest"]
+
+#: The manifest's file name in a campaign directory.
+MANIFEST = "campaign.json"
+
+
+@dataclass(frozen=True)
+class CampaignEntry:
+    """One run of a campaign: its protocol file, its overrides and a label for progress."""
+
+    protocol: Path
+    overrides: tuple[str, ...]
+    label: str
+    timeout_s: float
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """A finished (or stopped) campaign: where it is and the runs that ran."""
+
+    name: str
+    directory: Path
+    results: tuple[RunResult, ...]
+
+
+#: Runs one entry into the campaign directory (the CLI passes one that shows progress).
+RunOne = Callable[[CampaignEntry, Path], RunResult]
+
+
+def check_campaign(
+    campaign_file: Path, overrides: Sequence[str] = (), rig: RigChoice | None = None
+) -> tuple[CampaignProtocol, list[CampaignEntry]]:
+    """The campaign and its entries, every protocol (with ``overrides``) and the rig
+    checked: bad input is an error here, before anything runs or is written."""
+    camp = load_campaign(campaign_file)
+    entries = []
+    for i, entry in enumerate(camp.runs):
+        path = campaign_file.parent / entry.protocol
+        entry_overrides = (*entry.set, *overrides)
+        protocol = load_run_protocol(path, list(entry_overrides))
+        entries.append(CampaignEntry(path, entry_overrides,
+                                     f"{i + 1}/{len(camp.runs)} {path.stem}",
+                                     protocol.run.timeout_s))
+    load_rig_choice(rig or RigChoice())
+    return camp, entries
+
+
+def new_directory(parent: Path, name: str) -> Path:
+    """A new directory ``parent/name`` (or ``name-1``, ...), never an existing one."""
+    if parent.exists() and not parent.is_dir():
+        raise InputError(f"{parent}: exists and is not a directory")
+    k = 0
+    while True:
+        path = parent / (name if k == 0 else f"{name}-{k}")
+        try:
+            path.mkdir(parents=True)
+        except FileExistsError:
+            k += 1
+            continue
+        except OSError as exc:
+            raise InputError(f"{parent}: cannot create a directory: {exc.strerror}") from None
+        return path
+
+
+def write_manifest(
+    directory: Path, campaign_file: Path, name: str, results: Sequence[RunResult]
+) -> Path:
+    """``campaign.json``: the campaign file, its text, the source revision and the runs."""
+    manifest = {
+        "kind": "campaign",
+        "name": name,
+        "campaign_file": str(campaign_file),
+        "campaign_toml": campaign_file.read_text(),
+        "source_revision": source_revision(),
+        "runs": [
+            {
+                "recording": r.path.name,
+                "protocol": r.protocol.name,
+                "aligned": r.outcome.aligned,
+                "end": r.outcome.stop_reason.value,
+            }
+            for r in results
+        ],
+    }
+    path = directory / MANIFEST
+    path.write_text(json.dumps(manifest, indent=2) + "\n")
+    return path
+
+
+def run_campaign(
+    campaign_file: Path,
+    overrides: Sequence[str] = (),
+    *,
+    rig: RigChoice | None = None,
+    out_parent: Path = Path("runs"),
+    run_one: RunOne | None = None,
+    stop_requested: Callable[[], bool] = lambda: False,
+    checked: tuple[CampaignProtocol, list[CampaignEntry]] | None = None,
+) -> CampaignResult:
+    """Run every protocol of ``campaign_file`` on ``rig`` into a new directory under
+    ``out_parent`` and write its manifest; stops between runs when ``stop_requested``.
+
+    ``checked``: what :func:`check_campaign` returned, when the caller checked first.
+    The manifest is written even when a run raises, listing the runs that finished.
+    """
+    choice = rig or RigChoice()
+    camp, entries = checked or check_campaign(campaign_file, overrides, choice)
+    directory = new_directory(out_parent, f"{camp.name}-{stamp(datetime.now(UTC))}")
+
+    def default_run(entry: CampaignEntry, out_dir: Path) -> RunResult:
+        return run_file(entry.protocol, list(entry.overrides), rig=choice, out_dir=out_dir,
+                        stop_requested=stop_requested)
+
+    run = run_one or default_run
+    results: list[RunResult] = []
+    try:
+        for entry in entries:
+            if stop_requested():
+                break
+            results.append(run(entry, directory))
+    finally:
+        write_manifest(directory, campaign_file, camp.name, results)
+    return CampaignResult(camp.name, directory, tuple(results))

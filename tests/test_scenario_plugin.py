@@ -9,6 +9,7 @@ changed for it.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -30,6 +31,7 @@ from ffexp.runlog import RunLog
 from ffexp.scenarios import Scenario, ScenarioConfig, SourceChange, Verdict
 from ffexp.schemas import schema_text
 
+ROOT = Path(__file__).resolve().parents[1]
 START_UTC_NS = 1_700_000_000 * 10**9
 
 
@@ -188,3 +190,34 @@ def test_the_scenario_is_chosen_by_the_protocol_and_only_once_registered(
     assert '"flat_plate"' in schema_text("protocol")
     with pytest.raises(ValueError, match="already registered"):
         scenarios.register(type("Other", (FlatPlate,), {}))
+
+
+RUN_PROTOCOLS = [p for p in sorted(ROOT.glob("protocols/*.toml"))
+                 if p.read_text().startswith("#:schema ../schemas/protocol.json")]
+
+
+def test_there_are_shipped_run_protocols() -> None:
+    assert len(RUN_PROTOCOLS) >= 5
+
+
+@pytest.mark.parametrize("path", RUN_PROTOCOLS, ids=lambda p: p.name)
+def test_shipped_protocols_are_funnel_alignments_and_dump_as_before(path: Path) -> None:
+    """No shipped protocol names a scenario: each is the funnel alignment, and its dump
+    (the recording's ``run.protocol_json``, the sweeps' plan digest) has no ``task``."""
+    p = load_run_protocol(path)
+    assert p.scenario == "funnel_alignment"
+    assert "task" not in json.loads(p.model_dump_json())
+    assert isinstance(scenarios.build(p), scenarios.REGISTRY["funnel_alignment"])
+
+
+def test_an_unknown_scenario_is_one_error_line_and_exit_2() -> None:
+    from typer.testing import CliRunner
+
+    from ffexp.cli import app
+
+    result = CliRunner().invoke(app, ["run", str(ROOT / "protocols/method2.toml"),
+                                      "--set", "task.scenario=peg_in_hole"])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ")
+    assert "task.scenario: unknown scenario 'peg_in_hole'; known: funnel_alignment" in lines[0]

@@ -192,6 +192,27 @@ def test_the_scenario_is_chosen_by_the_protocol_and_only_once_registered(
         scenarios.register(type("Other", (FlatPlate,), {}))
 
 
+@pytest.mark.parametrize(("band", "aligned"), [("[0.6,1.0]", True), ("[2.0,3.0]", False)])
+def test_the_plate_on_the_simulator_through_the_experiment_and_the_analysis(
+        tmp_path: Path, plate: type[FlatPlate], band: str, aligned: bool) -> None:
+    """The same scenario on the sim rig through :func:`ffexp.experiment.run_file`: Method I
+    presses the target at f_ref 0.8 N, inside the first band and below the second; the
+    recording's analysis reads the plate's judge like any other."""
+    from ffexp.analysis import metrics
+    from ffexp.experiment import run_file
+
+    result = run_file(ROOT / "protocols/method1_case1.toml",
+                      ["task.scenario=flat_plate", f"task.force_band_n={band}",
+                       "task.hold_s=0.5", "run.timeout_s=8"], out_dir=tmp_path)
+    m = metrics(load(result.path))
+    assert m.aligned is aligned and result.outcome.aligned is aligned
+    assert m.verdict == ("aligned" if aligned else "not aligned")
+    assert m.verdict_source == "plate_force" and m.verdict_truth is None
+    assert m.first_contact_s is not None  # the tool did press the target
+    lo, hi = json.loads(band)
+    assert (lo <= m.verdict_evidence["f_z_n"] <= hi) is aligned  # the last judged press
+
+
 RUN_PROTOCOLS = [p for p in sorted(ROOT.glob("protocols/*.toml"))
                  if p.read_text().startswith("#:schema ../schemas/protocol.json")]
 

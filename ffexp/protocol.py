@@ -125,8 +125,8 @@ class RunProtocol(StrictModel):
         of the protocol has every table, with its defaults)."""
         name = self.task.scenario
         for table in sorted(scenarios.other_tables(name) & self.model_fields_set):
-            value = getattr(self, table)
-            if value != type(value)():
+            if getattr(self, table) != type(self).model_fields[table].get_default(
+                    call_default_factory=True):
                 error = PydanticCustomError(
                     "other_scenario", "scenario {name} does not read this table; its settings "
                     "go in [task]", {"name": repr(name)})

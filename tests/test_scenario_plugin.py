@@ -17,7 +17,7 @@ from typing import Literal
 
 import pytest
 from loop_script import cycles
-from pydantic import Field
+from pydantic import Field, ValidationError
 
 from drivers.base.types import RobotState, TargetObservation
 from drivers.mock import MockFtSensor, MockRobot
@@ -173,10 +173,13 @@ def test_the_scenario_is_chosen_by_the_protocol_and_only_once_registered(
     path.write_text('name = "plate"\n[task]\nscenario = "flat_plate"\nforce_band_n = [1, 2]\n')
     with pytest.raises(ConfigError, match=r"task\.scenario: unknown scenario 'flat_plate'"):
         load_run_protocol(path)
+    with pytest.raises(ValidationError, match=r"task\.scenario\n.*unknown scenario"):
+        RunProtocol(name="plate", task=PlateTask())  # as an object, too
     monkeypatch.setattr(scenarios, "REGISTRY", dict(scenarios.REGISTRY))
     scenarios.register(FlatPlate)
     p = load_run_protocol(path)
     assert isinstance(p.task, PlateTask) and p.task.force_band_n == (1.0, 2.0)
+    assert RunProtocol(name="plate", task=PlateTask()).scenario == "flat_plate"
     assert isinstance(scenarios.build(p), FlatPlate)
     # its own fields, typed; the funnel's [alignment] is not its table
     with pytest.raises(ConfigError, match=r"task\.hold_s: Input should be greater than"):

@@ -66,15 +66,19 @@ def build(protocol: RunProtocol) -> Scenario:
 
 def other_tables(name: str) -> set[str]:
     """Protocol tables other scenarios read that scenario ``name`` does not."""
-    own = set(scenario_class(name).tables)
-    return {t for cls in REGISTRY.values() for t in cls.tables} - own
+    cls = REGISTRY.get(name)
+    own = set(cls.tables) if cls is not None else set()
+    return {t for other in REGISTRY.values() for t in other.tables} - own
 
 
 def _validate(value: Any, handler: core_schema.ValidatorFunctionWrapHandler) -> Any:
     """``[task]``: validated by the config model of the scenario it names."""
-    if not isinstance(value, dict):
-        return handler(value)  # a config object as it is; anything else: a type error
-    name = value.get("scenario", DEFAULT)
+    if isinstance(value, dict):
+        name = value.get("scenario", DEFAULT)
+    elif isinstance(value, ScenarioConfig):
+        name = value.scenario
+    else:
+        return handler(value)  # not a table: the type error
     cls = REGISTRY.get(name) if isinstance(name, str) else None
     if cls is None:
         error = PydanticCustomError(
@@ -82,7 +86,10 @@ def _validate(value: Any, handler: core_schema.ValidatorFunctionWrapHandler) -> 
             {"name": repr(name), "known": ", ".join(REGISTRY)})
         raise ValidationError.from_exception_data(
             "task", [{"type": error, "loc": ("scenario",), "input": name}])
-    return cls.config_model.model_validate({**value, "scenario": name})
+    if isinstance(value, cls.config_model):
+        return value
+    data = value.model_dump() if isinstance(value, ScenarioConfig) else value
+    return cls.config_model.model_validate({**data, "scenario": name})
 
 
 class _RegistrySchema:

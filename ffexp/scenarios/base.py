@@ -69,8 +69,9 @@ class Scenario(ABC):
 
     Class attributes: ``name`` (the registry's and the protocol's
     ``[task] scenario``), ``label`` (for tables), ``config_model`` (its
-    ``[task]`` table), ``tables`` (further protocol tables it reads, which
-    other scenarios must leave out) and ``goal`` (the words of the event when
+    ``[task]`` table), ``tables`` (further protocol tables it reads, fields of
+    :class:`~ffexp.protocol.RunProtocol` with defaults, which other scenarios'
+    protocols must leave as they are) and ``goal`` (the words of the event when
     the goal has held for :attr:`hold_s`).
     """
 

@@ -32,7 +32,7 @@ from drivers.base.types import (
     TargetObservation,
 )
 from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
-from ffexp import controllers
+from ffexp import controllers, scenarios
 from ffexp.contracts import Phase, Progress, RunOutcome, Stop, StopReason
 from ffexp.estimator import Estimator
 from ffexp.protocol import RunProtocol
@@ -51,7 +51,7 @@ class Cycle:
         self.log = log
         self.estimator = Estimator(p.estimation, cycle_s, p.run.tare_s)
         self.safety = SafetyMonitor(p.limits)
-        self.task = Task(p.alignment, p.run.timeout_s, p.run.stop_hold_s,
+        self.task = Task(scenarios.build(p), p.run.timeout_s, p.run.stop_hold_s,
                          end_on_aligned=p.run.end_on_aligned)
         self.approach = controllers.Approach(p.approach)
         ctx = controllers.ControlContext(cycle_s, self.approach)

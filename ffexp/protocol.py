@@ -10,10 +10,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from drivers.base.types import Vec6
 from drivers.config import StrictModel, load_model
+from ffexp import scenarios
 from ffexp.contracts import PAPER_OUTCOMES
 from ffexp.control import ImpedanceConfig
 from ffexp.controllers import REGISTRY, AlignConfig
@@ -21,7 +23,8 @@ from ffexp.controllers.force import ForceRiConfig
 from ffexp.errors import ConfigError
 from ffexp.estimator import Estimation
 from ffexp.safety import Limits
-from ffexp.task import Alignment
+from ffexp.scenarios import TaskConfig
+from ffexp.scenarios.funnel import Alignment, FunnelTask
 
 
 class SceneRef(StrictModel):
@@ -80,6 +83,9 @@ class RunProtocol(StrictModel):
     (:mod:`ffexp.controllers`); the rest of ``[align]`` is that method's
     settings. A file of the earlier form (``method`` at the top) is read as if
     ``method`` were in ``[align]``; so is ``--set method=...``.
+    ``[task] scenario = "..."`` picks the scenario, the task's goal and its
+    judges, from its registry (:mod:`ffexp.scenarios`) the same way; the
+    default, ``"funnel_alignment"``, takes its settings from ``[alignment]``.
     """
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
@@ -92,7 +98,13 @@ class RunProtocol(StrictModel):
     krc: KrcSettings = KrcSettings()
     estimation: Estimation = Estimation()
     limits: Limits = Limits()
-    alignment: Alignment = Alignment()
+    task: TaskConfig = Field(
+        FunnelTask(), exclude_if=scenarios.is_default,
+        description="The scenario (its goal and judges): scenario = one of the registry "
+                    "(ffexp.scenarios), the rest its own settings.")
+    alignment: Alignment = Field(
+        Alignment(),
+        description="The funnel_alignment scenario's settings (tolerances and judges).")
     paper: dict[str, float | str] = Field(
         default_factory=dict,
         description="The paper's reported values for this run (Table res_par), for comparison; "
@@ -106,6 +118,21 @@ class RunProtocol(StrictModel):
         if outcome is not None and outcome not in PAPER_OUTCOMES:
             raise ValueError(f"outcome {outcome!r} is not one of {', '.join(PAPER_OUTCOMES)}")
         return paper
+
+    @model_validator(mode="after")
+    def _tables_of_the_scenario(self) -> RunProtocol:
+        """A table only another scenario reads is an error unless it says nothing (a dump
+        of the protocol has every table, with its defaults)."""
+        name = self.task.scenario
+        for table in sorted(scenarios.other_tables(name) & self.model_fields_set):
+            if getattr(self, table) != type(self).model_fields[table].get_default(
+                    call_default_factory=True):
+                error = PydanticCustomError(
+                    "other_scenario", "scenario {name} does not read this table; its settings "
+                    "go in [task]", {"name": repr(name)})
+                raise ValidationError.from_exception_data(
+                    "RunProtocol", [{"type": error, "loc": (table,), "input": None}])
+        return self
 
     @model_validator(mode="before")
     @classmethod
@@ -122,6 +149,11 @@ class RunProtocol(StrictModel):
     def method(self) -> str:
         """The ALIGN-phase method's registry name."""
         return self.align.method
+
+    @property
+    def scenario(self) -> str:
+        """The scenario's registry name."""
+        return self.task.scenario
 
 
 class CampaignEntry(StrictModel):

@@ -12,13 +12,15 @@ from drivers.base.types import GroundTruth, RobotState
 from ffexp.contracts import Phase, Stop, StopReason
 from ffexp.estimation import ContactEvent
 from ffexp.estimator import Estimate
-from ffexp.task import Alignment, PhaseChange, Task
+from ffexp.scenarios.funnel import Alignment, FunnelAlignment
+from ffexp.task import PhaseChange, Task
 
 NS = 1_000_000_000
 
 
 def in_align(alignment: Alignment, end_on_aligned: bool = True) -> Task:
-    task = Task(alignment, timeout_s=30.0, stop_hold_s=0.1, end_on_aligned=end_on_aligned)
+    task = Task(FunnelAlignment(alignment), timeout_s=30.0, stop_hold_s=0.1,
+                end_on_aligned=end_on_aligned)
     s = RobotState(tcp_pose_m=pose_at(0.0))
     task.step(0, s, Estimate(tared_now=True, tared=True))
     task.step(5_000_000, s, Estimate(tared=True, in_contact=True,

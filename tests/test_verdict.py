@@ -15,7 +15,8 @@ from ffexp.contracts import Phase
 from ffexp.estimation import ContactEvent
 from ffexp.estimator import Estimate
 from ffexp.observer import ObserverLimits, WrenchObserver
-from ffexp.task import Alignment, Event, Task, Verdict
+from ffexp.scenarios.funnel import Alignment, FunnelAlignment
+from ffexp.task import Event, Task, Verdict
 
 NS = 1_000_000_000
 STEP = 5_000_000
@@ -46,7 +47,7 @@ class Clock:
 
 
 def start(alignment: Alignment, clock: Clock, target: TargetObservation | None) -> Task:
-    task = Task(alignment, timeout_s=60.0, stop_hold_s=0.1)
+    task = Task(FunnelAlignment(alignment), timeout_s=60.0, stop_hold_s=0.1)
     s = RobotState(tcp_pose_m=pose_at(0.0))
     task.step(0, s, Estimate(tared_now=True, tared=True), target)
     clock.t = STEP

@@ -16,13 +16,18 @@ Encodings:
 Units are SI; wrenches ``[fx, fy, fz, tx, ty, tz]`` in the tool frame (TCF),
 measured wrench = what the environment exerts on the tool; 4x4 poses are
 stored row-major as 16 numbers; log times are integer nanoseconds.
+
+A back-end's extras (FRI's measurement, link and command packets) are recorded
+on the topics its folder defines (``drivers/fri/topics.py``); they are taken
+here from :mod:`drivers.registry`, so a new back-end edits no ``ffexp`` module.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from ffexp.recording import topics_link, topics_scene, topics_target
+from drivers.registry import backend_cdr_topics, backend_json_topics
+from ffexp.recording import topics_scene, topics_target
 from ffexp.recording.schema import (
     QUAT_SCHEMA,
     TIME_SCHEMA,
@@ -35,45 +40,7 @@ from ffexp.recording.schema import (
 
 F = FieldSpec
 
-MEASUREMENT = MessageSpec(
-    "ffexp_msgs/msg/Measurement",
-    (
-        F("msr_jnt_pos", "float64", 7, "rad", "measured joint positions"),
-        F("cmd_jnt_pos", "float64", 7, "rad", "commanded joint positions"),
-        F("cmd_jnt_pos_fri_offset", "float64", 7, "rad"),
-        F("msr_cart_pos", "float64", 16, "m", "measured TCP pose, 4x4 row-major"),
-        F("cmd_cart_pos", "float64", 16, "m", "commanded TCP pose, 4x4 row-major"),
-        F("msr_jnt_trq", "float64", 7, "N m"),
-        F("est_ext_jnt_trq", "float64", 7, "N m", "external joint torques (KRC estimate)"),
-        F("est_ext_tcp_ft", "float64", 6, "N, N m", "external TCP wrench (KRC estimate), TCF"),
-        F("jacobian", "float64", 42, "", "6x7 row-major, rows vx vy vz wx wy wz (TCF)"),
-        F("mass_matrix", "float64", 49, "kg m^2", "7x7 joint-space inertia"),
-        F("gravity", "float64", 7, "N m", "gravity joint torques"),
-        F("temperature", "float64", 7, "degC"),
-        F("seq", "uint32", 1, "", "KRC send sequence counter"),
-        F("state", "int32", 1, "", "FRI state: -1 invalid, 0 off, 1 mon, 2 cmd"),
-        F("quality", "int32", 1, "", "FRI quality: 0 unacceptable, 1 bad, 2 ok, 3 perfect"),
-        F("control", "int32", 1, "", "control mode: 1 joint pos, 2 cart imp, 3 joint imp"),
-        F("power", "uint32"),
-        F("error", "uint32"),
-        F("warning", "uint32"),
-    ),
-    "One FRI measurement packet per controller cycle.",
-)
 
-LINK = MessageSpec(
-    "ffexp_msgs/msg/LinkStats",
-    (
-        F("answer_rate", "float64", 1, "", "fraction of cycles answered (last 100)"),
-        F("latency_s", "float64", 1, "s"),
-        F("jitter_s", "float64", 1, "s"),
-        F("miss_rate", "float64", 1, ""),
-        F("miss_counter", "uint32"),
-        F("state", "int32"),
-        F("quality", "int32"),
-    ),
-    "FRI link statistics per cycle.",
-)
 
 #: Joints a ``/robot/state`` message holds (a robot with fewer pads with NaN).
 STATE_JOINTS = 7
@@ -139,22 +106,6 @@ CONTROL = MessageSpec(
     "Controller terms per cycle.",
 )
 
-COMMAND = MessageSpec(
-    "ffexp_msgs/msg/Command",
-    (
-        F("jnt_pos", "float64", 7, "rad"),
-        F("cart_pos", "float64", 16, "m", "4x4 row-major"),
-        F("add_jnt_trq", "float64", 7, "N m"),
-        F("add_tcp_ft", "float64", 6, "N, N m", "superposed wrench, TCF"),
-        F("jnt_stiffness", "float64", 7, "N m/rad"),
-        F("jnt_damping", "float64", 7, "", "normalised"),
-        F("cart_stiffness", "float64", 6, "N/m, N m/rad", "x y z rx ry rz"),
-        F("cart_damping", "float64", 6, "", "normalised, x y z rx ry rz"),
-        F("flags", "uint32", 1, "", "FRI cmdFlags"),
-        F("control", "int32", 1, "", "requested control mode"),
-    ),
-    "The FRI command packet sent in answer to each measurement (what the KRC takes).",
-)
 
 INTENT = MessageSpec(
     "ffexp_msgs/msg/CartesianCommand",
@@ -205,16 +156,14 @@ CDR_TOPICS: dict[str, CdrTopic] = {
     t.topic: t
     for t in (
         CdrTopic("/robot/state", ROBOT_STATE, "every controller cycle"),
-        CdrTopic("/robot/measurement", MEASUREMENT, "every controller cycle, FRI back-ends"),
-        CdrTopic("/robot/link", LINK, "every controller cycle, FRI back-ends"),
-        CdrTopic("/robot/command", COMMAND, "every controller cycle, FRI back-ends"),
+        *backend_cdr_topics(),
         CdrTopic("/control/command", INTENT, "every controller cycle"),
         CdrTopic("/control/admittance", ADMITTANCE, "every cycle in ALIGN, admittance method"),
         CdrTopic("/ft/raw", FT_SAMPLE, "every sensor sample"),
         CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
         CdrTopic("/control/terms", CONTROL, "every controller cycle"),
         CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
-        *topics_link.CDR, *topics_target.CDR, *topics_scene.CDR,
+        *topics_target.CDR, *topics_scene.CDR,
     )
 }
 
@@ -330,7 +279,7 @@ JSON_TOPICS: dict[str, JsonTopic] = {
             "once, at the end of the fit window (friction recordings only)",
             "The friction estimate: mu, its 1-sigma, the deceleration and the fit window.",
         ),
-        *topics_link.JSON, *topics_target.JSON, *topics_scene.JSON,
+        *backend_json_topics(), *topics_target.JSON, *topics_scene.JSON,
     )
 }
 

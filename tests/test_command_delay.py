@@ -13,8 +13,8 @@ from drivers.base import CartesianCommand, RobotDriver, RobotState
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.emulate.krc import CommandDelay
 from drivers.emulate.lockstep import SimRobot
-from drivers.fri.driver import FriRobot
 from drivers.fri.backend import FriRobotConfig
+from drivers.fri.driver import FriRobot
 from drivers.sim.arm import ArmCommand
 from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld

@@ -10,8 +10,8 @@ import pytest
 from drivers.base import ApplyStatus, CartesianCommand
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.emulate.lockstep import SimRobot
-from drivers.fri.driver import FriRobot
 from drivers.fri.backend import FriRobotConfig
+from drivers.fri.driver import FriRobot
 from drivers.fri.types import FriMeasurement, FriState
 from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld

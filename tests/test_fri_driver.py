@@ -15,9 +15,9 @@ import pytest
 from drivers.base.types import ApplyStatus, CartesianCommand, RobotState
 from drivers.errors import AddressError, NotConnectedError, PacketEncodeError
 from drivers.fri import codec
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.command import CARTESIAN_FLAGS, MIRROR_FLAGS
 from drivers.fri.convert import LOCKSTEP_INDEX, LOCKSTEP_MARKER, measurement_to_arrays
-from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriEstimateSensor, FriRobot
 from drivers.fri.types import ControlMode, FriCommand, FriMeasurement, FriQuality, FriState
 from drivers.net.udp import bind_udp, parse_host_port

@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 
 from drivers.fri import codec
-from drivers.fri.convert import command_to_arrays, measurement_to_arrays
 from drivers.fri.backend import FriRobotConfig
+from drivers.fri.convert import command_to_arrays, measurement_to_arrays
 from drivers.fri.driver import FriRobot
 from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement, FriState
 

@@ -21,6 +21,7 @@ from drivers.emulate.faults import FaultSettings
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.errors import AddressError, DriverTimeoutError, LinkLostError, NotConnectedError
 from drivers.fri import codec
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.command import MIRROR_FLAGS, copy_fri_command
 from drivers.fri.convert import (
     STRATEGY_INDEX,
@@ -28,7 +29,6 @@ from drivers.fri.convert import (
     command_to_arrays,
     measurement_to_arrays,
 )
-from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriEstimateSensor, FriRobot
 from drivers.fri.types import (
     ControlMode,

@@ -20,9 +20,9 @@ from drivers.emulate.krc import (
 )
 from drivers.emulate.lockstep import SimRobot, open_sim
 from drivers.errors import DriverError
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriRobot
 from drivers.fri.link import ERROR_SOFTWARE_LIMIT, KrcLink, LinkEvent, describe_error
-from drivers.fri.backend import FriRobotConfig
 from drivers.fri.types import FriMeasurement, FriState
 from drivers.sim.arm import ArmMode
 from drivers.sim.scene import Scene, load_scene

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from drivers.registry import backend_cdr_topics, backend_json_topics
+from drivers import registry
 from ffexp.recording import topics_scene, topics_target
 from ffexp.recording.schema import (
     QUAT_SCHEMA,
@@ -152,20 +152,17 @@ TRUTH = MessageSpec(
 )
 
 
-CDR_TOPICS: dict[str, CdrTopic] = {
-    t.topic: t
-    for t in (
-        CdrTopic("/robot/state", ROBOT_STATE, "every controller cycle"),
-        *backend_cdr_topics(),
-        CdrTopic("/control/command", INTENT, "every controller cycle"),
-        CdrTopic("/control/admittance", ADMITTANCE, "every cycle in ALIGN, admittance method"),
-        CdrTopic("/ft/raw", FT_SAMPLE, "every sensor sample"),
-        CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
-        CdrTopic("/control/terms", CONTROL, "every controller cycle"),
-        CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
-        *topics_target.CDR, *topics_scene.CDR,
-    )
-}
+#: The core topics before the back-ends' (kept in this order: ``ffexp topics`` lists them so).
+_CDR_HEAD = (CdrTopic("/robot/state", ROBOT_STATE, "every controller cycle"),)
+_CDR_CORE = (
+    CdrTopic("/control/command", INTENT, "every controller cycle"),
+    CdrTopic("/control/admittance", ADMITTANCE, "every cycle in ALIGN, admittance method"),
+    CdrTopic("/ft/raw", FT_SAMPLE, "every sensor sample"),
+    CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
+    CdrTopic("/control/terms", CONTROL, "every controller cycle"),
+    CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
+    *topics_target.CDR, *topics_scene.CDR,
+)
 
 LOG_LEVELS = {"DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
 
@@ -204,84 +201,103 @@ FRICTION_RESULT_SCHEMA: dict[str, Any] = {
     "required": ["mu", "mu_std", "mu_upper_bound", "significant", "decel_mps2"],
 }
 
-JSON_TOPICS: dict[str, JsonTopic] = {
-    t.topic: t
-    for t in (
-        JsonTopic(
-            "/events",
-            "foxglove.Log",
-            {
-                "title": "foxglove.Log",
-                "type": "object",
-                "properties": {
-                    "timestamp": TIME_SCHEMA,
-                    "level": {"type": "integer", "description": "1 debug .. 5 fatal"},
-                    "message": {"type": "string"},
-                    "name": {"type": "string", "description": "event kind"},
-                    "file": {"type": "string"},
-                    "line": {"type": "integer"},
-                },
+_JSON_CORE = (
+    JsonTopic(
+        "/events",
+        "foxglove.Log",
+        {
+            "title": "foxglove.Log",
+            "type": "object",
+            "properties": {
+                "timestamp": TIME_SCHEMA,
+                "level": {"type": "integer", "description": "1 debug .. 5 fatal"},
+                "message": {"type": "string"},
+                "name": {"type": "string", "description": "event kind"},
+                "file": {"type": "string"},
+                "line": {"type": "integer"},
             },
-            "on event",
-            "Phase changes, contact made/broken, aborts, faults; name = event kind.",
-        ),
-        JsonTopic(
-            "/tf",
-            "foxglove.FrameTransform",
-            {
-                "title": "foxglove.FrameTransform",
-                "type": "object",
-                "properties": {
-                    "timestamp": TIME_SCHEMA,
-                    "parent_frame_id": {"type": "string"},
-                    "child_frame_id": {"type": "string"},
-                    "translation": VEC3_SCHEMA,
-                    "rotation": QUAT_SCHEMA,
-                },
+        },
+        "on event",
+        "Phase changes, contact made/broken, aborts, faults; name = event kind.",
+    ),
+    JsonTopic(
+        "/tf",
+        "foxglove.FrameTransform",
+        {
+            "title": "foxglove.FrameTransform",
+            "type": "object",
+            "properties": {
+                "timestamp": TIME_SCHEMA,
+                "parent_frame_id": {"type": "string"},
+                "child_frame_id": {"type": "string"},
+                "translation": VEC3_SCHEMA,
+                "rotation": QUAT_SCHEMA,
             },
-            "every 20 ms of run time per frame",
-            "Tool (TCP) in the robot base; target (sim truth), target_tracked (the tracker) "
-            "or target_nominal (the start placement); link1..link7 of the arm, each in its "
-            "parent; for the 3-D panel with /scene/rig.",
-        ),
-        JsonTopic(
-            "/runner/phase",
-            "ffexp.Phase",
-            {
-                "title": "ffexp.Phase",
-                "type": "object",
-                "properties": {
-                    "phase": {"type": "string"},
-                    "phase_id": {"type": "integer", "description": "ffexp.contracts.Phase"},
-                    "reason": {"type": "string", "description": "one line for people"},
-                    "stop_reason": {
-                        "type": "string",
-                        "description": "ffexp.contracts.StopReason value on DONE/ABORT, else ''",
-                    },
-                    "aligned": {"type": "boolean", "description": "the run ended aligned"},
+        },
+        "every 20 ms of run time per frame",
+        "Tool (TCP) in the robot base; target (sim truth), target_tracked (the tracker) "
+        "or target_nominal (the start placement); link1..link7 of the arm, each in its "
+        "parent; for the 3-D panel with /scene/rig.",
+    ),
+    JsonTopic(
+        "/runner/phase",
+        "ffexp.Phase",
+        {
+            "title": "ffexp.Phase",
+            "type": "object",
+            "properties": {
+                "phase": {"type": "string"},
+                "phase_id": {"type": "integer", "description": "ffexp.contracts.Phase"},
+                "reason": {"type": "string", "description": "one line for people"},
+                "stop_reason": {
+                    "type": "string",
+                    "description": "ffexp.contracts.StopReason value on DONE/ABORT, else ''",
                 },
+                "aligned": {"type": "boolean", "description": "the run ended aligned"},
             },
-            "on phase change",
-            "Runner phase: CONNECT, APPROACH, ALIGN, DONE, ABORT, with the typed stop reason.",
-        ),
-        JsonTopic(
-            "/friction/track",
-            "ffexp.friction.TrackSample",
-            FRICTION_TRACK_SCHEMA,
-            "every video frame (friction recordings only)",
-            "Tracked target per frame of `ffexp friction estimate`: pixel centre, "
-            "metric position, position s_m along the motion; log time = frame time.",
-        ),
-        JsonTopic(
-            "/friction/result",
-            "ffexp.friction.Result",
-            FRICTION_RESULT_SCHEMA,
-            "once, at the end of the fit window (friction recordings only)",
-            "The friction estimate: mu, its 1-sigma, the deceleration and the fit window.",
-        ),
-        *backend_json_topics(), *topics_target.JSON, *topics_scene.JSON,
-    )
-}
+        },
+        "on phase change",
+        "Runner phase: CONNECT, APPROACH, ALIGN, DONE, ABORT, with the typed stop reason.",
+    ),
+    JsonTopic(
+        "/friction/track",
+        "ffexp.friction.TrackSample",
+        FRICTION_TRACK_SCHEMA,
+        "every video frame (friction recordings only)",
+        "Tracked target per frame of `ffexp friction estimate`: pixel centre, "
+        "metric position, position s_m along the motion; log time = frame time.",
+    ),
+    JsonTopic(
+        "/friction/result",
+        "ffexp.friction.Result",
+        FRICTION_RESULT_SCHEMA,
+        "once, at the end of the fit window (friction recordings only)",
+        "The friction estimate: mu, its 1-sigma, the deceleration and the fit window.",
+    ),
+    *topics_target.JSON, *topics_scene.JSON,
+)
+
+CDR_TOPICS: dict[str, CdrTopic] = {}
+JSON_TOPICS: dict[str, JsonTopic] = {}
+
+
+def _collect() -> None:
+    """Fill :data:`CDR_TOPICS` and :data:`JSON_TOPICS` (in place) from the core topics and
+    the back-ends' (:mod:`drivers.registry`); again whenever the registry changes."""
+    cdr: tuple[CdrTopic, ...] = (*_CDR_HEAD, *registry.backend_cdr_topics(), *_CDR_CORE)
+    json_topics: tuple[JsonTopic, ...] = (*_JSON_CORE, *registry.backend_json_topics())
+    names = [t.topic for t in cdr] + [t.topic for t in json_topics]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"recording topics defined twice: {', '.join(twice)}")
+    CDR_TOPICS.clear()
+    CDR_TOPICS.update((t.topic, t) for t in cdr)
+    JSON_TOPICS.clear()
+    JSON_TOPICS.update((t.topic, t) for t in json_topics)
+
+
+_collect()
+registry.on_change(_collect)
 
 
 def describe() -> str:

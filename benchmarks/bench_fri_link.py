@@ -58,8 +58,8 @@ def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float,
           pin: bool = False) -> dict[str, object]:
     deadline = 0.0 if mode == "immediate" else 0.5
     robot = FriRobot(FriRobotConfig(robot_ip="127.0.0.1", port=0, bind_host="127.0.0.1",
-                                 answer_deadline_cycles=deadline, connect_timeout_s=30.0,
-                                 cycle_timeout_s=5.0))
+                                    answer_deadline_cycles=deadline, connect_timeout_s=30.0,
+                                    cycle_timeout_s=5.0))
     _, port = robot.bind()
     n = round(seconds * 1000 / cycle_ms)
     settle = round(warmup_s * 1000 / cycle_ms)

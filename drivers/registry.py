@@ -6,7 +6,9 @@ it offers, its ``--driver`` name, and the recording topics of its extras. From
 these entries come the rig's discriminated unions (:mod:`drivers.rig`), the
 factory's dispatch (:mod:`drivers.factory`), the command line's ``--driver``
 and ``--ft`` names and the back-end topics of the recording
-(``ffexp.recording.topics``). The ``none`` tracker (no tracker) is built in.
+(``ffexp.recording.topics``). The ``none`` tracker (no tracker) is built in; the
+``sim`` robot's entry is in :mod:`drivers.emulate` (the lockstep KRC in front of
+the simulator's world), its sensor's and tracker's in :mod:`drivers.sim`.
 
 :func:`register` adds a back-end at run time (a plug-in, a test's toy back-end);
 the rig's unions are rebuilt from the registry then.
@@ -31,6 +33,7 @@ from drivers.base.backend import (
     TrackerBackend,
 )
 from drivers.camera.backend import BACKEND as CAMERA
+from drivers.emulate.backend import BACKEND as EMULATE
 from drivers.fri.backend import BACKEND as FRI
 from drivers.mock.backend import BACKEND as MOCK
 from drivers.netft.backend import BACKEND as NETFT
@@ -74,6 +77,7 @@ _NONE = Backend("none", trackers=(TrackerBackend(NoTracker, _open_none),))
 
 _BACKENDS: list[Backend] = [
     _NONE,
+    EMULATE,
     SIM,
     NETFT,
     FRI,

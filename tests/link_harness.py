@@ -58,8 +58,8 @@ def emulated_run(tmp: Path, overrides: list[str], *, faults: FaultSettings | Non
     protocol = load_run_protocol(PROTOCOL, overrides)
     scene = load_scene(ROOT / "data" / "scenes" / "paper.toml")
     robot = FriRobot(FriRobotConfig(robot_ip=robot_ip, port=0, bind_host=LOCAL,
-                                 connect_timeout_s=connect_timeout_s,
-                                 cycle_timeout_s=cycle_timeout_s))
+                                    connect_timeout_s=connect_timeout_s,
+                                    cycle_timeout_s=cycle_timeout_s))
     sensor = FriEstimateSensor(robot)
     emu: FriEmulator | None = None
     path = tmp / "run.mcap"

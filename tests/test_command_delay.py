@@ -62,7 +62,7 @@ def test_over_udp_in_lockstep_the_answer_to_k_acts_from_cycle_k_plus_d(
         paper_scene: Scene, d: int) -> None:
     world = SimWorld(_scene(paper_scene, d), seed=1)
     robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL,
-                                 connect_timeout_s=10.0, cycle_timeout_s=10.0))
+                                    connect_timeout_s=10.0, cycle_timeout_s=10.0))
     emu: FriEmulator | None = None
     try:
         _, port = robot.bind()

@@ -31,7 +31,7 @@ def test_lockstep_over_udp_matches_the_in_process_robot(paper_scene: Scene) -> N
     """Same link states per cycle, and the same motion up to float32 rounding."""
     n = 160
     robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL,
-                                 connect_timeout_s=10.0, cycle_timeout_s=10.0))
+                                    connect_timeout_s=10.0, cycle_timeout_s=10.0))
     emu: FriEmulator | None = None
     states: list[FriState] = []
     z_udp: list[float] = []

@@ -271,7 +271,7 @@ def test_not_connected_and_address_errors() -> None:
 
 def test_connect_timeout_names_the_address_and_port() -> None:
     robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL,
-                                 connect_timeout_s=0.05))
+                                    connect_timeout_s=0.05))
     robot.connect()
     try:
         port = robot.local_address[1]

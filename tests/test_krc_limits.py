@@ -147,7 +147,7 @@ def test_software_limits_are_validated(far_scene: Scene) -> None:
 def test_udp_emulator_stops_and_reports_the_error(far_scene: Scene) -> None:
     """Over FRI: the KRC leaves CMD with the error bits; the driver then names the joint."""
     robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL,
-                                 connect_timeout_s=10.0, cycle_timeout_s=10.0))
+                                    connect_timeout_s=10.0, cycle_timeout_s=10.0))
     emu: FriEmulator | None = None
     msrs: list[tuple[FriState, int]] = []
     limits = list(SOFTWARE_LIMITS_DEG)

@@ -262,7 +262,7 @@ def test_a_path_field_of_any_table_is_relative_to_the_rig_file(tmp_path: Path) -
     path.write_text('[robot]\ntype = "sim"\nscene_file = "s.toml"\n'
                     '[tracker]\ntype = "camera"\ncalibration = "/abs/cal.toml"\n')
     from drivers.camera.backend import CameraTrackerConfig
-    from drivers.sim.backend import SimRobotConfig
+    from drivers.emulate.backend import SimRobotConfig
 
     rig = load_rig(path)
     assert isinstance(rig.robot, SimRobotConfig) and isinstance(rig.tracker, CameraTrackerConfig)

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 from drivers.base import ApplyStatus, CartesianCommand, ForceTorqueSensor, RobotDriver
+from drivers.emulate.backend import SimRobotConfig
 from drivers.errors import AddressError, ConfigError
 from drivers.factory import open_devices
 from drivers.fri.backend import FriRobotConfig
 from drivers.mock.backend import MockRobotConfig
 from drivers.netft.backend import NetFtConfig
 from drivers.rig import Rig, default_rig, load_rig
-from drivers.sim.backend import SimRobotConfig
 
 RIGS = Path(__file__).resolve().parent.parent / "rigs"
 

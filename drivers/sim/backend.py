@@ -1,15 +1,14 @@
-"""The simulator back-end's entry: the ``sim`` robot (the lockstep KRC in front of the MuJoCo
-world, in-process), the ``sim`` F/T sensor (the world's Mini45 model) and the ``sim`` target
-tracker (the world's target seen like a camera).
+"""The simulator back-end's entry: the ``sim`` F/T sensor (the world's Mini45 model) and the
+``sim`` target tracker (the world's target seen like a camera), both read from the world of
+the ``sim`` robot.
 
-The sim robot is :class:`drivers.emulate.lockstep.SimRobot` (the world behind FRI's
-state machine); its ``open`` imports it when called, so this folder imports no
-other back-end at import time. Light: pydantic models and the entry.
+The ``sim`` robot itself is the lockstep KRC in front of the world, which combines
+this back-end with FRI's link: its entry is :mod:`drivers.emulate.backend`. Light:
+pydantic models and the entry; the drivers are imported when a rig opens them.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Literal
 
 from pydantic import Field
@@ -22,7 +21,6 @@ from drivers.base.backend import (
     OpenedRobot,
     OpenedSensor,
     OpenedTracker,
-    RobotBackend,
     TrackerBackend,
 )
 from drivers.errors import ConfigError
@@ -30,25 +28,9 @@ from drivers.errors import ConfigError
 if TYPE_CHECKING:
     from drivers.sim.world import SimWorld
 
-__all__ = ["BACKEND", "SimFt", "SimRobotConfig", "SimTrackerConfig"]
+__all__ = ["BACKEND", "SimFt", "SimTrackerConfig"]
 
 NonNeg = Annotated[float, Field(ge=0.0)]
-
-
-class SimRobotConfig(DeviceConfig):
-    """The simulated LWR4+ in-process (lockstep, no sockets)."""
-
-    type: Literal["sim"] = "sim"
-    start_cycles: Annotated[int, Field(ge=0)] = 100
-    """Answered cycles before the link enters command mode (a friStart script: 100)."""
-    max_consecutive_misses: Annotated[int, Field(ge=1)] = 5
-    """Cycles without an answer in a row that end command mode."""
-    scene_file: Path | None = None
-    """Scene TOML (relative to the rig file); default: the protocol's scene."""
-    wire_precision: bool = False
-    """Round the measurement and the command through the FRI codec, as the UDP link
-    does: with ``ft.type = "fri-estimate"`` a run equals the same run in lockstep
-    over UDP against ``ffexp emulate``, bit for bit."""
 
 
 class SimFt(DeviceConfig):
@@ -71,27 +53,6 @@ class SimTrackerConfig(DeviceConfig):
     """Standard deviation of each frame's yaw error [deg]."""
     dropout: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
     """Fraction of frames without a pose (marker not found)."""
-
-
-def _open_robot(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
-    from drivers.emulate.lockstep import SimRobot
-    from drivers.sim.scene import load_scene
-    from drivers.sim.world import SimWorld
-
-    path = cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
-    scene = load_scene(path, ctx.scene_overrides)
-    world = SimWorld(scene, seed=ctx.seed)
-    robot = SimRobot(world, start_cycles=cfg.start_cycles,
-                     max_consecutive_misses=cfg.max_consecutive_misses,
-                     wire_precision=cfg.wire_precision)
-    meta = {
-        "driver": "sim",
-        "scene_file": str(path),
-        "scene_json": scene.model_dump_json(),
-        "wire_precision": str(cfg.wire_precision).lower(),
-    }
-    return OpenedRobot(robot, lambda: world.cycle * world.cycle_ns, None, meta,
-                       [(path.name, path.read_bytes())])
 
 
 def _world(robot: OpenedRobot, ctx: OpenContext, table: str) -> SimWorld:
@@ -136,7 +97,6 @@ def _check_tracker(cfg: SimTrackerConfig, robot: DeviceConfig) -> str | None:
 
 BACKEND = Backend(
     "sim",
-    robots=(RobotBackend(SimRobotConfig, _open_robot, driver="sim", default_ft="sim"),),
     sensors=(FtBackend(SimFt, _open_ft, _check_ft),),
     trackers=(TrackerBackend(SimTrackerConfig, _open_tracker, _check_tracker),),
 )

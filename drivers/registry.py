@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
+from importlib import import_module
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import Field
@@ -32,17 +33,12 @@ from drivers.base.backend import (
     RobotBackend,
     TrackerBackend,
 )
-from drivers.camera.backend import BACKEND as CAMERA
-from drivers.emulate.backend import BACKEND as EMULATE
-from drivers.fri.backend import BACKEND as FRI
-from drivers.mock.backend import BACKEND as MOCK
-from drivers.netft.backend import BACKEND as NETFT
-from drivers.sim.backend import BACKEND as SIM
 
 if TYPE_CHECKING:
     from drivers.base.topics import CdrTopic, JsonTopic
 
 __all__ = [
+    "FOLDERS",
     "NoTracker",
     "backend_cdr_topics",
     "backend_json_topics",
@@ -75,15 +71,26 @@ def _open_none(cfg: NoTracker, ctx: OpenContext, robot: OpenedRobot) -> OpenedTr
 
 _NONE = Backend("none", trackers=(TrackerBackend(NoTracker, _open_none),))
 
-_BACKENDS: list[Backend] = [
-    _NONE,
-    EMULATE,
-    SIM,
-    NETFT,
-    FRI,
-    MOCK,
-    CAMERA,
-]
+#: The shipped back-ends, one line per folder ``drivers/<name>/`` (its ``backend.py``
+#: holds ``BACKEND``); the order is the order of the types in messages and schemas.
+FOLDERS = (
+    "emulate",  # [robot] sim: the lockstep KRC in front of the simulator's world
+    "sim",  # [ft] sim, [tracker] sim: the simulator's sensor and camera model
+    "netft",  # [ft] netft: an ATI Net F/T box
+    "fri",  # [robot] fri1: a KUKA KRC2 LR over FRI 1.x; [ft] fri-estimate
+    "mock",  # [robot] mock, [ft] mock: scripted, for tests and dry runs
+    "camera",  # [tracker] camera: a fiducial marker seen by a camera
+)
+
+
+def _entry(folder: str) -> Backend:
+    backend = import_module(f"drivers.{folder}.backend").BACKEND
+    if not isinstance(backend, Backend):
+        raise TypeError(f"drivers/{folder}/backend.py: BACKEND is not a Backend")
+    return backend
+
+
+_BACKENDS: list[Backend] = [_NONE, *(_entry(folder) for folder in FOLDERS)]
 
 #: Called after :func:`register` changed the registry (the rig rebuilds its unions).
 _listeners: list[Callable[[], None]] = []

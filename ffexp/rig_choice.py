@@ -15,6 +15,8 @@ from drivers import registry
 DRIVERS = registry.driver_names()
 #: ``--ft`` values: the F/T back-end of the rig.
 FT_SOURCES = registry.ft_types()
+#: ``--tracker`` values: the rig's target tracker.
+TRACKERS = registry.tracker_types()
 
 
 @dataclass(frozen=True)

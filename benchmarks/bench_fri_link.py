@@ -44,7 +44,8 @@ from pathlib import Path
 import numpy as np
 
 from drivers.base.types import CartesianCommand
-from drivers.fri.driver import FriRobot, FriSettings
+from drivers.fri.backend import FriRobotConfig
+from drivers.fri.driver import FriRobot
 from drivers.fri.types import FriMeasurement, FriQuality, FriState
 from ffexp.rt import realtime
 
@@ -56,9 +57,9 @@ def ffexp_exe() -> str:
 def bench(cycle_ms: int, seconds: float, rt: bool, mode: str, warmup_s: float,
           pin: bool = False) -> dict[str, object]:
     deadline = 0.0 if mode == "immediate" else 0.5
-    robot = FriRobot(FriSettings(robot_ip="127.0.0.1", local_port=0, local_host="127.0.0.1",
-                                 answer_deadline_cycles=deadline, connect_timeout_s=30.0,
-                                 cycle_timeout_s=5.0))
+    robot = FriRobot(FriRobotConfig(robot_ip="127.0.0.1", port=0, bind_host="127.0.0.1",
+                                    answer_deadline_cycles=deadline, connect_timeout_s=30.0,
+                                    cycle_timeout_s=5.0))
     _, port = robot.bind()
     n = round(seconds * 1000 / cycle_ms)
     settle = round(warmup_s * 1000 / cycle_ms)

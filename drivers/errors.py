@@ -101,8 +101,8 @@ class AddressError(DriverError):
 
     Args:
         where: where the address came from, as the caller names it: a file and
-            field (``"rigs/lwr4-lab.toml: robot.robot_ip"``) or a settings field
-            (``"FriSettings.robot_ip"``); never a command-line flag from
+            field (``"rigs/lwr4-lab.toml: robot.robot_ip"``) or a rig table's field
+            (``"robot.robot_ip"``); never a command-line flag from
             inside :mod:`drivers`.
         address: the address as given.
         message: what is wrong, in one line.

@@ -19,6 +19,7 @@ from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from drivers import registry
 from drivers.config import apply_overrides, load_model, read_toml
 from drivers.factory import Devices, open_devices
 from drivers.rig import Rig, load_rig, validate_rig
@@ -48,12 +49,12 @@ def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
     if choice.path is not None:
         return load_rig(choice.path, choice.overrides), str(choice.path)
     driver = choice.driver or "sim"
-    if driver not in DRIVERS:
-        raise ConfigError("--driver", driver, f"unknown driver; choose one of {', '.join(DRIVERS)}")
+    robot = registry.robot_for_driver(driver)
+    if robot is None:
+        names = ", ".join(registry.driver_names())
+        raise ConfigError("--driver", driver, f"unknown driver; choose one of {names}")
     source = f"<built-in {driver} rig>"
-    robot_type = {"sim": "sim", "fri": "fri1", "mock": "mock"}[driver]
-    ft_type = {"sim": "sim", "fri": "netft", "mock": "mock"}[driver]
-    data = {"robot": {"type": robot_type}, "ft": {"type": ft_type}}
+    data = {"robot": {"type": robot.type}, "ft": {"type": robot.default_ft}}
     return validate_rig(apply_overrides(data, choice.overrides), source), source
 
 

@@ -13,7 +13,7 @@ file) is neither: its trial's validity is :data:`UNKNOWN`, since what happened
 after its last record is not known.
 
 Sources (whichever the recording has): ``/robot/link_driver`` (the UDP
-driver's own cumulative counters, :mod:`ffexp.recording.topics_link`),
+driver's own cumulative counters, :mod:`drivers.fri.topics`),
 ``/robot/link`` (the KRC's miss counter), ``/robot/state`` (commanding,
 healthy), ``/runner/phase`` (when ALIGN was) and ``/events`` (the driver's
 message when nothing arrived).

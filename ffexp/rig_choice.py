@@ -1,6 +1,7 @@
 """Which rig a run uses, as the command line says it (light: imports nothing heavy).
 
 :mod:`ffexp.experiment` loads the rig; the CLI only builds a :class:`RigChoice`.
+The names come from :mod:`drivers.registry` (each back-end's entry is light).
 """
 
 from __future__ import annotations
@@ -8,10 +9,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from drivers import registry
+
 #: ``--driver`` shortcuts: the robot back-end of the rig when no ``--rig`` is given.
-DRIVERS = ("sim", "fri", "mock")
+DRIVERS = registry.driver_names()
 #: ``--ft`` values: the F/T back-end of the rig.
-FT_SOURCES = ("sim", "netft", "fri-estimate", "mock")
+FT_SOURCES = registry.ft_types()
+#: ``--tracker`` values: the rig's target tracker.
+TRACKERS = registry.tracker_types()
 
 
 @dataclass(frozen=True)
@@ -25,4 +30,4 @@ class RigChoice:
     path: Path | None = None
     overrides: tuple[str, ...] = ()
     driver: str | None = None
-    """With no ``path``: the robot back-end of the built-in rig (``sim``, ``fri``, ``mock``)."""
+    """With no ``path``: the robot back-end of the built-in rig (a ``--driver`` name)."""

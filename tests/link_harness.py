@@ -14,7 +14,8 @@ from pathlib import Path
 
 from drivers.emulate.faults import FaultSettings
 from drivers.emulate.fri_server import EmulatorSettings, EmulatorStats, FriEmulator
-from drivers.fri.driver import FriEstimateSensor, FriRobot, FriSettings
+from drivers.fri.backend import FriRobotConfig
+from drivers.fri.driver import FriEstimateSensor, FriRobot
 from drivers.fri.link import QualityThresholds
 from drivers.sim.scene import load_scene
 from drivers.sim.world import SimWorld
@@ -56,9 +57,9 @@ def emulated_run(tmp: Path, overrides: list[str], *, faults: FaultSettings | Non
     """
     protocol = load_run_protocol(PROTOCOL, overrides)
     scene = load_scene(ROOT / "data" / "scenes" / "paper.toml")
-    robot = FriRobot(FriSettings(robot_ip=robot_ip, local_port=0, local_host=LOCAL,
-                                 connect_timeout_s=connect_timeout_s,
-                                 cycle_timeout_s=cycle_timeout_s))
+    robot = FriRobot(FriRobotConfig(robot_ip=robot_ip, port=0, bind_host=LOCAL,
+                                    connect_timeout_s=connect_timeout_s,
+                                    cycle_timeout_s=cycle_timeout_s))
     sensor = FriEstimateSensor(robot)
     emu: FriEmulator | None = None
     path = tmp / "run.mcap"

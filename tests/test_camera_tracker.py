@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from drivers.camera import Calibration, CameraTracker, load_calibration, save_calibration
+from drivers.camera.backend import CameraTrackerConfig
 from drivers.camera.calibration import calibration_from_points, from_extrinsics
 from drivers.errors import ConfigError
-from drivers.rig import CameraTrackerConfig
 from drivers.sim.render import TargetRenderer, top_view
 
 SIZE = (1280, 720)

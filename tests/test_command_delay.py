@@ -13,8 +13,8 @@ from drivers.base import CartesianCommand, RobotDriver, RobotState
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.emulate.krc import CommandDelay
 from drivers.emulate.lockstep import SimRobot
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriRobot
-from drivers.fri.settings import FriSettings
 from drivers.sim.arm import ArmCommand
 from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld
@@ -61,8 +61,8 @@ def test_in_process_the_answer_to_k_acts_from_cycle_k_plus_d(paper_scene: Scene,
 def test_over_udp_in_lockstep_the_answer_to_k_acts_from_cycle_k_plus_d(
         paper_scene: Scene, d: int) -> None:
     world = SimWorld(_scene(paper_scene, d), seed=1)
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL,
-                                 connect_timeout_s=10.0, cycle_timeout_s=10.0))
+    robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL,
+                                    connect_timeout_s=10.0, cycle_timeout_s=10.0))
     emu: FriEmulator | None = None
     try:
         _, port = robot.bind()

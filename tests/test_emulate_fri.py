@@ -10,8 +10,8 @@ import pytest
 from drivers.base import ApplyStatus, CartesianCommand
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.emulate.lockstep import SimRobot
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriRobot
-from drivers.fri.settings import FriSettings
 from drivers.fri.types import FriMeasurement, FriState
 from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld
@@ -30,8 +30,8 @@ def _push(pose: np.ndarray) -> CartesianCommand:
 def test_lockstep_over_udp_matches_the_in_process_robot(paper_scene: Scene) -> None:
     """Same link states per cycle, and the same motion up to float32 rounding."""
     n = 160
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL,
-                                 connect_timeout_s=10.0, cycle_timeout_s=10.0))
+    robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL,
+                                    connect_timeout_s=10.0, cycle_timeout_s=10.0))
     emu: FriEmulator | None = None
     states: list[FriState] = []
     z_udp: list[float] = []

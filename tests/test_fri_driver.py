@@ -15,9 +15,10 @@ import pytest
 from drivers.base.types import ApplyStatus, CartesianCommand, RobotState
 from drivers.errors import AddressError, NotConnectedError, PacketEncodeError
 from drivers.fri import codec
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.command import CARTESIAN_FLAGS, MIRROR_FLAGS
 from drivers.fri.convert import LOCKSTEP_INDEX, LOCKSTEP_MARKER, measurement_to_arrays
-from drivers.fri.driver import FriEstimateSensor, FriRobot, FriSettings
+from drivers.fri.driver import FriEstimateSensor, FriRobot
 from drivers.fri.types import ControlMode, FriCommand, FriMeasurement, FriQuality, FriState
 from drivers.net.udp import bind_udp, parse_host_port
 
@@ -80,7 +81,7 @@ def cart() -> CartesianCommand:
 @pytest.fixture
 def link(request: pytest.FixtureRequest) -> Iterator[tuple[FriRobot, Krc]]:
     kw = getattr(request, "param", {})
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL, **kw))
+    robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL, **kw))
     krc = Krc(robot.bind())
     robot.connect()
     try:
@@ -247,7 +248,7 @@ def test_estimate_sensor_reads_est_ext_tcp_ft(link: tuple[FriRobot, Krc]) -> Non
 
 
 def test_not_connected_and_address_errors() -> None:
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0))
+    robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0))
     with pytest.raises(NotConnectedError, match=r"FRI robot: send\(\)"):
         robot.send(None)
     with pytest.raises(NotConnectedError, match=r"measurements\(\)"):
@@ -255,12 +256,12 @@ def test_not_connected_and_address_errors() -> None:
     with pytest.raises(
         AddressError, match=r"^rigs/lab\.toml: robot\.robot_ip: 10\.0\.0: not a valid IPv4"
     ):
-        FriRobot(FriSettings(robot_ip="10.0.0", source="rigs/lab.toml: robot"))
+        FriRobot(FriRobotConfig(robot_ip="10.0.0"), where="rigs/lab.toml: robot")
     taken = bind_udp("test", LOCAL, 0)
     try:
         port = taken.getsockname()[1]
-        r = FriRobot(FriSettings(robot_ip=LOCAL, local_port=port, local_host=LOCAL))
-        with pytest.raises(AddressError, match=rf"^FriSettings\.local_port: {LOCAL}:{port}: "):
+        r = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=port, bind_host=LOCAL))
+        with pytest.raises(AddressError, match=rf"^robot\.port: {LOCAL}:{port}: "):
             r.bind()
     finally:
         taken.close()
@@ -269,8 +270,8 @@ def test_not_connected_and_address_errors() -> None:
 
 
 def test_connect_timeout_names_the_address_and_port() -> None:
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL,
-                                 connect_timeout_s=0.05))
+    robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL,
+                                    connect_timeout_s=0.05))
     robot.connect()
     try:
         port = robot.local_address[1]

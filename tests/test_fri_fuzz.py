@@ -20,8 +20,9 @@ import numpy as np
 import pytest
 
 from drivers.fri import codec
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.convert import command_to_arrays, measurement_to_arrays
-from drivers.fri.driver import FriRobot, FriSettings
+from drivers.fri.driver import FriRobot
 from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement, FriState
 
 if TYPE_CHECKING:
@@ -84,7 +85,7 @@ def hostile(
 def test_driver_survives_and_counts_100k_hostile_datagrams() -> None:
     rng = np.random.default_rng(1)
     robot = FriRobot(
-        FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL, answer_deadline_cycles=0.0)
+        FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL, answer_deadline_cycles=0.0)
     )
     krc, foreign = udp(LOCAL), udp(FOREIGN)
     try:

@@ -21,6 +21,7 @@ from drivers.emulate.faults import FaultSettings
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.errors import AddressError, DriverTimeoutError, LinkLostError, NotConnectedError
 from drivers.fri import codec
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.command import MIRROR_FLAGS, copy_fri_command
 from drivers.fri.convert import (
     STRATEGY_INDEX,
@@ -28,7 +29,7 @@ from drivers.fri.convert import (
     command_to_arrays,
     measurement_to_arrays,
 )
-from drivers.fri.driver import FriEstimateSensor, FriRobot, FriSettings
+from drivers.fri.driver import FriEstimateSensor, FriRobot
 from drivers.fri.types import (
     ControlMode,
     FriCommand,
@@ -73,8 +74,8 @@ def link(
 ) -> Iterator[tuple[FriRobot, FriEmulator]]:
     world = SimWorld(scene, seed=seed)
     robot = FriRobot(
-        FriSettings(
-            robot_ip=LOCAL, local_port=0, local_host=LOCAL,
+        FriRobotConfig(
+            robot_ip=LOCAL, port=0, bind_host=LOCAL,
             answer_deadline_cycles=answer_deadline_cycles,
             connect_timeout_s=10.0, cycle_timeout_s=cycle_timeout_s,
         )
@@ -341,7 +342,7 @@ def wrench_only(fz: float) -> CartesianCommand:
 
 @contextmanager
 def driver(**kw: object) -> Iterator[tuple[FriRobot, FakeKrc]]:
-    settings = FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL, **kw)  # type: ignore[arg-type]
+    settings = FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL, **kw)  # type: ignore[arg-type]
     robot = FriRobot(settings)
     krc: FakeKrc | None = None
     try:
@@ -470,21 +471,21 @@ def test_a_robot_at_another_address_is_named_in_the_timeout() -> None:
 
 
 def test_use_before_connect_and_bad_addresses() -> None:
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0))
+    robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0))
     with pytest.raises(NotConnectedError):
         next(robot.measurements())
     with pytest.raises(NotConnectedError):
         robot.send(CartesianCommand())
     robot.close()
     with pytest.raises(AddressError, match=r"^rigs/x\.toml: robot\.robot_ip: 10\.0\.0: not a"):
-        FriRobot(FriSettings(robot_ip="10.0.0", source="rigs/x.toml: robot"))
+        FriRobot(FriRobotConfig(robot_ip="10.0.0"), where="rigs/x.toml: robot")
     busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     busy.bind((LOCAL, 0))
     try:
         port = busy.getsockname()[1]
-        r = FriRobot(FriSettings(robot_ip=LOCAL, local_port=port, local_host=LOCAL))
+        r = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=port, bind_host=LOCAL))
         with pytest.raises(AddressError,
-                           match=rf"^FriSettings\.local_port: 127\.0\.0\.1:{port}: cannot bind"):
+                           match=rf"^robot\.port: 127\.0\.0\.1:{port}: cannot bind"):
             r.connect()
         r.close()
     finally:

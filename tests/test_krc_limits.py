@@ -20,9 +20,9 @@ from drivers.emulate.krc import (
 )
 from drivers.emulate.lockstep import SimRobot, open_sim
 from drivers.errors import DriverError
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriRobot
 from drivers.fri.link import ERROR_SOFTWARE_LIMIT, KrcLink, LinkEvent, describe_error
-from drivers.fri.settings import FriSettings
 from drivers.fri.types import FriMeasurement, FriState
 from drivers.sim.arm import ArmMode
 from drivers.sim.scene import Scene, load_scene
@@ -146,8 +146,8 @@ def test_software_limits_are_validated(far_scene: Scene) -> None:
 
 def test_udp_emulator_stops_and_reports_the_error(far_scene: Scene) -> None:
     """Over FRI: the KRC leaves CMD with the error bits; the driver then names the joint."""
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL,
-                                 connect_timeout_s=10.0, cycle_timeout_s=10.0))
+    robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL,
+                                    connect_timeout_s=10.0, cycle_timeout_s=10.0))
     emu: FriEmulator | None = None
     msrs: list[tuple[FriState, int]] = []
     limits = list(SOFTWARE_LIMITS_DEG)

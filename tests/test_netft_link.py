@@ -10,11 +10,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from drivers.base.types import FtSamples, FtStatus
 from drivers.emulate.netft_box import NetFtServer
 from drivers.errors import AddressError, ConfigError, NotConnectedError
-from drivers.netft.client import NetFtClient, NetFtSettings
+from drivers.netft.backend import NetFtConfig
+from drivers.netft.client import NetFtClient
 from drivers.netft.codec import Calibration, RdtCommand, encode_rdt, encode_request
 
 if TYPE_CHECKING:
@@ -25,8 +27,8 @@ LOCAL = "127.0.0.1"
 CAL = Calibration.from_unit_codes(1_000_000, 1_000, 2, 4)
 
 
-def settings(port: int, cal: Calibration = CAL, **kw: object) -> NetFtSettings:
-    return NetFtSettings(
+def settings(port: int, cal: Calibration = CAL, **kw: object) -> NetFtConfig:
+    return NetFtConfig(
         host=LOCAL, port=port, counts_per_force=cal.counts_per_force,
         counts_per_torque=cal.counts_per_torque, force_unit_n=cal.force_unit,
         torque_unit_nm=cal.torque_unit, local_host=LOCAL, **kw,  # type: ignore[arg-type]
@@ -178,25 +180,31 @@ def test_requests_stop_bias_and_finite_bursts() -> None:
 
 
 def test_client_errors() -> None:
-    c = NetFtClient(NetFtSettings(host=LOCAL, port=9))
+    c = NetFtClient(NetFtConfig(host=LOCAL, port=9))
     with pytest.raises(NotConnectedError):
         c.samples()
     with pytest.raises(NotConnectedError):
         c.tare()
     with pytest.raises(AddressError, match=r"^rigs/lab\.toml: ft\.host: 999\.1\.1\.1: "):
-        NetFtClient(NetFtSettings(host="999.1.1.1", source="rigs/lab.toml: ft"))
-    with pytest.raises(ConfigError, match=r"^NetFtSettings\.counts_per_torque: must be positive"):
-        NetFtClient(NetFtSettings(host=LOCAL, counts_per_torque=0.0))
+        NetFtClient(NetFtConfig(host="999.1.1.1"), where="rigs/lab.toml: ft")
+    with pytest.raises(ConfigError, match=r"^rigs/lab\.toml: ft\.host: required"):
+        NetFtClient(NetFtConfig(), where="rigs/lab.toml: ft")
+    with pytest.raises(ValidationError, match=r"counts_per_torque"):
+        NetFtConfig(host=LOCAL, counts_per_torque=0.0)
+    unchecked = NetFtConfig.model_construct(host=LOCAL, counts_per_torque=0.0)
+    with pytest.raises(ConfigError, match=r"^ft\.counts_per_torque: must be positive"):
+        NetFtClient(unchecked)
 
 
 def test_the_fri_emulator_serves_the_simulated_sensor(paper_scene: Scene) -> None:
     # the emulator and the simulator are imported here: the client tests above need neither
     from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
-    from drivers.fri.driver import FriRobot, FriSettings
+    from drivers.fri.backend import FriRobotConfig
+    from drivers.fri.driver import FriRobot
     from drivers.sim.world import SimWorld
 
     world = SimWorld(paper_scene, seed=4)
-    robot = FriRobot(FriSettings(robot_ip=LOCAL, local_port=0, local_host=LOCAL))
+    robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL))
     server = NetFtServer.open(LOCAL, 0, on_bias=world.tare_ft)
     emu: FriEmulator | None = None
     client = NetFtClient(settings(server.address[1], Calibration()), clock=robot.now_ns)

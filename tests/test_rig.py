@@ -11,17 +11,13 @@ import numpy as np
 import pytest
 
 from drivers.base import ApplyStatus, CartesianCommand, ForceTorqueSensor, RobotDriver
+from drivers.emulate.backend import SimRobotConfig
 from drivers.errors import AddressError, ConfigError
 from drivers.factory import open_devices
-from drivers.rig import (
-    FriRobotConfig,
-    MockRobotConfig,
-    NetFtConfig,
-    Rig,
-    SimRobotConfig,
-    default_rig,
-    load_rig,
-)
+from drivers.fri.backend import FriRobotConfig
+from drivers.mock.backend import MockRobotConfig
+from drivers.netft.backend import NetFtConfig
+from drivers.rig import Rig, default_rig, load_rig
 
 RIGS = Path(__file__).resolve().parent.parent / "rigs"
 
@@ -217,14 +213,16 @@ def test_back_ends_are_imported_only_when_used(paper_scene_path: Path) -> None:
         f"open_devices(default_rig(), source='x', "
         f"scene_file=Path({str(paper_scene_path)!r})).close(); "
         "print(sorted(m for m in sys.modules if m.startswith(('drivers.fri.driver', "
-        "'drivers.netft.client', 'drivers.mock', 'drivers.emulate.fri_server'))))"
+        "'drivers.netft.client', 'drivers.mock.driver', 'drivers.emulate.fri_server', "
+        "'drivers.camera.tracker'))))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 
 
 def test_tracker_table_names_its_fields_and_resolves_the_calibration(tmp_path: Path) -> None:
-    from drivers.rig import CameraTrackerConfig, NoTracker
+    from drivers.camera.backend import CameraTrackerConfig
+    from drivers.registry import NoTracker
 
     assert isinstance(default_rig().tracker, NoTracker)
     path = write(tmp_path, '[tracker]\ntype = "camera"\ncalibration = "cal.toml"\n')
@@ -238,7 +236,9 @@ def test_tracker_table_names_its_fields_and_resolves_the_calibration(tmp_path: P
 
 
 def test_factory_opens_the_sim_tracker_and_checks_the_camera(paper_scene_path: Path) -> None:
-    from drivers.rig import CameraTrackerConfig, MockFt, SimTrackerConfig
+    from drivers.camera.backend import CameraTrackerConfig
+    from drivers.mock.backend import MockFt
+    from drivers.sim.backend import SimTrackerConfig
     from drivers.sim.tracker import SimTracker
 
     dev = open_devices(Rig(tracker=SimTrackerConfig()), source="r.toml",

@@ -23,13 +23,13 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
 
 import cv2
 import numpy as np
 
 from drivers.base.interfaces import TargetTracker
 from drivers.base.types import F64, NS_PER_S, TargetObservation
+from drivers.camera.backend import CameraTrackerConfig
 from drivers.camera.calibration import Calibration
 from drivers.camera.marker import aruco_dictionary, detector, find_marker
 from drivers.errors import ConfigError
@@ -85,7 +85,7 @@ class CameraTracker(TargetTracker):
     """The target's pose from a camera; see the module's docstring.
 
     Args:
-        cfg: the rig's ``[tracker]`` table (:class:`drivers.rig.CameraTrackerConfig`).
+        cfg: the rig's ``[tracker]`` table.
         calibration: pixels to the marker plane.
         clock: the robot's time now [ns] (``None`` or returning ``None``: monotonic time).
         where: names the source in messages (the rig file and ``tracker.source``).
@@ -94,7 +94,7 @@ class CameraTracker(TargetTracker):
 
     source_name = "camera"
 
-    def __init__(self, cfg: Any, calibration: Calibration, *,
+    def __init__(self, cfg: CameraTrackerConfig, calibration: Calibration, *,
                  clock: Callable[[], int | None] | None = None, where: str = "tracker.source",
                  on_frame: Callable[[TargetObservation], None] | None = None) -> None:
         try:

@@ -56,6 +56,7 @@ from drivers.base.guards import requires_open
 from drivers.base.interfaces import RobotDriver
 from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
 from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
+from drivers.fri.backend import FriRobotConfig
 from drivers.fri.codec import (
     CmdArrays,
     DecodeStats,
@@ -84,12 +85,11 @@ from drivers.fri.convert import (
 )
 from drivers.fri.estimate import FriEstimateSensor
 from drivers.fri.link import describe_error
-from drivers.fri.settings import FriSettings
 from drivers.fri.stats import LinkCounters, LinkStats, LinkWatch
 from drivers.fri.types import FriCommand, FriMeasurement, FriState, RemoteMeasurement
 from drivers.net.udp import bind_udp, resolve_ipv4
 
-__all__ = ["FriEstimateSensor", "FriRobot", "FriSettings", "LinkStats"]
+__all__ = ["FriEstimateSensor", "FriRobot", "FriRobotConfig", "LinkStats"]
 
 _WHAT = "FRI robot"
 
@@ -112,15 +112,18 @@ class FriRobot(RobotDriver):
     """The remote side of FRI 1.x over UDP (see the module docstring).
 
     Args:
-        settings: addresses, answer policy and timeouts.
+        settings: the rig's ``[robot]`` table: addresses, answer policy and timeouts.
+        where: how errors name that table (a rig file and table,
+            ``"rigs/lwr4-lab.toml: robot"``); an error names ``<where>.<field>``.
 
     Raises:
         AddressError: ``settings.robot_ip`` is not an address.
     """
 
-    def __init__(self, settings: FriSettings) -> None:
+    def __init__(self, settings: FriRobotConfig, where: str = "robot") -> None:
         self.settings = settings
-        self.robot_ip = resolve_ipv4(settings.where("robot_ip"), settings.robot_ip)
+        self.where = where
+        self.robot_ip = resolve_ipv4(f"{where}.robot_ip", settings.robot_ip)
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
         self._cond = threading.Condition()
@@ -180,7 +183,7 @@ class FriRobot(RobotDriver):
         """
         if self._sock is None:
             s = self.settings
-            self._sock = bind_udp(s.where("local_port"), s.local_host, s.local_port)
+            self._sock = bind_udp(f"{self.where}.port", s.bind_host, s.port)
             self._sock.settimeout(s.poll_s)
         host, port = self._sock.getsockname()[:2]
         return str(host), int(port)
@@ -264,7 +267,7 @@ class FriRobot(RobotDriver):
             yield robot_state_from_fri(m)
 
     def _timeout_error(self, first: bool, limit: float) -> DriverError:
-        port = self._sock.getsockname()[1] if self._sock is not None else self.settings.local_port
+        port = self._sock.getsockname()[1] if self._sock is not None else self.settings.port
         if first:
             return DriverTimeoutError(
                 f"no FRI measurement from {self.robot_ip} on UDP port {port} within "

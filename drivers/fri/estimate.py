@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,7 @@ __all__ = ["CAPACITY", "FriEstimateSensor", "MeasurementSource"]
 CAPACITY = 4096
 
 
+@runtime_checkable
 class MeasurementSource(Protocol):
     """Anything that calls a listener with every accepted FRI measurement (a ``FriRobot``)."""
 

@@ -4,8 +4,8 @@ Every failure a user can cause (a malformed or unresolvable address, a port
 out of range or in use, an address that is not local) becomes one
 :class:`~drivers.errors.AddressError` line. Each function takes ``field``:
 the caller's name for where the address came from (a rig file and field such
-as ``"rigs/lwr4-lab.toml: robot.robot_ip"``, or a settings field such as
-``"FriSettings.robot_ip"``); the message starts with it. Nothing here knows
+as ``"rigs/lwr4-lab.toml: robot.robot_ip"``, or a rig table's field such as
+``"robot.robot_ip"``); the message starts with it. Nothing here knows
 command-line flags.
 """
 

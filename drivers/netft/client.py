@@ -8,7 +8,7 @@ the socket: the whole queue is read each cycle), so it costs nothing when
 the box is silent. Only datagrams from the box's address count; the rest are
 dropped as foreign. Counts become N and N·m through the box's
 counts-per-force/torque and units (:class:`~drivers.netft.codec.Calibration`,
-from settings: read ``cfgcpf``/``cfgcpt``/``scfgfu``/``scfgtu`` from
+from the rig's ``[ft]`` table: read ``cfgcpf``/``cfgcpt``/``scfgfu``/``scfgtu`` from
 ``http://<box>/netftapi2.xml``). Status words are passed through unchanged
 (the runner aborts on the saturation bit 0x00020000).
 
@@ -35,7 +35,6 @@ import socket
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,8 +44,8 @@ from drivers.base.interfaces import ForceTorqueSensor
 from drivers.base.types import FtSamples
 from drivers.errors import ConfigError, NotConnectedError
 from drivers.net.udp import bind_udp, resolve_ipv4
+from drivers.netft.backend import NetFtConfig
 from drivers.netft.codec import (
-    DEFAULT_PORT,
     MAX_RECORDS,
     Calibration,
     RdtCommand,
@@ -59,58 +58,7 @@ from drivers.netft.codec import (
     rdt_seq_delta,
 )
 
-__all__ = ["NetFtClient", "NetFtSettings", "NetFtStats"]
-
-
-@dataclass(frozen=True)
-class NetFtSettings:
-    """Where the box is, how it scales and how the client paces its requests.
-
-    A plain dataclass with defaults (the rig-file factory fills it); units in
-    the names.
-
-    Args:
-        host: the box's address (IPv4 or host name).
-        port: its RDT port.
-        counts_per_force: counts per force unit (``cfgcpf`` in netftapi2.xml).
-        counts_per_torque: counts per torque unit (``cfgcpt``).
-        force_unit_n: newtons per force unit of the box (1.0 for N; ``scfgfu``).
-        torque_unit_nm: newton metres per torque unit (1.0 for N·m, 0.001 for
-            N·mm; ``scfgtu``).
-        sample_rate_hz: the box's internal sample rate (``ft_sequence`` step).
-        mode: ``realtime`` (0x0002) or ``buffered`` (0x0003).
-        local_host, local_port: local address (port 0: any free port).
-        reanchor_s: re-anchor the time stamps when they drift this far from the clock.
-        resend_s: repeat the start request while nothing has come for this long
-            (a request sent before the box was up is lost).
-        source: where these settings came from (a rig file and table, e.g.
-            ``"rigs/lwr4-lab.toml: ft"``); error messages name ``<source>.<field>``.
-    """
-
-    host: str
-    port: int = DEFAULT_PORT
-    counts_per_force: float = 1_000_000.0
-    counts_per_torque: float = 1_000_000.0
-    force_unit_n: float = 1.0
-    torque_unit_nm: float = 1.0
-    sample_rate_hz: float = 1000.0
-    mode: Literal["realtime", "buffered"] = "realtime"
-    local_host: str = "0.0.0.0"
-    local_port: int = 0
-    reanchor_s: float = 0.1
-    resend_s: float = 0.05
-    source: str = "NetFtSettings"
-
-    def where(self, field: str) -> str:
-        """``"<source>.<field>"``: how an error names one of these settings."""
-        return f"{self.source}.{field}"
-
-    @property
-    def calibration(self) -> Calibration:
-        """The scaling of counts to N and N·m (raises ValueError on a non-positive value)."""
-        return Calibration(
-            self.counts_per_force, self.counts_per_torque, self.force_unit_n, self.torque_unit_nm
-        )
+__all__ = ["NetFtClient", "NetFtConfig", "NetFtStats"]
 
 
 @dataclass(frozen=True)
@@ -135,22 +83,32 @@ class NetFtClient(ForceTorqueSensor):
     """The Net F/T box as a streaming sensor (see the module docstring).
 
     Args:
-        settings: address, calibration, rate.
+        settings: the rig's ``[ft]`` table: address, calibration, rate.
         clock: the time the samples are stamped in [ns] (``None`` while unknown).
+        default_host: the box's address when ``settings.host`` is not set (the
+            robot's: ``ffexp emulate`` serves both).
+        where: how errors name that table (a rig file and table,
+            ``"rigs/lwr4-lab.toml: ft"``); an error names ``<where>.<field>``.
     """
 
     def __init__(
-        self, settings: NetFtSettings, clock: Callable[[], int | None] | None = None
+        self, settings: NetFtConfig, clock: Callable[[], int | None] | None = None, *,
+        default_host: str | None = None, where: str = "ft",
     ) -> None:
         self.settings = settings
-        self.host = resolve_ipv4(settings.where("host"), settings.host)
+        self.where = where
+        host = settings.host if settings.host is not None else default_host
+        if host is None:
+            raise ConfigError(f"{where}.host", "", "required: the box's address")
+        self.host = resolve_ipv4(f"{where}.host", host)
         self.addr = (self.host, int(settings.port))
         for name in ("counts_per_force", "counts_per_torque", "force_unit_n", "torque_unit_nm",
                      "sample_rate_hz"):
             value = getattr(settings, name)
             if not (np.isfinite(value) and value > 0):
-                raise ConfigError(settings.where(name), "", f"must be positive, got {value}")
-        self._calibration = settings.calibration
+                raise ConfigError(f"{where}.{name}", "", f"must be positive, got {value}")
+        self._calibration = Calibration(settings.counts_per_force, settings.counts_per_torque,
+                                        settings.force_unit_n, settings.torque_unit_nm)
         self.clock: Callable[[], int | None] = clock or time.monotonic_ns
         self._sock: socket.socket | None = None
         self._running = False
@@ -179,7 +137,7 @@ class NetFtClient(ForceTorqueSensor):
         """Bind the local socket now (``start`` does it otherwise); returns its address."""
         if self._sock is None:
             s = self.settings
-            self._sock = bind_udp(s.where("local_port"), s.local_host, s.local_port)
+            self._sock = bind_udp(f"{self.where}.local_port", s.local_host, s.local_port)
             self._sock.setblocking(False)
         host, port = self._sock.getsockname()[:2]
         return str(host), int(port)

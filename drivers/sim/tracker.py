@@ -43,7 +43,7 @@ class SimTracker(TargetTracker):
         world: the simulated rig.
         clock: the robot's time now [ns] (the world's cycle times its period).
         rate_hz, latency_s, position_noise_m, yaw_noise_deg, dropout: the camera
-            (``[tracker]`` of the rig, :class:`drivers.rig.SimTrackerConfig`).
+            (``[tracker]`` of the rig, :class:`drivers.sim.backend.SimTrackerConfig`).
         seed: noise and dropout seed.
     """
 

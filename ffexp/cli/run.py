@@ -25,7 +25,7 @@ from ffexp.cli._common import (
 )
 from ffexp.cli.live import live_view, serve_after_run
 from ffexp.cli.progress import Steps
-from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
+from ffexp.rig_choice import DRIVERS, FT_SOURCES, TRACKERS, RigChoice
 
 if TYPE_CHECKING:
     from ffexp.campaign import CampaignEntry
@@ -38,7 +38,8 @@ RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardwa
 RIG_SET_HELP = "Override a rig field, e.g. --rig-set robot.port=49939 (repeatable)."
 DRIVER_HELP = f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
 WIDE_HELP = "Show every table column (default: as many as fit the terminal)."
-TRACKER_HELP = "Rig tracker.type: the target tracker that judges alignment (sim, camera, none)."
+TRACKER_HELP = ("Rig tracker.type: the target tracker that judges alignment "
+                f"({', '.join(TRACKERS)}).")
 CAMERA_HELP = ("Rig tracker.source with tracker.type camera: a device index, a video file "
                "or a stream URL (http://HOST:PORT/...).")
 RT_HELP = ("Real-time: SCHED_FIFO where the OS allows it (said when not), the garbage "

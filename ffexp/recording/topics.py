@@ -16,13 +16,18 @@ Encodings:
 Units are SI; wrenches ``[fx, fy, fz, tx, ty, tz]`` in the tool frame (TCF),
 measured wrench = what the environment exerts on the tool; 4x4 poses are
 stored row-major as 16 numbers; log times are integer nanoseconds.
+
+A back-end's extras (FRI's measurement, link and command packets) are recorded
+on the topics its folder defines (``drivers/fri/topics.py``); they are taken
+here from :mod:`drivers.registry`, so a new back-end edits no ``ffexp`` module.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from ffexp.recording import topics_link, topics_scene, topics_target
+from drivers import registry
+from ffexp.recording import topics_scene, topics_target
 from ffexp.recording.schema import (
     QUAT_SCHEMA,
     TIME_SCHEMA,
@@ -35,45 +40,7 @@ from ffexp.recording.schema import (
 
 F = FieldSpec
 
-MEASUREMENT = MessageSpec(
-    "ffexp_msgs/msg/Measurement",
-    (
-        F("msr_jnt_pos", "float64", 7, "rad", "measured joint positions"),
-        F("cmd_jnt_pos", "float64", 7, "rad", "commanded joint positions"),
-        F("cmd_jnt_pos_fri_offset", "float64", 7, "rad"),
-        F("msr_cart_pos", "float64", 16, "m", "measured TCP pose, 4x4 row-major"),
-        F("cmd_cart_pos", "float64", 16, "m", "commanded TCP pose, 4x4 row-major"),
-        F("msr_jnt_trq", "float64", 7, "N m"),
-        F("est_ext_jnt_trq", "float64", 7, "N m", "external joint torques (KRC estimate)"),
-        F("est_ext_tcp_ft", "float64", 6, "N, N m", "external TCP wrench (KRC estimate), TCF"),
-        F("jacobian", "float64", 42, "", "6x7 row-major, rows vx vy vz wx wy wz (TCF)"),
-        F("mass_matrix", "float64", 49, "kg m^2", "7x7 joint-space inertia"),
-        F("gravity", "float64", 7, "N m", "gravity joint torques"),
-        F("temperature", "float64", 7, "degC"),
-        F("seq", "uint32", 1, "", "KRC send sequence counter"),
-        F("state", "int32", 1, "", "FRI state: -1 invalid, 0 off, 1 mon, 2 cmd"),
-        F("quality", "int32", 1, "", "FRI quality: 0 unacceptable, 1 bad, 2 ok, 3 perfect"),
-        F("control", "int32", 1, "", "control mode: 1 joint pos, 2 cart imp, 3 joint imp"),
-        F("power", "uint32"),
-        F("error", "uint32"),
-        F("warning", "uint32"),
-    ),
-    "One FRI measurement packet per controller cycle.",
-)
 
-LINK = MessageSpec(
-    "ffexp_msgs/msg/LinkStats",
-    (
-        F("answer_rate", "float64", 1, "", "fraction of cycles answered (last 100)"),
-        F("latency_s", "float64", 1, "s"),
-        F("jitter_s", "float64", 1, "s"),
-        F("miss_rate", "float64", 1, ""),
-        F("miss_counter", "uint32"),
-        F("state", "int32"),
-        F("quality", "int32"),
-    ),
-    "FRI link statistics per cycle.",
-)
 
 #: Joints a ``/robot/state`` message holds (a robot with fewer pads with NaN).
 STATE_JOINTS = 7
@@ -139,22 +106,6 @@ CONTROL = MessageSpec(
     "Controller terms per cycle.",
 )
 
-COMMAND = MessageSpec(
-    "ffexp_msgs/msg/Command",
-    (
-        F("jnt_pos", "float64", 7, "rad"),
-        F("cart_pos", "float64", 16, "m", "4x4 row-major"),
-        F("add_jnt_trq", "float64", 7, "N m"),
-        F("add_tcp_ft", "float64", 6, "N, N m", "superposed wrench, TCF"),
-        F("jnt_stiffness", "float64", 7, "N m/rad"),
-        F("jnt_damping", "float64", 7, "", "normalised"),
-        F("cart_stiffness", "float64", 6, "N/m, N m/rad", "x y z rx ry rz"),
-        F("cart_damping", "float64", 6, "", "normalised, x y z rx ry rz"),
-        F("flags", "uint32", 1, "", "FRI cmdFlags"),
-        F("control", "int32", 1, "", "requested control mode"),
-    ),
-    "The FRI command packet sent in answer to each measurement (what the KRC takes).",
-)
 
 INTENT = MessageSpec(
     "ffexp_msgs/msg/CartesianCommand",
@@ -201,22 +152,17 @@ TRUTH = MessageSpec(
 )
 
 
-CDR_TOPICS: dict[str, CdrTopic] = {
-    t.topic: t
-    for t in (
-        CdrTopic("/robot/state", ROBOT_STATE, "every controller cycle"),
-        CdrTopic("/robot/measurement", MEASUREMENT, "every controller cycle, FRI back-ends"),
-        CdrTopic("/robot/link", LINK, "every controller cycle, FRI back-ends"),
-        CdrTopic("/robot/command", COMMAND, "every controller cycle, FRI back-ends"),
-        CdrTopic("/control/command", INTENT, "every controller cycle"),
-        CdrTopic("/control/admittance", ADMITTANCE, "every cycle in ALIGN, admittance method"),
-        CdrTopic("/ft/raw", FT_SAMPLE, "every sensor sample"),
-        CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
-        CdrTopic("/control/terms", CONTROL, "every controller cycle"),
-        CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
-        *topics_link.CDR, *topics_target.CDR, *topics_scene.CDR,
-    )
-}
+#: The core topics before the back-ends' (kept in this order: ``ffexp topics`` lists them so).
+_CDR_HEAD = (CdrTopic("/robot/state", ROBOT_STATE, "every controller cycle"),)
+_CDR_CORE = (
+    CdrTopic("/control/command", INTENT, "every controller cycle"),
+    CdrTopic("/control/admittance", ADMITTANCE, "every cycle in ALIGN, admittance method"),
+    CdrTopic("/ft/raw", FT_SAMPLE, "every sensor sample"),
+    CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
+    CdrTopic("/control/terms", CONTROL, "every controller cycle"),
+    CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
+    *topics_target.CDR, *topics_scene.CDR,
+)
 
 LOG_LEVELS = {"DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
 
@@ -255,84 +201,103 @@ FRICTION_RESULT_SCHEMA: dict[str, Any] = {
     "required": ["mu", "mu_std", "mu_upper_bound", "significant", "decel_mps2"],
 }
 
-JSON_TOPICS: dict[str, JsonTopic] = {
-    t.topic: t
-    for t in (
-        JsonTopic(
-            "/events",
-            "foxglove.Log",
-            {
-                "title": "foxglove.Log",
-                "type": "object",
-                "properties": {
-                    "timestamp": TIME_SCHEMA,
-                    "level": {"type": "integer", "description": "1 debug .. 5 fatal"},
-                    "message": {"type": "string"},
-                    "name": {"type": "string", "description": "event kind"},
-                    "file": {"type": "string"},
-                    "line": {"type": "integer"},
-                },
+_JSON_CORE = (
+    JsonTopic(
+        "/events",
+        "foxglove.Log",
+        {
+            "title": "foxglove.Log",
+            "type": "object",
+            "properties": {
+                "timestamp": TIME_SCHEMA,
+                "level": {"type": "integer", "description": "1 debug .. 5 fatal"},
+                "message": {"type": "string"},
+                "name": {"type": "string", "description": "event kind"},
+                "file": {"type": "string"},
+                "line": {"type": "integer"},
             },
-            "on event",
-            "Phase changes, contact made/broken, aborts, faults; name = event kind.",
-        ),
-        JsonTopic(
-            "/tf",
-            "foxglove.FrameTransform",
-            {
-                "title": "foxglove.FrameTransform",
-                "type": "object",
-                "properties": {
-                    "timestamp": TIME_SCHEMA,
-                    "parent_frame_id": {"type": "string"},
-                    "child_frame_id": {"type": "string"},
-                    "translation": VEC3_SCHEMA,
-                    "rotation": QUAT_SCHEMA,
-                },
+        },
+        "on event",
+        "Phase changes, contact made/broken, aborts, faults; name = event kind.",
+    ),
+    JsonTopic(
+        "/tf",
+        "foxglove.FrameTransform",
+        {
+            "title": "foxglove.FrameTransform",
+            "type": "object",
+            "properties": {
+                "timestamp": TIME_SCHEMA,
+                "parent_frame_id": {"type": "string"},
+                "child_frame_id": {"type": "string"},
+                "translation": VEC3_SCHEMA,
+                "rotation": QUAT_SCHEMA,
             },
-            "every 20 ms of run time per frame",
-            "Tool (TCP) in the robot base; target (sim truth), target_tracked (the tracker) "
-            "or target_nominal (the start placement); link1..link7 of the arm, each in its "
-            "parent; for the 3-D panel with /scene/rig.",
-        ),
-        JsonTopic(
-            "/runner/phase",
-            "ffexp.Phase",
-            {
-                "title": "ffexp.Phase",
-                "type": "object",
-                "properties": {
-                    "phase": {"type": "string"},
-                    "phase_id": {"type": "integer", "description": "ffexp.contracts.Phase"},
-                    "reason": {"type": "string", "description": "one line for people"},
-                    "stop_reason": {
-                        "type": "string",
-                        "description": "ffexp.contracts.StopReason value on DONE/ABORT, else ''",
-                    },
-                    "aligned": {"type": "boolean", "description": "the run ended aligned"},
+        },
+        "every 20 ms of run time per frame",
+        "Tool (TCP) in the robot base; target (sim truth), target_tracked (the tracker) "
+        "or target_nominal (the start placement); link1..link7 of the arm, each in its "
+        "parent; for the 3-D panel with /scene/rig.",
+    ),
+    JsonTopic(
+        "/runner/phase",
+        "ffexp.Phase",
+        {
+            "title": "ffexp.Phase",
+            "type": "object",
+            "properties": {
+                "phase": {"type": "string"},
+                "phase_id": {"type": "integer", "description": "ffexp.contracts.Phase"},
+                "reason": {"type": "string", "description": "one line for people"},
+                "stop_reason": {
+                    "type": "string",
+                    "description": "ffexp.contracts.StopReason value on DONE/ABORT, else ''",
                 },
+                "aligned": {"type": "boolean", "description": "the run ended aligned"},
             },
-            "on phase change",
-            "Runner phase: CONNECT, APPROACH, ALIGN, DONE, ABORT, with the typed stop reason.",
-        ),
-        JsonTopic(
-            "/friction/track",
-            "ffexp.friction.TrackSample",
-            FRICTION_TRACK_SCHEMA,
-            "every video frame (friction recordings only)",
-            "Tracked target per frame of `ffexp friction estimate`: pixel centre, "
-            "metric position, position s_m along the motion; log time = frame time.",
-        ),
-        JsonTopic(
-            "/friction/result",
-            "ffexp.friction.Result",
-            FRICTION_RESULT_SCHEMA,
-            "once, at the end of the fit window (friction recordings only)",
-            "The friction estimate: mu, its 1-sigma, the deceleration and the fit window.",
-        ),
-        *topics_link.JSON, *topics_target.JSON, *topics_scene.JSON,
-    )
-}
+        },
+        "on phase change",
+        "Runner phase: CONNECT, APPROACH, ALIGN, DONE, ABORT, with the typed stop reason.",
+    ),
+    JsonTopic(
+        "/friction/track",
+        "ffexp.friction.TrackSample",
+        FRICTION_TRACK_SCHEMA,
+        "every video frame (friction recordings only)",
+        "Tracked target per frame of `ffexp friction estimate`: pixel centre, "
+        "metric position, position s_m along the motion; log time = frame time.",
+    ),
+    JsonTopic(
+        "/friction/result",
+        "ffexp.friction.Result",
+        FRICTION_RESULT_SCHEMA,
+        "once, at the end of the fit window (friction recordings only)",
+        "The friction estimate: mu, its 1-sigma, the deceleration and the fit window.",
+    ),
+    *topics_target.JSON, *topics_scene.JSON,
+)
+
+CDR_TOPICS: dict[str, CdrTopic] = {}
+JSON_TOPICS: dict[str, JsonTopic] = {}
+
+
+def _collect() -> None:
+    """Fill :data:`CDR_TOPICS` and :data:`JSON_TOPICS` (in place) from the core topics and
+    the back-ends' (:mod:`drivers.registry`); again whenever the registry changes."""
+    cdr: tuple[CdrTopic, ...] = (*_CDR_HEAD, *registry.backend_cdr_topics(), *_CDR_CORE)
+    json_topics: tuple[JsonTopic, ...] = (*_JSON_CORE, *registry.backend_json_topics())
+    names = [t.topic for t in cdr] + [t.topic for t in json_topics]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ValueError(f"recording topics defined twice: {', '.join(twice)}")
+    CDR_TOPICS.clear()
+    CDR_TOPICS.update((t.topic, t) for t in cdr)
+    JSON_TOPICS.clear()
+    JSON_TOPICS.update((t.topic, t) for t in json_topics)
+
+
+_collect()
+registry.on_change(_collect)
 
 
 def describe() -> str:

@@ -1,0 +1,185 @@
+"""What a back-end contributes to a rig: the config model of each device it offers, how that
+device opens, and the recording topics of its extras.
+
+A back-end is one folder, ``drivers/<name>/``; its ``backend.py`` holds one
+:class:`Backend` (``BACKEND``) and :mod:`drivers.registry` lists it in one line.
+From those entries the registry builds the rig's discriminated unions
+(``[robot]``, ``[ft]``, ``[tracker]``, chosen by ``type``), the factory's
+dispatch, the ``--driver`` and ``--ft`` names and the back-end topics of the
+recording.
+
+A device's config model (a :class:`DeviceConfig` with ``type: Literal[...]``)
+is the rig table as the user writes it and is what its driver takes: no second
+settings class, no field renamed on the way down. Errors name the rig's field
+(``rigs/lwr4-lab.toml: robot.port: ...``). A field of type ``Path`` is
+relative to the rig file (:func:`drivers.rig.load_rig` resolves it).
+
+``backend.py`` stays light (pydantic models and these entries; no numpy, no
+driver): each ``open`` imports its driver when it is called, so a run imports
+only the back-ends its rig uses, and ``topics`` imports the topic definitions
+when the recording asks for them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
+
+from drivers.config import StrictModel
+
+if TYPE_CHECKING:  # (annotations only: this module stays light, without numpy)
+    from drivers.base.interfaces import ForceTorqueSensor, RobotDriver, TargetTracker
+    from drivers.base.topics import CdrTopic, JsonTopic
+
+__all__ = [
+    "Backend",
+    "DeviceConfig",
+    "FtBackend",
+    "OpenContext",
+    "OpenedRobot",
+    "OpenedSensor",
+    "OpenedTracker",
+    "RobotBackend",
+    "TrackerBackend",
+]
+
+
+class DeviceConfig(StrictModel):
+    """A rig table (``[robot]``, ``[ft]`` or ``[tracker]``); ``type`` names its back-end.
+
+    Each back-end's model narrows ``type`` to its ``Literal`` name.
+    """
+
+    type: str
+
+
+C = TypeVar("C", bound=DeviceConfig)
+
+
+@dataclass(frozen=True)
+class OpenContext:
+    """What every ``open`` gets besides its own table."""
+
+    source: str
+    """The rig file (or ``"<built-in sim rig>"``): errors name ``<source>: <table>.<field>``."""
+    scene_file: Path
+    """The protocol's scene (a simulator uses it unless its rig table names one)."""
+    scene_overrides: tuple[str, ...] = ()
+    """``dotted.key=value`` overrides of the scene."""
+    seed: int = 0
+    """The run's seed (world and mock noise)."""
+
+    def where(self, table: str) -> str:
+        """How errors name a table of this rig: ``"<source>: <table>"``."""
+        return f"{self.source}: {table}"
+
+
+@dataclass
+class OpenedRobot:
+    """An opened robot and what its sensor, its tracker and the recording need from it."""
+
+    robot: RobotDriver
+    clock: Callable[[], int | None]
+    """The robot's time [ns] (``None`` while unknown): what its F/T samples are stamped in."""
+    host: str | None = None
+    """The robot's address: an F/T box on the same host defaults to it (``ffexp emulate``)."""
+    metadata: dict[str, str] = field(default_factory=dict)
+    """Run metadata (``driver`` first: the robot's rig type)."""
+    attachments: list[tuple[str, bytes]] = field(default_factory=list)
+    """Files the recording attaches (name, bytes): the sim's scene TOML."""
+    notice: str | None = None
+    """One line for the user (where a link listens); the sensor's note is appended."""
+
+
+@dataclass
+class OpenedSensor:
+    """An opened F/T sensor, its run metadata and its note for the robot's notice."""
+
+    sensor: ForceTorqueSensor
+    metadata: dict[str, str] = field(default_factory=dict)
+    note: str = ""
+    """How the user's notice names it (``"Net F/T at 127.0.0.1:49152"``); empty: by type."""
+
+
+@dataclass
+class OpenedTracker:
+    """An opened target tracker (``None``: the rig has none) and its run metadata."""
+
+    tracker: TargetTracker | None
+    metadata: dict[str, str] = field(default_factory=dict)
+
+
+def _any_robot(cfg: Any, robot: DeviceConfig) -> str | None:
+    return None
+
+
+@dataclass(frozen=True)
+class RobotBackend(Generic[C]):
+    """A ``[robot] type``: its config model and how it opens."""
+
+    config: type[C]
+    """The ``[robot]`` table's model (``type: Literal["<name>"]``); the driver's argument."""
+    open: Callable[[C, OpenContext], OpenedRobot]
+    """Build the robot (UDP links bind their port at once: a port in use is one error line)."""
+    driver: str
+    """Its ``--driver`` name (the built-in rig of the command line)."""
+    default_ft: str
+    """The ``[ft] type`` of the built-in rig ``--driver`` builds."""
+
+    @property
+    def type(self) -> str:
+        """The ``type`` the rig names it by."""
+        return _type_of(self.config)
+
+
+@dataclass(frozen=True)
+class FtBackend(Generic[C]):
+    """An ``[ft] type``: its config model, how it opens beside a robot, which robots suit it."""
+
+    config: type[C]
+    open: Callable[[C, OpenContext, OpenedRobot], OpenedSensor]
+    check: Callable[[C, DeviceConfig], str | None] = _any_robot
+    """One line if this sensor cannot go with the rig's robot (its table), else ``None``."""
+
+    @property
+    def type(self) -> str:
+        """The ``type`` the rig names it by."""
+        return _type_of(self.config)
+
+
+@dataclass(frozen=True)
+class TrackerBackend(Generic[C]):
+    """A ``[tracker] type``: its config model, how it opens beside a robot."""
+
+    config: type[C]
+    open: Callable[[C, OpenContext, OpenedRobot], OpenedTracker]
+    check: Callable[[C, DeviceConfig], str | None] = _any_robot
+    """One line if this tracker cannot go with the rig's robot (its table), else ``None``."""
+
+    @property
+    def type(self) -> str:
+        """The ``type`` the rig names it by."""
+        return _type_of(self.config)
+
+
+@dataclass(frozen=True)
+class Backend:
+    """One back-end folder's entry in :mod:`drivers.registry`."""
+
+    name: str
+    """The folder (``"fri"``), for messages."""
+    robots: tuple[RobotBackend[Any], ...] = ()
+    sensors: tuple[FtBackend[Any], ...] = ()
+    trackers: tuple[TrackerBackend[Any], ...] = ()
+    topics: Callable[[], Sequence[CdrTopic | JsonTopic]] = tuple
+    """The recording topics of its extras (:meth:`drivers.base.types.Extras.topics`
+    names them), imported when called."""
+
+
+def _type_of(model: type[DeviceConfig]) -> str:
+    default = model.model_fields["type"].default
+    if not isinstance(default, str):
+        raise TypeError(f"{model.__name__}: type needs a Literal default (its rig name)")
+    return default

@@ -1,0 +1,63 @@
+"""The ``sim`` robot's entry: the simulated LWR4+ in-process, the lockstep KRC of
+:mod:`drivers.emulate.lockstep` in front of the MuJoCo world (:mod:`drivers.sim`),
+without sockets.
+
+It lives here because the lockstep KRC combines the simulator with FRI's link
+(this package is the one that may). Its F/T sensor and tracker (``[ft] type =
+"sim"``, ``[tracker] type = "sim"``) are the simulator's: :mod:`drivers.sim.backend`.
+Light: the world is imported when a rig opens it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from drivers.base.backend import Backend, DeviceConfig, OpenContext, OpenedRobot, RobotBackend
+
+__all__ = ["BACKEND", "SimRobotConfig"]
+
+
+class SimRobotConfig(DeviceConfig):
+    """The simulated LWR4+ in-process (lockstep, no sockets)."""
+
+    type: Literal["sim"] = "sim"
+    start_cycles: Annotated[int, Field(ge=0)] = 100
+    """Answered cycles before the link enters command mode (a friStart script: 100)."""
+    max_consecutive_misses: Annotated[int, Field(ge=1)] = 5
+    """Cycles without an answer in a row that end command mode."""
+    scene_file: Path | None = None
+    """Scene TOML (relative to the rig file); default: the protocol's scene."""
+    wire_precision: bool = False
+    """Round the measurement and the command through the FRI codec, as the UDP link
+    does: with ``ft.type = "fri-estimate"`` a run equals the same run in lockstep
+    over UDP against ``ffexp emulate``, bit for bit."""
+
+
+def _open_robot(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
+    from drivers.emulate.lockstep import SimRobot
+    from drivers.sim.scene import load_scene
+    from drivers.sim.world import SimWorld
+
+    path = cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
+    scene = load_scene(path, ctx.scene_overrides)
+    world = SimWorld(scene, seed=ctx.seed)
+    robot = SimRobot(world, start_cycles=cfg.start_cycles,
+                     max_consecutive_misses=cfg.max_consecutive_misses,
+                     wire_precision=cfg.wire_precision)
+    meta = {
+        "driver": "sim",
+        "scene_file": str(path),
+        "scene_json": scene.model_dump_json(),
+        "wire_precision": str(cfg.wire_precision).lower(),
+    }
+    return OpenedRobot(robot, lambda: world.cycle * world.cycle_ns, None, meta,
+                       [(path.name, path.read_bytes())])
+
+
+BACKEND = Backend(
+    "emulate",
+    robots=(RobotBackend(SimRobotConfig, _open_robot, driver="sim", default_ft="sim"),),
+)

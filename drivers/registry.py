@@ -1,0 +1,230 @@
+"""The back-ends a rig may name: one line per back-end folder.
+
+Each folder ``drivers/<name>/`` contributes one :class:`~drivers.base.backend.Backend`
+(``BACKEND`` in its ``backend.py``): the config model and ``open`` of every device
+it offers, its ``--driver`` name, and the recording topics of its extras. From
+these entries come the rig's discriminated unions (:mod:`drivers.rig`), the
+factory's dispatch (:mod:`drivers.factory`), the command line's ``--driver``
+and ``--ft`` names and the back-end topics of the recording
+(``ffexp.recording.topics``). The ``none`` tracker (no tracker) is built in; the
+``sim`` robot's entry is in :mod:`drivers.emulate` (the lockstep KRC in front of
+the simulator's world), its sensor's and tracker's in :mod:`drivers.sim`.
+
+:func:`register` adds a back-end at run time (a plug-in, a test's toy back-end);
+the rig's unions are rebuilt from the registry then.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from importlib import import_module
+from typing import TYPE_CHECKING, Annotated, Any, Literal
+
+from pydantic import Field
+
+from drivers.base.backend import (
+    Backend,
+    DeviceConfig,
+    FtBackend,
+    OpenContext,
+    OpenedRobot,
+    OpenedTracker,
+    RobotBackend,
+    TrackerBackend,
+)
+
+if TYPE_CHECKING:
+    from drivers.base.topics import CdrTopic, JsonTopic
+
+__all__ = [
+    "FOLDERS",
+    "NoTracker",
+    "backend_cdr_topics",
+    "backend_json_topics",
+    "backends",
+    "driver_names",
+    "ft_backend",
+    "ft_types",
+    "on_change",
+    "register",
+    "registered",
+    "robot_backend",
+    "robot_for_driver",
+    "robot_types",
+    "tracker_backend",
+    "tracker_types",
+    "union",
+    "unregister",
+]
+
+
+class NoTracker(DeviceConfig):
+    """No target tracker: the verdict comes from ground truth or the observer."""
+
+    type: Literal["none"] = "none"
+
+
+def _open_none(cfg: NoTracker, ctx: OpenContext, robot: OpenedRobot) -> OpenedTracker:
+    return OpenedTracker(None)
+
+
+_NONE = Backend("none", trackers=(TrackerBackend(NoTracker, _open_none),))
+
+#: The shipped back-ends, one line per folder ``drivers/<name>/`` (its ``backend.py``
+#: holds ``BACKEND``); the order is the order of the types in messages and schemas.
+FOLDERS = (
+    "emulate",  # [robot] sim: the lockstep KRC in front of the simulator's world
+    "sim",  # [ft] sim, [tracker] sim: the simulator's sensor and camera model
+    "netft",  # [ft] netft: an ATI Net F/T box
+    "fri",  # [robot] fri1: a KUKA KRC2 LR over FRI 1.x; [ft] fri-estimate
+    "mock",  # [robot] mock, [ft] mock: scripted, for tests and dry runs
+    "camera",  # [tracker] camera: a fiducial marker seen by a camera
+)
+
+
+def _entry(folder: str) -> Backend:
+    backend = import_module(f"drivers.{folder}.backend").BACKEND
+    if not isinstance(backend, Backend):
+        raise TypeError(f"drivers/{folder}/backend.py: BACKEND is not a Backend")
+    return backend
+
+
+_BACKENDS: list[Backend] = [_NONE, *(_entry(folder) for folder in FOLDERS)]
+
+#: Called after :func:`register` changed the registry (the rig rebuilds its unions).
+_listeners: list[Callable[[], None]] = []
+
+
+def backends() -> tuple[Backend, ...]:
+    """The registered back-ends, in order."""
+    return tuple(_BACKENDS)
+
+
+def _robots() -> dict[str, RobotBackend[Any]]:
+    return {r.type: r for b in _BACKENDS for r in b.robots}
+
+
+def _sensors() -> dict[str, FtBackend[Any]]:
+    return {s.type: s for b in _BACKENDS for s in b.sensors}
+
+
+def _trackers() -> dict[str, TrackerBackend[Any]]:
+    return {t.type: t for b in _BACKENDS for t in b.trackers}
+
+
+def robot_types() -> tuple[str, ...]:
+    """The ``[robot] type`` names."""
+    return tuple(_robots())
+
+
+def ft_types() -> tuple[str, ...]:
+    """The ``[ft] type`` names (the command line's ``--ft``)."""
+    return tuple(_sensors())
+
+
+def tracker_types() -> tuple[str, ...]:
+    """The ``[tracker] type`` names."""
+    return tuple(_trackers())
+
+
+def driver_names() -> tuple[str, ...]:
+    """The command line's ``--driver`` names (one per robot back-end)."""
+    return tuple(r.driver for r in _robots().values())
+
+
+def robot_backend(type_: str) -> RobotBackend[Any]:
+    """The robot back-end a rig's ``[robot] type`` names (KeyError if none)."""
+    return _robots()[type_]
+
+
+def ft_backend(type_: str) -> FtBackend[Any]:
+    """The F/T back-end a rig's ``[ft] type`` names (KeyError if none)."""
+    return _sensors()[type_]
+
+
+def tracker_backend(type_: str) -> TrackerBackend[Any]:
+    """The tracker back-end a rig's ``[tracker] type`` names (KeyError if none)."""
+    return _trackers()[type_]
+
+
+def robot_for_driver(driver: str) -> RobotBackend[Any] | None:
+    """The robot back-end of a ``--driver`` name, or ``None``."""
+    return next((r for r in _robots().values() if r.driver == driver), None)
+
+
+def union(table: Literal["robot", "ft", "tracker"]) -> Any:
+    """The discriminated union (on ``type``) of the config models of a rig table."""
+    kinds: dict[str, Callable[[], Mapping[str, Any]]] = {
+        "robot": _robots, "ft": _sensors, "tracker": _trackers}
+    models = tuple(k.config for k in kinds[table]().values())
+    if len(models) == 1:
+        return models[0]
+    # a Union built at run time from the registered models: pydantic reads it like a
+    # written-out ``A | B | C`` with ``Field(discriminator="type")``
+    return Annotated[_union_of(models), Field(discriminator="type")]
+
+
+def _union_of(models: tuple[type[DeviceConfig], ...]) -> Any:
+    from typing import Union
+
+    return Union[models]  # noqa: UP007 (a tuple of types: no ``|`` spelling)
+
+
+def backend_cdr_topics() -> tuple[CdrTopic, ...]:
+    """The recording topics the back-ends define for their extras (CDR)."""
+    from drivers.base.topics import CdrTopic
+
+    return tuple(t for b in _BACKENDS for t in b.topics() if isinstance(t, CdrTopic))
+
+
+def backend_json_topics() -> tuple[JsonTopic, ...]:
+    """The recording topics the back-ends define for their extras (JSON)."""
+    from drivers.base.topics import JsonTopic
+
+    return tuple(t for b in _BACKENDS for t in b.topics() if isinstance(t, JsonTopic))
+
+
+def _check_new(backend: Backend) -> None:
+    for kinds, have in ((backend.robots, _robots()), (backend.sensors, _sensors()),
+                        (backend.trackers, _trackers())):
+        for kind in kinds:
+            if kind.type in have:
+                raise ValueError(f"back-end {backend.name!r}: type {kind.type!r} is taken")
+    drivers = driver_names()
+    for robot in backend.robots:
+        if robot.driver in drivers:
+            raise ValueError(f"back-end {backend.name!r}: --driver {robot.driver!r} is taken")
+
+
+def register(backend: Backend) -> None:
+    """Add a back-end (its types must be new); the rig's unions include it from now on."""
+    _check_new(backend)
+    _BACKENDS.append(backend)
+    _changed()
+
+
+def unregister(backend: Backend) -> None:
+    """Remove a back-end :func:`register` added."""
+    _BACKENDS.remove(backend)
+    _changed()
+
+
+@contextmanager
+def registered(backend: Backend) -> Iterator[Backend]:
+    """:func:`register` for the duration of a ``with`` block (tests)."""
+    register(backend)
+    try:
+        yield backend
+    finally:
+        unregister(backend)
+
+
+def on_change(callback: Callable[[], None]) -> None:
+    """Call ``callback()`` whenever :func:`register` or :func:`unregister` changed the registry."""
+    _listeners.append(callback)
+
+
+def _changed() -> None:
+    for callback in _listeners:
+        callback()

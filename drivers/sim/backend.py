@@ -1,0 +1,102 @@
+"""The simulator back-end's entry: the ``sim`` F/T sensor (the world's Mini45 model) and the
+``sim`` target tracker (the world's target seen like a camera), both read from the world of
+the ``sim`` robot.
+
+The ``sim`` robot itself is the lockstep KRC in front of the world, which combines
+this back-end with FRI's link: its entry is :mod:`drivers.emulate.backend`. Light:
+pydantic models and the entry; the drivers are imported when a rig opens them.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Annotated, Literal
+
+from pydantic import Field
+
+from drivers.base.backend import (
+    Backend,
+    DeviceConfig,
+    FtBackend,
+    OpenContext,
+    OpenedRobot,
+    OpenedSensor,
+    OpenedTracker,
+    TrackerBackend,
+)
+from drivers.errors import ConfigError
+
+if TYPE_CHECKING:
+    from drivers.sim.world import SimWorld
+
+__all__ = ["BACKEND", "SimFt", "SimTrackerConfig"]
+
+NonNeg = Annotated[float, Field(ge=0.0)]
+
+
+class SimFt(DeviceConfig):
+    """The simulated Mini45 of the sim robot's world."""
+
+    type: Literal["sim"] = "sim"
+
+
+class SimTrackerConfig(DeviceConfig):
+    """The simulated target's pose as a camera would report it (sim robot only)."""
+
+    type: Literal["sim"] = "sim"
+    rate_hz: Annotated[float, Field(gt=0.0)] = 50.0
+    """Frames per second (the paper's camera: 50 fps)."""
+    latency_s: NonNeg = 0.03
+    """From exposure to the pose being available."""
+    position_noise_m: NonNeg = 0.0003
+    """Standard deviation of each frame's position error, per horizontal axis [m]."""
+    yaw_noise_deg: NonNeg = 0.1
+    """Standard deviation of each frame's yaw error [deg]."""
+    dropout: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
+    """Fraction of frames without a pose (marker not found)."""
+
+
+def _world(robot: OpenedRobot, ctx: OpenContext, table: str) -> SimWorld:
+    """The sim robot's world (the simulated sensor and tracker read it)."""
+    from drivers.sim.world import SimWorld
+
+    world = getattr(robot.robot, "world", None)
+    if not isinstance(world, SimWorld):  # the rig's check makes this unreachable
+        raise ConfigError(ctx.source, f"{table}.type", "needs robot.type 'sim'")
+    return world
+
+
+def _open_ft(cfg: SimFt, ctx: OpenContext, robot: OpenedRobot) -> OpenedSensor:
+    from drivers.sim.driver import SimFtSensor
+
+    return OpenedSensor(SimFtSensor(_world(robot, ctx, "ft")))
+
+
+def _open_tracker(cfg: SimTrackerConfig, ctx: OpenContext, robot: OpenedRobot) -> OpenedTracker:
+    from drivers.sim.tracker import SimTracker
+
+    world = _world(robot, ctx, "tracker")
+    tracker = SimTracker(world, lambda: world.cycle * world.cycle_ns, rate_hz=cfg.rate_hz,
+                         latency_s=cfg.latency_s, position_noise_m=cfg.position_noise_m,
+                         yaw_noise_deg=cfg.yaw_noise_deg, dropout=cfg.dropout, seed=ctx.seed)
+    return OpenedTracker(tracker)
+
+
+def _check_ft(cfg: SimFt, robot: DeviceConfig) -> str | None:
+    if robot.type == "sim":
+        return None
+    return ("ft.type 'sim' needs robot.type 'sim' (with an FRI robot the simulated sensor "
+            "is served by the emulator: use 'netft')")
+
+
+def _check_tracker(cfg: SimTrackerConfig, robot: DeviceConfig) -> str | None:
+    if robot.type == "sim":
+        return None
+    return ("tracker.type 'sim' needs robot.type 'sim' (over FRI the emulator serves a "
+            "camera stream: use 'camera')")
+
+
+BACKEND = Backend(
+    "sim",
+    sensors=(FtBackend(SimFt, _open_ft, _check_ft),),
+    trackers=(TrackerBackend(SimTrackerConfig, _open_tracker, _check_tracker),),
+)

@@ -23,10 +23,10 @@ from drivers.errors import (
     MalformedPacketError,
     NotConnectedError,
 )
+from drivers.ur.errors import RtdeRefusedError
 from drivers.ur.rtde import codec
 from drivers.ur.rtde.client import RtdeClient
 from drivers.ur.rtde.codec import PackageType
-from drivers.ur.rtde.errors import RtdeRefusedError
 
 HOST = "127.0.0.1"
 ACCEPT = codec.encode(codec.Accepted(PackageType.REQUEST_PROTOCOL_VERSION, True))

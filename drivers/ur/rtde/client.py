@@ -13,7 +13,7 @@ Errors name the controller's address (``host:port``):
 
 - no answer within ``timeout_s``: :class:`~drivers.errors.DriverTimeoutError`;
 - a refused protocol version, start or pause, or a recipe with variables
-  NOT_FOUND or IN_USE: :class:`~drivers.ur.rtde.errors.RtdeRefusedError`
+  NOT_FOUND or IN_USE: :class:`~drivers.ur.errors.RtdeRefusedError`
   (the names listed);
 - a package that does not decode (truncated, oversized, unknown type or
   recipe), or a connection that closes inside a package:
@@ -33,9 +33,9 @@ import numpy as np
 
 from drivers.base.guards import requires_open
 from drivers.errors import DriverTimeoutError, LinkLostError, MalformedPacketError
+from drivers.ur.errors import RtdeRefusedError
 from drivers.ur.rtde import codec
 from drivers.ur.rtde.codec import PackageType
-from drivers.ur.rtde.errors import RtdeRefusedError
 from drivers.ur.rtde.fields import FIELD_TYPES, IN_USE, NOT_FOUND, Recipe
 
 #: The controller's RTDE port (fixed on a real controller).

@@ -187,6 +187,18 @@ def test_a_close_mid_stream_is_a_lost_link_after_the_packages_before_it(stand_in
     assert client.received == 3 and not client.is_open
 
 
+def test_receive_latest_skips_what_a_slow_reader_missed_and_counts_it(stand_in: Any) -> None:
+    def five(conn: socket.socket) -> None:
+        conn.sendall(b"".join(data(float(k)) for k in range(1, 6)))
+
+    client, _where = streaming(stand_in, five)
+    stamps = []
+    while not stamps or stamps[-1] < 5.0:
+        stamps.append(float(client.receive_latest().record["timestamp"]))
+    assert stamps == sorted(stamps) and client.received == 5
+    assert client.skipped == 5 - len(stamps)
+
+
 def test_nobody_listening_is_a_lost_link_naming_the_address() -> None:
     s = socket.socket()
     s.bind((HOST, 0))
@@ -304,6 +316,14 @@ def test_text_messages_and_malformed_packages_reach_the_server(server: RtdeServe
         assert server.messages[-1] == codec.TextMessage("hello controller", "test", 2)
         assert server.counters["rejected"] == 1
         assert "unknown_type" in client.messages[-1].message
+
+
+def test_our_server_refuses_a_protocol_version_it_does_not_speak(server: RtdeServer) -> None:
+    client = RtdeClient(HOST, server.port, timeout_s=5.0)
+    with pytest.raises(RtdeRefusedError, match="refused protocol version 1"):
+        client.connect(protocol_version=1)
+    with client:
+        assert client.is_open  # version 2 is fine
 
 
 def test_a_server_port_in_use_is_an_address_error(server: RtdeServer) -> None:

@@ -35,7 +35,9 @@ controller does). Pacing:
 Malformed packages are counted (``rejected``) and answered with an error text
 message; a header that cannot be framed ends that connection. A value the
 source does not give is read from the held inputs or else zero
-(``missing_values`` counts those).
+(``missing_values`` counts those). An exception raised by the source or the
+sink ends the server: every connection is dropped (the clients see the link
+lost) and the exception is kept in :attr:`RtdeServer.error`.
 """
 
 from __future__ import annotations

@@ -8,9 +8,11 @@ expects installed and running (``"installed"``).
 
 - :meth:`UrRobot.measurements` is clocked by the controller's output stream
   (500 Hz on e-Series): one :class:`~drivers.base.types.RobotState` per data
-  package. The pose is ``actual_TCP_pose``; the twist ``actual_TCP_speed`` and
-  the robot's own wrench ``actual_TCP_force`` are rotated from the base frame
-  into the TCF. ``link.commanding`` while the program runs and the robot is
+  package, the newest when several arrived while the loop was busy (the
+  skipped ones are counted in the extras). The pose is ``actual_TCP_pose``;
+  the twist ``actual_TCP_speed`` and the robot's own wrench
+  ``actual_TCP_force`` are rotated from the base frame into the TCF.
+  ``link.commanding`` while the program runs and the robot is
   RUNNING; ``link.healthy`` while ``safety_mode`` is NORMAL or REDUCED.
 - :meth:`UrRobot.send` writes the command into the input registers
   (:func:`~drivers.ur.registers.fill_command`); ``None`` holds the arm where
@@ -99,6 +101,8 @@ class UrExtras(Extras):
     runtime_state: int = 0
     script_state: int = 0
     applied_seq: int = 0
+    skipped_packages: int = 0
+    """Data packages that arrived while the loop was busy and were skipped (so far)."""
     joint_vel_radps: np.ndarray = field(default_factory=lambda: np.zeros(6))
     ft_raw_wrench: np.ndarray = field(default_factory=lambda: np.zeros(6))
     """The flange sensor's raw wrench, as the controller reports it [N, N m]."""
@@ -166,7 +170,7 @@ class UrRobot(RobotDriver):
     @requires_open("UR robot")
     def measurements(self) -> Iterator[RobotState]:
         while self._client is not None:
-            pkg = self._client.receive(self.settings.cycle_timeout_s)
+            pkg = self._client.receive_latest(self.settings.cycle_timeout_s)
             yield self._state(pkg.record)
 
     def _state(self, rec: np.ndarray) -> RobotState:
@@ -185,6 +189,7 @@ class UrRobot(RobotDriver):
         script_state = int(rec[registers.SCRIPT_STATE])
         extras = UrExtras(int(rec["robot_mode"]), int(rec["safety_mode"]), bits,
                           int(rec["runtime_state"]), script_state, int(rec[registers.APPLIED_SEQ]),
+                          self._client.skipped if self._client is not None else 0,
                           np.asarray(rec["actual_qd"], dtype=np.float64),
                           np.asarray(rec["ft_raw_wrench"], dtype=np.float64))
         link = LinkHealth(

@@ -4,7 +4,8 @@ Sequence, as the RTDE Guide describes it: :meth:`RtdeClient.connect` opens the
 socket and negotiates protocol version 2; then :meth:`~RtdeClient.controller_version`,
 :meth:`~RtdeClient.setup_outputs` (frequency and variable names),
 :meth:`~RtdeClient.setup_inputs`, :meth:`~RtdeClient.start`; then
-:meth:`~RtdeClient.receive` returns each output data package and
+:meth:`~RtdeClient.receive` returns each output data package (or
+:meth:`~RtdeClient.receive_latest` the newest, skipping those a slow reader missed) and
 :meth:`~RtdeClient.send` writes inputs; :meth:`~RtdeClient.pause` stops the
 stream. Text messages from the controller are kept in
 :attr:`~RtdeClient.messages` (the newest ``MESSAGES_KEPT``).
@@ -24,6 +25,7 @@ Errors name the controller's address (``host:port``):
 
 from __future__ import annotations
 
+import select
 import socket
 from collections import deque
 from collections.abc import Mapping, Sequence
@@ -58,6 +60,7 @@ class RtdeClient:
         self.input_recipes: dict[int, Recipe] = {}
         self.streaming = False
         self.received = 0
+        self.skipped = 0
         self.skipped_on_pause = 0
         self._sock: socket.socket | None = None
         self._framer = codec.Framer(self.address)
@@ -186,6 +189,38 @@ class RtdeClient:
                 self.received += 1
                 return msg
             if not isinstance(msg, codec.TextMessage):
+                raise MalformedPacketError(self.address, "unexpected",
+                                           f"{type(msg).__name__} while streaming")
+
+    @requires_open("RTDE client")
+    def receive_latest(self, timeout_s: float | None = None) -> codec.DataPackage:
+        """The newest output data package: waits for one, then takes every package that
+        has already arrived and keeps the last (the others are counted in :attr:`skipped`),
+        so that a reader that fell behind catches up instead of lagging."""
+        newest = self.receive(timeout_s)
+        sock = self._sock
+        assert sock is not None
+        while True:
+            got = self._framer.next()
+            if got is None:
+                if not select.select([sock], [], [], 0.0)[0]:
+                    return newest
+                try:
+                    n = sock.recv_into(self._rx)
+                except OSError:
+                    n = 0
+                if n == 0:
+                    return newest  # a close or reset is reported by the next call
+                self._framer.feed(memoryview(self._rx)[:n])
+                continue
+            msg = codec.decode_from_controller(got[0], got[1], self.output_recipes, self.address)
+            if isinstance(msg, codec.TextMessage):
+                self.messages.append(msg)
+            elif isinstance(msg, codec.DataPackage):
+                self.received += 1
+                self.skipped += 1
+                newest = msg
+            else:
                 raise MalformedPacketError(self.address, "unexpected",
                                            f"{type(msg).__name__} while streaming")
 

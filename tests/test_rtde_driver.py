@@ -230,3 +230,28 @@ def test_ur5e_forward_kinematics_at_zero_is_the_stretched_arm() -> None:
     np.testing.assert_allclose(pose[:3, 3], [-0.425 - 0.3922, -(DH_D_M[3] + DH_D_M[5]),
                                              DH_D_M[0] - DH_D_M[4]], atol=1e-12)
     np.testing.assert_allclose(np.abs(np.linalg.det(pose[:3, :3])), 1.0)
+
+
+def test_the_script_reads_the_registers_the_driver_writes() -> None:
+    text = control_script()
+
+    def offset(name: str) -> int:
+        return int(name.rsplit("_", 1)[1]) - registers.BASE
+
+    calls = {"force_mode_set_damping": registers.DAMPING,
+             "force_mode_set_gain_scaling": registers.GAIN_SCALING}
+    for call, name in calls.items():
+        assert f"{call}(reg({offset(name)}))" in text
+    assert f"six({offset(registers.WRENCH[0])}), 2, six({offset(registers.LIMITS[0])})" in text
+    assert (f"reg({offset(registers.LOOKAHEAD)}), reg({offset(registers.SERVO_GAIN)}))"
+            in text)
+    pose = ", ".join(f"reg({offset(n)})" for n in registers.POSE)
+    assert f"target = p[{pose}]" in text
+    for name in (registers.SEQ, registers.MODE, registers.SELECTION):
+        at = f"B + {offset(name)}" if offset(name) else "B"
+        assert f"read_input_integer_register({at})" in text
+    assert "write_output_integer_register(B, seq)" in text and offset(registers.APPLIED_SEQ) == 0
+    assert offset(registers.SCRIPT_STATE) == 1
+    for state in registers.ScriptState:
+        if state != registers.ScriptState.NOT_RUNNING:
+            assert f"write_output_integer_register(B + 1, {int(state)})" in text

@@ -31,6 +31,7 @@ from drivers.ur.registers import Mode
 from drivers.ur.rtde.fields import Recipe
 from drivers.ur.rtde.variables import INPUTS
 from drivers.ur.ur5e_params import DH_D_M, forward_kinematics
+from drivers.ur.wrench import UrWrenchSensor
 
 HOST = "127.0.0.1"
 DOWN = np.array([0.4, 0.1, 0.3, math.pi, 0.0, 0.0])  # tool z pointing down: R = diag(1, -1, -1)
@@ -255,3 +256,24 @@ def test_the_script_reads_the_registers_the_driver_writes() -> None:
     for state in registers.ScriptState:
         if state != registers.ScriptState.NOT_RUNNING:
             assert f"write_output_integer_register(B + 1, {int(state)})" in text
+
+
+@pytest.mark.parametrize(("source", "first"), [("tcp_force", [0, -1, 5, 0, 0, 0]),
+                                                ("ft_raw", [0, 1, 2, 3, 4, 5])])
+def test_the_robots_wrench_is_an_ft_source(fake: Any, source: str, first: list[float]) -> None:
+    _ur, srv = fake
+    robot = robot_for(srv)
+    sensor = UrWrenchSensor(robot, source)  # type: ignore[arg-type]
+    with robot, sensor:
+        states = robot.measurements()
+        stamps = []
+        for _ in range(4):
+            stamps.append(next(states).time_ns)
+            robot.send(None)
+        got = sensor.samples()
+        assert list(got.time_ns) == stamps and list(got.seq) == [0, 1, 2, 3]
+        np.testing.assert_allclose(got.wrench, np.tile(first, (4, 1)), atol=1e-12)
+        sensor.tare()
+        next(states)
+        np.testing.assert_allclose(sensor.samples().wrench, np.zeros((1, 6)), atol=1e-12)
+        assert len(sensor.samples()) == 0

@@ -30,7 +30,7 @@ expects installed and running (``"installed"``).
 from __future__ import annotations
 
 import socket
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from importlib import resources
 from typing import Final
@@ -117,6 +117,7 @@ class UrRobot(RobotDriver):
         self.where = where
         self.controller_version: ControllerVersion | None = None
         self._client: RtdeClient | None = None
+        self._listeners: list[Callable[[RobotState], None]] = []
         self._inputs: Recipe | None = None
         self._record: np.ndarray | None = None
         self._seq = 0
@@ -167,11 +168,19 @@ class UrRobot(RobotDriver):
                 pass
         client.close()
 
+    def add_listener(self, callback: Callable[[RobotState], None]) -> None:
+        """Call ``callback`` with every state, before :meth:`measurements` yields it
+        (:class:`~drivers.ur.wrench.UrWrenchSensor` reads the robot's wrench this way)."""
+        self._listeners.append(callback)
+
     @requires_open("UR robot")
     def measurements(self) -> Iterator[RobotState]:
         while self._client is not None:
             pkg = self._client.receive_latest(self.settings.cycle_timeout_s)
-            yield self._state(pkg.record)
+            state = self._state(pkg.record)
+            for listener in self._listeners:
+                listener(state)
+            yield state
 
     def _state(self, rec: np.ndarray) -> RobotState:
         bits = int(rec["safety_status_bits"])

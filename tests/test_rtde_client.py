@@ -6,6 +6,7 @@ socket read with a deadline of seconds: a stall only slows a test down.
 
 from __future__ import annotations
 
+import itertools
 import socket
 import struct
 import threading
@@ -15,7 +16,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from drivers.emulate.rtde_server import RtdeServer
+from drivers.emulate.rtde_server import RtdeFaults, RtdeServer
 from drivers.errors import (
     AddressError,
     DriverTimeoutError,
@@ -343,3 +344,43 @@ def test_realtime_pacing_streams_and_pause_stops_it() -> None:
         client.start()
         later = client.receive().record["timestamp"]
     assert np.all(np.diff(stamps) > 0) and later > stamps[-1]
+
+
+def test_lost_packages_are_exactly_the_gaps_the_client_sees() -> None:
+    faults = RtdeFaults(loss=0.3, seed=4)
+    with RtdeServer(Pattern(), host=HOST, port=0, pacing="lockstep", outputs=["timestamp"],
+                    faults=faults) as srv, \
+            RtdeClient(HOST, srv.port, timeout_s=5.0) as client:
+        client.setup_outputs(["timestamp"], 500.0)
+        client.start()
+        steps = [round(client.receive().record["timestamp"] / 0.002) for _ in range(60)]
+        dropped = set(srv.dropped_steps)  # every drop before the last step read is in it
+    gaps = {k for a, b in itertools.pairwise(steps) for k in range(a + 1, b)}
+    assert gaps == {k for k in dropped if steps[0] < k < steps[-1]} and not gaps & set(steps)
+    assert set(range(steps[0])) <= dropped  # the first steps, if lost
+    assert len(gaps) >= 10  # a 30 % loss over 60 packages
+
+
+def test_a_delayed_stream_keeps_every_package_in_order() -> None:
+    with RtdeServer(Pattern(), host=HOST, port=0, pacing="realtime", outputs=["timestamp"],
+                    faults=RtdeFaults(delay_s=0.01)) as srv, \
+            RtdeClient(HOST, srv.port, timeout_s=5.0) as client:
+        client.setup_outputs(["timestamp"], 500.0)
+        client.start()
+        stamps = [client.receive().record["timestamp"] for _ in range(20)]
+        assert srv.counters["faults_delayed"] >= 20
+    steps = np.round(np.array(stamps) / 0.002)
+    assert np.all(np.diff(steps) >= 1)
+
+
+def test_an_injected_disconnect_is_a_lost_link_after_that_many_packages() -> None:
+    with RtdeServer(Pattern(), host=HOST, port=0, pacing="lockstep", outputs=["timestamp"],
+                    faults=RtdeFaults(disconnect_after=7)) as srv, \
+            RtdeClient(HOST, srv.port, timeout_s=5.0) as client:
+        client.setup_outputs(["timestamp"], 500.0)
+        client.start()
+        for _ in range(7):
+            client.receive()
+        with pytest.raises(LinkLostError, match=rf"^{HOST}:{srv.port}: "):
+            client.receive()
+    assert srv.counters["faults_disconnected"] == 1

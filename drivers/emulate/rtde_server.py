@@ -32,6 +32,9 @@ controller does). Pacing:
   more than one period late is skipped and counted (``late_steps``), as a
   busy controller skips packages and sends the newest.
 
+Fault injection (:class:`RtdeFaults`, seeded): output data packages lost or
+delayed, the connection closed after a number of them.
+
 Malformed packages are counted (``rejected``) and answered with an error text
 message; a header that cannot be framed ends that connection. A value the
 source does not give is read from the held inputs or else zero
@@ -69,6 +72,28 @@ RTDE_PORT: Final = 30004
 _IDLE_WAIT_S: Final = 0.05
 
 
+@dataclass(frozen=True)
+class RtdeFaults:
+    """Injected faults of the data stream (seeded: the same settings, the same faults).
+
+    ``loss``: each output data package is not sent with this probability (as
+    a busy controller skips packages); ``delay_s``: each is sent this long
+    after its step (order kept, as on one TCP stream); ``disconnect_after``:
+    the connection is closed after this many data packages (0: never).
+    """
+
+    loss: float = 0.0
+    delay_s: float = 0.0
+    disconnect_after: int = 0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.loss <= 1.0:
+            raise ValueError(f"loss must be a probability in 0..1, got {self.loss}")
+        if self.delay_s < 0 or self.disconnect_after < 0:
+            raise ValueError("delay_s and disconnect_after must be >= 0")
+
+
 @dataclass
 class _Connection:
     sock: socket.socket
@@ -81,6 +106,8 @@ class _Connection:
     streaming: bool = False
     started_step: int = 0
     answered: bool = True
+    data_sent: int = 0
+    delayed: deque[tuple[float, bytes]] = field(default_factory=deque)
 
     def held(self) -> set[str]:
         return {n for r in self.inputs.values() for n in r.names}
@@ -96,7 +123,7 @@ class RtdeServer:
                  controller_version: tuple[int, int, int, int] = (5, 15, 0, 0),
                  protocol_versions: Iterable[int] = (codec.PROTOCOL_VERSION,),
                  lockstep_wait_inputs: bool = True, lockstep_timeout_s: float = 1.0,
-                 where: str = "RtdeServer.host") -> None:
+                 faults: RtdeFaults | None = None, where: str = "RtdeServer.host") -> None:
         if pacing not in ("lockstep", "realtime"):
             raise ValueError(f"pacing must be lockstep or realtime, not {pacing!r}")
         if not (math.isfinite(base_hz) and base_hz > 0):
@@ -116,6 +143,10 @@ class RtdeServer:
         self.protocol_versions = frozenset(protocol_versions)
         self.lockstep_wait_inputs = lockstep_wait_inputs
         self.lockstep_timeout_s = lockstep_timeout_s
+        self.faults = faults or RtdeFaults()
+        self._rng = np.random.default_rng(self.faults.seed)
+        self.dropped_steps: list[int] = []
+        """The steps whose package a connection did not get (``faults.loss``)."""
         self.counters: Counter[str] = Counter()
         self.messages: deque[codec.TextMessage] = deque(maxlen=100)
         self.inputs: dict[str, Any] = {}
@@ -182,6 +213,7 @@ class RtdeServer:
         try:
             while not self._stop.is_set():
                 self._poll(self._wait_s())
+                self._flush_delayed()
                 if self._due():
                     self._step_once()
         except BaseException as exc:  # handed to the owner; the clients see the link drop
@@ -193,6 +225,11 @@ class RtdeServer:
         return [c for c in self._conns.values() if c.streaming]
 
     def _wait_s(self) -> float:
+        wait = self._wait_stream_s()
+        held = [c.delayed[0][0] for c in self._conns.values() if c.delayed]
+        return max(0.0, min(wait, min(held) - time.monotonic())) if held else wait
+
+    def _wait_stream_s(self) -> float:
         if not self._streaming():
             return _IDLE_WAIT_S
         now = time.monotonic()
@@ -240,9 +277,36 @@ class RtdeServer:
             data = codec.package(PackageType.DATA_PACKAGE,
                                  bytes((conn.output.recipe_id,)) + record)
             conn.answered = False
-            if self._send(conn, data):
-                self.counters["sent"] += 1
+            self._send_data(conn, data, k)
         self._wait_until = time.monotonic() + self.lockstep_timeout_s
+
+    def _send_data(self, conn: _Connection, data: bytes, k: int) -> None:
+        f = self.faults
+        if f.loss and self._rng.random() < f.loss:
+            self.counters["faults_dropped"] += 1
+            self.dropped_steps.append(k)
+            conn.answered = True  # nothing to answer
+            return
+        if f.delay_s:
+            conn.delayed.append((time.monotonic() + f.delay_s, data))
+            self.counters["faults_delayed"] += 1
+            return
+        self._send_counted(conn, data)
+
+    def _send_counted(self, conn: _Connection, data: bytes) -> None:
+        if not self._send(conn, data):
+            return
+        self.counters["sent"] += 1
+        conn.data_sent += 1
+        if self.faults.disconnect_after and conn.data_sent >= self.faults.disconnect_after:
+            self.counters["faults_disconnected"] += 1
+            self._drop(conn, "fault injection: disconnect")
+
+    def _flush_delayed(self) -> None:
+        now = time.monotonic()
+        for conn in list(self._conns.values()):
+            while conn.delayed and conn.delayed[0][0] <= now and conn.sock in self._conns:
+                self._send_counted(conn, conn.delayed.popleft()[1])
 
     def _sends_at(self, conn: _Connection, k: int) -> bool:
         n = k - conn.started_step

@@ -196,21 +196,27 @@ def package(ptype: int, payload: bytes = b"") -> bytes:
     return HEADER.pack(size, ptype) + payload
 
 
-def _text(field: str, text: str, *, short: bool) -> bytes:
+def _short_text(field: str, text: str) -> bytes:
+    """A text message field: uint8 length, then that many UTF-8 bytes."""
+    raw = text.encode("utf-8")
+    if len(raw) > 255:
+        raise PacketEncodeError(field, f"{len(raw)} bytes exceed the uint8 length field")
+    return _U8.pack(len(raw)) + raw
+
+
+def _ascii_text(field: str, text: str) -> bytes:
+    """A setup field: ASCII to the end of the package."""
     try:
-        raw = text.encode("ascii" if not short else "utf-8")
+        return text.encode("ascii")
     except UnicodeEncodeError:
         raise PacketEncodeError(field, f"{text!r} is not ASCII") from None
-    if short and len(raw) > 255:
-        raise PacketEncodeError(field, f"{len(raw)} bytes exceed the uint8 length field")
-    return _U8.pack(len(raw)) + raw if short else raw
 
 
 def _names(field: str, names: tuple[str, ...], trailing_comma: bool) -> bytes:
     for name in names:
         if not name or "," in name:
             raise PacketEncodeError(field, f"bad variable name {name!r}")
-    return _text(field, ",".join(names) + ("," if trailing_comma else ""), short=False)
+    return _ascii_text(field, ",".join(names) + ("," if trailing_comma else ""))
 
 
 def encode(msg: Message) -> bytes:
@@ -240,8 +246,8 @@ def encode(msg: Message) -> bytes:
         if not 0 <= msg.level <= 255:
             raise PacketEncodeError("M.warning_level", f"{msg.level} is outside uint8")
         return package(PackageType.TEXT_MESSAGE,
-                       _text("M.message", msg.message, short=True)
-                       + _text("M.source", msg.source, short=True) + _U8.pack(msg.level))
+                       _short_text("M.message", msg.message)
+                       + _short_text("M.source", msg.source) + _U8.pack(msg.level))
     if isinstance(msg, Accepted):
         return package(msg.request, _U8.pack(1 if msg.accepted else 0))
     if isinstance(msg, ControllerVersion):
@@ -254,7 +260,7 @@ def encode(msg: Message) -> bytes:
         if not 0 <= msg.recipe_id <= 255:
             raise PacketEncodeError(f"{chr(msg.request)}.recipe_id", "outside uint8")
         return package(msg.request, _U8.pack(msg.recipe_id)
-                       + _text("variable_types", ",".join(msg.types), short=False))
+                       + _ascii_text("variable_types", ",".join(msg.types)))
     raise PacketEncodeError(type(msg).__name__, "not an RTDE message")
 
 

@@ -22,7 +22,13 @@ import pytest
 from drivers.base.types import ApplyStatus, CartesianCommand
 from drivers.config import load_model
 from drivers.emulate.rtde_server import RtdeServer
-from drivers.errors import AddressError, ConfigError, LinkLostError
+from drivers.errors import (
+    AddressError,
+    ConfigError,
+    DriverTimeoutError,
+    LinkLostError,
+    PacketEncodeError,
+)
 from drivers.ur import registers
 from drivers.ur.config import UrSettings
 from drivers.ur.driver import OUTPUT_NAMES, UrRobot, control_script
@@ -277,3 +283,28 @@ def test_the_robots_wrench_is_an_ft_source(fake: Any, source: str, first: list[f
         next(states)
         np.testing.assert_allclose(sensor.samples().wrench, np.zeros((1, 6)), atol=1e-12)
         assert len(sensor.samples()) == 0
+
+
+def test_a_nan_command_never_reaches_the_robot(fake: Any) -> None:
+    ur, srv = fake
+    with robot_for(srv) as robot:
+        next(robot.measurements())
+        cmd = command()
+        cmd.wrench_n_nm[2] = float("nan")
+        with pytest.raises(PacketEncodeError, match="input_double_register_32: NaN"):
+            robot.send(cmd)
+    assert ur.ended.wait(10.0)  # close() still ended the program, with a clean command
+    assert all(math.isfinite(ur.inputs[n]) for n in registers.WRENCH)
+
+
+def test_a_controller_that_stops_sending_is_a_timeout_naming_the_address() -> None:
+    ur = FakeUr()
+    with RtdeServer(ur.source, ur.sink, host=HOST, port=0, pacing="lockstep",
+                    outputs=OUTPUT_NAMES, lockstep_timeout_s=30.0) as srv:
+        robot = UrRobot(UrSettings(robot_ip=HOST, rtde_port=srv.port, script="installed",
+                                   connect_timeout_s=5.0, cycle_timeout_s=0.2))
+        with robot:
+            states = robot.measurements()
+            next(states)  # not answered: the lockstep controller waits for the answer
+            with pytest.raises(DriverTimeoutError, match=rf"^{HOST}:{srv.port}: .*0.2 s"):
+                next(states)

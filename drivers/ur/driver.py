@@ -161,12 +161,25 @@ class UrRobot(RobotDriver):
         if client is None:
             return
         if client.is_open and self._inputs is not None and self._record is not None:
+            # a clean hold command (the last one may have been refused, e.g. a NaN), ending
+            self._fill(None)
             self._record[registers.MODE] = int(registers.Mode.END)
             try:
                 client.send(self._inputs, self._record)
             except (LinkLostError, DriverTimeoutError):
                 pass
         client.close()
+
+    def _fill(self, command: CartesianCommand | None) -> None:
+        assert self._record is not None
+        s = self.settings
+        self._seq += 1
+        registers.fill_command(
+            self._record, self._seq, command, self._pose,
+            stiffness_max=s.force_axis_stiffness_npm_nmprad, speed_limits=self._speed_limits,
+            deviation_limits=self._deviation_limits, damping=s.force_mode_damping,
+            gain_scaling=s.force_mode_gain_scaling, lookahead_s=s.servo_lookahead_s,
+            servo_gain=s.servo_gain)
 
     def add_listener(self, callback: Callable[[RobotState], None]) -> None:
         """Call ``callback`` with every state, before :meth:`measurements` yields it
@@ -216,14 +229,7 @@ class UrRobot(RobotDriver):
     def send(self, command: CartesianCommand | None) -> AppliedCommand:
         assert self._client is not None and self._inputs is not None
         assert self._record is not None
-        s = self.settings
-        self._seq += 1
-        registers.fill_command(
-            self._record, self._seq, command, self._pose,
-            stiffness_max=s.force_axis_stiffness_npm_nmprad, speed_limits=self._speed_limits,
-            deviation_limits=self._deviation_limits, damping=s.force_mode_damping,
-            gain_scaling=s.force_mode_gain_scaling, lookahead_s=s.servo_lookahead_s,
-            servo_gain=s.servo_gain)
+        self._fill(command)
         self._client.send(self._inputs, self._record)
         if command is None:
             held = CartesianCommand(pose_m=self._pose.copy())

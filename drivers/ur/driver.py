@@ -47,7 +47,7 @@ from drivers.base.types import (
     LinkHealth,
     RobotState,
 )
-from drivers.errors import DriverTimeoutError, LinkLostError
+from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
 from drivers.net.udp import resolve_ipv4
 from drivers.ur import registers
 from drivers.ur.config import UrSettings
@@ -166,7 +166,7 @@ class UrRobot(RobotDriver):
             self._record[registers.MODE] = int(registers.Mode.END)
             try:
                 client.send(self._inputs, self._record)
-            except (LinkLostError, DriverTimeoutError):
+            except DriverError:  # best effort: the program holds a stale command anyway
                 pass
         client.close()
 

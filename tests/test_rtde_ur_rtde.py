@@ -1,4 +1,4 @@
-"""ur_rtde, an independent RTDE client, reads our RTDE server: proof that it speaks RTDE.
+"""ur_rtde, an independent RTDE client, reads and writes our RTDE server: it speaks RTDE.
 
 ur_rtde's ``RTDEReceiveInterface`` connects to port 30004 of the host it is
 given (the port cannot be chosen), so the server listens on a loopback
@@ -10,10 +10,13 @@ same values every cycle, as a robot at rest). The test reads
 ``timestamp``, ``actual_q``, ``actual_TCP_pose`` and ``actual_TCP_force``
 while the values change and checks that each one read is one the source
 produced, then that the four read at rest are the last step's, all exactly.
+ur_rtde's ``RTDEIOInterface`` writes input registers and digital outputs
+(input recipes, input data packages), which the server's sink records.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import select
 import socket
@@ -21,6 +24,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -52,11 +56,18 @@ def serve(host: str, steps: int, out: str) -> None:
                 rows[name].append(values[name])
         return values
 
-    with RtdeServer(source, host=host, pacing="realtime", outputs=VARIABLES) as srv:
+    inputs: list[dict[str, object]] = []
+
+    def sink(values: Any) -> None:
+        inputs.append({k: v.tolist() if isinstance(v, np.ndarray) else v
+                       for k, v in values.items()})
+
+    with RtdeServer(source, sink, host=host, pacing="realtime", outputs=VARIABLES) as srv:
         print("ready", flush=True)
         sys.stdin.read()
         counters = dict(srv.counters)
     np.savez(out, **{name: np.array(v) for name, v in rows.items()})
+    Path(out).with_suffix(".json").write_text(json.dumps(inputs))
     print(f"saved {counters}", flush=True)
 
 
@@ -87,19 +98,55 @@ def row_of(table: np.ndarray, value: np.ndarray) -> int:
     return int(hits[0]) if hits.size else -1
 
 
+def start_server(host: str, out: Path) -> subprocess.Popen[str]:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get(
+        "PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, __file__, "serve", host, str(STEPS), str(out)],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+    assert read_line(proc, 60.0).strip() == "ready"
+    return proc
+
+
+def stop_server(proc: subprocess.Popen[str]) -> str:
+    """Close the child's stdin; its last line ("saved ...")."""
+    assert proc.stdin is not None
+    proc.stdin.close()
+    status = read_line(proc, 30.0)
+    proc.wait(30.0)
+    return status
+
+
+def test_ur_rtdes_io_interface_writes_inputs_our_server_reads(tmp_path: Path) -> None:
+    rtde_io = pytest.importorskip(
+        "rtde_io", reason="ur_rtde (PyPI ur-rtde, the test extra) is not installed")
+    host = free_loopback_host()
+    out = tmp_path / "produced.npz"
+    proc = start_server(host, out)
+    try:
+        io = rtde_io.RTDEIOInterface(host)  # sets up one input recipe per kind of write
+        assert io.setInputIntRegister(18, -42)
+        assert io.setInputDoubleRegister(19, 1.5)
+        assert io.setStandardDigitalOut(2, True)
+        io.disconnect()
+    finally:
+        status = stop_server(proc)
+    assert status.startswith("saved"), status
+    got = json.loads(out.with_suffix(".json").read_text())
+    # every input package carries ur_rtde's own register 23 beside the value written
+    assert [{k: v for k, v in g.items() if k != "input_int_register_23"} for g in got] == [
+        {"input_int_register_18": -42}, {"input_double_register_19": 1.5},
+        {"standard_digital_output_mask": 4, "standard_digital_output": 4}]
+
+
 @pytest.mark.slow
 def test_ur_rtde_reads_exactly_what_the_source_produced(tmp_path: Path) -> None:
     rtde_receive = pytest.importorskip(
         "rtde_receive", reason="ur_rtde (PyPI ur-rtde, the test extra) is not installed")
     host = free_loopback_host()
     out = tmp_path / "produced.npz"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get(
-        "PYTHONPATH", "")])}
-    proc = subprocess.Popen([sys.executable, __file__, "serve", host, str(STEPS), str(out)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+    proc = start_server(host, out)
     samples: list[tuple[np.ndarray, ...]] = []
     try:
-        assert read_line(proc, 60.0).strip() == "ready"
         receiver = rtde_receive.RTDEReceiveInterface(host, 500.0, list(VARIABLES))
         last = (STEPS - 1) * 0.002
         deadline = time.monotonic() + 60.0
@@ -117,10 +164,7 @@ def test_ur_rtde_reads_exactly_what_the_source_produced(tmp_path: Path) -> None:
                    np.array(receiver.getActualTCPPose()), np.array(receiver.getActualTCPForce()))
         receiver.disconnect()
     finally:
-        assert proc.stdin is not None
-        proc.stdin.close()
-        status = read_line(proc, 30.0)
-        proc.wait(30.0)
+        status = stop_server(proc)
     assert status.startswith("saved"), status
     table = np.load(out)
     assert len(table["timestamp"]) == STEPS

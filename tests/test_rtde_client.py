@@ -7,6 +7,7 @@ socket read with a deadline of seconds: a stall only slows a test down.
 from __future__ import annotations
 
 import itertools
+import math
 import socket
 import struct
 import threading
@@ -274,6 +275,16 @@ def test_output_frequency_below_the_base_rate_takes_every_nth_step(server: RtdeS
         client.start()
         stamps = [client.receive().record["timestamp"] for _ in range(5)]
     assert np.allclose(np.diff(stamps), 4 * 0.002, rtol=0, atol=1e-12)
+
+
+def test_a_frequency_that_does_not_divide_the_base_rate_keeps_its_average(
+        server: RtdeServer) -> None:
+    with RtdeClient(HOST, server.port, timeout_s=5.0) as client:
+        client.setup_outputs(["timestamp"], 300.0)
+        client.start()
+        steps = [round(client.receive().record["timestamp"] / 0.002) for _ in range(30)]
+    # the n-th package (from 1) goes at the first step k with floor((k + 1) * 0.6) == n
+    assert steps == [math.ceil(n / 0.6 - 1e-9) - 1 for n in range(1, 31)]
 
 
 def test_the_server_refuses_unknown_and_held_variables(server: RtdeServer) -> None:

@@ -21,8 +21,9 @@ loopback address may be chosen, so that parallel tests each have their own
 The stream: while at least one connection is started, the server calls
 ``source()`` once per base cycle (``base_hz``, 500 Hz as an e-Series) and
 sends each started connection the package of that step when its frequency
-is due (an output frequency below the base rate takes every n-th step, as the
-controller does). Pacing:
+is due: the n-th package of a connection started at step 0 goes at the first
+step k with ``floor((k + 1) * f / base_hz) >= n`` (every 4th step at 125 Hz;
+at a frequency that does not divide the base rate, the same average). Pacing:
 
 - ``lockstep``: one step right after another, paced only by the source (and,
   with ``lockstep_wait_inputs``, by the clients: a step waits until every

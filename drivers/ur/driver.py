@@ -75,7 +75,11 @@ SCRIPT_NAME: Final = "ffexp_control.script"
 
 def control_script() -> str:
     """The text of ffexp's URScript program (package data of :mod:`drivers.ur`)."""
-    return resources.files("drivers.ur").joinpath(SCRIPT_NAME).read_text(encoding="utf-8")
+    try:
+        return resources.files("drivers.ur").joinpath(SCRIPT_NAME).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DriverError(f"drivers/ur/{SCRIPT_NAME} is missing from this installation "
+                          "(package data); reinstall ffexp") from None
 
 
 def send_script(host: str, port: int, text: str, timeout_s: float) -> None:

@@ -1,0 +1,54 @@
+"""Settings of the UR driver: every number of the link and of ffexp's URScript program.
+
+A :class:`~drivers.config.StrictModel` (unknown keys are errors); the rig's
+``[robot]`` table of type ``ur`` will be this model (its registry line is
+added where the back-ends are registered). Defaults are UR's own where UR
+documents one (URScript manual: force_mode_set_damping 0.005, gain scaling 1,
+servoj lookahead 0.1 s and gain 300) and e-Series rates (RTDE Guide: 500 Hz;
+125 Hz on a CB3).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from drivers.config import StrictModel
+
+Six = tuple[float, float, float, float, float, float]
+
+
+class UrSettings(StrictModel):
+    """Where the UR controller is and how ffexp drives it."""
+
+    robot_ip: str = Field(description="the controller's address (IPv4 or host name)")
+    rtde_port: int = Field(30004, ge=1, le=65535,
+                           description="RTDE port (30004 on a real controller)")
+    frequency_hz: float = Field(500.0, gt=0.0, le=500.0,
+                                description="output rate: 500 on e-Series, 125 on CB3")
+    connect_timeout_s: float = Field(2.0, gt=0.0, description="longest wait for an answer "
+                                     "while connecting")
+    cycle_timeout_s: float = Field(0.1, gt=0.0, description="longest gap between data "
+                                   "packages before the link is lost")
+    script: Literal["send", "installed"] = Field(
+        "send", description="send drivers/ur/ffexp_control.script over the script port at "
+        "connect, or expect it installed and running (docs/ur.md)")
+    script_port: int = Field(30002, ge=1, le=65535,
+                             description="the controller's port that takes URScript")
+    force_axis_stiffness_npm_nmprad: float = Field(
+        0.0, ge=0.0, description="an axis commanded at most this stiff is compliant "
+        "(force mode); the others follow the pose")
+    force_mode_damping: float = Field(0.005, ge=0.0, le=1.0,
+                                      description="force_mode_set_damping, 0..1")
+    force_mode_gain_scaling: float = Field(1.0, ge=0.0, le=2.0,
+                                           description="force_mode_set_gain_scaling, 0..2")
+    compliant_speed_limits_mps_radps: Six = Field(
+        (0.1, 0.1, 0.1, 0.5, 0.5, 0.5),
+        description="force mode's speed cap on compliant axes [m/s, rad/s]")
+    deviation_limits_m_rad: Six = Field(
+        (0.05, 0.05, 0.05, 0.17, 0.17, 0.17),
+        description="force mode's deviation cap on the other axes [m, rad]")
+    servo_lookahead_s: float = Field(0.1, ge=0.03, le=0.2,
+                                     description="servoj lookahead time")
+    servo_gain: float = Field(300.0, ge=100.0, le=2000.0, description="servoj gain")

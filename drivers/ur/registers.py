@@ -1,0 +1,127 @@
+"""The RTDE register map of ffexp's URScript program and the command -> registers rule (pure).
+
+``drivers/ur/ffexp_control.script`` reads these input registers every cycle
+and writes these output registers (the map is also in docs/ur.md). All of
+them are in the "upper range" (24..47), which fieldbus adapters leave free.
+
+The rule (:func:`fill_command`): an axis of the tool frame whose commanded
+stiffness is at most ``force_axis_stiffness_npm_nmprad`` is *compliant* (its
+bit in the selection vector set, force mode applies the command's wrench on
+it, its speed capped by ``compliant_speed_limits_mps_radps``); every other
+axis follows the commanded pose (the servo), within
+``deviation_limits_m_rad``. A command with no compliant axis is a pure pose
+servo; no command (``None``) holds the arm where it is.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+from typing import Final
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from drivers.base.types import CartesianCommand
+
+BASE: Final = 24
+
+
+def _in_int(i: int) -> str:
+    return f"input_int_register_{BASE + i}"
+
+
+def _in_double(i: int) -> str:
+    return f"input_double_register_{BASE + i}"
+
+
+SEQ: Final = _in_int(0)
+MODE: Final = _in_int(1)
+SELECTION: Final = _in_int(2)
+POSE: Final = tuple(_in_double(i) for i in range(0, 6))
+WRENCH: Final = tuple(_in_double(i) for i in range(6, 12))
+LIMITS: Final = tuple(_in_double(i) for i in range(12, 18))
+DAMPING: Final = _in_double(18)
+GAIN_SCALING: Final = _in_double(19)
+LOOKAHEAD: Final = _in_double(20)
+SERVO_GAIN: Final = _in_double(21)
+#: Every input register the program reads, in recipe order.
+INPUT_NAMES: Final = (SEQ, MODE, SELECTION, *POSE, *WRENCH, *LIMITS, DAMPING, GAIN_SCALING,
+                      LOOKAHEAD, SERVO_GAIN)
+
+APPLIED_SEQ: Final = f"output_int_register_{BASE}"
+SCRIPT_STATE: Final = f"output_int_register_{BASE + 1}"
+
+
+class Mode(IntEnum):
+    """What the program does with a command."""
+
+    HOLD = 0
+    SERVO = 1
+    FORCE = 2
+    END = 3
+
+
+class ScriptState(IntEnum):
+    """What the program reports (0 before it first runs)."""
+
+    NOT_RUNNING = 0
+    RUNNING = 1
+    ENDED = 2
+    HELD_STALE = 3
+
+
+def pose_vector(pose_m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A 4x4 pose as UR's 6-vector ``[x, y, z, rx, ry, rz]`` (rotation vector) [m, rad]."""
+    out = np.empty(6)
+    out[:3] = pose_m[:3, 3]
+    out[3:] = Rotation.from_matrix(pose_m[:3, :3]).as_rotvec()
+    return out
+
+
+def pose_matrix(vector: NDArray[np.float64], out: NDArray[np.float64] | None = None
+                ) -> NDArray[np.float64]:
+    """UR's pose 6-vector as a 4x4 pose (into ``out`` when given)."""
+    pose = np.eye(4) if out is None else out
+    pose[:3, :3] = Rotation.from_rotvec(np.asarray(vector[3:], dtype=np.float64)).as_matrix()
+    pose[:3, 3] = vector[:3]
+    pose[3] = (0.0, 0.0, 0.0, 1.0)
+    return pose
+
+
+def compliant_axes(cmd: CartesianCommand, stiffness_max: float) -> NDArray[np.bool_]:
+    """The axes force mode takes: commanded stiffness at most ``stiffness_max``."""
+    return np.asarray(cmd.stiffness_npm_nmprad <= stiffness_max)
+
+
+def selection_bits(compliant: NDArray[np.bool_]) -> int:
+    """The selection vector as the program's bit mask (bit i = axis i)."""
+    return int(sum(1 << i for i in range(6) if compliant[i]))
+
+
+def fill_command(record: np.ndarray, seq: int, cmd: CartesianCommand | None,
+                 hold_pose_m: NDArray[np.float64], *, stiffness_max: float,
+                 speed_limits: NDArray[np.float64], deviation_limits: NDArray[np.float64],
+                 damping: float, gain_scaling: float, lookahead_s: float,
+                 servo_gain: float) -> Mode:
+    """Write one cycle's command into ``record`` (an input recipe record over
+    :data:`INPUT_NAMES`) and return the mode. ``None`` holds at ``hold_pose_m``."""
+    record[SEQ] = seq & 0x7FFFFFFF
+    record[DAMPING] = damping
+    record[GAIN_SCALING] = gain_scaling
+    record[LOOKAHEAD] = lookahead_s
+    record[SERVO_GAIN] = servo_gain
+    if cmd is None:
+        target, compliant = pose_vector(hold_pose_m), np.zeros(6, dtype=bool)
+        mode = Mode.HOLD
+    else:
+        target, compliant = pose_vector(cmd.pose_m), compliant_axes(cmd, stiffness_max)
+        mode = Mode.FORCE if compliant.any() else Mode.SERVO
+    wrench = np.where(compliant, cmd.wrench_n_nm if cmd is not None else 0.0, 0.0)
+    limits = np.where(compliant, speed_limits, deviation_limits)
+    record[MODE] = int(mode)
+    record[SELECTION] = selection_bits(compliant)
+    for names, values in ((POSE, target), (WRENCH, wrench), (LIMITS, limits)):
+        for name, value in zip(names, values, strict=True):
+            record[name] = value
+    return mode

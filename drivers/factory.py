@@ -113,7 +113,8 @@ def open_devices(
 
 
 def _open_camera(cfg: CameraTrackerConfig, source: str, robot: RobotDriver) -> TargetTracker:
-    from drivers.camera import CameraTracker, load_calibration
+    from drivers.camera import CameraTracker
+    from drivers.vision import load_calibration
 
     if cfg.calibration is None:
         raise ConfigError(source, "tracker.calibration",
@@ -132,8 +133,9 @@ def _open_sim(
     seed: int,
     rig: Rig,
 ) -> Devices:
+    from drivers.description import load_scene
     from drivers.emulate.lockstep import SimRobot
-    from drivers.sim import SimFtSensor, SimWorld, load_scene
+    from drivers.sim import SimFtSensor, SimWorld
 
     path = cfg.scene_file if cfg.scene_file is not None else scene_file
     scene = load_scene(path, scene_overrides)

@@ -2,12 +2,12 @@
 
 A physics world only (:class:`SimWorld`: arm commands in, arm states out,
 see :mod:`drivers.sim.arm`) and the sensor that reads it
-(:class:`SimFtSensor`). The FRI link in front of it is :mod:`drivers.emulate`.
+(:class:`SimFtSensor`). The FRI link in front of it is :mod:`drivers.emulate`; the rig
+it builds is a scene (:mod:`drivers.description`).
 """
 
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
 from drivers.sim.driver import SimFtSensor
-from drivers.sim.scene import Scene, load_scene
 from drivers.sim.world import SimWorld
 
 __all__ = [
@@ -15,8 +15,6 @@ __all__ = [
     "ArmMode",
     "ArmState",
     "ArmWarning",
-    "Scene",
     "SimFtSensor",
     "SimWorld",
-    "load_scene",
 ]

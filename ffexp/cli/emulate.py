@@ -85,11 +85,11 @@ def emulate(
     """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""
     # imported here: the other commands need not load the emulator
     from drivers.config import apply_overrides, validate
+    from drivers.description.scene import Scene, load_scene
     from drivers.emulate.faults import FaultSettings
     from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
     from drivers.emulate.netft_box import NetFtServer
     from drivers.net.udp import parse_host_port
-    from drivers.sim.scene import Scene, load_scene
     from drivers.sim.world import SimWorld
 
     positive("--duration", duration, allow_zero=True)

@@ -155,24 +155,6 @@ def test_calibration_file_round_trip_and_errors(tmp_path: Path) -> None:
         calibration_from_points(px[:3], plane[:3])
 
 
-def test_the_tracker_back_ends_import_no_sibling_and_no_ffexp() -> None:
-    import ast
-
-    root = Path(__file__).resolve().parents[1] / "drivers"
-    files = [*(root / "camera").glob("*.py"), root / "sim" / "tracker.py",
-             root / "sim" / "render.py"]
-    for path in files:
-        own = path.parent.name
-        for node in ast.walk(ast.parse(path.read_text())):
-            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
-                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
-            for name in names:
-                assert not name.startswith("ffexp"), f"{path}: imports {name}"
-                parts = name.split(".")
-                if parts[0] == "drivers" and len(parts) > 1:
-                    assert parts[1] in (own, "base", "errors", "config", "vision"), f"{path}: {name}"
-
-
 def test_a_stalled_stream_is_reported_lost_not_waited_for(world) -> None:  # type: ignore[no-untyped-def]
     """A server that sends one frame and then goes silent, keeping the connection open."""
     import threading

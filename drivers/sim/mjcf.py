@@ -101,6 +101,9 @@ def arm_xml(scene: Scene) -> str:
     )
     lwr = LWR4
     origins = (*lwr.joint_origins_m, _FLANGE_CAPSULE)
+    rotors = lwr.rotor_inertias_kgm2
+    if rotors is None or lwr.joint_rpy_rad is not None:
+        raise ValueError(f"{lwr.name}: the model needs rotor inertias, no fixed joint turns")
     for i in reversed(range(lwr.joints)):
         lim = math.radians(lwr.position_limits_deg[i])
         tl = arm.torque_limits[i]
@@ -108,7 +111,7 @@ def arm_xml(scene: Scene) -> str:
             f'<joint name="{ARM_JOINTS[i]}" axis="{_vec(lwr.joint_axes[i])}" '
             f'range="{_f(-lim)} {_f(lim)}" '
             f'frictionloss="{_f(coul[i])}" damping="{_f(visc[i])}" '
-            f'armature="{_f(lwr.rotor_inertias_kgm2[i] * arm.armature_scale)}" '
+            f'armature="{_f(rotors[i] * arm.armature_scale)}" '
             f'actuatorfrcrange="{_f(-tl)} {_f(tl)}" actuatorgravcomp="true" '
             # stiff friction constraint: creep below breakaway ~20 um/s instead of ~2 mm/s
             f'solreffriction="{_f(max(0.002, 2 * scene.physics.timestep))} 1" '

@@ -39,9 +39,9 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from drivers.description.scene import load_scene
 from drivers.emulate.lockstep import open_sim
 from drivers.sim.arm import ArmCommand, ArmMode
-from drivers.sim.scene import load_scene
 from drivers.sim.world import SimWorld
 from ffexp import loop
 from ffexp.experiment import run_file

@@ -33,7 +33,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from drivers.sim import ArmCommand, SimWorld, load_scene
+from drivers.description import load_scene
+from drivers.sim import ArmCommand, SimWorld
 from drivers.sim.arm import ArmState
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -225,7 +225,7 @@ def _scene_writer(rec: Recorder, protocol_path: Path, protocol: RunProtocol, dev
                   notice: Callable[[str], None] | None) -> SceneWriter | None:
     """The 3-D scene of the rig: the sim's own scene, else the protocol's scene file
     (a rig without a usable one records no scene, said in a notice)."""
-    from drivers.sim.scene import Scene, load_scene
+    from drivers.description.scene import Scene, load_scene
     from ffexp.scene3d import SceneWriter
 
     scene_json = devices.metadata.get("scene_json")

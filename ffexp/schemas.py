@@ -39,7 +39,7 @@ def _sec3_sweep() -> type[Any]:
 
 
 def _scene() -> type[Any]:
-    from drivers.sim.scene import Scene
+    from drivers.description.scene import Scene
 
     return Scene
 

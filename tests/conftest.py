@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from drivers.sim.scene import Scene, load_scene
+from drivers.description.scene import Scene, load_scene
 
 PAPER_SCENE = Path(__file__).resolve().parent.parent / "data" / "scenes" / "paper.toml"
 

@@ -12,12 +12,12 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from drivers.description.scene import load_scene
 from drivers.emulate.faults import FaultSettings
 from drivers.emulate.fri_server import EmulatorSettings, EmulatorStats, FriEmulator
 from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriEstimateSensor, FriRobot
 from drivers.fri.link import QualityThresholds
-from drivers.sim.scene import load_scene
 from drivers.sim.world import SimWorld
 from ffexp import loop
 from ffexp.contracts import RunOutcome

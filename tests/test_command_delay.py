@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 
 from drivers.base import CartesianCommand, RobotDriver, RobotState
+from drivers.description.scene import Scene
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.emulate.krc import CommandDelay
 from drivers.emulate.lockstep import SimRobot
 from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriRobot
 from drivers.sim.arm import ArmCommand
-from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld
 
 LOCAL = "127.0.0.1"

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from drivers.base import ApplyStatus, CartesianCommand
+from drivers.description.scene import Scene
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.emulate.lockstep import SimRobot
 from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriRobot
 from drivers.fri.types import FriMeasurement, FriState
-from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld
 
 LOCAL = "127.0.0.1"
@@ -83,8 +83,8 @@ def test_a_whole_run_over_udp_equals_the_in_process_run_at_wire_precision(tmp_pa
     travels in the FRI packet; the alignment judged from the settings, as without truth)."""
     from link_harness import PROTOCOL, ROOT, emulated_run
 
+    from drivers.description.scene import load_scene
     from drivers.fri.estimate import FriEstimateSensor
-    from drivers.sim.scene import load_scene
     from ffexp import loop
     from ffexp.protocol import load_run_protocol
     from ffexp.recording import Recorder, load

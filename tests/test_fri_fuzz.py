@@ -26,7 +26,7 @@ from drivers.fri.driver import FriRobot
 from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement, FriState
 
 if TYPE_CHECKING:
-    from drivers.sim.scene import Scene
+    from drivers.description.scene import Scene
 
 LOCAL = "127.0.0.1"
 FOREIGN = "127.0.0.2"

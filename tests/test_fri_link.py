@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from drivers.base.types import ApplyStatus, CartesianCommand, RobotState
+from drivers.description.scene import Scene
 from drivers.emulate.faults import FaultSettings
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.errors import AddressError, DriverTimeoutError, LinkLostError, NotConnectedError
@@ -38,7 +39,6 @@ from drivers.fri.types import (
     FriState,
     RemoteMeasurement,
 )
-from drivers.sim.scene import Scene
 from drivers.sim.world import SimWorld
 
 LOCAL = "127.0.0.1"

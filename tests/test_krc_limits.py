@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from drivers.base import CartesianCommand
+from drivers.description.scene import Scene, load_scene
 from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.emulate.krc import (
     HARDWARE_LIMITS_DEG,
@@ -25,7 +26,6 @@ from drivers.fri.driver import FriRobot
 from drivers.fri.link import ERROR_SOFTWARE_LIMIT, KrcLink, LinkEvent, describe_error
 from drivers.fri.types import FriMeasurement, FriState
 from drivers.sim.arm import ArmMode
-from drivers.sim.scene import Scene, load_scene
 from drivers.sim.world import SimWorld
 from ffexp import loop
 from ffexp.contracts import StopReason

@@ -20,7 +20,7 @@ from drivers.netft.client import NetFtClient
 from drivers.netft.codec import Calibration, RdtCommand, encode_rdt, encode_request
 
 if TYPE_CHECKING:
-    from drivers.sim.scene import Scene
+    from drivers.description.scene import Scene
 
 LOCAL = "127.0.0.1"
 #: N and N·mm, as many boxes are configured: 1e6 counts/N, 1000 counts/N·mm.

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
-from drivers.sim.scene import IMPULSE_TEST_MU_BOUND, load_scene
+from drivers.description.scene import IMPULSE_TEST_MU_BOUND, load_scene
 from ffexp.cli import app
 from ffexp.sweeps import claims, engine
 from ffexp.sweeps import reproduce as rep

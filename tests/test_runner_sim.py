@@ -8,8 +8,8 @@ import mujoco
 import numpy as np
 import pytest
 
+from drivers.description.scene import load_scene
 from drivers.emulate.lockstep import open_sim
-from drivers.sim.scene import load_scene
 from ffexp.analysis import metrics
 from ffexp.contracts import Phase
 from ffexp.experiment import run_file

@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from drivers.sim.mjcf import LWR_POS_LIMITS_DEG, build_xml
-from drivers.sim.scene import Scene, load_scene
+from drivers.description.lwr4 import LWR4
+from drivers.description.scene import Scene, load_scene
+from drivers.sim.mjcf import build_xml
 from ffexp.experiment import RigChoice, run_file
 from ffexp.scene3d.kinematics import chain, link_transforms, tcp_pose
 
@@ -38,7 +39,7 @@ def _mujoco_tcp(scene: Scene, q: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("base_pos", [(0.0, 0.0, 0.0), (0.1, -0.2, 0.05)])
 def test_forward_kinematics_agrees_with_the_simulators_arm(base_pos: tuple[float, ...]) -> None:
     scene = load_scene(ROOT / "data/scenes/paper.toml", [f"arm.base_pos={list(base_pos)}"])
-    limits = np.radians(LWR_POS_LIMITS_DEG)
+    limits = np.radians(LWR4.position_limits_deg)
     rng = np.random.default_rng(5)
     for q in [np.array(scene.arm.q_init), *rng.uniform(-limits, limits, (12, 7))]:
         np.testing.assert_allclose(tcp_pose(scene, q), _mujoco_tcp(scene, q), atol=1e-12)

@@ -20,14 +20,15 @@ import pytest
 
 from drivers.base.placement import placement, placement_at_mouth
 from drivers.base.types import ApplyStatus, CartesianCommand
+from drivers.description import load_scene
+from drivers.description.scene import FtSensorSettings
 from drivers.emulate.krc import software_limit_error
 from drivers.emulate.lockstep import SimRobot
 from drivers.errors import SimulationError
-from drivers.sim import ArmCommand, SimWorld, load_scene
+from drivers.sim import ArmCommand, SimWorld
 from drivers.sim.arm import ArmMode, ArmState
 from drivers.sim.friction import JointFriction
 from drivers.sim.ftsensor import NOISE_BLOCK, FtSensorModel
-from drivers.sim.scene import FtSensorSettings
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = ROOT / "data" / "scenes" / "paper.toml"

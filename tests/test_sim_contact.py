@@ -1,4 +1,5 @@
-"""Funnel contact geometry (drivers/sim/funnels.py): smooth cones from primitives.
+"""Funnel contact geometry (drivers/sim/funnels.py, drivers/description/funnel.py): smooth
+cones from primitives.
 
 The tool's funnel sits on a free body (no gravity) at a chosen pose in the
 target funnel; ``mj_forward`` resolves the contact and we read the total
@@ -17,8 +18,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from drivers.description.funnel import seat_depth, tool_cone_spheres
+from drivers.description.scene import Scene
 from drivers.sim import funnels
-from drivers.sim.scene import Scene
 
 TIP = 0.1  # tool tip distance from the tool body's frame in the generated geoms
 
@@ -100,7 +102,7 @@ def test_sphere_stack_is_the_cone_within_the_scallop() -> None:
     th = f.half_angle
     r_n = scene.tool.nose_radius
     a_apex = r_n - r_n / math.sin(th)
-    spheres = funnels.tool_cone_spheres(scene)
+    spheres = tool_cone_spheres(scene)
     # the profile of the stack, along the generator, against the cone line
     s_first = spheres[0][1] / math.tan(th)  # tangency of the nose, distance from the apex
     s_last = spheres[-1][1] / math.tan(th)
@@ -128,7 +130,7 @@ def test_coaxial_tool_first_touches_at_the_seat_depth() -> None:
     d = mujoco.MjData(m)
     x = _first_touch_x(m, d, 0.0, 0.0)
     # contact is reported within the solver's margin (0 here): bisection to 0.1 um
-    assert x == pytest.approx(funnels.seat_depth(scene), abs=2e-5)
+    assert x == pytest.approx(seat_depth(scene), abs=2e-5)
 
 
 def test_contact_direction_is_continuous_over_landing_points() -> None:
@@ -166,7 +168,8 @@ def test_far_apart_shortcut_equals_the_contact_list() -> None:
     # spheres of all it can touch: the same wrench and touching flag as without
     from pathlib import Path
 
-    from drivers.sim import ArmCommand, SimWorld, load_scene
+    from drivers.description import load_scene
+    from drivers.sim import ArmCommand, SimWorld
 
     scene = load_scene(Path(__file__).resolve().parent.parent / "data" / "scenes" / "paper.toml",
                        ["target.distance=0.1"])

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from drivers.description.scene import ArmSettings
 from drivers.sim.friction import JointFriction
-from drivers.sim.scene import ArmSettings
 
 DT = 0.001
 SUBSTEPS = 5
@@ -79,7 +79,7 @@ def test_breakaway_at_the_static_level_then_sliding_at_the_curve() -> None:
 
 def test_scene_builds_the_lwr_model_from_jubien_and_its_scale() -> None:
     arm = ArmSettings(friction_scale=0.01, static_ratio=1.5, stribeck_speed=0.03)
-    f = arm.joint_friction()
+    f = JointFriction.of_arm(arm)
     assert np.allclose(f.coulomb_nm, 0.01 * np.array([11.9, 11.5, 8.98, 8.35, 8.31, 4.72, 6.04]))
     assert np.allclose(f.static_nm, 1.5 * f.coulomb_nm)
     assert np.allclose(f.viscous_nmsprad, 0.01 * np.array([14.4, 15.3, 6.55, 11.0, 4.29, 2.26,

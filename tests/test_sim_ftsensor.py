@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from drivers.base.types import FtStatus
+from drivers.description.scene import FtSensorSettings
 from drivers.sim.ftsensor import FtSensorModel
-from drivers.sim.scene import FtSensorSettings
 
 QUIET = FtSensorSettings(noise_std=(0.0, 0.0), bias_std=(0.0, 0.0), drift_density=(0.0, 0.0),
                          delay_s=0.0)

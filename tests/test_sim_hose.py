@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from drivers.sim.scene import Scene
+from drivers.description.scene import Scene
 from drivers.sim.world import SimWorld
 
 K_NPM = 200.0
@@ -80,7 +80,7 @@ def test_the_nominal_restraint_is_within_the_papers_impulse_test() -> None:
     (mu < 0.01, i.e. 0.01 g); the nominal scene's target is inside that bound."""
     from pathlib import Path
 
-    from drivers.sim.scene import IMPULSE_TEST_MU_BOUND, load_scene
+    from drivers.description.scene import IMPULSE_TEST_MU_BOUND, load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[1] / "data/scenes/paper.toml")
     g = scene.physics.gravity

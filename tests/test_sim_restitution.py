@@ -22,15 +22,15 @@ import mujoco
 import numpy as np
 import pytest
 
+from drivers.description import funnel
+from drivers.description.scene import Scene, load_scene
 from drivers.errors import ConfigError
-from drivers.sim import funnels
 from drivers.sim.contact import (
     DAMPING_RATIO_RANGE,
     configure_contact,
     damping_ratio_for,
     restitution_of,
 )
-from drivers.sim.scene import Scene, load_scene
 from drivers.sim.world import SimWorld
 
 SCENE = Path(__file__).resolve().parents[1] / "data" / "scenes" / "paper.toml"
@@ -216,7 +216,7 @@ def test_seating_impact_on_every_panel_rebounds_with_the_restitution(restitution
     # near 1)
     w = _world(restitution, "target.lateral=0", "target.yaw_deg=0")
     e, geoms, n_pairs = _impact(w, 0.05)
-    assert len(geoms) == len(funnels.tool_cone_spheres(w.scene))
+    assert len(geoms) == len(funnel.tool_cone_spheres(w.scene))
     assert n_pairs >= 4 * w.scene.target.funnel.panels
     assert e == pytest.approx(restitution, rel=0.1)
 

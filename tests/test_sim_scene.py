@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pytest
 
+from drivers.description.scene import Scene, load_scene
 from drivers.errors import ConfigError
-from drivers.sim.scene import Scene, load_scene
 
 
 def test_paper_scene_is_the_default_rig(paper_scene: Scene) -> None:

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 from typer.testing import CliRunner
 
-from drivers.camera import load_calibration
 from drivers.sim.tracker import SimTracker
+from drivers.vision import load_calibration
 from ffexp.cli import app
 
 MS = 1_000_000

@@ -12,10 +12,11 @@ import pytest
 
 import ffexp.errors
 from drivers.base.types import FtStatus
+from drivers.description.scene import Scene
 from drivers.errors import InvalidCommandError, SimulationError
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
 from drivers.sim.controller import cart_impedance_torque, cartesian_mobility, normalized_damping
-from drivers.sim.scene import Scene
+from drivers.sim.friction import JointFriction
 from drivers.sim.world import SimWorld
 
 _N_ARM = 7
@@ -170,7 +171,7 @@ def test_joint_friction_breakaway_matches_closed_form() -> None:
     """The tool stays put while every |J^T F|_i is below joint i's static (breakaway) friction."""
     w0 = SimWorld(scene(arm=ARM_1PCT, target=far_target()))
     m0 = w0.last_state
-    static = w0.scene.arm.joint_friction().static_nm
+    static = JointFriction.of_arm(w0.scene.arm).static_nm
     e_y = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
     breakaway = 1.0 / float(np.max(np.abs(m0.jacobian.T @ e_y) / static))
 

@@ -82,7 +82,7 @@ def test_run_id_is_canonical() -> None:
 
 
 def test_target_puts_a_point_into_the_protocol_and_scene(tmp_path: Path) -> None:
-    from drivers.sim.scene import load_scene
+    from drivers.description.scene import load_scene
     from ffexp.protocol import load_run_protocol
 
     t = plan.Target(P1, (SHORT,))

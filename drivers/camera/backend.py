@@ -61,8 +61,8 @@ class CameraTrackerConfig(DeviceConfig):
 
 def _open_tracker(cfg: CameraTrackerConfig, ctx: OpenContext,
                   robot: OpenedRobot) -> OpenedTracker:
-    from drivers.camera.calibration import load_calibration
     from drivers.camera.tracker import CameraTracker
+    from drivers.vision import load_calibration
 
     if cfg.calibration is None:
         raise ConfigError(ctx.source, "tracker.calibration",

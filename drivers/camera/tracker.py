@@ -2,8 +2,8 @@
 
 The capture runs in its own daemon thread: it opens the source (a device
 index, a video file or a network stream such as an MJPEG-over-HTTP URL),
-decodes frames, finds the marker (:mod:`drivers.camera.marker`), maps its
-corners to the table plane (:mod:`drivers.camera.calibration`) and publishes
+decodes frames, finds the marker (:mod:`drivers.vision.marker`), maps its
+corners to the table plane (:mod:`drivers.vision.calibration`) and publishes
 the target's pose; :meth:`CameraTracker.latest` only reads the newest
 observation under a lock, so the control loop never waits for the camera.
 
@@ -30,9 +30,9 @@ import numpy as np
 from drivers.base.interfaces import TargetTracker
 from drivers.base.types import F64, NS_PER_S, TargetObservation
 from drivers.camera.backend import CameraTrackerConfig
-from drivers.camera.calibration import Calibration
-from drivers.camera.marker import aruco_dictionary, detector, find_marker
 from drivers.errors import ConfigError
+from drivers.vision.calibration import Calibration
+from drivers.vision.marker import aruco_dictionary, detector, find_marker
 
 __all__ = ["CameraTracker", "MarkerGeometry", "target_from_marker"]
 

@@ -37,8 +37,8 @@ class SimRobotConfig(DeviceConfig):
 
 
 def _open_robot(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
+    from drivers.description import load_scene
     from drivers.emulate.lockstep import SimRobot
-    from drivers.sim.scene import load_scene
     from drivers.sim.world import SimWorld
 
     path = cfg.scene_file if cfg.scene_file is not None else ctx.scene_file

@@ -3,7 +3,7 @@
 ``GET /stream.mjpg`` answers ``multipart/x-mixed-replace`` with one JPEG per
 frame at the camera's rate (what IP cameras serve; OpenCV reads it as a
 capture source), ``GET /calibration.toml`` the camera's calibration (the
-top view's pixels-to-plane homography, :mod:`drivers.camera.calibration`).
+top view's pixels-to-plane homography, :mod:`drivers.vision.calibration`).
 The emulator's thread hands over the target's pose after each cycle
 (:meth:`CameraStream.publish`: a copy under a lock, so the render thread
 never reads the world while it steps); a render thread takes the newest at
@@ -25,10 +25,10 @@ import cv2
 import numpy as np
 
 from drivers.base.types import F64
-from drivers.camera.calibration import save_calibration
 from drivers.errors import AddressError
 from drivers.sim.render import TargetRenderer, top_view
 from drivers.sim.world import SimWorld
+from drivers.vision.calibration import save_calibration
 
 __all__ = ["CameraStream"]
 

@@ -37,6 +37,7 @@ from typing import Final
 import numpy as np
 
 from drivers.base.types import F64
+from drivers.description.lwr4 import LWR4
 from drivers.errors import InvalidCommandError
 from drivers.fri.types import (
     WARN_POSITION_LIMIT,
@@ -51,7 +52,6 @@ from drivers.fri.types import (
     FriState,
 )
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
-from drivers.sim.mjcf import LWR_POS_LIMITS_DEG
 
 __all__ = [
     "HARDWARE_LIMITS_DEG",
@@ -113,7 +113,7 @@ _new: Final = object.__new__
 #: Hardware (mechanical) joint ranges of the LWR4+ A1..A7 [deg]: +-170/120
 #: (CentroEPiaggio kuka-lwr URDF; the KRC's rsidef7.dat as quoted by TUM's
 #: kuka_fri FRICheck.cc), the range of the simulated joints.
-HARDWARE_LIMITS_DEG: Final = LWR_POS_LIMITS_DEG
+HARDWARE_LIMITS_DEG: Final = LWR4.position_limits_deg
 #: The KRC's software limit switches A1..A7 [deg]: +-160/110, the "safety soft
 #: limits" of an older CentroEPiaggio kuka-lwr URDF (commit 00915b5), 10 deg
 #: inside the hardware ranges. A real cell's values are in its machine data;

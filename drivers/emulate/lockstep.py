@@ -40,6 +40,7 @@ import numpy as np
 from drivers.base.guards import requires_open
 from drivers.base.interfaces import RobotDriver
 from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
+from drivers.description.scene import Scene, load_scene
 from drivers.emulate.krc import (
     SOFTWARE_LIMITS_DEG,
     CommandDelay,
@@ -75,7 +76,6 @@ from drivers.fri.types import CmdFlags, ControlMode, FriCommand, FriMeasurement
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState
 from drivers.sim.controller import clip_cart_stiffness
 from drivers.sim.driver import SimFtSensor
-from drivers.sim.scene import Scene, load_scene
 from drivers.sim.world import SimWorld
 
 __all__ = ["SimRobot", "open_sim"]

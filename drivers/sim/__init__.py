@@ -2,7 +2,8 @@
 
 A physics world only (:class:`SimWorld`: arm commands in, arm states out,
 see :mod:`drivers.sim.arm`) and the sensor that reads it
-(:class:`SimFtSensor`). The FRI link in front of it is :mod:`drivers.emulate`.
+(:class:`SimFtSensor`). The FRI link in front of it is :mod:`drivers.emulate`; the rig
+it builds is a scene (:mod:`drivers.description`).
 
 The names below are imported on first use (PEP 562), so that the back-end's
 entry (:mod:`drivers.sim.backend`, read by :mod:`drivers.registry` for the
@@ -17,7 +18,6 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
     from drivers.sim.driver import SimFtSensor
-    from drivers.sim.scene import Scene, load_scene
     from drivers.sim.world import SimWorld
 
 __all__ = [
@@ -25,15 +25,13 @@ __all__ = [
     "ArmMode",
     "ArmState",
     "ArmWarning",
-    "Scene",
     "SimFtSensor",
     "SimWorld",
-    "load_scene",
 ]
 
 _WHERE = {
     "ArmCommand": "arm", "ArmMode": "arm", "ArmState": "arm", "ArmWarning": "arm",
-    "SimFtSensor": "driver", "Scene": "scene", "load_scene": "scene", "SimWorld": "world",
+    "SimFtSensor": "driver", "SimWorld": "world",
 }
 
 

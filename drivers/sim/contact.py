@@ -13,8 +13,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from drivers.base.types import F64
+from drivers.description.scene import Scene
 from drivers.errors import ConfigError
-from drivers.sim.scene import Scene
 
 __all__ = ["ContactInfo", "ToolContact", "configure_contact", "damping_ratio_for",
            "restitution_of"]

@@ -25,6 +25,7 @@ import mujoco
 import numpy as np
 
 from drivers.base.types import F64
+from drivers.description.scene import ArmSettings
 
 __all__ = ["JointFriction"]
 
@@ -55,6 +56,18 @@ class JointFriction:
         self._excess = self.static_nm - self.coulomb_nm
         self._n = int(self.static_nm.shape[0])
         self._work = np.zeros(self._n)
+
+    @classmethod
+    def of_arm(cls, arm: ArmSettings) -> JointFriction:
+        """The friction a scene's arm settings give (its Coulomb and viscous levels,
+        static over Coulomb ratio and Stribeck speed)."""
+        coulomb = np.asarray(arm.coulomb_friction())
+        return cls(
+            static_nm=arm.static_ratio * coulomb,
+            coulomb_nm=coulomb,
+            viscous_nmsprad=np.asarray(arm.viscous_friction()),
+            stribeck_radps=np.full(len(coulomb), arm.stribeck_speed),
+        )
 
     @property
     def joints(self) -> int:

@@ -32,8 +32,8 @@ import mujoco
 import numpy as np
 
 from drivers.base.types import F64, FtSamples, FtStatus
+from drivers.description.scene import FtSensorSettings
 from drivers.errors import SimulationError
-from drivers.sim.scene import FtSensorSettings
 
 #: Samples' worth of Gaussian draws taken from the generator at once (12 per sample:
 #: 6 drift increments, 6 white noise values).

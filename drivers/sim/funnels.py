@@ -17,7 +17,9 @@ the tool lands:
 
 Sphere-box is one of MuJoCo's primitive collision pairs (one contact per pair,
 no iterative CCD). The old capsule generators remain selectable
-(``surface = "capsules"``) to compare against.
+(``surface = "capsules"``) to compare against. The spheres' sizes and the seat
+depth are the funnels' geometry (:mod:`drivers.description.funnel`); this module
+writes them as MJCF.
 
 Frames: the target funnel's mouth centre is the origin of body
 ``target_funnel``, its axis +x (into the target); the tool's tip is at
@@ -30,9 +32,10 @@ import math
 
 import numpy as np
 
-from drivers.sim.scene import FunnelGeometry, Scene
+from drivers.description.funnel import capsule_tool_cone, tool_cone_spheres
+from drivers.description.scene import FunnelGeometry, Scene
 
-__all__ = ["seat_depth", "target_funnel_geoms", "tool_cone_spheres", "tool_funnel_geoms"]
+__all__ = ["target_funnel_geoms", "tool_funnel_geoms"]
 
 _TOOL = 'contype="1" conaffinity="2"'
 _TARGET = 'contype="2" conaffinity="1"'
@@ -47,36 +50,6 @@ def _vec(v: object) -> str:
 
 
 # ----------------------------------------------------------------- the tool
-def tool_cone_spheres(scene: Scene) -> list[tuple[float, float]]:
-    """(distance of the centre behind the tip, radius) of every tool sphere [m].
-
-    The tool cone has half-angle ``theta``, is tangent to the nose sphere
-    (radius ``r_n``, centre ``r_n`` behind the tip) and ends ``depth`` behind
-    the tip or where its radius reaches ``opening``, whichever comes first.
-    A sphere whose centre lies ``a`` behind the tip is inscribed in the cone
-    with radius ``(a - a_apex) sin(theta)``, where the cone's apex lies
-    ``a_apex = r_n - r_n / sin(theta)`` behind the tip
-    (ahead of it: negative). Between two inscribed spheres touching the
-    generator ``ds`` apart, the surface dips by about ``ds^2 / (8 r)``; the
-    spacing keeps that below ``scallop``.
-    """
-    f = scene.tool.funnel
-    th = f.half_angle
-    s, c = math.sin(th), math.cos(th)
-    r_n = scene.tool.nose_radius
-    a_apex = r_n - r_n / s
-    # The last sphere's circle of tangency (radius rho cos(theta), at
-    # a_apex + rho cos^2(theta) / sin(theta) behind the tip) is the cone's base.
-    rho_last = min(f.opening / c, (f.depth - a_apex) * s / (c * c))
-    out = [(r_n, r_n)]
-    rho = r_n
-    while rho < rho_last - 1e-9:
-        ds = math.sqrt(8.0 * rho * f.scallop)  # spacing of tangency circles along the generator
-        rho = min(rho + ds * math.tan(th), rho_last)
-        out.append((a_apex + rho / s, rho))
-    return out
-
-
 def tool_funnel_geoms(scene: Scene, tip_z: float, funnel_class: str) -> str:
     """The tool's colliding geoms (and none of its visual ones)."""
     f = scene.tool.funnel
@@ -92,19 +65,9 @@ def tool_funnel_geoms(scene: Scene, tip_z: float, funnel_class: str) -> str:
     return "\n".join(out)
 
 
-def _male_cone_capsules(scene: Scene) -> tuple[float, float, float]:
-    """Capsule tool: (axis radius at the nose end, at the base, surface offset c_m)."""
-    f = scene.tool.funnel
-    t = math.tan(f.half_angle)
-    a2 = f.opening - f.capsule_radius
-    a1 = max(0.0, a2 - (f.depth - scene.tool.nose_radius) * t)
-    c_m = a1 + f.capsule_radius - scene.tool.nose_radius * t
-    return a1, a2, c_m
-
-
 def _tool_capsules(scene: Scene, tip_z: float, funnel_class: str) -> str:
     f = scene.tool.funnel
-    a1, a2, _ = _male_cone_capsules(scene)
+    a1, a2, _ = capsule_tool_cone(scene)
     nose = scene.tool.nose_radius
     z1 = tip_z - nose
     z2 = tip_z - f.depth
@@ -167,23 +130,3 @@ def _target_capsules(f: FunnelGeometry, funnel_class: str) -> str:
         )
     return "\n".join(out)
 
-
-# ------------------------------------------------------------------ the seat
-def seat_depth(scene: Scene) -> float:
-    """Insertion of the tool tip past the target's mouth when the funnels are seated [m].
-
-    The coaxial tool slid into the target cone until it first touches it,
-    capped at the funnel's depth. Smooth tool: a sphere of radius ``rho``
-    centred ``a`` behind the tip touches the cone (half-angle ``theta``,
-    mouth radius ``R``) when its centre is at depth
-    ``(R - rho / cos(theta)) / tan(theta)``. Capsule tool: its cone surface
-    ``c_m + s tan(theta)`` (equal half-angles assumed, as before).
-    """
-    tf = scene.target.funnel
-    t = math.tan(tf.half_angle)
-    if scene.tool.funnel.surface == "capsules":
-        _, _, c_m = _male_cone_capsules(scene)
-        return min((tf.opening - c_m) / math.tan(scene.tool.funnel.half_angle), tf.depth)
-    c = math.cos(tf.half_angle)
-    tips = [(tf.opening - rho / c) / t + a for a, rho in tool_cone_spheres(scene)]
-    return min(min(tips), tf.depth)

@@ -1,24 +1,12 @@
-"""MJCF of the rig, generated from a :class:`~drivers.sim.scene.Scene`.
+"""MJCF of the rig, generated from a :class:`~drivers.description.scene.Scene`.
 
 Written by us from published numbers; no third-party model file is copied.
 
-Sources of the numbers (public; the choices made where they are silent are
-listed in ``drivers/sim/NOTES.md``):
-
-* Kinematics (joint offsets 0.11 / 0.2005 / 0.20 / 0.20 / 0.20 / 0.19 /
-  0.078 m, axes +z -y +z +y +z -y +z, position limits 170/120 deg,
-  velocity limits, effort limits 176/176/100/100/100/38/38 N m):
-  CentroEPiaggio/kuka-lwr ``lwr_description/model/kuka_lwr.urdf.xacro``
-  (commit 464d48c). Velocity limits: same file.
-* Link masses, centres of mass and principal inertias: the AUTh mesh-derived
-  set, iSaran/robamine ``rlrl-py/rlrl_py/envs/assets/xml/lwr/lwr_robot.xml``
-  ("Source: auth-arl/autharl_core"). The principal-axis orientations of that
-  file are not in our fact sheet, so the principal moments are used about the
-  link axes (an approximation of second order: the off-diagonal terms).
-* Joint friction and reflected rotor inertia: Jubien 2014 identified values
-  (ISIR-SYROCO/kukaKDL ``kukakdl_const.hpp``), scaled by settings, because
-  those are drive-side and the LWR's torque loop hides most of them.
-* ATI Mini45: 45 mm diameter, 15.7 mm height, 0.0917 kg (ATI catalogue).
+The arm's numbers are its published description (:data:`drivers.description.lwr4.LWR4`,
+with their sources); the Jubien friction and rotor inertias are scaled by the
+scene (the choices made where sources are silent: ``drivers/sim/NOTES.md``). The
+ATI Mini45: 45 mm diameter, 15.7 mm height, 0.0917 kg (ATI catalogue). Where the
+target goes: :func:`drivers.description.layout.compute_layout`.
 
 The TCF (site ``tcp``) is the flange frame turned by 180 deg about the tool
 axis and moved to the tool tip: in the paper pose (flange along world +x) TCF
@@ -38,49 +26,18 @@ inside the physics step (see :mod:`drivers.sim.world`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from drivers.description.funnel import tool_tip_offset
+from drivers.description.layout import Layout
+from drivers.description.lwr4 import LWR4
+from drivers.description.scene import Scene
 from drivers.sim import funnels
-from drivers.sim.scene import Scene
 
-#: Joint-origin offsets along the parent z axis [m] (CentroEPiaggio URDF).
-LWR_OFFSETS = (0.11, 0.2005, 0.20, 0.20, 0.20, 0.19, 0.078)
-#: Joint axes in the link frame (CentroEPiaggio URDF).
-LWR_AXES = ((0, 0, 1), (0, -1, 0), (0, 0, 1), (0, 1, 0), (0, 0, 1), (0, -1, 0), (0, 0, 1))
-#: Position limits [deg] (CentroEPiaggio URDF; also KRC rsidef7.dat via TUM kuka_fri).
-LWR_POS_LIMITS_DEG = (170.0, 120.0, 170.0, 120.0, 170.0, 120.0, 170.0)
-#: Velocity limits [deg/s] (CentroEPiaggio URDF).
-LWR_VEL_LIMITS_DEG = (110.0, 110.0, 128.0, 128.0, 204.0, 184.0, 184.0)
-#: Link masses [kg], links 1..7 (AUTh mesh-derived set).
-LWR_MASSES = (2.59818, 2.61292, 2.59818, 2.61292, 1.94073, 1.27744, 0.0698888)
-#: Link centres of mass [m] in the link frame (AUTh set).
-LWR_COMS = (
-    (0.0, 0.0387, 0.1519),
-    (0.0, -0.0371, 0.0615),
-    (0.0, -0.0387, 0.1519),
-    (0.0, 0.0371, 0.0615),
-    (0.0004, 0.0296, 0.1109),
-    (0.0, -0.0140, -0.0012),
-    (0.0, 0.0, -0.0087),
-)
-#: Principal inertias [kg m^2] (AUTh set).
-LWR_INERTIAS = (
-    (0.01432, 0.01406, 0.00483),
-    (0.01675, 0.01618, 0.00449),
-    (0.01432, 0.01406, 0.00483),
-    (0.01675, 0.01618, 0.00449),
-    (0.00995, 0.00893, 0.00301),
-    (0.00286, 0.00247, 0.00232),
-    (4.7e-5, 2.5e-5, 2.5e-5),
-)
-#: Jubien 2014 reflected rotor inertias [kg m^2] for A3..A7; A1/A2 are not
-#: separable from the grouped parameters and are taken equal to A3 (assumption).
-JUBIEN_ROTOR = (2.01, 2.01, 2.01, 1.92, 0.776, 0.391, 0.399)
-
-ARM_JOINTS = tuple(f"a{i + 1}" for i in range(7))
+ARM_JOINTS = tuple(f"a{i + 1}" for i in range(LWR4.joints))
+#: The last link's drawn capsule ends this far from the flange's joint (not a physical size).
+_FLANGE_CAPSULE = (0.0, 0.0, 0.02)
 TARGET_JOINTS = ("target_x", "target_y", "target_z", "target_yaw")
 FT_SENSOR_FORCE = "ft_force"
 FT_SENSOR_TORQUE = "ft_torque"
@@ -99,30 +56,12 @@ _GLASS = 'contype="8" conaffinity="4"'
 _VISUAL = 'contype="0" conaffinity="0"'
 
 
-@dataclass(frozen=True)
-class Layout:
-    """Where the scene puts things (world frame), derived from the start TCF."""
-
-    glass_z: float
-    target_pos: NDArray[np.float64]
-    target_yaw: float
-    funnel_in_target: NDArray[np.float64]
-    """Mouth centre of the target funnel in the target body frame."""
-    funnel_seat_depth: float
-    """Insertion depth of the tool tip when the cones are seated [m]."""
-
-
 def _f(v: float) -> str:
     return f"{v:.9g}"
 
 
 def _vec(v: object) -> str:
     return " ".join(_f(float(x)) for x in v)  # type: ignore[attr-defined]
-
-
-def tool_tip_offset(scene: Scene) -> float:
-    """Distance from the sensing face of the Mini45 to the TCP (tool tip) [m]."""
-    return scene.tool.shaft_length + scene.tool.funnel.depth
 
 
 def arm_xml(scene: Scene) -> str:
@@ -160,26 +99,30 @@ def arm_xml(scene: Scene) -> str:
         f"{funnels.tool_funnel_geoms(scene, tip, 'funnel')}\n"
         f"</body>\n</body>"
     )
-    for i in reversed(range(7)):
-        lim = math.radians(LWR_POS_LIMITS_DEG[i])
+    lwr = LWR4
+    origins = (*lwr.joint_origins_m, _FLANGE_CAPSULE)
+    rotors = lwr.rotor_inertias_kgm2
+    if rotors is None or lwr.joint_rpy_rad is not None:
+        raise ValueError(f"{lwr.name}: the model needs rotor inertias, no fixed joint turns")
+    for i in reversed(range(lwr.joints)):
+        lim = math.radians(lwr.position_limits_deg[i])
         tl = arm.torque_limits[i]
-        arm_len = LWR_OFFSETS[i + 1] if i < 6 else 0.02
         joint = (
-            f'<joint name="{ARM_JOINTS[i]}" axis="{_vec(LWR_AXES[i])}" '
+            f'<joint name="{ARM_JOINTS[i]}" axis="{_vec(lwr.joint_axes[i])}" '
             f'range="{_f(-lim)} {_f(lim)}" '
             f'frictionloss="{_f(coul[i])}" damping="{_f(visc[i])}" '
-            f'armature="{_f(JUBIEN_ROTOR[i] * arm.armature_scale)}" '
+            f'armature="{_f(rotors[i] * arm.armature_scale)}" '
             f'actuatorfrcrange="{_f(-tl)} {_f(tl)}" actuatorgravcomp="true" '
             # stiff friction constraint: creep below breakaway ~20 um/s instead of ~2 mm/s
             f'solreffriction="{_f(max(0.002, 2 * scene.physics.timestep))} 1" '
             f'solimpfriction="0.99 0.999 0.001"/>'
         )
         inner = (
-            f'<body name="link{i + 1}" pos="0 0 {_f(LWR_OFFSETS[i])}" gravcomp="1">\n'
-            f'<inertial pos="{_vec(LWR_COMS[i])}" mass="{_f(LWR_MASSES[i])}" '
-            f'diaginertia="{_vec(LWR_INERTIAS[i])}"/>\n'
+            f'<body name="link{i + 1}" pos="{_vec(origins[i])}" gravcomp="1">\n'
+            f'<inertial pos="{_vec(lwr.link_coms_m[i])}" mass="{_f(lwr.link_masses_kg[i])}" '
+            f'diaginertia="{_vec(lwr.link_inertias_kgm2[i])}"/>\n'
             f"{joint}\n"
-            f'<geom type="capsule" size="0.06" fromto="0 0 0 0 0 {_f(arm_len)}" {_VISUAL} '
+            f'<geom type="capsule" size="0.06" fromto="0 0 0 {_vec(origins[i + 1])}" {_VISUAL} '
             f'mass="0" rgba="1 0.5 0 0.6"/>\n'
             f"{inner}\n</body>"
         )
@@ -223,44 +166,6 @@ def target_xml(scene: Scene, layout: Layout) -> str:
         + f'\n<body name="target_funnel" pos="{_vec(layout.funnel_in_target)}">\n'
         f'<site name="funnel_mouth" pos="0 0 0"/>\n'
         f"{funnels.target_funnel_geoms(tg.funnel, 'funnel')}\n</body>\n</body>"
-    )
-
-
-def funnel_axis_height(scene: Scene) -> float:
-    """Height of the target funnel's axis above the glass [m]."""
-    f = scene.target.funnel
-    return scene.target.size[2] + f.opening + f.capsule_radius + 0.005
-
-
-def compute_layout(
-    scene: Scene, tcp_pos: NDArray[np.float64], tcp_rot: NDArray[np.float64]
-) -> Layout:
-    """Place glass and target from the start TCF (``tcp_rot`` columns = TCF axes in world)."""
-    tg = scene.target
-    z_axis = tcp_rot[:, 2].copy()
-    y_axis = tcp_rot[:, 1].copy()
-    z_axis[2] = 0.0
-    y_axis[2] = 0.0
-    z_axis /= max(float(np.linalg.norm(z_axis)), 1e-12)
-    y_axis /= max(float(np.linalg.norm(y_axis)), 1e-12)
-    h = funnel_axis_height(scene)
-    glass_z = float(tcp_pos[2]) - h
-    mouth = tcp_pos + tg.distance * z_axis + tg.lateral * y_axis
-    mouth[2] = tcp_pos[2]
-    yaw0 = math.atan2(z_axis[1], z_axis[0])
-    yaw = yaw0 + math.radians(tg.yaw_deg)
-    funnel_in_target = np.array(
-        [-tg.size[0] / 2.0, 0.0, h - tg.size[2] / 2.0], dtype=np.float64
-    )
-    c, s = math.cos(yaw), math.sin(yaw)
-    rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    center = mouth - rz @ funnel_in_target
-    return Layout(
-        glass_z=glass_z,
-        target_pos=center,
-        target_yaw=yaw,
-        funnel_in_target=funnel_in_target,
-        funnel_seat_depth=funnels.seat_depth(scene),
     )
 
 

@@ -1,10 +1,9 @@
 """The simulated rig: LWR4+ with its KRC impedance controller, air-bed target, F/T sensor.
 
-:class:`SimWorld` is a physics world only: ``step(command)`` latches an
-:class:`~drivers.sim.arm.ArmCommand` (if given), runs one control cycle of
-physics and returns the :class:`~drivers.sim.arm.ArmState` at its end. It
-knows no link protocol: how FRI's flags select fields, when the link takes
-commands (MON/CMD) and its quality are the emulator's (:mod:`drivers.emulate`).
+:class:`SimWorld` is a physics world only: ``step(command)`` latches an ArmCommand (if
+given), runs one control cycle of physics and returns the ArmState (:mod:`drivers.sim.arm`) at
+its end. It knows no link protocol: how FRI's flags select fields, when the link takes commands
+(MON/CMD) and its quality are the emulator's (:mod:`drivers.emulate`). Its rig is a Scene.
 
 How the KRC is modelled (see :mod:`drivers.sim.controller` for the laws):
 
@@ -43,14 +42,15 @@ import mujoco
 import numpy as np
 
 from drivers.base.types import F64, FtSamples
+from drivers.description import LWR4, Scene, compute_layout, tool_tip_offset
 from drivers.errors import InvalidCommandError
 from drivers.sim import mjcf
 from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
 from drivers.sim.contact import ToolContact, configure_contact
 from drivers.sim.controller import clip_cart_stiffness, normalized_damping
 from drivers.sim.divergence import check_divergence, quiet_divergence
+from drivers.sim.friction import JointFriction
 from drivers.sim.ftsensor import FtSensorModel, FtSteps
-from drivers.sim.scene import Scene
 from drivers.sim.state import LazyArmState
 from drivers.sim.truth import pose as _pose
 
@@ -59,7 +59,7 @@ from drivers.sim.truth import pose as _pose
 #: into the funnel: 1 mrad keeps the damping within 0.06 % of the exact value
 #: (3 mrad: 0.4 %; 10 mrad: off by up to 8x near a poorly conditioned axis).
 INERTIA_REUSE_RAD = 1e-3
-_N_ARM = 7
+_N_ARM = LWR4.joints
 
 _isfinite = math.isfinite
 # np.linalg.inv's LAPACK gufunc without its Python wrapper (the same values); the
@@ -108,7 +108,7 @@ class SimWorld:
         d0.qpos[:_N_ARM] = scene.arm.q_init
         mujoco.mj_forward(m0, d0)
         tcp0 = d0.site("tcp")
-        self.layout = mjcf.compute_layout(scene, tcp0.xpos.copy(), tcp0.xmat.reshape(3, 3).copy())
+        self.layout = compute_layout(scene, tcp0.xpos.copy(), tcp0.xmat.reshape(3, 3).copy())
 
         # 2. The whole rig.
         self.xml = mjcf.build_xml(scene, self.layout)
@@ -116,7 +116,7 @@ class SimWorld:
         self.data = d = mujoco.MjData(m)
         self._ready = False
         quiet_divergence(m, d)
-        self._friction = scene.arm.joint_friction()
+        self._friction = JointFriction.of_arm(scene.arm)
         self._friction.install(m)
         self._frictionloss = m.dof_frictionloss[:self._friction.joints]
         self._tcp = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tcp")
@@ -140,8 +140,8 @@ class SimWorld:
         self._act_jnt = slice(0, 7)
         self._act_cart = slice(7, 13)
         self._act_ft = slice(13, 19)
-        self._vel_limits = np.radians(mjcf.LWR_VEL_LIMITS_DEG)
-        self._pos_limits = np.radians(mjcf.LWR_POS_LIMITS_DEG)
+        self._vel_limits = np.radians(LWR4.velocity_limits_degps)
+        self._pos_limits = np.radians(LWR4.position_limits_deg)
         self._torque_limits = np.asarray(scene.arm.torque_limits)
         self._pos_warn = self._pos_limits - 1e-3
         self._torque_warn = self._torque_limits - 1e-9
@@ -241,7 +241,7 @@ class SimWorld:
         self._held: LazyArmState | None = None
 
         self.ft_model = FtSensorModel(
-            scene.ft_sensor, self.rng, np.array([0.0, 0.0, -mjcf.tool_tip_offset(scene)])
+            scene.ft_sensor, self.rng, np.array([0.0, 0.0, -tool_tip_offset(scene)])
         )
         self._ft_decim = scene.ft_decimation
         self._ft_pending: list[FtSamples] = []

@@ -3,7 +3,9 @@
 The controller side of the link, wrapping the MuJoCo rig: it sends FRI
 measurement packets to ``--remote`` every cycle and steps the world with the
 commands that come back (see :mod:`drivers.emulate.fri_server`), and serves the
-simulated Mini45 as an ATI Net F/T box on ``--netft-port``.
+simulated Mini45 as an ATI Net F/T box on ``--netft-port``. This command parses
+its options into settings and reports; the rig is assembled and served by
+:class:`drivers.emulate.session.EmulatedRig`.
 
 It serves until ``--duration`` of simulated time or a SIGINT/SIGTERM (then
 the current cycle ends, the counters are printed and the exit code is 0: a
@@ -14,8 +16,6 @@ once (exit 130).
 from __future__ import annotations
 
 import sys
-import threading
-import time
 from contextlib import nullcontext
 from pathlib import Path
 
@@ -85,12 +85,10 @@ def emulate(
     """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""
     # imported here: the other commands need not load the emulator
     from drivers.config import apply_overrides, validate
+    from drivers.description.scene import Scene, load_scene
     from drivers.emulate.faults import FaultSettings
-    from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
-    from drivers.emulate.netft_box import NetFtServer
+    from drivers.emulate.session import EmulatedRig, EmulatedRigSettings
     from drivers.net.udp import parse_host_port
-    from drivers.sim.scene import Scene, load_scene
-    from drivers.sim.world import SimWorld
 
     positive("--duration", duration, allow_zero=True)
     positive("--camera-fps", camera_fps)
@@ -121,106 +119,35 @@ def emulate(
         sc = validate(Scene, apply_overrides({}, overrides), "<paper scene>")
     else:
         sc = load_scene(scene, overrides)
-    world = SimWorld(sc, seed=seed)
-    netft: NetFtServer | None = None
-    if netft_port >= 0:
-        netft = NetFtServer.open("0.0.0.0", netft_port, on_bias=world.tare_ft,
-                                 field="--netft-port")
-    try:
-        emulator = FriEmulator(
-            world,
-            EmulatorSettings(
-                remote=remote_addr,
-                port=port,
-                port_field="--port",
-                pacing="lockstep" if pacing == "lockstep" else "realtime",
-                lockstep_timeout_s=_ms("--timeout-ms", timeout_ms),
-                faults=faults,
-            ),
-            netft,
-        )
-    except BaseException:
-        if netft is not None:
-            netft.close()
-        raise
-    host, lport = emulator.address
-    ft_line = f"Net F/T on 0.0.0.0:{netft.address[1]}" if netft is not None else "no Net F/T"
-    camera = None
-    if camera_port >= 0:
-        from drivers.emulate.camera_stream import CameraStream
-
-        try:
-            camera = CameraStream(world, "0.0.0.0", camera_port, fps=camera_fps,
-                                  field="--camera-port")
-            if camera_calibration is not None:
-                try:
-                    camera.write_calibration(camera_calibration)
-                except OSError as exc:
-                    raise ConfigError("--camera-calibration", str(camera_calibration),
-                                      exc.strerror or str(exc)) from None
-        except BaseException:
-            if camera is not None:
-                camera.close()
-            emulator.close()
-            raise
-        ft_line += f", camera on http://0.0.0.0:{camera.port}/stream.mjpg at {camera_fps:g} fps"
-
-    max_cycles = round(duration / sc.fri.cycle) if duration > 0 else None
-    last = [time.monotonic()]
-
-    def status(emu: FriEmulator) -> None:
-        if camera is not None:  # the camera sees the world between steps, never during one
-            camera.publish()
-        now = time.monotonic()
-        if now - last[0] >= 5.0:
-            last[0] = now
-            st = emu.stats
-            print(
-                f"t={emu.world.time:7.2f} s  {emu.state.name} {emu.quality.name}  "
-                f"answered {st.answered} missed {st.missed} applied {st.applied}",
-                file=sys.stderr, flush=True,
-            )
-
-    # The emulator serves in its own thread; this (main) thread gets the
-    # signals and stops it, also while it waits for the remote's first answer.
-    failure: list[BaseException] = []
-
-    def serve() -> None:
-        try:
-            emulator.run(max_cycles=max_cycles, on_cycle=status)
-        except BaseException as exc:  # re-raised below, in the main thread
-            failure.append(exc)
-
-    flag = StopFlag()
-    thread = threading.Thread(target=serve, name="fri-emulator", daemon=True)
+    settings = EmulatedRigSettings(
+        scene=sc,
+        remote=remote_addr,
+        seed=seed,
+        port=port,
+        pacing="lockstep" if pacing == "lockstep" else "realtime",
+        lockstep_timeout_s=_ms("--timeout-ms", timeout_ms),
+        faults=faults,
+        netft_port=netft_port if netft_port >= 0 else None,
+        camera_port=camera_port if camera_port >= 0 else None,
+        camera_fps=camera_fps,
+        camera_calibration=camera_calibration,
+        duration_s=duration,
+    )
     from ffexp.rt import realtime
 
-    try:
-        # the serving thread is started inside: it inherits the scheduling policy
+    def say(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    flag = StopFlag()
+    with EmulatedRig(settings) as rig:
+        # the serving thread is started inside: it inherits the scheduling policy; this
+        # (main) thread gets the signals and stops it, also while it waits for the
+        # remote's first answer
         with stop_signals(flag), (realtime(tuple(cpu)) if rt else nullcontext()) as got:
             if got is not None:
-                print(f"ffexp emulate: --rt: {got}", file=sys.stderr, flush=True)
+                say(f"ffexp emulate: --rt: {got}")
             # the ready line comes once the handlers are in place: a signal sent on
             # reading it stops the emulator cleanly
-            print(
-                f"ffexp emulate: KRC on {host}:{lport} -> remote {remote_addr[0]}:"
-                f"{remote_addr[1]}, {ft_line}, cycle {cycle_ms} ms, {pacing}",
-                file=sys.stderr, flush=True,
-            )
-            thread.start()
-            while thread.is_alive():
-                if flag():
-                    emulator.stop()
-                thread.join(0.1)
-    finally:
-        emulator.stop()
-        if thread.is_alive():
-            thread.join(5.0)
-        emulator.close()
-        if camera is not None:
-            camera.close()
-    if failure:
-        raise failure[0]
-    stats = emulator.stats
-    stats.state, stats.quality = emulator.state, emulator.quality
-    print(f"ffexp emulate: {stats.summary()}", file=sys.stderr, flush=True)
+            say(f"ffexp emulate: {rig.ready_line()}")
+            rig.serve(flag, on_status=say)
+    say(f"ffexp emulate: {rig.summary()}")

@@ -66,7 +66,7 @@ def calibrate_camera(
     """Camera-to-table calibration (a homography) from reference points."""
     import numpy as np
 
-    from drivers.camera.calibration import calibration_from_points, save_calibration
+    from drivers.vision.calibration import calibration_from_points, save_calibration
     from ffexp.errors import InputError
 
     px, plane = _points(points)
@@ -74,7 +74,7 @@ def calibrate_camera(
         hom = calibration_from_points(px, plane)
     except ValueError as exc:
         raise InputError(f"{points}: {exc}") from None
-    from drivers.camera.calibration import Calibration
+    from drivers.vision.calibration import Calibration
 
     back = Calibration(hom, plane_z_m).to_plane(px)
     residual_mm = np.hypot(*(back - plane).T) * 1000.0

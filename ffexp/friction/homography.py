@@ -7,12 +7,12 @@ import cv2
 import numpy as np
 
 from drivers.base.types import F64 as FloatArray
-from drivers.camera.calibration import calibration_from_points
+from drivers.vision.calibration import calibration_from_points
 
 
 def homography_from_points(image_px: FloatArray, table_m: FloatArray) -> FloatArray:
     """Homography mapping image pixels to table metres from four (or more) points
-    (the camera calibration's fit, :func:`drivers.camera.calibration.calibration_from_points`)."""
+    (the camera calibration's fit, :func:`drivers.vision.calibration.calibration_from_points`)."""
     return calibration_from_points(image_px, table_m)
 
 

@@ -1,7 +1,7 @@
 """Marker tracking: an ArUco/AprilTag marker of a given dictionary, detected
 with sub-pixel corner refinement in a window around the last detection; its
 centre is the intersection of the diagonals. Detection is the camera
-tracker's (:mod:`drivers.camera.marker`): one implementation for both.
+tracker's (:mod:`drivers.vision.marker`): one implementation for both.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import cv2
 import numpy as np
 
 from drivers.base.types import F64 as FloatArray
-from drivers.camera import marker as camera_marker
-from drivers.camera.marker import diagonal_centre
+from drivers.vision import marker as vision_marker
+from drivers.vision.marker import diagonal_centre
 from ffexp.errors import InputError
 from ffexp.friction.video import Frame, to_grey
 
@@ -21,7 +21,7 @@ __all__ = ["MarkerTracker", "aruco_dictionary", "diagonal_centre"]
 def aruco_dictionary(name: str) -> cv2.aruco.Dictionary:
     """An OpenCV predefined ArUco/AprilTag dictionary by name (``DICT_4X4_50``, ...)."""
     try:
-        return camera_marker.aruco_dictionary(name)
+        return vision_marker.aruco_dictionary(name)
     except ValueError as exc:
         raise InputError(str(exc)) from None
 
@@ -30,7 +30,7 @@ class MarkerTracker:
     def __init__(
         self, dictionary: cv2.aruco.Dictionary, marker_id: int | None, size: tuple[int, int]
     ) -> None:
-        self.detector = camera_marker.detector(dictionary)
+        self.detector = vision_marker.detector(dictionary)
         self.marker_id = marker_id
         self.w, self.h = size
         self.last: FloatArray | None = None
@@ -40,7 +40,7 @@ class MarkerTracker:
         self.misses = 0
 
     def _detect(self, frame: Frame, u0: int, v0: int) -> FloatArray | None:
-        found = camera_marker.find_marker(self.detector, to_grey(frame), self.marker_id)
+        found = vision_marker.find_marker(self.detector, to_grey(frame), self.marker_id)
         if found is None:
             return None
         self.marker_id, quad = found

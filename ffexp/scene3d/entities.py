@@ -4,7 +4,7 @@ Every entity is locked to a ``/tf`` frame and placed in it:
 
 - ``bed`` (frame ``base``): the air bed's glass, a thin slab whose top is the
   glass plane, centred under the target's start position
-  (:func:`drivers.sim.mjcf.compute_layout`); the scene gives no bed size, so
+  (:func:`drivers.description.layout.compute_layout`); the scene gives no bed size, so
   it is :data:`BED_SIZE_M` square;
 - ``base``, ``link1`` .. ``link7``: the arm's links as cylinders of the
   simulator's link capsules (0.06 m radius, from the link's origin to the
@@ -13,7 +13,7 @@ Every entity is locked to a ``/tf`` frame and placed in it:
   and the tool funnel, a cone on the nose whose tip is the TCF;
 - ``target`` (the target's frame): the block and its funnel, a hollow cone
   drawn as a translucent frustum whose wide end is the funnel mouth, its axis
-  along the block's +x (:mod:`drivers.sim.funnels`);
+  along the block's +x (:mod:`drivers.description.funnel`);
 - ``target_tracked``: in simulation with a tracker, the same in green and
   translucent in the tracker's frame (what the camera model sees).
 """
@@ -26,8 +26,7 @@ from typing import Any
 import numpy as np
 
 from drivers.base.types import F64, NS_PER_S
-from drivers.sim.mjcf import LWR_OFFSETS, Layout, tool_tip_offset
-from drivers.sim.scene import Scene
+from drivers.description import LWR4, Layout, Scene, tool_tip_offset
 from ffexp.recording.recorder import pose_to_transform
 from ffexp.recording.topics_scene import PRIMITIVES
 
@@ -39,7 +38,9 @@ _BED_THICKNESS_M = 0.02
 #: Radius of the links' cylinders [m] (the simulator's link capsules).
 LINK_RADIUS_M = 0.06
 #: ``/tf`` frames of the links, ``link1`` .. ``link7``.
-LINK_FRAMES = tuple(f"link{i + 1}" for i in range(len(LWR_OFFSETS)))
+LINK_FRAMES = tuple(f"link{i + 1}" for i in range(LWR4.joints))
+#: Each joint's origin along its parent's z (the LWR4+'s chain runs along z): the links' lengths.
+_LINK_Z_M = tuple(origin[2] for origin in LWR4.joint_origins_m)
 #: Length of ``link7``'s cylinder [m] (the simulator's flange capsule).
 _FLANGE_LEN_M = 0.02
 _SHAFT_RADIUS_M = 0.012
@@ -121,9 +122,9 @@ def scene_update(scene: Scene, layout: Layout, time_ns: int, target_frame: str,
     entities.append(_entity(stamp, "base", "bed", cubes=[bed]))
     base_pos = base[:3, 3]
     entities.append(_entity(stamp, "base", "base", cylinders=[
-        _cylinder(0.0, LWR_OFFSETS[0], LINK_RADIUS_M, LINK_RADIUS_M, _GREY, origin=base_pos)]))
+        _cylinder(0.0, _LINK_Z_M[0], LINK_RADIUS_M, LINK_RADIUS_M, _GREY, origin=base_pos)]))
     for i, frame in enumerate(LINK_FRAMES):
-        length = LWR_OFFSETS[i + 1] if i + 1 < len(LWR_OFFSETS) else _FLANGE_LEN_M
+        length = _LINK_Z_M[i + 1] if i + 1 < len(_LINK_Z_M) else _FLANGE_LEN_M
         entities.append(_entity(stamp, frame, frame, cylinders=[
             _cylinder(0.0, length, LINK_RADIUS_M, LINK_RADIUS_M, _ORANGE)]))
     tool = scene.tool

@@ -1,13 +1,13 @@
 """Forward kinematics of the KUKA LWR4+ with the rig's sensor and tool. Pure, no I/O.
 
 The chain is the published one the simulator is built from
-(:data:`drivers.sim.mjcf.LWR_OFFSETS`, :data:`~drivers.sim.mjcf.LWR_AXES`):
-frame ``link{i}`` sits ``LWR_OFFSETS[i-1]`` along the z axis of its parent
+(:data:`drivers.description.lwr4.LWR4`, an :class:`~drivers.description.arm.ArmDescription`):
+frame ``link{i}`` sits at ``joint_origins_m[i-1]`` (along the z axis) of its parent
 (``link{i-1}``, the base for ``link1``) and turns by joint ``i`` about its
 axis (``+z`` or ``-y``/``+y`` of the link). The flange is ``link7``'s origin;
 the F/T sensor and the tool follow along its z axis, and the TCF (the tool
 tip) is the flange frame moved ``sensor_height + shaft_length + funnel.depth``
-along z and turned by 180 deg about it (:mod:`drivers.sim.mjcf`).
+along z and turned by 180 deg about it (as the simulator's model, :mod:`drivers.sim.mjcf`).
 
 The rotations about a coordinate axis are written out: a 4x4 from ``cos`` and
 ``sin`` costs a few microseconds where ``scipy``'s ``Rotation`` costs tens.
@@ -21,13 +21,15 @@ from collections.abc import Sequence
 import numpy as np
 
 from drivers.base.types import F64
-from drivers.sim.mjcf import LWR_AXES, LWR_OFFSETS, tool_tip_offset
-from drivers.sim.scene import Scene
+from drivers.description import LWR4, Scene, tool_tip_offset
+from drivers.description.arm import Vec3
 
 __all__ = ["JOINTS", "flange_to_tcp", "link_rows", "link_transforms", "translation"]
 
 #: Joints of the LWR4+.
-JOINTS = len(LWR_OFFSETS)
+JOINTS = LWR4.joints
+_ORIGINS = LWR4.joint_origins_m
+_AXES = LWR4.joint_axes
 
 
 def translation(x: float, y: float, z: float) -> F64:
@@ -37,11 +39,11 @@ def translation(x: float, y: float, z: float) -> F64:
     return out
 
 
-def _joint(offset_m: float, axis: Sequence[int], angle_rad: float) -> F64:
-    """``Trans(0, 0, offset) Rot(axis, angle)`` for an axis of +-z or +-y."""
+def _joint(origin_m: Vec3, axis: Sequence[int], angle_rad: float) -> F64:
+    """``Trans(origin) Rot(axis, angle)`` for an axis of +-z or +-y."""
     c, s = math.cos(angle_rad), math.sin(angle_rad)
     out = np.eye(4)
-    out[2, 3] = offset_m
+    out[:3, 3] = origin_m
     if axis[2]:
         s *= axis[2]
         out[0, 0], out[0, 1], out[1, 0], out[1, 1] = c, -s, s, c
@@ -58,22 +60,22 @@ def link_transforms(q_rad: Sequence[float] | F64, base: F64 | None = None) -> li
     ``link1``, which includes ``base``, the arm's base in the robot's frame)."""
     if len(q_rad) < JOINTS:
         raise ValueError(f"{len(q_rad)} joint positions; the LWR4+ has {JOINTS}")
-    out = [_joint(LWR_OFFSETS[i], LWR_AXES[i], float(q_rad[i])) for i in range(JOINTS)]
+    out = [_joint(_ORIGINS[i], _AXES[i], float(q_rad[i])) for i in range(JOINTS)]
     if base is not None:
         out[0] = base @ out[0]
     return out
 
 
-def _joint_rows(offset_m: float, axis: Sequence[int], angle_rad: float) -> list[list[float]]:
+def _joint_rows(origin_m: Vec3, axis: Sequence[int], angle_rad: float) -> list[list[float]]:
     """:func:`_joint` as its rows of floats (the same values, without numpy)."""
     c, s = math.cos(angle_rad), math.sin(angle_rad)
-    z = float(offset_m)
+    x, y, z = (float(v) for v in origin_m)
     if axis[2]:
         s *= axis[2]
-        return [[c, -s, 0.0, 0.0], [s, c, 0.0, 0.0], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]]
+        return [[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]]
     if axis[1]:
         s *= axis[1]
-        return [[c, 0.0, s, 0.0], [0.0, 1.0, 0.0, 0.0], [-s, 0.0, c, z], [0.0, 0.0, 0.0, 1.0]]
+        return [[c, 0.0, s, x], [0.0, 1.0, 0.0, y], [-s, 0.0, c, z], [0.0, 0.0, 0.0, 1.0]]
     raise ValueError(f"joint axis {tuple(axis)}: only +-y and +-z are used by the LWR4+")
 
 
@@ -83,7 +85,7 @@ def link_rows(q_rad: Sequence[float] | F64, base: F64 | None = None) -> list[lis
     if len(q_rad) < JOINTS:
         raise ValueError(f"{len(q_rad)} joint positions; the LWR4+ has {JOINTS}")
     q = [float(v) for v in q_rad[:JOINTS]]
-    out = [_joint_rows(LWR_OFFSETS[i], LWR_AXES[i], q[i]) for i in range(JOINTS)]
+    out = [_joint_rows(_ORIGINS[i], _AXES[i], q[i]) for i in range(JOINTS)]
     if base is not None:
         first: list[list[float]] = (base @ np.array(out[0])).tolist()
         out[0] = first

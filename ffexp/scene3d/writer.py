@@ -1,6 +1,6 @@
 """The 3-D scene writer: a :class:`~ffexp.runlog.RunLog` sink (``RunLog.sinks``).
 
-At the first cycle it places the scene (:func:`drivers.sim.mjcf.compute_layout`
+At the first cycle it places the scene (:func:`drivers.description.layout.compute_layout`
 from the measured start TCF, as the simulator does) and picks the target's
 frame: ``target`` (ground truth, which the run log puts on ``/tf``) when the
 robot reports it, else ``target_tracked`` (the tracker's, also the run log's)
@@ -21,8 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from drivers.base.types import NS_PER_S, RobotState, TargetObservation
-from drivers.sim.mjcf import Layout, compute_layout
-from drivers.sim.scene import Scene
+from drivers.description import Layout, Scene, compute_layout
 from ffexp.recording import Recorder
 from ffexp.recording.topics_target import TRACKED_FRAME
 from ffexp.scene3d.entities import LINK_FRAMES, scene_update

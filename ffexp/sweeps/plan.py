@@ -37,7 +37,7 @@ class Target:
     seed: int = field(init=False)
 
     def __post_init__(self) -> None:
-        from drivers.sim.scene import load_scene
+        from drivers.description.scene import load_scene
         from ffexp.protocol import load_run_protocol, scene_path
 
         self.protocol = load_run_protocol(self.protocol_path, self.fixed)
@@ -64,7 +64,7 @@ class Target:
     def check(self, keys: Sequence[Key], point: Mapping[str, Value], option: str) -> None:
         """Validate a point against the protocol and scene models (one-line ConfigError
         naming ``option``, the key and what is wrong)."""
-        from drivers.sim.scene import load_scene
+        from drivers.description.scene import load_scene
         from ffexp.protocol import load_run_protocol, scene_path
 
         shown = " ".join(f"{k}={toml_text(v)}" for k, v in point.items())

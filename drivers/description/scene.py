@@ -1,10 +1,13 @@
-"""Scene files: the simulated rig as TOML, validated by pydantic.
+"""Scene files: the physical rig as TOML, validated by pydantic.
 
-A scene describes everything :class:`~drivers.sim.world.SimWorld` builds: the
-physics settings, the arm (pose, joint friction, limits of the KRC's internal
-controller), the tool and the F/T sensor, the air-bed target with its funnel,
-and the funnel contact. Every field has the paper's rig as its default, so an
-empty file is the paper's rig; ``data/scenes/paper.toml`` spells it out.
+A scene describes the rig: the arm (where it stands, its start pose, joint
+friction, the limits of the KRC's internal controller and its FRI timing), the
+tool and the F/T sensor, the air-bed target with its funnel and hose, and the
+funnel contact, plus the physics settings of the simulator that builds it
+(:class:`~drivers.sim.world.SimWorld`). The emulated controllers and
+``ffexp.scene3d`` read the same file; nothing here does I/O beyond loading it.
+Every field has the paper's rig as its default, so an empty file is the paper's
+rig; ``data/scenes/paper.toml`` spells it out.
 
 Load with :func:`load_scene`, which reports any problem as one line
 ``file: field: message`` (a :class:`~drivers.errors.ConfigError`).
@@ -17,11 +20,10 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Annotated, Literal
 
-import numpy as np
 from pydantic import Field, model_validator
 
 from drivers.config import StrictModel, load_model
-from drivers.sim.friction import JointFriction
+from drivers.description.lwr4 import JUBIEN_COULOMB, JUBIEN_VISCOUS
 
 Vec7 = Annotated[tuple[float, ...], Field(min_length=7, max_length=7)]
 Vec6 = Annotated[tuple[float, ...], Field(min_length=6, max_length=6)]
@@ -29,12 +31,6 @@ Vec3 = Annotated[tuple[float, ...], Field(min_length=3, max_length=3)]
 Pair = Annotated[tuple[float, ...], Field(min_length=2, max_length=2)]
 PosFloat = Annotated[float, Field(gt=0.0)]
 NonNeg = Annotated[float, Field(ge=0.0)]
-
-#: Jubien 2014 identified drive-side joint friction of the LWR4+ (fact sheet
-#: section 1(d), ISIR-SYROCO/kukaKDL kukakdl_const.hpp): Coulomb [N m].
-JUBIEN_COULOMB = (11.9, 11.5, 8.98, 8.35, 8.31, 4.72, 6.04)
-#: ... and viscous [N m s/rad], same source.
-JUBIEN_VISCOUS = (14.4, 15.3, 6.55, 11.0, 4.29, 2.26, 1.6)
 
 
 class PhysicsSettings(StrictModel):
@@ -50,8 +46,8 @@ class PhysicsSettings(StrictModel):
     """Physics time run before t = 0 so the target settles on its pads."""
 
 
-class FriSettings(StrictModel):
-    """The FRI link as the KRC runs it."""
+class FriTiming(StrictModel):
+    """The scene's ``[fri]`` table: the FRI link's timing and mode as the KRC runs it."""
 
     cycle: Annotated[float, Field(ge=0.001, le=0.1)] = 0.005
     """FRI cycle [s] (``friOpen(ms)``: 1 to 100 ms). The paper runs 200 Hz."""
@@ -126,21 +122,11 @@ class ArmSettings(StrictModel):
             return list(self.viscous)
         return [self.friction_scale * v for v in JUBIEN_VISCOUS]
 
-    def joint_friction(self) -> JointFriction:
-        """The arm's joint friction model (:mod:`drivers.sim.friction`)."""
-        coulomb = np.asarray(self.coulomb_friction())
-        return JointFriction(
-            static_nm=self.static_ratio * coulomb,
-            coulomb_nm=coulomb,
-            viscous_nmsprad=np.asarray(self.viscous_friction()),
-            stribeck_radps=np.full(7, self.stribeck_speed),
-        )
-
 
 class FunnelGeometry(StrictModel):
     """A funnel: a hollow cone (target) or a solid cone on a nose sphere (tool).
 
-    ``surface = "smooth"`` (see :mod:`drivers.sim.funnels`): the target is
+    ``surface = "smooth"`` (the simulator's surfaces: :mod:`drivers.sim.funnels`): the target is
     ``panels`` flat panels tangent to the cone, the tool a stack of spheres
     inscribed in its cone, axial scallops below ``scallop``. ``"capsules"``:
     the earlier faceted funnels, ``generators`` capsules of ``capsule_radius``.
@@ -296,7 +282,7 @@ class Scene(StrictModel):
     name: str = "paper"
     seed: int = 0
     physics: PhysicsSettings = PhysicsSettings()
-    fri: FriSettings = FriSettings()
+    fri: FriTiming = FriTiming()
     controller: ControllerSettings = ControllerSettings()
     arm: ArmSettings = ArmSettings()
     tool: ToolSettings = ToolSettings()

@@ -1,0 +1,253 @@
+"""The emulated rig as one object: world, emulated KRC, Net F/T box and camera, served.
+
+:class:`EmulatedRig` assembles what ``ffexp emulate`` serves from an
+:class:`EmulatedRigSettings`: the simulated world of a scene, the KRC that
+serves it over FRI 1.x (:class:`~drivers.emulate.fri_server.FriEmulator`, with
+its pacing and injected faults), optionally the Net F/T box
+(:class:`~drivers.emulate.netft_box.NetFtServer`) and the camera above the bed
+(:class:`~drivers.emulate.camera_stream.CameraStream`). As a context manager it
+opens them all on entry (closing what it opened if one fails) and closes them
+on exit; :meth:`EmulatedRig.serve` runs the KRC in its own thread until the
+duration of simulated time, a stop request or an error, and re-raises the error
+in the caller's thread::
+
+    with EmulatedRig(settings) as rig:
+        print(rig.ready_line())
+        rig.serve(stop_requested, on_status=print)
+    print(rig.summary())
+
+Errors name the caller's fields (``settings.fields``: the command line's options
+for ``ffexp emulate``). The robot served is the LWR4+ on a KRC2 LR over FRI;
+another robot family's server would be built in :meth:`EmulatedRig._open_robot`.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import TracebackType
+from typing import Literal
+
+from drivers.description.scene import Scene
+from drivers.emulate.camera_stream import CameraStream
+from drivers.emulate.faults import FaultSettings
+from drivers.emulate.fri_server import EmulatorSettings, EmulatorStats, FriEmulator
+from drivers.emulate.netft_box import NetFtServer
+from drivers.errors import ConfigError, NotConnectedError
+from drivers.sim.world import SimWorld
+
+__all__ = ["EmulatedRig", "EmulatedRigSettings", "SettingNames"]
+
+#: How often :meth:`EmulatedRig.serve` reports the link's state [s of wall time].
+STATUS_PERIOD_S = 5.0
+#: How often the serving caller checks for a stop request [s].
+_POLL_S = 0.1
+
+
+@dataclass(frozen=True)
+class SettingNames:
+    """How errors name the settings (the command line's options by default)."""
+
+    port: str = "--port"
+    netft_port: str = "--netft-port"
+    camera_port: str = "--camera-port"
+    camera_calibration: str = "--camera-calibration"
+
+
+@dataclass(frozen=True)
+class EmulatedRigSettings:
+    """What the emulated rig serves and how.
+
+    Args:
+        scene: the rig to simulate.
+        remote: the remote driver's address (``FRIHOST``, ``FRISOCK`` on a KRC).
+        seed: the world's seed (None: the scene's).
+        port: local UDP port the KRC sends from (0: any).
+        pacing: ``realtime`` (wall clock) or ``lockstep`` (a step on each answer).
+        lockstep_timeout_s: lockstep: wait this long for a command before a miss.
+        faults: injected network faults.
+        netft_port: UDP port of the emulated Net F/T box (0: any; None: no box).
+        camera_port: TCP port of the MJPEG camera above the bed (0: any; None: no camera).
+        camera_fps: the camera's frame rate.
+        camera_calibration: where to write the camera's calibration file (None: nowhere).
+        duration_s: stop after this much simulated time (0: until stopped).
+        host: local address every server binds to.
+        fields: how errors name these settings.
+    """
+
+    scene: Scene
+    remote: tuple[str, int]
+    seed: int | None = None
+    port: int = 0
+    pacing: Literal["realtime", "lockstep"] = "realtime"
+    lockstep_timeout_s: float = 1.0
+    faults: FaultSettings = field(default_factory=FaultSettings)
+    netft_port: int | None = 49152
+    camera_port: int | None = None
+    camera_fps: float = 50.0
+    camera_calibration: Path | None = None
+    duration_s: float = 0.0
+    host: str = "0.0.0.0"
+    fields: SettingNames = field(default_factory=SettingNames)
+
+    @property
+    def max_cycles(self) -> int | None:
+        """World steps in ``duration_s`` (None: no limit)."""
+        return round(self.duration_s / self.scene.fri.cycle) if self.duration_s > 0 else None
+
+
+class EmulatedRig:
+    """The emulated rig of ``settings`` (module docstring). Open it with ``with``."""
+
+    def __init__(self, settings: EmulatedRigSettings) -> None:
+        self.settings = settings
+        self.world: SimWorld | None = None
+        self.robot: FriEmulator | None = None
+        self.netft: NetFtServer | None = None
+        self.camera: CameraStream | None = None
+        self._thread: threading.Thread | None = None
+        self._failure: BaseException | None = None
+        self._last_status = 0.0
+        self._stats: EmulatorStats | None = None
+
+    # ------------------------------------------------------------ lifecycle
+    def __enter__(self) -> EmulatedRig:
+        self.open()
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    def open(self) -> None:
+        """Build the world and open every server (what opened is closed if one fails)."""
+        s = self.settings
+        self.world = world = SimWorld(s.scene, seed=s.seed)
+        try:
+            if s.netft_port is not None:
+                self.netft = NetFtServer.open(s.host, s.netft_port, on_bias=world.tare_ft,
+                                              field=s.fields.netft_port)
+            self.robot = self._open_robot(world)
+            if s.camera_port is not None:
+                self.camera = CameraStream(world, s.host, s.camera_port, fps=s.camera_fps,
+                                           field=s.fields.camera_port)
+                if s.camera_calibration is not None:
+                    self._write_calibration(self.camera, s.camera_calibration)
+        except BaseException:
+            self.close()
+            raise
+
+    def _open_robot(self, world: SimWorld) -> FriEmulator:
+        """The robot controller's server: a KRC2 LR over FRI 1.x (it closes the Net F/T box
+        with itself)."""
+        s = self.settings
+        return FriEmulator(
+            world,
+            EmulatorSettings(
+                remote=s.remote,
+                port=s.port,
+                port_field=s.fields.port,
+                bind_host=s.host,
+                pacing=s.pacing,
+                lockstep_timeout_s=s.lockstep_timeout_s,
+                faults=s.faults,
+            ),
+            self.netft,
+        )
+
+    def _write_calibration(self, camera: CameraStream, path: Path) -> None:
+        try:
+            camera.write_calibration(path)
+        except OSError as exc:
+            raise ConfigError(self.settings.fields.camera_calibration, str(path),
+                              exc.strerror or str(exc)) from None
+
+    def stop(self) -> None:
+        """Ask the KRC to stop after its current cycle (thread-safe)."""
+        if self.robot is not None:
+            self.robot.stop()
+
+    def close(self) -> None:
+        """Stop serving and close every server (idempotent)."""
+        robot, self.robot = self.robot, None
+        if robot is not None:
+            robot.stop()
+            if self._thread is not None and self._thread.is_alive():
+                self._thread.join(5.0)
+            robot.close()  # closes the Net F/T box too
+            self._stats = robot.stats
+            self._stats.state, self._stats.quality = robot.state, robot.quality
+        elif self.netft is not None:
+            self.netft.close()
+        self.netft = None
+        camera, self.camera = self.camera, None
+        if camera is not None:
+            camera.close()
+
+    # ------------------------------------------------------------ serving
+    def ready_line(self) -> str:
+        """One line: where the KRC serves, to whom, the Net F/T box and camera, cycle, pacing."""
+        s, robot = self.settings, self._require()
+        host, lport = robot.address
+        ft = f"Net F/T on {s.host}:{self.netft.address[1]}" if self.netft is not None \
+            else "no Net F/T"
+        if self.camera is not None:
+            ft += (f", camera on http://{s.host}:{self.camera.port}/stream.mjpg at "
+                   f"{s.camera_fps:g} fps")
+        cycle_ms = round(s.scene.fri.cycle * 1000.0)
+        return (f"KRC on {host}:{lport} -> remote {s.remote[0]}:{s.remote[1]}, {ft}, "
+                f"cycle {cycle_ms} ms, {s.pacing}")
+
+    def serve(self, stop_requested: Callable[[], bool],
+              on_status: Callable[[str], None] | None = None) -> EmulatorStats:
+        """Serve in a thread of its own (started here: it inherits the caller's scheduling)
+        until ``duration_s``, ``stop_requested()`` (polled every 0.1 s) or an error, which is
+        re-raised here. ``on_status`` gets a status line every :data:`STATUS_PERIOD_S`.
+        Returns the KRC's counters."""
+        robot = self._require()
+        self._last_status = time.monotonic()
+
+        def on_cycle(emu: FriEmulator) -> None:
+            if self.camera is not None:  # the camera sees the world between steps, never during
+                self.camera.publish()
+            now = time.monotonic()
+            if on_status is not None and now - self._last_status >= STATUS_PERIOD_S:
+                self._last_status = now
+                st = emu.stats
+                on_status(f"t={emu.world.time:7.2f} s  {emu.state.name} {emu.quality.name}  "
+                          f"answered {st.answered} missed {st.missed} applied {st.applied}")
+
+        def run() -> None:
+            try:
+                robot.run(max_cycles=self.settings.max_cycles, on_cycle=on_cycle)
+            except BaseException as exc:  # re-raised below, in the caller's thread
+                self._failure = exc
+
+        self._thread = thread = threading.Thread(target=run, name="fri-emulator", daemon=True)
+        thread.start()
+        while thread.is_alive():
+            if stop_requested():
+                robot.stop()
+            thread.join(_POLL_S)
+        if self._failure is not None:
+            raise self._failure
+        return robot.stats
+
+    def summary(self) -> str:
+        """The KRC's counters in one line, with its last state and quality."""
+        robot = self.robot
+        if robot is not None:
+            stats = robot.stats
+            stats.state, stats.quality = robot.state, robot.quality
+            return stats.summary()
+        if self._stats is None:
+            raise NotConnectedError("the emulated rig was never opened")
+        return self._stats.summary()
+
+    def _require(self) -> FriEmulator:
+        if self.robot is None:
+            raise NotConnectedError("the emulated rig is not open (use it as a context manager)")
+        return self.robot

@@ -1,0 +1,184 @@
+"""Who may import what between the ``drivers`` packages and from ``ffexp``.
+
+Read from the sources with :mod:`ast` (every ``import`` and ``from ... import``, also
+inside functions, relative ones resolved, and ``importlib.import_module("...")`` with a
+literal name):
+
+- ``ffexp`` imports from ``drivers`` only what :data:`FFEXP_ALLOWED` lists: the neutral
+  packages, the rig, the factory and the registry. It is an allow-list, so a new back-end
+  folder is forbidden to ``ffexp`` without editing this test.
+- A back-end (any ``drivers/<name>/`` package that is not neutral and not
+  ``drivers/emulate``) imports no sibling back-end and nothing that assembles back-ends.
+- The neutral packages import no back-end, and the description and vision packages no
+  MuJoCo and no sockets.
+- ``drivers`` never imports ``ffexp``.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterator
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DRIVERS = ROOT / "drivers"
+
+#: Packages of ``drivers`` that are no back-end: anyone may import them.
+NEUTRAL_PACKAGES = frozenset({"base", "net", "description", "vision"})
+#: Top-level plumbing modules of ``drivers`` anyone may import.
+NEUTRAL_MODULES = frozenset({"config", "errors", "counters"})
+#: The one package that combines back-ends (the emulated controllers).
+COMBINER = "emulate"
+#: What ``ffexp`` may import from ``drivers`` (the second part of the dotted name).
+FFEXP_ALLOWED = frozenset({"base", "config", "errors", "net", "rig", "factory", "registry",
+                           "description", "vision"})
+#: Single ``ffexp`` modules allowed one more package, and why.
+FFEXP_EXCEPTIONS = {
+    # ``ffexp emulate`` serves the emulated rig (drivers.emulate.session.EmulatedRig);
+    # drivers.emulate is the combiner, not one back-end
+    "ffexp/cli/emulate.py": frozenset({COMBINER}),
+}
+#: Modules the neutral description and vision packages must not use (no simulation, no I/O
+#: beyond reading their files).
+NEUTRAL_FORBIDDEN = ("mujoco", "socket", "drivers.sim")
+
+
+def imported_modules(source: str, module: str) -> Iterator[tuple[int, str]]:
+    """(line, dotted name) of every module ``source`` imports; ``module`` is its own dotted
+    name (to resolve relative imports). ``from a import b`` yields ``a.b`` as well as ``a``
+    (``b`` may be a sub-module)."""
+    package = module.rsplit(".", 1)[0]
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node.lineno, alias.name
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parent = package.split(".")
+                parent = parent[: len(parent) - (node.level - 1)]
+                base = ".".join([*parent, base] if base else parent)
+            yield node.lineno, base
+            for alias in node.names:
+                yield node.lineno, f"{base}.{alias.name}"
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute | ast.Name)
+              and (node.func.attr if isinstance(node.func, ast.Attribute) else node.func.id)
+              == "import_module"
+              and node.args and isinstance(node.args[0], ast.Constant)
+              and isinstance(node.args[0].value, str)):
+            yield node.lineno, node.args[0].value
+
+
+def _sources(package: Path) -> Iterator[tuple[Path, str]]:
+    for path in sorted(package.rglob("*.py")):
+        rel = path.relative_to(ROOT).with_suffix("")
+        parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
+        yield path, ".".join(parts)
+
+
+def _drivers_part(name: str) -> str | None:
+    """``sim`` for ``drivers.sim.world``; None for names outside ``drivers``."""
+    parts = name.split(".")
+    return parts[1] if parts[0] == "drivers" and len(parts) > 1 else None
+
+
+def backends() -> frozenset[str]:
+    """Every back-end package: a ``drivers/<name>/`` package neither neutral nor the combiner."""
+    return frozenset(
+        p.name for p in DRIVERS.iterdir()
+        if (p / "__init__.py").is_file() and p.name not in NEUTRAL_PACKAGES | {COMBINER}
+    )
+
+
+def ffexp_violations(source: str, module: str, rel: str) -> list[str]:
+    """What ``source`` (module ``module``, file ``rel``) imports from ``drivers`` that
+    ``ffexp`` may not."""
+    allowed = FFEXP_ALLOWED | FFEXP_EXCEPTIONS.get(rel, frozenset())
+    return _first_per_line(rel, [(line, name) for line, name in imported_modules(source, module)
+                                 if (part := _drivers_part(name)) is not None
+                                 and part not in allowed])
+
+
+def _first_per_line(rel: str, hits: list[tuple[int, str]]) -> list[str]:
+    """One message per import statement (``from a import b`` yields ``a`` and ``a.b``)."""
+    first: dict[int, str] = {}
+    for line, name in hits:
+        first.setdefault(line, name)
+    return [f"{rel}:{line}: imports {name}" for line, name in first.items()]
+
+
+def backend_violations(source: str, module: str, rel: str, own: str,
+                       all_backends: frozenset[str]) -> list[str]:
+    """What a back-end's module imports of a sibling back-end, the combiner, the rig or
+    factory (which assemble back-ends), or ``ffexp``."""
+    forbidden = (all_backends - {own}) | {COMBINER, "rig", "factory"}
+    return _first_per_line(rel, [(line, name) for line, name in imported_modules(source, module)
+                                 if name.split(".")[0] == "ffexp"
+                                 or _drivers_part(name) in forbidden])
+
+
+def test_ffexp_imports_only_the_allowed_drivers_packages() -> None:
+    found = []
+    for path, module in _sources(ROOT / "ffexp"):
+        rel = path.relative_to(ROOT).as_posix()
+        found += ffexp_violations(path.read_text(), module, rel)
+    assert found == [], "\n".join(found)
+
+
+def test_drivers_never_imports_ffexp() -> None:
+    found = [f"{path.relative_to(ROOT).as_posix()}:{line}: imports {name}"
+             for path, module in _sources(DRIVERS)
+             for line, name in imported_modules(path.read_text(), module)
+             if name.split(".")[0] == "ffexp"]
+    assert found == [], "\n".join(found)
+
+
+def test_no_backend_imports_a_sibling_backend_or_ffexp() -> None:
+    every = backends()
+    assert {"sim", "fri", "netft", "mock", "camera"} <= every  # the shipped back-ends are seen
+    found = []
+    for own in sorted(every):
+        for path, module in _sources(DRIVERS / own):
+            found += backend_violations(path.read_text(), module,
+                                        path.relative_to(ROOT).as_posix(), own, every)
+    assert found == [], "\n".join(found)
+
+
+def test_the_neutral_packages_import_no_backend_and_no_simulation() -> None:
+    every = backends() | {COMBINER, "rig", "factory"}
+    found = []
+    for package in sorted(NEUTRAL_PACKAGES):
+        for path, module in _sources(DRIVERS / package):
+            rel = path.relative_to(ROOT).as_posix()
+            for line, name in imported_modules(path.read_text(), module):
+                if _drivers_part(name) in every or name.split(".")[0] == "ffexp":
+                    found.append(f"{rel}:{line}: imports {name}")
+                if package in ("description", "vision") and any(
+                        name == f or name.startswith(f + ".") for f in NEUTRAL_FORBIDDEN):
+                    found.append(f"{rel}:{line}: imports {name}")
+    assert found == [], "\n".join(found)
+
+
+def test_the_checks_see_every_form_of_import() -> None:
+    """The checker is not blind: imports in functions, relative, ``from drivers import x``
+    and ``import_module`` are all seen, and a back-end folder not listed anywhere is
+    forbidden to ffexp."""
+    source = (
+        "import drivers.base.types\n"
+        "from drivers import sim\n"
+        "def f():\n"
+        "    from drivers.newarm.driver import Arm\n"
+        "    import importlib\n"
+        "    importlib.import_module('drivers.camera')\n"
+        "from drivers.description import Scene\n"
+    )
+    got = ffexp_violations(source, "ffexp.thing", "ffexp/thing.py")
+    assert got == ["ffexp/thing.py:2: imports drivers.sim",
+                   "ffexp/thing.py:4: imports drivers.newarm.driver",
+                   "ffexp/thing.py:6: imports drivers.camera"]
+    relative = "from ..fri.codec import encode\nfrom . import world\nfrom ..base import types\n"
+    got = backend_violations(relative, "drivers.sim.thing", "drivers/sim/thing.py", "sim",
+                             frozenset({"sim", "fri"}))
+    assert got == ["drivers/sim/thing.py:1: imports drivers.fri.codec"]
+    assert backend_violations("from ffexp.errors import X\n", "drivers.sim.x", "x.py", "sim",
+                              frozenset({"sim"})) == ["x.py:1: imports ffexp.errors"]

@@ -86,7 +86,7 @@ def run_once(ppath: Path, seconds: float, out: Path) -> tuple[float, dict[str, f
 #: their parents; the chunk compression runs beside the loop, in the writer's thread.
 PARTS = (
     ("step", "ffexp.loop", "Cycle", "step"),
-    ("  estimator", "ffexp.estimator", "Estimator", "update"),
+    ("  estimator", "ffexp.estimation", "Estimator", "update"),
     ("    motion filter", "ffexp.estimation", "MotionFilter", "update"),
     ("    wrench filter", "ffexp.estimation", "WrenchFilter", "update_rows"),
     ("    contact detector", "ffexp.estimation", "ContactDetector", "update"),

@@ -1,6 +1,6 @@
 """The experiment loop: devices in, one cycle of pure parts, devices and the run log out.
 
-Per robot cycle: the F/T samples since the last cycle -> :class:`~ffexp.estimator.Estimator`
+Per robot cycle: the F/T samples since the last cycle -> :class:`~ffexp.estimation.Estimator`
 -> :class:`~ffexp.safety.SafetyMonitor` -> :class:`~ffexp.task.Task` -> the approach law or
 the method's :class:`~ffexp.controllers.Controller` -> a Cartesian impedance command ->
 ``robot.send`` -> :class:`~ffexp.runlog.RunLog`. :class:`Cycle` is that step alone (no
@@ -34,7 +34,7 @@ from drivers.base.types import (
 from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
 from ffexp import controllers, scenarios
 from ffexp.contracts import Phase, Progress, RunOutcome, Stop, StopReason
-from ffexp.estimator import Estimator
+from ffexp.estimation import Estimator
 from ffexp.protocol import RunProtocol
 from ffexp.runlog import RunLog
 from ffexp.safety import SafetyMonitor

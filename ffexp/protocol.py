@@ -21,7 +21,7 @@ from ffexp.control import ImpedanceConfig
 from ffexp.controllers import REGISTRY, AlignConfig
 from ffexp.controllers.force import ForceRiConfig
 from ffexp.errors import ConfigError
-from ffexp.estimator import Estimation
+from ffexp.estimation import Estimation
 from ffexp.safety import Limits
 from ffexp.scenarios import TaskConfig
 from ffexp.scenarios.funnel import Alignment, FunnelTask

@@ -36,7 +36,7 @@ from drivers.base.types import (
 )
 from ffexp.contracts import Phase, StopReason
 from ffexp.controllers import Controller
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 from ffexp.recording import Recorder
 from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import STATE_JOINTS

@@ -24,7 +24,7 @@ from pydantic import Field
 from drivers.base.types import F64, NS_PER_S, RobotState
 from drivers.config import StrictModel
 from ffexp.contracts import Phase, Stop, StopReason
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 
 
 class Limits(StrictModel):

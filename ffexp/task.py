@@ -27,7 +27,7 @@ import numpy as np
 
 from drivers.base.types import NS_PER_S, RobotState, TargetObservation
 from ffexp.contracts import Phase, Stop, StopReason
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 from ffexp.scenarios.base import Scenario, Verdict
 from ffexp.scenarios.funnel import Alignment  # where it was before scenarios (benchmarks)
 

@@ -16,7 +16,7 @@ from ffexp.control import ForceController
 from ffexp.controllers.admittance import Admittance, AdmittanceConfig, MassDamper
 from ffexp.controllers.base import Approach, ControlContext
 from ffexp.errors import ConfigError
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 from ffexp.protocol import RunProtocol
 
 ROOT = Path(__file__).resolve().parents[1]

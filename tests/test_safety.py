@@ -8,7 +8,7 @@ from loop_script import pose_at
 
 from drivers.base.types import LinkHealth, RobotState
 from ffexp.contracts import Phase, StopReason
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 from ffexp.safety import Limits, SafetyMonitor
 
 LIM = Limits(max_force_n=60.0, max_torque_nm=3.0, max_speed_mps=0.25,

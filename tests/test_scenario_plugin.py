@@ -24,7 +24,7 @@ from drivers.mock import MockFtSensor, MockRobot
 from ffexp import loop, scenarios
 from ffexp.contracts import Phase, RunOutcome, StopReason
 from ffexp.errors import ConfigError
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 from ffexp.protocol import RunProtocol, load_run_protocol
 from ffexp.recording import Recorder, load
 from ffexp.runlog import RunLog

@@ -113,8 +113,7 @@ def test_motion_filter_equals_the_18_state_filterpy_filter() -> None:
 
 
 def test_estimator_tool_load_equals_the_model() -> None:
-    from ffexp.estimation import ToolLoad
-    from ffexp.estimator import Estimation, Estimator
+    from ffexp.estimation import Estimation, Estimator, ToolLoad
 
     load = ToolLoad(mass_kg=0.35, com_m=(0.01, -0.02, 0.04))
     est = Estimator(Estimation(tool_load=load), CYCLE_S, 0.1)
@@ -168,7 +167,7 @@ def test_wrench_filter_floats_are_bit_identical_to_the_array_form() -> None:
 
 def test_estimator_peaks_are_numpys() -> None:
     """The cycle's peak force and torque on floats equal the array form's bits."""
-    from ffexp.estimator import peaks
+    from ffexp.estimation import peaks
 
     rng = np.random.default_rng(9)
     for k in range(3000):
@@ -186,7 +185,7 @@ def test_motion_filter_repeated_gains_are_bit_identical_to_computing_them(
     """Once its covariance repeats, the filter takes gain and covariance from the cycle
     they repeat in: over a run of varied poses, every state and covariance has the bits
     of the filter that computes them every cycle."""
-    import ffexp.estimation as estimation
+    import ffexp.estimation.motion_filter as estimation
 
     cfg = MotionFilterConfig()
     cached = MotionFilter(cfg, CYCLE_S)
@@ -215,7 +214,7 @@ def test_contact_detector_signal_is_numpys_norm() -> None:
 
 def test_unbiased_peaks_are_the_peaks_of_the_differences() -> None:
     """The one-pass peaks of rows minus a bias equal :func:`peaks` of the differences."""
-    from ffexp.estimator import _unbiased_peaks, peaks
+    from ffexp.estimation import _unbiased_peaks, peaks
 
     rng = np.random.default_rng(5)
     for k in range(2000):

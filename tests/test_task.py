@@ -10,8 +10,7 @@ from loop_script import pose_at
 
 from drivers.base.types import GroundTruth, RobotState
 from ffexp.contracts import Phase, Stop, StopReason
-from ffexp.estimation import ContactEvent
-from ffexp.estimator import Estimate
+from ffexp.estimation import ContactEvent, Estimate
 from ffexp.scenarios.funnel import Alignment, FunnelAlignment
 from ffexp.task import PhaseChange, Task
 

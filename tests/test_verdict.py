@@ -12,8 +12,7 @@ from loop_script import pose_at
 from drivers.base.placement import placement
 from drivers.base.types import RobotState, TargetObservation
 from ffexp.contracts import Phase
-from ffexp.estimation import ContactEvent
-from ffexp.estimator import Estimate
+from ffexp.estimation import ContactEvent, Estimate
 from ffexp.observer import ObserverLimits, WrenchObserver
 from ffexp.scenarios.funnel import Alignment, FunnelAlignment
 from ffexp.task import Event, Task, Verdict

@@ -30,7 +30,7 @@ from drivers.base.types import F64, RobotState, Vec6
 from drivers.config import StrictModel
 from ffexp.control import AXES, pose_error_tcf
 from ffexp.controllers.base import ControlContext, Controller
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 from ffexp.recording.topics import CDR_TOPICS
 
 Bool6 = tuple[bool, bool, bool, bool, bool, bool]

@@ -15,7 +15,7 @@ from pydantic import Field, model_validator
 from drivers.base.types import F64, RobotState, Vec6
 from ffexp.control import ForceControlConfig, ForceController, ForceControlTerms
 from ffexp.controllers.base import ControlContext, Controller
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 
 
 class ForceRiConfig(ForceControlConfig):

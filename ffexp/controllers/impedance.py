@@ -7,7 +7,7 @@ from typing import Literal
 from drivers.base.types import F64, RobotState
 from drivers.config import StrictModel
 from ffexp.controllers.base import Controller
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 
 
 class ImpedanceAlignConfig(StrictModel):

@@ -12,7 +12,7 @@ scenario says what the run achieved and why (:meth:`Scenario.final`).
 A judge sees a cycle's :class:`~drivers.base.types.RobotState` (with
 ``truth`` in a simulator), the rig tracker's
 :class:`~drivers.base.types.TargetObservation` (if any) and the estimator's
-:class:`~ffexp.estimator.Estimate`. Verdict labels are the recording's
+:class:`~ffexp.estimation.Estimate`. Verdict labels are the recording's
 words, read by :mod:`ffexp.analysis`: ``"aligned"`` (the goal held),
 ``"not aligned"`` and ``"unverified"``.
 """
@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from drivers.base.types import RobotState, TargetObservation
 from drivers.config import StrictModel
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 
 if TYPE_CHECKING:
     from ffexp.protocol import RunProtocol

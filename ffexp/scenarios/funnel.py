@@ -28,7 +28,7 @@ from pydantic import Field
 from drivers.base.placement import Placement, placement
 from drivers.base.types import NS_PER_S, RobotState, TargetObservation
 from drivers.config import StrictModel
-from ffexp.estimator import Estimate
+from ffexp.estimation import Estimate
 from ffexp.observer import ObserverLimits, WrenchObserver
 from ffexp.scenarios.base import Scenario, ScenarioConfig, SourceChange, Verdict
 

@@ -1,5 +1,10 @@
 """The estimator of the experiment loop: everything done to the sensor signal per cycle.
 
+Its parts, one module each (pure: no I/O): :mod:`ffexp.estimation.wrench_filter`
+and :mod:`ffexp.estimation.motion_filter` (Kalman filters, filterpy),
+:mod:`ffexp.estimation.tool_load` (the tool's weight and inertia and their
+identification) and :mod:`ffexp.estimation.contact` (the contact detector).
+
 Per cycle, from the robot state and the F/T samples that arrived since the
 last cycle (pure: no I/O, no clock):
 
@@ -24,18 +29,22 @@ from pydantic import Field
 
 from drivers.base.types import F64, FtSamples, FtStatus, RobotState
 from drivers.config import StrictModel
-from ffexp.estimation import (
+from ffexp.estimation.contact import ContactDetector, ContactDetectorConfig, ContactEvent
+from ffexp.estimation.motion_filter import MotionFilter, MotionFilterConfig
+from ffexp.estimation.tool_load import (
     GRAVITY_BASE_MPS2,
-    ContactDetector,
-    ContactDetectorConfig,
-    ContactEvent,
-    MotionFilter,
-    MotionFilterConfig,
     ToolLoad,
-    WrenchFilter,
-    WrenchFilterConfig,
+    ToolLoadFit,
+    identify_tool_load,
     skew,
 )
+from ffexp.estimation.wrench_filter import WrenchFilter, WrenchFilterConfig
+
+__all__ = [
+    "GRAVITY_BASE_MPS2", "ContactDetector", "ContactDetectorConfig", "ContactEvent", "Estimate",
+    "Estimation", "Estimator", "MotionFilter", "MotionFilterConfig", "ToolLoad", "ToolLoadFit",
+    "WrenchFilter", "WrenchFilterConfig", "identify_tool_load", "peaks", "skew",
+]
 
 
 class Estimation(StrictModel):

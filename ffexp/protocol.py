@@ -17,9 +17,9 @@ from drivers.base.types import Vec6
 from drivers.config import StrictModel, load_model
 from ffexp import scenarios
 from ffexp.contracts import PAPER_OUTCOMES
-from ffexp.control import ImpedanceConfig
 from ffexp.controllers import REGISTRY, AlignConfig
 from ffexp.controllers.force import ForceRiConfig
+from ffexp.controllers.laws import ImpedanceConfig
 from ffexp.errors import ConfigError
 from ffexp.estimation import Estimation
 from ffexp.safety import Limits

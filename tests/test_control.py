@@ -7,7 +7,7 @@ import pytest
 from pydantic import ValidationError
 from scipy.spatial.transform import Rotation
 
-from ffexp.control import (
+from ffexp.controllers.laws import (
     ForceControlConfig,
     ForceController,
     ImpedanceConfig,

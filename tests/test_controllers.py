@@ -12,9 +12,9 @@ from loop_script import pose_at
 from drivers.base.types import RobotState
 from drivers.config import load_model
 from ffexp import controllers
-from ffexp.control import ForceController
 from ffexp.controllers.admittance import Admittance, AdmittanceConfig, MassDamper
 from ffexp.controllers.base import Approach, ControlContext
+from ffexp.controllers.laws import ForceController
 from ffexp.errors import ConfigError
 from ffexp.estimation import Estimate
 from ffexp.protocol import RunProtocol

@@ -28,8 +28,8 @@ from scipy.spatial.transform import Rotation
 
 from drivers.base.types import F64, RobotState, Vec6
 from drivers.config import StrictModel
-from ffexp.control import AXES, pose_error_tcf
 from ffexp.controllers.base import ControlContext, Controller
+from ffexp.controllers.laws import AXES, pose_error_tcf
 from ffexp.estimation import Estimate
 from ffexp.recording.topics import CDR_TOPICS
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from drivers.base.types import F64, NS_PER_S, RobotState
 from drivers.config import StrictModel
-from ffexp.control import ImpedanceConfig, ImpedanceController
+from ffexp.controllers.laws import ImpedanceConfig, ImpedanceController
 from ffexp.estimation import Estimate
 from ffexp.recording.schema import CdrTopic
 

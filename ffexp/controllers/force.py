@@ -2,7 +2,7 @@
 apparent inertia reduction (positive feedback of the measured wrench) on the others.
 
 ``force_ri`` (Method I) and ``force`` (Method II, no inertia reduction: every
-``k_ri`` must be zero) share the law of :class:`ffexp.control.ForceController`.
+``k_ri`` must be zero) share the law of :class:`ffexp.controllers.laws.ForceController`.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from drivers.base.types import F64, RobotState, Vec6
-from ffexp.control import ForceControlConfig, ForceController, ForceControlTerms
 from ffexp.controllers.base import ControlContext, Controller
+from ffexp.controllers.laws import ForceControlConfig, ForceController, ForceControlTerms
 from ffexp.estimation import Estimate
 
 

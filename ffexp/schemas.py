@@ -33,7 +33,7 @@ def _campaign() -> type[Any]:
 
 
 def _sec3_sweep() -> type[Any]:
-    from ffexp.sweep import SweepProtocol
+    from ffexp.contact1dof.sweep import SweepProtocol
 
     return SweepProtocol
 

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from drivers.config import load_model
 from ffexp.contact1dof import ContactParams, simulate, summarize
-from ffexp.sweep import SweepProtocol, run_sweep
+from ffexp.contact1dof.sweep import SweepProtocol, run_sweep
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
 

@@ -50,8 +50,8 @@ def contact_1dof(
     from pydantic import ValidationError
 
     from ffexp.contact1dof import MAX_SAMPLES, ContactParams, simulate, summarize
+    from ffexp.contact1dof.sweep import write_trajectory_csv as write_csv
     from ffexp.errors import ConfigError
-    from ffexp.sweep import write_trajectory_csv as write_csv
 
     given = {"m_ri": m_ri, "m_t": m_t, "k_ri": k_ri, "b_ri": b_ri, "k_c": k_c, "b_c": b_c,
              "v0": v0}
@@ -109,8 +109,14 @@ def sweep(
     from drivers.config import load_model
     from ffexp.cli.progress import Steps
     from ffexp.cli.tables import Column, console, fitted_table
+    from ffexp.contact1dof.sweep import (
+        SUMMARY_COLUMNS,
+        SweepProtocol,
+        run_sweep,
+        summary_rows,
+        write_outputs,
+    )
     from ffexp.errors import ConfigError
-    from ffexp.sweep import SUMMARY_COLUMNS, SweepProtocol, run_sweep, summary_rows, write_outputs
 
     if out.exists() and not out.is_dir():
         raise ConfigError("--out", str(out), "exists and is not a directory")

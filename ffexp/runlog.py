@@ -40,7 +40,7 @@ from ffexp.estimation import Estimate
 from ffexp.recording import Recorder
 from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import STATE_JOINTS
-from ffexp.recording.topics_target import TRACKED_FRAME
+from ffexp.recording.topics.target import TRACKED_FRAME
 from ffexp.task import Event, Note, PhaseChange, Verdict
 
 _TERMS = ("p", "i", "ri", "ff", "impedance")

@@ -150,7 +150,7 @@ class Recorder:
             sid = self._writer.register_schema(jt.schema_name, "jsonschema", jt.schema_bytes)
             cid = self._writer.register_channel(topic, "json", sid)
         else:
-            raise KeyError(f"unknown topic {topic!r}: add it to ffexp/recording/topics.py")
+            raise KeyError(f"unknown topic {topic!r}: add it to ffexp/recording/topics/__init__.py")
         ch = self._channels[topic] = [cid, 0]
         return ch
 

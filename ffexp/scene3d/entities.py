@@ -28,7 +28,7 @@ import numpy as np
 from drivers.base.types import F64, NS_PER_S
 from drivers.description import LWR4, Layout, Scene, tool_tip_offset
 from ffexp.recording.recorder import pose_to_transform
-from ffexp.recording.topics_scene import PRIMITIVES
+from ffexp.recording.topics.scene import PRIMITIVES
 
 __all__ = ["BED_SIZE_M", "LINK_FRAMES", "LINK_RADIUS_M", "scene_update"]
 

@@ -23,7 +23,7 @@ import numpy as np
 from drivers.base.types import NS_PER_S, RobotState, TargetObservation
 from drivers.description import Layout, Scene, compute_layout
 from ffexp.recording import Recorder
-from ffexp.recording.topics_target import TRACKED_FRAME
+from ffexp.recording.topics.target import TRACKED_FRAME
 from ffexp.scene3d.entities import LINK_FRAMES, scene_update
 from ffexp.scene3d.kinematics import JOINTS, base_pose, link_rows, translation
 

@@ -27,7 +27,6 @@ from __future__ import annotations
 from typing import Any
 
 from drivers import registry
-from ffexp.recording import topics_scene, topics_target
 from ffexp.recording.schema import (
     QUAT_SCHEMA,
     TIME_SCHEMA,
@@ -37,6 +36,8 @@ from ffexp.recording.schema import (
     JsonTopic,
     MessageSpec,
 )
+from ffexp.recording.topics import scene as topics_scene
+from ffexp.recording.topics import target as topics_target
 
 F = FieldSpec
 

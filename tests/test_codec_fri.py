@@ -236,12 +236,12 @@ def test_enums_are_the_ones_of_drivers_fri_types() -> None:
 
 
 def test_the_split_codec_modules_are_one_api() -> None:
-    """codec.py re-exports every public name of its parts, and they stay small."""
+    """The codec package re-exports every public name of its parts, and they stay small."""
     from pathlib import Path
 
-    from drivers.fri import codec_arrays, codec_fields, codec_layout, codec_seq
+    from drivers.fri.codec import arrays, fields, layout, seq
 
-    for mod in (codec_arrays, codec_fields, codec_layout, codec_seq):
+    for mod in (arrays, fields, layout, seq):
         public = [n for n in vars(mod) if not n.startswith("_") and n.isidentifier()]
         for name in public:
             obj = getattr(mod, name)

@@ -17,8 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from drivers.errors import PacketEncodeError
-from drivers.fri.codec_fields import ROT_PERM as _ROT_PERM
-from drivers.fri.codec_layout import (
+from drivers.fri.codec.fields import ROT_PERM as _ROT_PERM
+from drivers.fri.codec.layout import (
     CMD_DATAGRAM_ID,
     CMD_DTYPE,
     CMD_SIZE,
@@ -38,10 +38,10 @@ from drivers.fri.codec_layout import (
     new_cmd_buffer,
     new_msr_buffer,
 )
-from drivers.fri.codec_layout import (
+from drivers.fri.codec.layout import (
     F4 as _F4,
 )
-from drivers.fri.codec_layout import (
+from drivers.fri.codec.layout import (
     I4 as _I4,
 )
 from drivers.fri.types import CmdFlags, ControlMode, FriQuality, FriState

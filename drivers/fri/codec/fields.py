@@ -13,7 +13,7 @@ from typing import Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from drivers.fri.codec_layout import NUM_JOINTS
+from drivers.fri.codec.layout import NUM_JOINTS
 
 _N = NUM_JOINTS
 

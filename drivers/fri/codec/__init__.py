@@ -29,10 +29,10 @@ Plus :class:`DecodeStats` (counts of accepted and rejected datagrams) and the
 uint16 sequence helpers :func:`seq_next`, :func:`seq_delta`, :func:`classify_seq`.
 
 The code lives in four modules, all re-exported here (import from here):
-:mod:`~drivers.fri.codec_layout` (sizes, dtypes, enums on the wire, header
-validation, records, packet buffers), :mod:`~drivers.fri.codec_fields` (field
-conversions), :mod:`~drivers.fri.codec_arrays` (the arrays, decode into and
-encode) and :mod:`~drivers.fri.codec_seq` (sequence counters).
+:mod:`~drivers.fri.codec.layout` (sizes, dtypes, enums on the wire, header
+validation, records, packet buffers), :mod:`~drivers.fri.codec.fields` (field
+conversions), :mod:`~drivers.fri.codec.arrays` (the arrays, decode into and
+encode) and :mod:`~drivers.fri.codec.seq` (sequence counters).
 
 Enumerations on the wire: ``intf.state`` and ``intf.quality`` are uint16 fields
 that carry C enums whose INVALID member is -1. On the wire -1 is ``0xFFFF``
@@ -52,7 +52,7 @@ checks only the header, it does not judge payload values.
 
 from __future__ import annotations
 
-from drivers.fri.codec_arrays import (
+from drivers.fri.codec.arrays import (
     CMD_ARRAY_FIELDS,
     MSR_ARRAY_FIELDS,
     MSR_SCALAR_FIELDS,
@@ -66,7 +66,7 @@ from drivers.fri.codec_arrays import (
     msr_arrays_from_record,
     pack_cmd,
 )
-from drivers.fri.codec_fields import (
+from drivers.fri.codec.fields import (
     cart_gains_from_wire,
     cart_gains_to_wire,
     frame_to_matrix,
@@ -78,7 +78,7 @@ from drivers.fri.codec_fields import (
     wrench_from_wire,
     wrench_to_wire,
 )
-from drivers.fri.codec_layout import (
+from drivers.fri.codec.layout import (
     CMD_BLOCK_DTYPE,
     CMD_DATAGRAM_ID,
     CMD_DTYPE,
@@ -109,7 +109,7 @@ from drivers.fri.codec_layout import (
     new_cmd_buffer,
     new_msr_buffer,
 )
-from drivers.fri.codec_seq import SEQ_MODULUS, SeqEvent, classify_seq, seq_delta, seq_next
+from drivers.fri.codec.seq import SEQ_MODULUS, SeqEvent, classify_seq, seq_delta, seq_next
 from drivers.fri.types import CmdFlags, ControlMode, FriQuality, FriState
 
 __all__ = [

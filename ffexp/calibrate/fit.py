@@ -29,9 +29,10 @@ is zero) is an unidentifiable set: :class:`~ffexp.errors.InputError`, unless
 kept (``keep_unidentified``), when it stays at its start value and is
 reported with its bounds as its interval.
 
-Intervals: ``s^2 (J^T J)^-1`` at the result (``s^2`` the residual variance),
-95 % (1.96 sigma); successive samples of a signal are correlated, so they are
-optimistic, and for contact parameters only local.
+Intervals: ``s^2 (J^T J)^-1`` at the result (``s^2`` the residual variance,
+inflated by ``(1 + rho) / (1 - rho)`` for the residuals' lag-one correlation
+``rho``), 95 % (1.96 sigma), never narrower than the black-box optimiser's
+last step; for contact parameters they are local only.
 """
 
 from __future__ import annotations
@@ -56,8 +57,8 @@ from ffexp.calibrate.residuals import (
 from ffexp.calibrate.resim import Trace
 from ffexp.errors import InputError
 
-#: Most rounds of timing and the smooth stage (the delay and the friction trade off).
-TIMING_ROUNDS = 3
+#: Most moves of the delay's profile (each refits the smooth stage at a neighbour).
+TIMING_ROUNDS = 4
 #: Forward-difference step in unit coordinates (bounds mapped to [0, 1]).
 FD_STEP = 1e-3
 #: Least squares: most residual evaluations of the smooth stage.
@@ -103,6 +104,8 @@ class StageResult:
     cost_before: float
     cost_after: float
     note: str = ""
+    kept: bool = True
+    """False for a profile's fit at a delay that lost (its convergence does not count)."""
 
 
 @dataclass
@@ -156,7 +159,8 @@ class Calibration:
         self.onset_s = [contact_onset_s(i) for i in self.inputs]
         """Each recording's first contact: the timing and smooth stages fit what comes before."""
         self.best_traces: list[Trace] | None = None
-        self.round = 1
+        self.step_floor: dict[str, float] = {}
+        """A black-box optimiser's last step per key: no interval is narrower."""
 
     # -- helpers ---------------------------------------------------------------
     def _shift_of(self, delay_s: float | None) -> int:
@@ -228,20 +232,44 @@ class Calibration:
         continuous = [p for p in self.params if p.stage in ("smooth", "contact")]
         if continuous:
             self._check_excited(continuous)
-        timing = [p.key for p in self.params if p.stage == "timing"]
-        for self.round in range(1, TIMING_ROUNDS + 1):
-            was = [self.values[k] for k in timing]
-            self._timing()
-            if self.round > 1 and [self.values[k] for k in timing] == was:
-                break
-            self._smooth()
-            if not timing:
-                break
+        self._timing()
+        cost = self._smooth()
+        timing = [p for p in self.params if p.stage == "timing"]
+        if timing and cost is not None:
+            self._profile(timing[0], cost)
         self.best_traces = None
         self._sensor()
         if self._contact():
             self.best_traces = None
             self._sensor()
+
+    def _profile(self, p: Param, cost: float) -> None:
+        """The delay and the smooth parameters trade off (both shape the arm's response), so
+        each neighbouring delay gets its own smooth fit and the delay whose fit is best wins
+        (a profile of the cost over the delay), until the best has no better neighbour."""
+        fits: dict[int, tuple[float, dict[str, float], int]] = {
+            int(self.values[p.key]): (cost, dict(self.values), len(self.stages) - 1)}
+        for _ in range(TIMING_ROUNDS):
+            now = min(fits, key=lambda d: fits[d][0])
+            for d in (now - 1, now + 1):
+                if p.lo <= d <= p.hi and d not in fits:
+                    self.values = {**fits[now][1], p.key: float(d)}
+                    c = self._smooth()
+                    fits[d] = (math.inf if c is None else c, dict(self.values),
+                               len(self.stages) - 1)
+            best = min(fits, key=lambda d: fits[d][0])
+            self.values = dict(fits[best][1])
+            if best == now:
+                break
+        best = int(self.values[p.key])
+        for d, (_c, _v, idx) in fits.items():
+            if d != best:
+                self.stages[idx].kept = False
+                self.stages[idx].note += "; not kept: another delay fits better"
+        others = [c for d, (c, _v, _i) in fits.items() if d != best]
+        self.margin[p.key] = min(others) / max(fits[best][0], 1e-300) if others else math.inf
+        listed = ", ".join(f"{d}: {fits[d][0]:.3g}" for d in sorted(fits))
+        self.notes[p.key] = f"profiled (smooth stage refitted per value), cost {listed}"
 
     def _timing(self) -> None:
         ps = [p for p in self.params if p.stage == "timing"]
@@ -249,9 +277,6 @@ class Calibration:
             return
         p = ps[0]
         grid = list(range(int(p.lo), int(p.hi) + 1))
-        if self.round > 1:  # after the first round: the current value and its neighbours
-            now = int(self.values[p.key])
-            grid = [d for d in grid if abs(d - now) <= 1]
         self.progress("timing", 0, len(grid) * len(self.inputs), p.key)
         cands = [{**self.values, p.key: float(d)} for d in grid]
         rows = self._run([self.overrides(c) for c in cands])
@@ -265,7 +290,7 @@ class Calibration:
         listed = ", ".join(f"{d}: {c:.3g}" for d, c in costs.items())
         self.notes[p.key] = f"replayed, cost per value {listed}"
 
-        self.stages.append(StageResult(f"timing, round {self.round}", "exhaustive (integer)",
+        self.stages.append(StageResult("timing", "exhaustive (integer)",
                                        [p.key], True,
                                        len(grid), before, costs[best],
                                        f"next best costs {margin:.3g}x"))
@@ -308,12 +333,13 @@ class Calibration:
                              "not change any recorded signal); add recordings that do, drop it "
                              "from --fit, or --keep-unidentified")
 
-    def _smooth(self) -> None:
+    def _smooth(self) -> float | None:
+        """The smooth stage; its final cost (``None``: nothing to fit)."""
         from scipy.optimize import least_squares
 
         ps = [p for p in self.params if p.stage == "smooth" and p.key not in self.unexcited]
         if not ps:
-            return
+            return None
         cache: dict[bytes, np.ndarray] = {}
         evals = [0]
 
@@ -338,9 +364,11 @@ class Calibration:
             self.values[p.key] = p.from_unit(float(ui))
         ok = bool(res.status > 0)
         self.stages.append(StageResult(
-            f"smooth, round {self.round}", "least squares (scipy trf, finite-difference Jacobian)",
+            f"smooth, delay {self.values.get('fri.command_delay_cycles', '-')}",
+            "least squares (scipy trf, finite-difference Jacobian)",
             [p.key for p in ps], ok, evals[0], float(r0 @ r0), float(2 * res.cost),
             str(res.message)))
+        return float(2 * res.cost)
 
     def _contact(self) -> bool:
         """The contact stage; ``False`` if it has nothing to fit."""
@@ -378,8 +406,10 @@ class Calibration:
             if step < CMA_TOL or cma.should_stop():
                 converged = step < CMA_TOL or best_c <= before
                 break
-        for p, ui in zip(ps, best_u, strict=True):
+        steps = cma._sigma * np.sqrt(np.diag(cma._C))
+        for p, ui, st in zip(ps, best_u, steps, strict=True):
             self.values[p.key] = p.from_unit(float(ui))
+            self.step_floor[p.key] = float(st) * (p.hi - p.lo)
         self.stages.append(StageResult(
             "contact", f"CMA-ES (cmaes, population {popsize})", [p.key for p in ps], converged,
             gen * popsize, before, best_c,
@@ -402,7 +432,10 @@ class Calibration:
             scale = np.array([p.hi - p.lo for p in fitted])
             jp = jac / scale  # physical units
             dof = max(len(r) - len(fitted), 1)
-            s2 = float(r @ r) / dof
+            # successive residuals are correlated: fewer independent values than residuals
+            rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if len(r) > 3 else 0.0
+            rho = min(max(rho if math.isfinite(rho) else 0.0, 0.0), 0.999)
+            s2 = float(r @ r) / dof * (1 + rho) / (1 - rho)
             jtj = jp.T @ jp
             norms = np.sqrt(np.diag(jtj))
             safe = np.where(norms > 0, norms, 1.0)
@@ -414,7 +447,8 @@ class Calibration:
             denom = np.where(sd > 0, sd, 1.0)
             corr = cov / np.outer(denom, denom)
             for i, p in enumerate(fitted):
-                half[p.key] = 1.96 * float(sd[i]) if norms[i] > 0 else math.inf
+                half[p.key] = (max(1.96 * float(sd[i]), self.step_floor.get(p.key, 0.0))
+                               if norms[i] > 0 else math.inf)
                 others = [abs(corr[i, j]) for j in range(len(fitted)) if j != i]
                 maxcorr[p.key] = max(others, default=0.0)
         for p in self.params:

@@ -129,7 +129,7 @@ def calibrate(
         if path.suffix == ".html":
             typer.echo(f"report: {path}")
     if not res.converged:
-        bad = [s.name for s in res.stages if not s.converged]
+        bad = [s.name for s in res.stages if s.kept and not s.converged]
         raise fail(f"the fit did not converge ({', '.join(bad)}); no scene written "
                    f"(report: {report_dir})", EXIT_FAILURE)
     data = copy.deepcopy(res.base_scene)

@@ -92,7 +92,7 @@ def test_bed_friction_from_a_glide(recs: dict[str, Path]) -> None:
 
 def test_unexcited_parameter_is_bad_input_or_reported_unidentified(
         recs: dict[str, Path]) -> None:
-    with pytest.raises(InputError, match="no recording excites contact.restitution"):
+    with pytest.raises(InputError, match=r"no recording excites contact\.restitution"):
         calibrate([recs["glide"]], ["contact.restitution"], SCENE, jobs=1)
     res, _ = calibrate([recs["glide"]], ["contact.restitution"], SCENE, jobs=1,
                        keep_unidentified=True)

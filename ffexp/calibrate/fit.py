@@ -64,8 +64,10 @@ FD_STEP = 1e-3
 #: Least squares: most residual evaluations of the smooth stage.
 LSQ_MAX_NFEV = 25
 #: CMA-ES: most generations; converged when its step is below this in unit coordinates.
-CMA_MAX_GENERATIONS = 30
-CMA_TOL = 5e-3
+CMA_MAX_GENERATIONS = 40
+CMA_TOL = 3e-3
+#: ... or when its best cost improved by less than this fraction over this many generations.
+CMA_STALL = (1e-3, 8)
 CMA_SIGMA0 = 0.1
 #: Identified: 95 % half-width within this fraction of the bounds, correlations below.
 IDENT_WIDTH = 0.1
@@ -320,6 +322,28 @@ class Calibration:
                                        True, len(costs), before, costs[best],
                                        f"next best costs {margin:.3g}x"))
 
+    def _shift_cost(self, traces: Sequence[Trace], which: Sequence[int]) -> tuple[float, int]:
+        """The cost of ``traces`` at the F/T delay that fits them best, if that delay is
+        fitted (a shift of the simulated series, no rollout), else at the current one.
+        The contact's F/T transients and the delay are fitted together this way: a delay
+        chosen before contact is fitted would be chosen against the wrong impacts."""
+        sensor = [p for p in self.params if p.stage == "sensor"]
+        if not sensor:
+            return float(np.sum(self.residual(traces, which) ** 2)), self.shift
+        p = sensor[0]
+        keep = self.shift
+        best = (math.inf, keep)
+        try:
+            lo = int(math.ceil(p.lo / self.ft_period_s - 1e-9))
+            hi = int(math.floor(p.hi / self.ft_period_s + 1e-9))
+            for shift in range(lo, hi + 1):
+                self.shift = shift
+                c = float(np.sum(self.residual(traces, which) ** 2))
+                best = min(best, (c, shift))
+        finally:
+            self.shift = keep
+        return best
+
     def _check_excited(self, params: list[Param]) -> None:
         self.progress("check", 0, (len(params) + 1) * len(self.inputs), "excitation")
         r0 = self.residual(self.traces([self.values])[0])
@@ -388,12 +412,13 @@ class Calibration:
 
         def costs(us: list[np.ndarray]) -> list[float]:
             rows = self.traces([self._with(ps, u) for u in us], touched)
-            return [float(np.sum(self.residual(tr, touched) ** 2)) for tr in rows]
+            return [self._shift_cost(tr, touched)[0] for tr in rows]
 
         before = costs([u0])[0]
         best_u, best_c = u0, before
         converged = False
         gen = 0
+        history: list[float] = []
         for gen in range(1, CMA_MAX_GENERATIONS + 1):
             us = [cma.ask() for _ in range(cma.population_size)]
             cs = costs(us)
@@ -402,9 +427,12 @@ class Calibration:
             if cs[i] < best_c:
                 best_u, best_c = us[i], cs[i]
             self.progress("contact", gen, CMA_MAX_GENERATIONS, f"best cost {best_c:.4g}")
+            history.append(best_c)
             step = float(cma._sigma * math.sqrt(float(np.max(np.diag(cma._C)))))
-            if step < CMA_TOL or cma.should_stop():
-                converged = step < CMA_TOL or best_c <= before
+            tol, gens = CMA_STALL
+            stalled = len(history) > gens and history[-gens - 1] - best_c <= tol * best_c
+            if step < CMA_TOL or stalled or cma.should_stop():
+                converged = step < CMA_TOL or stalled
                 break
         steps = cma._sigma * np.sqrt(np.diag(cma._C))
         for p, ui, st in zip(ps, best_u, steps, strict=True):

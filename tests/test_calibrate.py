@@ -118,6 +118,10 @@ def test_cli_writes_a_scene_with_its_provenance(recs: dict[str, Path], tmp_path:
     report = tmp_path / "cal-report"
     assert (report / "calibration.html").read_text().count("<img") == 2  # fitted + held out
     assert (report / "calibration.json").exists()
+    page = tmp_path / "page.html"
+    result = runner.invoke(app, ["report", str(report), "--out", str(page)])
+    assert result.exit_code == 0, result.stderr
+    assert "target.mu" in page.read_text()  # the parameter table, through ffexp report
 
 
 def test_a_fit_that_does_not_converge_writes_no_scene(recs: dict[str, Path], tmp_path: Path,

@@ -3,12 +3,14 @@
 :func:`summary` makes the rows every output shares (terminal, JSON, HTML);
 :func:`write_report` writes ``calibration.json``, one figure per recording
 (recorded against simulated at the start values and at the result) and
-``calibration.html`` (figures embedded) into a directory.
+``calibration.html`` (figures embedded) into a directory, and the tables as CSV, so
+that ``ffexp report DIR`` also shows it all in the project's own report page.
 """
 
 from __future__ import annotations
 
 import base64
+import csv
 import html
 import io
 import json
@@ -117,6 +119,15 @@ def write_report(directory: Path, res: FitResult, inputs: dict[str, list[ReplayI
     data["scene"] = str(scene_path) if scene_path else None
     (directory / "calibration.json").write_text(json.dumps(data, indent=1, default=float))
     written.append(directory / "calibration.json")
+    # the tables as CSV too: `ffexp report DIR` shows them (and the figures) in its own page
+    for name, rows in (("parameters", parameter_rows(res)),
+                       ("residuals", residual_rows(res, inputs))):
+        path = directory / f"calibration-{name}.csv"
+        with path.open("w", newline="", encoding="utf-8") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]) if rows else [])
+            writer.writeheader()
+            writer.writerows(rows)
+        written.append(path)
     shift0 = int(data.get("start_shift", res.ft_shift))
     figs: list[tuple[str, bytes]] = []
     for name in ("fit", "holdout"):

@@ -153,7 +153,7 @@ class Calibration:
         self.progress = progress or (lambda *_a: None)
         self.keep = keep_unidentified
         self.values: dict[str, float] = {p.key: p.start for p in self.params}
-        self.shift = self._shift_of(self.values.get("ft_sensor.delay_s"))
+        self.shift = self.shift_of(self.values.get("ft_sensor.delay_s"))
         self.stages: list[StageResult] = []
         self.notes: dict[str, str] = {}
         self.unexcited: set[str] = set()
@@ -165,7 +165,7 @@ class Calibration:
         """A black-box optimiser's last step per key: no interval is narrower."""
 
     # -- helpers ---------------------------------------------------------------
-    def _shift_of(self, delay_s: float | None) -> int:
+    def shift_of(self, delay_s: float | None) -> int:
         if delay_s is None:
             return round(float(self._scene_delay()) / self.ft_period_s)
         return round(delay_s / self.ft_period_s)
@@ -308,8 +308,8 @@ class Calibration:
         if traces is None:
             self.progress("sensor", 0, len(self.inputs), p.key)
             traces = self.traces([self.values])[0]
-        lo = math.ceil(p.lo / self.ft_period_s - 1e-9)
-        hi = math.floor(p.hi / self.ft_period_s + 1e-9)
+        shifts = self._shifts(p)
+        lo, hi = shifts.start, shifts.stop - 1
         before = sum(c.cost for c in self.comparisons(traces, signals=("force", "torque")))
         best, costs = best_shift(self.inputs, traces, lo, hi)
         self.shift = best
@@ -321,6 +321,11 @@ class Calibration:
         self.stages.append(StageResult("sensor", "exhaustive shift (whole samples)", [p.key],
                                        True, len(costs), before, costs[best],
                                        f"next best costs {margin:.3g}x"))
+
+    def _shifts(self, p: Param) -> range:
+        """The F/T delays in whole samples within ``p``'s bounds."""
+        return range(math.ceil(p.lo / self.ft_period_s - 1e-9),
+                     math.floor(p.hi / self.ft_period_s + 1e-9) + 1)
 
     def _shift_cost(self, traces: Sequence[Trace], which: Sequence[int]) -> tuple[float, int]:
         """The cost of ``traces`` at the F/T delay that fits them best, if that delay is
@@ -334,9 +339,7 @@ class Calibration:
         keep = self.shift
         best = (math.inf, keep)
         try:
-            lo = int(math.ceil(p.lo / self.ft_period_s - 1e-9))
-            hi = int(math.floor(p.hi / self.ft_period_s + 1e-9))
-            for shift in range(lo, hi + 1):
+            for shift in self._shifts(p):
                 self.shift = shift
                 c = float(np.sum(self.residual(traces, which) ** 2))
                 best = min(best, (c, shift))

@@ -68,9 +68,10 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
         if progress:
             progress("validate", 0, len(all_in), "replaying at the result")
         final_rows = pool.run([cal.overrides(cal.values)])[0]
-        shift0 = cal._shift_of(start_values.get("ft_sensor.delay_s"))
+        shift0 = cal.shift_of(start_values.get("ft_sensor.delay_s"))
+        converged = all(s.converged for s in cal.stages if s.kept)
         res = FitResult(values=cal.values, estimates=est, stages=cal.stages,
-                        converged=all(s.converged for s in cal.stages if s.kept), ft_shift=cal.shift,
+                        converged=converged, ft_shift=cal.shift,
                         condition=cond, correlation=corr, corr_keys=keys, start_shift=shift0,
                         inputs={"fit": fit_in, "holdout": held}, base_scene=scene)
         for name, lo, hi in (("fit", 0, len(fit_in)), ("holdout", len(fit_in), len(all_in))):

@@ -55,7 +55,11 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
         period = float(scene["fri"]["cycle"])
     t0 = time.monotonic()
     all_in = [*fit_in, *held]
-    with Rollouts(all_in, scene_file, jobs) as pool:
+    def done(n: int) -> None:
+        if progress is not None:
+            progress("rollouts", n, None, "replays of a recording")
+
+    with Rollouts(all_in, scene_file, jobs, done) as pool:
         fit_idx = list(range(len(fit_in)))
         cal = Calibration(fit_in, params, pool, scene_overrides, period, progress,
                           keep_unidentified, fit_idx)

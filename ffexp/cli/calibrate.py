@@ -178,12 +178,19 @@ class _Bars:
         """``(stage, done, total, status)`` of :mod:`ffexp.calibrate.fit`."""
         bar = self.progress
         if bar is None:
-            if stage not in self.tasks:
+            if stage not in self.tasks and stage != "rollouts":
                 self.tasks[stage] = None
                 print(f"calibrate: {stage}: {status}", file=sys.stderr, flush=True)
             return
+        if stage == "rollouts":  # every replay, all along: a counter of its own
+            if stage not in self.tasks:
+                self.tasks[stage] = (bar.add_task(stage, total=None, status=status), None)
+            bar.update(self.tasks[stage][0], completed=done, status=status)
+            return
         if stage not in self.tasks:
-            for task, last in self.tasks.values():  # the previous stages are done
+            for name, (task, last) in self.tasks.items():  # the previous stages are done
+                if name == "rollouts":
+                    continue
                 bar.update(task, completed=last or 0, total=last)
                 bar.stop_task(task)
             self.tasks[stage] = (bar.add_task(stage, total=total, status=status), total)

@@ -102,6 +102,7 @@ def test_unexcited_parameter_is_bad_input_or_reported_unidentified(
     assert est.value == est.start
 
 
+@pytest.mark.slow
 def test_cli_writes_a_scene_with_its_provenance(recs: dict[str, Path], tmp_path: Path) -> None:
     out = tmp_path / "cal.toml"
     result = runner.invoke(app, ["calibrate", str(recs["glide"]), "--fit", "target.mu",
@@ -208,3 +209,15 @@ def test_bad_input_is_one_line_exit_2_nothing_written(recs: dict[str, Path], tmp
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and expect in lines[0], lines
     assert not out.exists() and not (tmp_path / "cal-report").exists()
+
+
+def test_resimulate_bad_input_writes_nothing(recs: dict[str, Path], tmp_path: Path) -> None:
+    rec = _without(recs["glide"], tmp_path / "nocmd.mcap", "/robot/command")
+    out = tmp_path / "sim.mcap"
+    result = runner.invoke(app, ["resimulate", str(rec), "--out", str(out)])
+    assert result.exit_code == 2
+    assert result.stderr.strip().count("\n") == 0 and "no /robot/command" in result.stderr
+    result = runner.invoke(app, ["resimulate", str(recs["glide"]), "--out",
+                                 str(recs["glide"])])
+    assert result.exit_code == 2 and "is the recording itself" in result.stderr
+    assert not out.exists()

@@ -112,7 +112,7 @@ class StageResult:
 
 @dataclass
 class FitResult:
-    """Everything a calibration found (JSON-able through :meth:`as_dict`)."""
+    """Everything a calibration found (JSON data through :func:`result_dict`)."""
 
     values: dict[str, float]
     estimates: list[Estimate]
@@ -130,9 +130,9 @@ class FitResult:
     rollouts: int = 0
     elapsed_s: float = 0.0
     start_shift: int = 0
+    """The F/T delay in samples at the start values."""
     base_scene: dict[str, Any] = field(default_factory=dict)
     """The start scene (JSON data), which the calibrated scene changes."""
-    """The F/T delay in samples at the start values."""
     inputs: dict[str, list[ReplayInput]] = field(default_factory=dict)
     """``"fit"``/``"holdout"``: the recordings."""
 
@@ -143,7 +143,7 @@ class Calibration:
     def __init__(self, inputs: Sequence[ReplayInput], params: Sequence[Param],
                  pool: Rollouts, base_overrides: Sequence[str], ft_period_s: float,
                  progress: Progress | None = None, keep_unidentified: bool = False,
-                 pool_index: Sequence[int] | None = None) -> None:
+                 pool_index: Sequence[int] | None = None, ft_delay_s: float = 0.0) -> None:
         self.inputs = list(inputs)
         self.pool_index = list(range(len(inputs)) if pool_index is None else pool_index)
         self.params = list(params)
@@ -153,6 +153,8 @@ class Calibration:
         self.progress = progress or (lambda *_a: None)
         self.keep = keep_unidentified
         self.values: dict[str, float] = {p.key: p.start for p in self.params}
+        self.ft_delay_s = ft_delay_s
+        """The start scene's F/T delay (0 for the KRC's estimate, which has none)."""
         self.shift = self.shift_of(self.values.get("ft_sensor.delay_s"))
         self.stages: list[StageResult] = []
         self.notes: dict[str, str] = {}
@@ -166,13 +168,8 @@ class Calibration:
 
     # -- helpers ---------------------------------------------------------------
     def shift_of(self, delay_s: float | None) -> int:
-        if delay_s is None:
-            return round(float(self._scene_delay()) / self.ft_period_s)
-        return round(delay_s / self.ft_period_s)
-
-    def _scene_delay(self) -> float:
-        scene = self.inputs[0].scene
-        return float(scene["ft_sensor"]["delay_s"]) if scene else 0.0
+        """``delay_s`` (``None``: the start scene's) in whole F/T samples."""
+        return round((self.ft_delay_s if delay_s is None else delay_s) / self.ft_period_s)
 
     def overrides(self, values: dict[str, float]) -> tuple[str, ...]:
         by_key = {p.key: p for p in self.params}
@@ -229,8 +226,10 @@ class Calibration:
 
     # -- stages ----------------------------------------------------------------
     def run(self) -> None:
-        """The stages: timing and the smooth parameters in turn until the delay stays, then
-        the sensor's delay, contact, and the sensor's delay again at the contact's result."""
+        """The stages: which parameters are excited at all; the delay over its whole range,
+        the smooth stage, the delay's profile (a smooth fit per neighbouring delay); the
+        F/T delay; contact (with the F/T delay profiled per candidate); the F/T delay at
+        the result."""
         continuous = [p for p in self.params if p.stage in ("smooth", "contact")]
         if continuous:
             self._check_excited(continuous)

@@ -50,9 +50,14 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
             i.ft_type != "sim" for i in fit_in):
         raise InputError("ft_sensor.delay_s: the recordings' F/T is the KRC's estimate "
                          "(fri-estimate), which has no sensor path to delay")
+    sources = {i.ft_type for i in (*fit_in, *held)}
+    if len(sources) > 1:
+        raise InputError("the recordings' F/T sources differ (a Net F/T and the KRC's estimate): "
+                         "calibrate with recordings of one source at a time")
     period = 1.0 / float(scene["ft_sensor"]["rate"])
-    if any(i.ft_type == "fri-estimate" for i in fit_in):
-        period = float(scene["fri"]["cycle"])
+    delay_s = float(scene["ft_sensor"]["delay_s"])
+    if any(i.ft_type == "fri-estimate" for i in fit_in):  # samples once a cycle, no delay
+        period, delay_s = float(scene["fri"]["cycle"]), 0.0
     t0 = time.monotonic()
     all_in = [*fit_in, *held]
     def done(n: int) -> None:
@@ -62,7 +67,7 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
     with Rollouts(all_in, scene_file, jobs, done) as pool:
         fit_idx = list(range(len(fit_in)))
         cal = Calibration(fit_in, params, pool, scene_overrides, period, progress,
-                          keep_unidentified, fit_idx)
+                          keep_unidentified, fit_idx, delay_s)
         start_values = dict(cal.values)
         if progress:
             progress("start", 0, len(all_in), "replaying at the start values")

@@ -92,7 +92,8 @@ def resimulate(recording: Path, out: Path, scene_file: Path | None = None,
         scene = base_scene(scene_file, overrides)
         inp = read_input(recording, scene, tuple(FITTABLE))
         tr = rollout(inp, scene_file, overrides)
-    shift = round(float(scene["ft_sensor"]["delay_s"]) * float(scene["ft_sensor"]["rate"]))
+    shift = 0 if inp.ft_type == "fri-estimate" else round(  # the KRC's estimate: no delay
+        float(scene["ft_sensor"]["delay_s"]) * float(scene["ft_sensor"]["rate"]))
     comp = compare(inp, tr, shift)
     rec_o, sim_o = outcomes(inp, tr, shift)
     full = load(recording, ["/robot/state"])

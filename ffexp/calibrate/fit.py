@@ -67,7 +67,7 @@ LSQ_MAX_NFEV = 25
 CMA_MAX_GENERATIONS = 40
 CMA_TOL = 3e-3
 #: ... or when its best cost improved by less than this fraction over this many generations.
-CMA_STALL = (1e-3, 8)
+CMA_STALL = (1e-3, 5)
 CMA_SIGMA0 = 0.1
 #: Identified: 95 % half-width within this fraction of the bounds, correlations below.
 IDENT_WIDTH = 0.1
@@ -384,7 +384,7 @@ class Calibration:
         u0 = np.array([p.to_unit(self.values[p.key]) for p in ps])
         r0 = fun(u0)
         res = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf",
-                            x_scale="jac", max_nfev=LSQ_MAX_NFEV, xtol=1e-5, ftol=1e-6,
+                            x_scale="jac", max_nfev=LSQ_MAX_NFEV, xtol=1e-4, ftol=1e-4,
                             gtol=1e-10)
         for p, ui in zip(ps, res.x, strict=True):
             self.values[p.key] = p.from_unit(float(ui))

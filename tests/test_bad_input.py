@@ -197,6 +197,17 @@ CASES: list[tuple[str, list[str]]] = [
     ("schema", ["KIND"]),
     ("schema protocol --write {dir}", ["--write"]),
     ("schema --write {file}", ["a_file.txt"]),
+    # calibrate, resimulate (more in tests/test_calibrate.py)
+    ("calibrate {tmp}/missing.mcap --fit target.mu --out {tmp}/s.toml", ["missing.mcap"]),
+    ("calibrate {text} --fit target.mu --out {tmp}/s.toml", ["text.mcap"]),
+    ("calibrate {rec} --fit target.mu --out {tmp}/s.toml", ["driver 'mock'"]),
+    ("calibrate {rec} --fit target.nope --out {tmp}/s.toml", ["--fit", "target.nope"]),
+    ("calibrate {rec} --fit target.mu=0.01:0.02 --out {tmp}/s.toml", ["exclude the start"]),
+    ("calibrate {rec} --fit target.mu --out {file}", ["--out", "exists"]),
+    ("calibrate {rec} --out {tmp}/s.toml", ["--fit"]),
+    ("resimulate {tmp}/missing.mcap --out {tmp}/o.mcap", ["missing.mcap"]),
+    ("resimulate {rec} --out {tmp}/o.mcap", ["no scene", "--scene"]),
+    ("resimulate {rec} --out {dir}", ["--out", "a_dir"]),
     # emulate
     ("emulate --remote 127.0.0.1:1 --duration -5", ["--duration"]),
     ("emulate --remote 127.0.0.1:1 --duration nan", ["--duration"]),

@@ -27,6 +27,7 @@ except ImportError:  # pragma: no cover - a typer on the installed click
     )
 
 from ffexp import __version__
+from ffexp.cli import calibrate as calibrate_cli
 from ffexp.cli import data, emulate, friction, records, report, schema, simulate, sweeps, tracker
 from ffexp.cli import run as run_cli
 from ffexp.cli._common import CONTEXT_SETTINGS, EXIT_BAD_INPUT
@@ -93,6 +94,8 @@ app.command("emulate")(emulate.emulate)
 app.command("sweep")(sweeps.sweep)
 app.command("limits")(sweeps.limits)
 app.command("reproduce")(sweeps.reproduce)
+app.command("calibrate")(calibrate_cli.calibrate)
+app.command("resimulate")(calibrate_cli.resimulate)
 for _module in (data, tracker):  # command modules that list their commands
     for _name, _command in _module.COMMANDS:
         app.command(_name)(_command)

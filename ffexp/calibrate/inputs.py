@@ -1,0 +1,256 @@
+"""What a calibration needs of a recording, read once and checked: :class:`ReplayInput`.
+
+A recording can be replayed into the simulator when it holds the commands as
+the robot applied them (``/robot/command``: set-point, stiffness, damping and
+superposed wrench of every cycle, what an FRI back-end records), the states it
+measured (``/robot/state``) and the F/T samples (``/ft/raw``). The tracked
+target (``/target/pose``) is used where the rig had a tracker. The
+simulator's own truth (``/sim/truth``) is never fitted to (a real rig has
+none); it only gives the recorded outcome.
+
+Where the run started (the arm's joints, the target's placement and its
+initial glide) is the recording's own: from its scene (``scene_json``) when
+a simulator made it, else the arm's first measured joints (:data:`START_KEYS`).
+Every scene key that is neither a start key, a fittable key
+(:mod:`ffexp.calibrate.params`) nor the sensor's noise must equal the base
+scene's: a recording of another scene is bad input, named by its first
+differing key.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ffexp.errors import InputError
+from ffexp.recording import Recording, load
+
+#: Topics read from a recording (nothing else).
+TOPICS = ("/robot/state", "/robot/command", "/ft/raw", "/target/pose", "/sim/truth")
+#: Scene keys that say where a run started: taken from each recording's own scene.
+START_KEYS = ("arm.q_init", "arm.base_pos", "target.distance", "target.lateral",
+              "target.yaw_deg", "target.velocity", "seed")
+#: Scene keys of noise and chance: the replay is noise-free, they may differ freely.
+NOISE_KEYS = ("ft_sensor.noise_std", "ft_sensor.bias_std", "ft_sensor.drift_density")
+#: Robot back-ends whose recordings hold the KRC's applied commands.
+FRI_DRIVERS = ("sim", "fri1")
+#: Joints of the LWR4+ the simulator models.
+JOINTS = 7
+#: Fewest cycles worth replaying (0.5 s at 200 Hz).
+MIN_CYCLES = 100
+
+
+@dataclass(frozen=True)
+class ReplayInput:
+    """One recording, ready to replay: the commands and the measurements to compare."""
+
+    path: Path
+    cycle_s: float
+    start_cycles: int
+    """Cycles before the robot first commanded (the link's MON phase)."""
+    commanding: np.ndarray
+    """(n,) bool: the robot applied the recorded command in that cycle."""
+    pose: np.ndarray
+    """(n, 4, 4) applied set-points [m]."""
+    stiffness: np.ndarray
+    """(n, 6) [N/m, N m/rad]."""
+    damping: np.ndarray
+    """(n, 6) normalised."""
+    wrench: np.ndarray
+    """(n, 6) superposed wrench, TCF [N, N m]."""
+    t_s: np.ndarray
+    """(n,) run time of each cycle [s]."""
+    tcp: np.ndarray
+    """(n, 3) measured TCP position [m]."""
+    joints: np.ndarray
+    """(n, 7) measured joints [rad]."""
+    ft_t_s: np.ndarray
+    """(m,) run time of each F/T sample [s]."""
+    ft: np.ndarray
+    """(m, 6) raw F/T samples (bias and tool load included) [N, N m]."""
+    target_t_s: np.ndarray
+    """(k,) run time at which each valid tracked pose was true [s] (empty: no tracker)."""
+    target: np.ndarray
+    """(k, 3) tracked target ``[x, y, yaw]`` in the base frame [m, m, rad]."""
+    start_overrides: tuple[str, ...]
+    """Scene overrides that put the simulator at this recording's start."""
+    ft_type: str
+    """The rig's F/T back-end as the simulator replays it: ``sim`` or ``fri-estimate``."""
+    wire_precision: bool
+    """The commands crossed FRI's float32 wire (fri1, or a sim rig at wire precision)."""
+    seed: int
+    scene: dict[str, Any] | None
+    """The recording's scene (a simulator's run), else ``None``."""
+    truth_seated: bool | None
+    """The simulator's last seated flag (``None``: no truth)."""
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    @property
+    def cycles(self) -> int:
+        return int(self.t_s.shape[0])
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` as ``{"a.b": 1}`` (lists are values)."""
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(flatten(value, f"{name}."))
+        else:
+            out[name] = value
+    return out
+
+
+def override(key: str, value: Any) -> str:
+    """``key=value`` with the value as TOML (what ``--set`` parses)."""
+    return f"{key}={toml_value(value)}"
+
+
+def toml_value(value: Any) -> str:
+    """A scalar or list as a TOML value."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise ValueError(f"{value!r} cannot be written to a scene")
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} as TOML")
+
+
+def _meta(rec: Recording) -> dict[str, str]:
+    return rec.metadata.get("run", {})
+
+
+def _json(rec: Recording, key: str) -> dict[str, Any] | None:
+    text = _meta(rec).get(key)
+    if not text:
+        return None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError:
+        raise InputError(f"{rec.path}: metadata {key} is not JSON") from None
+    return data if isinstance(data, dict) else None
+
+
+def _need(rec: Recording, topic: str, why: str) -> None:
+    data = rec.topics.get(topic)
+    if data is None or len(data) == 0:
+        raise InputError(f"{rec.path}: no {topic} in this recording: {why}")
+
+
+def check_scene(path: Path, scene: Mapping[str, Any], base: Mapping[str, Any],
+                free: tuple[str, ...]) -> None:
+    """Raise :class:`InputError` if ``scene`` differs from ``base`` in a key not in ``free``."""
+    mine, theirs = flatten(scene), flatten(base)
+    for key in sorted(set(mine) | set(theirs)):
+        if key in free or key in START_KEYS or key in NOISE_KEYS:
+            continue
+        if mine.get(key) != theirs.get(key):
+            raise InputError(
+                f"{path}: recorded in another scene: {key} is {mine.get(key)!r}, the base scene "
+                f"has {theirs.get(key)!r} (only start, noise and fitted keys may differ)")
+
+
+def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...]) -> ReplayInput:
+    """Load and check one recording for replay (:class:`InputError` on anything unusable).
+
+    Args:
+        path: the recording.
+        base_scene: the scene the simulator replays in (its JSON form).
+        free: scene keys allowed to differ from the base scene (the fitted ones,
+            and every fittable key: the rig's own values are what is unknown).
+    """
+    rec = load(path, TOPICS)
+    if not rec.complete:
+        raise InputError(f"{path}: recording is incomplete (a killed run or a truncated file); "
+                         "`ffexp recover` rewrites it, calibration needs whole runs")
+    meta = _meta(rec)
+    driver = meta.get("driver", "")
+    if driver and driver not in FRI_DRIVERS:
+        raise InputError(f"{path}: recorded with robot driver {driver!r}; the simulator "
+                         f"replays LWR4+ recordings over FRI ({', '.join(FRI_DRIVERS)})")
+    _need(rec, "/robot/state", "the measured states are what the replay is compared with")
+    _need(rec, "/robot/command", "a recording without the applied commands cannot be "
+          "replayed (an FRI back-end records them)")
+    _need(rec, "/ft/raw", "the F/T samples are compared with the simulated ones")
+    state, cmd = rec.topic("/robot/state"), rec.topic("/robot/command")
+    n = min(len(state), len(cmd))
+    n_joints = int(state["n_joints"][0])
+    if n_joints != JOINTS:
+        raise InputError(f"{path}: a robot with {n_joints} joints; the simulator is the "
+                         f"{JOINTS}-joint LWR4+")
+    if n < MIN_CYCLES:
+        raise InputError(f"{path}: {n} cycles; calibration needs at least {MIN_CYCLES}")
+    commanding = state["commanding"][:n].astype(bool)
+    if not commanding.any():
+        raise InputError(f"{path}: the robot never commanded; nothing to replay")
+    start_cycles = int(np.argmax(commanding))
+    cycle_s = float(state["cycle_s"][0])
+    scene_cycle = float(base_scene["fri"]["cycle"])
+    if abs(cycle_s - scene_cycle) > 1e-6:
+        raise InputError(f"{path}: recorded at a {cycle_s * 1e3:g} ms cycle; the base scene's "
+                         f"fri.cycle is {scene_cycle * 1e3:g} ms")
+    t0 = rec.run_start_ns
+    scene = _json(rec, "scene_json") if driver == "sim" else None
+    if scene is not None:
+        check_scene(path, scene, base_scene, free)
+        flat = flatten(scene)
+        starts = tuple(override(k, flat[k]) for k in START_KEYS if k in flat)
+    else:
+        q0 = [float(v) for v in state["joint_pos"][0]]
+        starts = (override("arm.q_init", q0),)
+    ft_type = "fri-estimate" if meta.get("ft") == "fri-estimate" else "sim"
+    wire = driver == "fri1" or meta.get("wire_precision") == "true"
+    pose = cmd["cart_pos"][:n].reshape(n, 4, 4)
+    ft = rec.topic("/ft/raw")
+    tracked_t, tracked = _target(rec, int(state["time_ns"][0]))  # the robot's clock
+    truth = rec.topics.get("/sim/truth")
+    seated = bool(truth["seated"][-1]) if truth is not None and len(truth) else None
+    return ReplayInput(
+        path=path, cycle_s=cycle_s, start_cycles=start_cycles, commanding=commanding,
+        pose=pose.astype(np.float64), stiffness=cmd["cart_stiffness"][:n].astype(np.float64),
+        damping=cmd["cart_damping"][:n].astype(np.float64),
+        wrench=cmd["add_tcp_ft"][:n].astype(np.float64),
+        t_s=(state.log_time_ns[:n] - t0) / 1e9,
+        tcp=state["tcp_pose"][:n].reshape(n, 4, 4)[:, :3, 3].astype(np.float64),
+        joints=state["joint_pos"][:n].astype(np.float64),
+        ft_t_s=(ft.log_time_ns - t0) / 1e9, ft=ft["wrench"].astype(np.float64),
+        target_t_s=tracked_t, target=tracked, start_overrides=starts, ft_type=ft_type,
+        wire_precision=wire, seed=int(meta.get("seed", "0") or 0), scene=scene,
+        truth_seated=seated,
+    )
+
+
+def _target(rec: Recording, t0: int) -> tuple[np.ndarray, np.ndarray]:
+    """Valid tracked poses, their times from ``t0`` on the robot's clock (the tracker's)."""
+    data = rec.topics.get("/target/pose")
+    if data is None or len(data) == 0:
+        return np.zeros(0), np.zeros((0, 3))
+    ok = data["valid"].astype(bool)
+    pose = data["pose"][ok].reshape(-1, 4, 4)
+    xy_yaw = np.column_stack([pose[:, 0, 3], pose[:, 1, 3],
+                              np.arctan2(pose[:, 1, 0], pose[:, 0, 0])])
+    return (data["time_ns"][ok] - t0) / 1e9, xy_yaw
+
+
+def read_inputs(paths: list[Path], base_scene: Mapping[str, Any],
+                free: tuple[str, ...]) -> Iterator[ReplayInput]:
+    """:func:`read_input` of each path, in order."""
+    for path in paths:
+        yield read_input(path, base_scene, free)

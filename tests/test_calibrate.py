@@ -109,7 +109,7 @@ def test_cli_writes_a_scene_with_its_provenance(recs: dict[str, Path], tmp_path:
                                  "--holdout", str(recs["push"]), "--out", str(out),
                                  "--jobs", "2"])
     assert result.exit_code == 0, result.stderr
-    from drivers.sim.scene import load_scene
+    from drivers.description.scene import load_scene
 
     scene = load_scene(out)
     assert scene.target.mu == pytest.approx(TRUTH["target.mu"], rel=0.03)

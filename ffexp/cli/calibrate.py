@@ -58,7 +58,7 @@ def calibrate(
     out: Path = typer.Option(..., "--out", help="The calibrated scene (.toml) to write; "
                              "never overwritten, never written when the fit did not "
                              "converge."),
-    scene: Path = typer.Option(DEFAULT_SCENE, "--scene", help=SCENE_HELP),
+    scene: Path = typer.Option(DEFAULT_SCENE, "--scene", help=SCENE_HELP, show_default=False),
     scene_set: list[str] = typer.Option([], "--scene-set", help="Override a key of the start "
                                         "scene (repeatable)."),
     holdout: list[Path] = typer.Option([], "--holdout", help="A recording to predict, not "

@@ -5,8 +5,8 @@
   bed, the contact, the KRC's controller limits and FRI timing (:class:`Scene`,
   :func:`load_scene`);
 - :mod:`~drivers.description.arm` and one module per arm model
-  (:mod:`~drivers.description.lwr4`, :mod:`~drivers.description.ur5e`): an arm's kinematics, limits and inertias
-  (:class:`ArmDescription`);
+  (:mod:`~drivers.description.lwr4`, :mod:`~drivers.description.ur5e`): an arm's
+  kinematics, limits and inertias (:class:`ArmDescription`);
 - :mod:`~drivers.description.funnel` and :mod:`~drivers.description.layout`: the funnels'
   geometry (tool length, seat depth) and where a scene puts the bed and the target.
 

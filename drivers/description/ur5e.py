@@ -33,6 +33,7 @@ import numpy as np
 from drivers.description.arm import ArmDescription, Vec3, dh_chain, rpy_matrix
 
 __all__ = ["DH_ALPHA_RAD", "DH_A_M", "DH_D_M", "DH_LINK_COM_M", "LINK_MASS_KG", "LINK_RADIUS_M",
+           "PAPER_SCENE_OVERRIDES",
            "PAYLOAD_KG", "REACH_M", "TOOL_SPEED_LIMIT_MPS", "TORQUE_LIMITS_NM", "UR5E"]
 
 #: Standard DH parameters per joint 1..6 (UR's table; theta offsets all 0).
@@ -100,4 +101,20 @@ UR5E = ArmDescription(
     joint_rpy_rad=_CHAIN.joint_rpy_rad,
     flange_m=_CHAIN.flange_m,
     flange_rpy_rad=_CHAIN.flange_rpy_rad,
+)
+
+#: The scene fields that turn the paper's scene into ``data/scenes/paper-ur5e.toml`` (as
+#: ``dotted.key=value`` overrides): the UR5e on a base 0.1333 m (its d4) to the side so
+#: that joint 1 starts at 0, elbow up, its TCP where the LWR4+'s is with the same TCF,
+#: UR's 500 Hz cycle, its torque limits and our assumed joint friction (UR publishes
+#: none: of the order of the LWR4+'s link-side residual in data/scenes/paper.toml).
+PAPER_SCENE_OVERRIDES: Final = (
+    "name='paper-ur5e'",
+    "fri.cycle=0.002",
+    "arm.model='ur5e'",
+    "arm.base_pos=[0.0, 0.1333, 0.0]",
+    "arm.q_init=[0.0, -1.8274, -1.7718, 0.4576, 1.5708, 1.5708]",
+    "arm.coulomb=[0.008, 0.008, 0.008, 0.003, 0.003, 0.003]",
+    "arm.viscous=[0.01, 0.01, 0.01, 0.002, 0.002, 0.002]",
+    f"arm.torque_limits={list(TORQUE_LIMITS_NM)}",
 )

@@ -21,6 +21,7 @@ import pytest
 
 from drivers.base.types import ApplyStatus, CartesianCommand
 from drivers.config import load_model
+from drivers.description.ur5e import DH_D_M, UR5E
 from drivers.emulate.rtde_server import RtdeServer
 from drivers.errors import (
     AddressError,
@@ -36,7 +37,6 @@ from drivers.ur.errors import UrSafetyStopError
 from drivers.ur.registers import Mode
 from drivers.ur.rtde.fields import Recipe
 from drivers.ur.rtde.variables import INPUTS
-from drivers.description.ur5e import DH_D_M, UR5E
 from drivers.ur.wrench import UrWrenchSensor
 
 HOST = "127.0.0.1"

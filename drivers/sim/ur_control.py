@@ -14,8 +14,10 @@ not publish its force controller's law; the one here, per control cycle
   damping ``Lambda_ii d / T v_i``: ``d`` (0..1, UR's ``damping``) is the
   fraction of the axis's speed ``v_i`` removed per cycle ``T`` (1: the arm
   decelerates at once with no force present, 0: it keeps its speed, as UR
-  describes the parameter); ``Lambda`` is the arm's Cartesian inertia. Above
-  the speed cap the axis is braked back to it within the cycle instead;
+  describes the parameter); ``Lambda_ii`` is the axis's own mass, the inverse of
+  the diagonal of the Cartesian mobility ``J M^-1 J^T`` (a wrench on that axis
+  alone). The wrench is clipped to what takes the axis to its speed cap
+  within the cycle (beyond the cap: back to it);
 - the others: a pose servo, the world's Cartesian spring at the scene's
   ``controller.cart_stiffness_max`` with damping ratio :data:`SERVO_DAMPING_RATIO`
   (the world realises it at every physics step; a real UR's servo is stiffer).
@@ -105,15 +107,17 @@ class UrArmControl:
         if sel.any():
             w = self.world
             v = self.twist()
-            lam = np.maximum(w.cart_inertia.diagonal(), 0.0)
+            # the axis's own mass: a wrench on it alone, the arm free within the cycle
+            lam = 1.0 / np.maximum(np.linalg.inv(w.cart_inertia).diagonal(), 1e-12)
             ext = w.last_state.ext_wrench_n_nm
             g = cmd.gain_scaling
             push = g * np.asarray(cmd.wrench_n_nm) + (g - 1.0) * ext
             push -= lam * (min(max(cmd.damping, 0.0), 1.0) / w.cycle_s) * v
+            # the speed cap: no more than takes the axis to it within the cycle
             cap = np.asarray(cmd.speed_limits_mps_radps)
-            over = np.abs(v) > cap
-            brake = -lam * (v - np.sign(v) * cap) / w.cycle_s
-            wrench = np.where(sel, np.where(over, brake, push), 0.0)
+            per_speed = lam / w.cycle_s
+            push = np.clip(push, per_speed * (-cap - v), per_speed * (cap - v))
+            wrench = np.where(sel, push, 0.0)
         return ArmCommand(mode=ArmMode.CART_IMPEDANCE, cart_pose_m=np.asarray(cmd.pose_m),
                           cart_stiffness_npm_nmprad=stiffness,
                           cart_damping_ratio=self._servo_d, tcp_wrench_n_nm=wrench)

@@ -156,7 +156,7 @@ def test_a_protective_stop_ends_the_in_process_run_naming_the_controller(scene) 
     robot = SimUrRobot(SimWorld(scene), UrSimConfig(compliant_speed_limits_mps_radps=(
         1, 1, 1, 100, 100, 100)), where="rigs/x.toml: robot")
     robot.connect()
-    with pytest.raises(UrSafetyStopError, match="127.0.0.1:30004.*protective_stopped"):
+    with pytest.raises(UrSafetyStopError, match=r"127\.0\.0\.1:30004.*protective_stopped"):
         for state in robot.measurements():
             robot.send(CartesianCommand(pose_m=state.tcp_pose_m.copy(),
                                         stiffness_npm_nmprad=np.array([5000.0] * 5 + [0.0]),
@@ -171,7 +171,7 @@ def test_the_ur_rigs_load_and_a_wrench_sensor_needs_a_ur(tmp_path: Path) -> None
         == ["ur-sim", "ur", "ur"]
     bad = tmp_path / "bad.toml"
     bad.write_text('[robot]\ntype = "sim"\n[ft]\ntype = "ur-wrench"\n')
-    with pytest.raises(ConfigError, match="bad.toml.*ur-wrench.*robot.type 'ur'"):
+    with pytest.raises(ConfigError, match=r"bad\.toml.*ur-wrench.*robot\.type 'ur'"):
         load_rig(bad)
 
 
@@ -179,7 +179,7 @@ def test_the_emulated_rig_refuses_a_scene_whose_arm_is_not_a_ur() -> None:
     from drivers.emulate.session import EmulatedRig, EmulatedRigSettings
 
     lwr = load_scene(ROOT / "data/scenes/paper.toml")
-    with pytest.raises(ConfigError, match="--rtde.*arm.model is 'lwr4'"):
+    with pytest.raises(ConfigError, match=r"--rtde.*arm\.model is 'lwr4'"):
         EmulatedRig(EmulatedRigSettings(scene=lwr, robot="ur5e", rtde=("127.0.0.1", 0),
                                         netft_port=None)).open()
 

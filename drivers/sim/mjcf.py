@@ -30,9 +30,9 @@ import math
 import mujoco
 import numpy as np
 
+from drivers.description.arm import rpy_matrix
 from drivers.description.funnel import tool_tip_offset
 from drivers.description.layout import Layout
-from drivers.description.arm import rpy_matrix
 from drivers.description.scene import Scene
 from drivers.sim import funnels
 

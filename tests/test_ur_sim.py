@@ -198,3 +198,25 @@ def test_method1_case1_runs_to_an_end_on_the_ur_sim_rig(tmp_path: Path) -> None:
     assert rec.complete
     assert any(m.get("driver") == "ur-sim" for m in rec.metadata.values())
     assert len(rec.topic("/robot/ur")) == len(rec.topic("/robot/state")) > 1000
+
+
+def test_the_pose_vector_and_matrix_are_scipys_rotation_vector_and_rodrigues() -> None:
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(5)
+    turns = [*Rotation.random(200, random_state=rng),
+             Rotation.from_rotvec([np.pi - 1e-9, 0, 0]), Rotation.from_rotvec([0, 0, np.pi]),
+             Rotation.from_rotvec([1e-14, 0, 0]), Rotation.identity(),
+             Rotation.from_rotvec([0, 3.1, 0.2])]
+    for rot in turns:
+        pose = np.eye(4)
+        pose[:3, :3], pose[:3, 3] = rot.as_matrix(), rng.normal(size=3)
+        vec = registers.pose_vector(pose)
+        np.testing.assert_array_equal(vec[:3], pose[:3, 3])
+        # the same rotation (a rotation vector of angle pi is either sign)
+        np.testing.assert_allclose(Rotation.from_rotvec(vec[3:]).as_matrix(), pose[:3, :3],
+                                   atol=1e-12)
+        assert np.linalg.norm(vec[3:]) <= np.pi + 1e-12
+        if np.linalg.norm(vec[3:]) < np.pi - 1e-6:
+            np.testing.assert_allclose(vec[3:], rot.as_rotvec(), atol=1e-12)
+        np.testing.assert_allclose(registers.pose_matrix(vec), pose, atol=1e-12)

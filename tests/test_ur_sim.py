@@ -220,3 +220,25 @@ def test_the_pose_vector_and_matrix_are_scipys_rotation_vector_and_rodrigues() -
         if np.linalg.norm(vec[3:]) < np.pi - 1e-6:
             np.testing.assert_allclose(vec[3:], rot.as_rotvec(), atol=1e-12)
         np.testing.assert_allclose(registers.pose_matrix(vec), pose, atol=1e-12)
+
+
+def test_the_emulated_rigs_disconnect_fault_ends_the_ur_driver_naming_the_address(
+        scene) -> None:  # type: ignore[no-untyped-def]
+    from drivers.emulate.session import EmulatedRig, EmulatedRigSettings
+    from drivers.errors import LinkLostError
+
+    settings = EmulatedRigSettings(scene=scene, robot="ur5e", rtde=("127.0.0.1", 0),
+                                   netft_port=None, pacing="lockstep", ur_disconnect_after=20)
+    with EmulatedRig(settings) as rig:
+        assert rig.ur is not None
+        port = rig.ur.address[1]
+        robot = UrRobot(UrSettings(robot_ip="127.0.0.1", rtde_port=port, script="installed",
+                                   cycle_timeout_s=5.0))
+        robot.connect()
+        seen = 0
+        with pytest.raises(LinkLostError, match=rf"127\.0\.0\.1:{port}"):
+            for state in robot.measurements():
+                seen += 1
+                robot.send(CartesianCommand(pose_m=state.tcp_pose_m.copy()))
+        robot.close()
+    assert seen == 20

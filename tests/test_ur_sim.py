@@ -179,7 +179,8 @@ def test_the_emulated_rig_refuses_a_scene_whose_arm_is_not_a_ur() -> None:
     from drivers.emulate.session import EmulatedRig, EmulatedRigSettings
 
     lwr = load_scene(ROOT / "data/scenes/paper.toml")
-    with pytest.raises(ConfigError, match=r"--rtde.*arm\.model is 'lwr4'"):
+    with pytest.raises(ConfigError, match=r"^--robot: ur5e: the scene \(paper\) has "
+                                          r"arm\.model 'lwr4', not 'ur5e'$"):
         EmulatedRig(EmulatedRigSettings(scene=lwr, robot="ur5e", rtde=("127.0.0.1", 0),
                                         netft_port=None)).open()
 

@@ -61,6 +61,7 @@ class SettingNames:
     camera_port: str = "--camera-port"
     camera_calibration: str = "--camera-calibration"
     rtde: str = "--rtde"
+    robot: str = "--robot"
 
 
 @dataclass(frozen=True)
@@ -163,8 +164,8 @@ class EmulatedRig:
         """The UR controller's RTDE server (the scene's arm must be a UR)."""
         s = self.settings
         if s.scene.arm.model != "ur5e":
-            raise ConfigError(s.fields.rtde, s.scene.name,
-                              f"the scene's arm.model is {s.scene.arm.model!r}, not 'ur5e'")
+            raise ConfigError(s.fields.robot, s.robot, f"the scene ({s.scene.name}) has "
+                              f"arm.model {s.scene.arm.model!r}, not 'ur5e'")
         faults = RtdeFaults(loss=s.faults.loss, delay_s=s.faults.delay_s,
                             disconnect_after=s.ur_disconnect_after, seed=s.faults.seed)
         host, port = s.rtde

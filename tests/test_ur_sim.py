@@ -243,3 +243,12 @@ def test_the_emulated_rigs_disconnect_fault_ends_the_ur_driver_naming_the_addres
                 robot.send(CartesianCommand(pose_m=state.tcp_pose_m.copy()))
         robot.close()
     assert seen == 20
+
+
+def test_the_ur5e_scene_file_is_the_papers_with_the_ur5e_overrides(scene) -> None:  # type: ignore[no-untyped-def]
+    from drivers.description.ur5e import PAPER_SCENE_OVERRIDES
+
+    assert load_scene(ROOT / "data/scenes/paper.toml", PAPER_SCENE_OVERRIDES) == scene
+    assert load_scene(ROOT / "data/scenes/paper.toml").arm.model == "lwr4"  # the default
+    with pytest.raises(ConfigError, match=r"arm\.q_init has 7 values; the UR5e"):
+        load_scene(ROOT / "data/scenes/paper.toml", ("arm.model='ur5e'",))

@@ -80,6 +80,7 @@ FOLDERS = (
     "fri",  # [robot] fri1: a KUKA KRC2 LR over FRI 1.x; [ft] fri-estimate
     "mock",  # [robot] mock, [ft] mock: scripted, for tests and dry runs
     "camera",  # [tracker] camera: a fiducial marker seen by a camera
+    "ur",  # [robot] ur: a Universal Robots e-Series over RTDE; [ft] ur-wrench
 )
 
 

@@ -124,6 +124,8 @@ CASES: list[tuple[str, list[str]]] = [
     (f"run {P} --rig {{tmp}}/nope_rig.toml", ["nope_rig.toml", "not found"]),
     (f"run {P} --rig {MOCK} --rig-set robot.type=warp", ["mock.toml", "robot"]),
     (f"run {P} --rig {MOCK} --rig-set robot.cycles=-1", ["robot.cycles"]),
+    (f"run {P} --rig {ROOT / 'rigs/ur5e-lab.toml'} --rig-set robot.force_mode_damping=2",
+     ["ur5e-lab.toml", "robot.force_mode_damping"]),
     (f"run {P} --rig {{badtoml}}", ["bad.toml"]),
     (f"run {P} --driver warp", ["--driver", "warp"]),
     (f"run {P} --driver fri", ["robot.robot_ip"]),

@@ -161,7 +161,7 @@ def test_the_factory_opens_the_toy_and_the_driver_name_builds_its_rig(toy: Backe
         dev.close()
     assert len(states) == 3 and isinstance(states[0].extras, ToyExtras)
     with pytest.raises(ConfigError, match=r"^--driver: nope: unknown driver; choose one of "
-                                          r"sim, fri, mock, toy-driver"):
+                                          r"sim, ur-sim, fri, mock, ur, toy-driver"):
         load_rig_choice(RigChoice(driver="nope"))
 
 

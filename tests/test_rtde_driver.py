@@ -21,6 +21,7 @@ import pytest
 
 from drivers.base.types import ApplyStatus, CartesianCommand
 from drivers.config import load_model
+from drivers.description.ur5e import DH_D_M, UR5E
 from drivers.emulate.rtde_server import RtdeServer
 from drivers.errors import (
     AddressError,
@@ -36,7 +37,6 @@ from drivers.ur.errors import UrSafetyStopError
 from drivers.ur.registers import Mode
 from drivers.ur.rtde.fields import Recipe
 from drivers.ur.rtde.variables import INPUTS
-from drivers.ur.ur5e_params import DH_D_M, forward_kinematics
 from drivers.ur.wrench import UrWrenchSensor
 
 HOST = "127.0.0.1"
@@ -233,7 +233,7 @@ def test_fill_command_splits_axes_by_stiffness() -> None:
 def test_ur5e_forward_kinematics_at_zero_is_the_stretched_arm() -> None:
     # all joints 0: the arm lies along -x (a2 + a3), the wrist offsets d4 + d6
     # along -y, and the base height d1 less d5 in z (UR's zero configuration)
-    pose = forward_kinematics(np.zeros(6))
+    pose = UR5E.flange_pose(np.zeros(6))
     np.testing.assert_allclose(pose[:3, 3], [-0.425 - 0.3922, -(DH_D_M[3] + DH_D_M[5]),
                                              DH_D_M[0] - DH_D_M[4]], atol=1e-12)
     np.testing.assert_allclose(np.abs(np.linalg.det(pose[:3, :3])), 1.0)

@@ -5,8 +5,8 @@
   bed, the contact, the KRC's controller limits and FRI timing (:class:`Scene`,
   :func:`load_scene`);
 - :mod:`~drivers.description.arm` and one module per arm model
-  (:mod:`~drivers.description.lwr4`): an arm's kinematics, limits and inertias
-  (:class:`ArmDescription`);
+  (:mod:`~drivers.description.lwr4`, :mod:`~drivers.description.ur5e`): an arm's
+  kinematics, limits and inertias (:class:`ArmDescription`);
 - :mod:`~drivers.description.funnel` and :mod:`~drivers.description.layout`: the funnels'
   geometry (tool length, seat depth) and where a scene puts the bed and the target.
 
@@ -18,6 +18,7 @@ from drivers.description.funnel import seat_depth, tool_tip_offset
 from drivers.description.layout import Layout, compute_layout
 from drivers.description.lwr4 import LWR4
 from drivers.description.scene import Scene, load_scene
+from drivers.description.ur5e import UR5E
 
-__all__ = ["LWR4", "ArmDescription", "Layout", "Scene", "compute_layout", "load_scene",
+__all__ = ["LWR4", "UR5E", "ArmDescription", "Layout", "Scene", "compute_layout", "load_scene",
            "seat_depth", "tool_tip_offset"]

@@ -23,9 +23,14 @@ from typing import Annotated, Literal
 from pydantic import Field, model_validator
 
 from drivers.config import StrictModel, load_model
-from drivers.description.lwr4 import JUBIEN_COULOMB, JUBIEN_VISCOUS
+from drivers.description.arm import ArmDescription
+from drivers.description.lwr4 import LWR4
+from drivers.description.ur5e import UR5E
 
-Vec7 = Annotated[tuple[float, ...], Field(min_length=7, max_length=7)]
+#: The arm models a scene may name (``arm.model``), each its published description.
+ARMS: dict[str, ArmDescription] = {"lwr4": LWR4, "ur5e": UR5E}
+#: One value per joint of the scene's arm (``arm.model``: 7 for the LWR4+, 6 for the UR5e).
+Vec7 = Annotated[tuple[float, ...], Field(min_length=1, max_length=7)]
 Vec6 = Annotated[tuple[float, ...], Field(min_length=6, max_length=6)]
 Vec3 = Annotated[tuple[float, ...], Field(min_length=3, max_length=3)]
 Pair = Annotated[tuple[float, ...], Field(min_length=2, max_length=2)]
@@ -83,8 +88,11 @@ class ControllerSettings(StrictModel):
 
 
 class ArmSettings(StrictModel):
-    """The LWR4+: where it stands, its start pose, friction and torque limits."""
+    """The arm (the LWR4+ unless ``model`` says otherwise): where it stands, its start pose,
+    friction and torque limits. Every per-joint field has one value per joint of the model."""
 
+    model: Literal["lwr4", "ur5e"] = "lwr4"
+    """The arm model (:data:`ARMS`): ``lwr4`` (KUKA LWR4+, the paper's) or ``ur5e``."""
     base_pos: Vec3 = (0.0, 0.0, 0.0)
     q_init: Vec7 = (0.0, -0.3533, 0.0, 1.714, 0.0, 0.4965, 0.0)
     """Initial joint angles [rad]; the paper pose: flange horizontal along
@@ -112,15 +120,36 @@ class ArmSettings(StrictModel):
     torque_limits: Vec7 = (176.0, 176.0, 100.0, 100.0, 100.0, 38.0, 38.0)
     """[N m], CentroEPiaggio URDF effort limits (fact sheet sec. 1)."""
 
+    @model_validator(mode="after")
+    def _check_joints(self) -> ArmSettings:
+        n = self.description.joints
+        for name in ("q_init", "coulomb", "viscous", "torque_limits"):
+            values = getattr(self, name)
+            if values is not None and len(values) != n:
+                raise ValueError(f"arm.{name} has {len(values)} values; the "
+                                 f"{self.description.name} (arm.model {self.model!r}) has "
+                                 f"{n} joints")
+        return self
+
+    @property
+    def description(self) -> ArmDescription:
+        """The model's published description."""
+        return ARMS[self.model]
+
     def coulomb_friction(self) -> list[float]:
+        """Explicit ``coulomb``, else ``friction_scale`` of the model's published drive
+        friction (zero where none is published)."""
         if self.coulomb is not None:
             return list(self.coulomb)
-        return [self.friction_scale * v for v in JUBIEN_COULOMB]
+        return [self.friction_scale * v for v in self.description.drive_coulomb_nm or
+                (0.0,) * self.description.joints]
 
     def viscous_friction(self) -> list[float]:
+        """As :meth:`coulomb_friction`, viscous."""
         if self.viscous is not None:
             return list(self.viscous)
-        return [self.friction_scale * v for v in JUBIEN_VISCOUS]
+        return [self.friction_scale * v for v in self.description.drive_viscous_nmsprad or
+                (0.0,) * self.description.joints]
 
 
 class FunnelGeometry(StrictModel):

@@ -1,6 +1,7 @@
 """The ``sim`` robot's entry: the simulated LWR4+ in-process, the lockstep KRC of
 :mod:`drivers.emulate.lockstep` in front of the MuJoCo world (:mod:`drivers.sim`),
-without sockets.
+without sockets; and the ``ur-sim`` robot's: the simulated UR5e in-process, ffexp's
+URScript program on the world in lockstep (:mod:`drivers.emulate.ur_lockstep`).
 
 It lives here because the lockstep KRC combines the simulator with FRI's link
 (this package is the one that may). Its F/T sensor and tracker (``[ft] type =
@@ -16,8 +17,9 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from drivers.base.backend import Backend, DeviceConfig, OpenContext, OpenedRobot, RobotBackend
+from drivers.ur.config import UrSettings
 
-__all__ = ["BACKEND", "SimRobotConfig"]
+__all__ = ["BACKEND", "SimRobotConfig", "UrSimConfig"]
 
 
 class SimRobotConfig(DeviceConfig):
@@ -57,7 +59,38 @@ def _open_robot(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
                        [(path.name, path.read_bytes())])
 
 
+class UrSimConfig(UrSettings):
+    """The simulated UR5e in-process (lockstep, no sockets), with a real UR's force-mode
+    settings (``robot_ip``, the ports and ``script`` are not used)."""
+
+    type: Literal["ur-sim"] = "ur-sim"  # type: ignore[assignment]
+    robot_ip: str = "127.0.0.1"
+    scene_file: Path | None = None
+    """Scene TOML of a UR arm (relative to the rig file); default: the protocol's scene."""
+    truth: bool = True
+    """Attach the simulator's ground truth to each state (the verdict's judge); false:
+    as over RTDE, where the verdict comes from a tracker or the observer."""
+
+
+def _open_ur(cfg: UrSimConfig, ctx: OpenContext) -> OpenedRobot:
+    from drivers.description import load_scene
+    from drivers.description.ur5e import PAPER_SCENE_OVERRIDES
+    from drivers.emulate.ur_lockstep import SimUrRobot
+    from drivers.sim.world import SimWorld
+
+    path = cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
+    scene = load_scene(path, ctx.scene_overrides)
+    if scene.arm.model != "ur5e":  # an LWR4+ scene (the protocol's): the UR5e in its place
+        scene = load_scene(path, (*PAPER_SCENE_OVERRIDES, *ctx.scene_overrides))
+    world = SimWorld(scene, seed=ctx.seed)
+    robot = SimUrRobot(world, cfg, where=ctx.where("robot"))
+    meta = {"driver": "ur-sim", "scene_file": str(path), "scene_json": scene.model_dump_json()}
+    return OpenedRobot(robot, lambda: world.cycle * world.cycle_ns, None, meta,
+                       [(path.name, path.read_bytes())])
+
+
 BACKEND = Backend(
     "emulate",
-    robots=(RobotBackend(SimRobotConfig, _open_robot, driver="sim", default_ft="sim"),),
+    robots=(RobotBackend(SimRobotConfig, _open_robot, driver="sim", default_ft="sim"),
+            RobotBackend(UrSimConfig, _open_ur, driver="ur-sim", default_ft="ur-wrench")),
 )

@@ -17,8 +17,11 @@ in the caller's thread::
     print(rig.summary())
 
 Errors name the caller's fields (``settings.fields``: the command line's options
-for ``ffexp emulate``). The robot served is the LWR4+ on a KRC2 LR over FRI;
-another robot family's server would be built in :meth:`EmulatedRig._open_robot`.
+for ``ffexp emulate``). The robot served is the LWR4+ on a KRC2 LR over FRI, or
+with ``robot = "ur5e"`` the UR5e of a UR scene over RTDE on ``rtde`` (127.0.0.1:30004
+by default; :class:`~drivers.emulate.ur_server.UrEmulator`; its wrench goes over
+RTDE, so no Net F/T box, and its faults are :class:`~drivers.emulate.rtde_server.RtdeFaults`:
+``faults.loss`` and ``faults.delay_s`` of the output packages, ``ur_disconnect_after``).
 """
 
 from __future__ import annotations
@@ -36,6 +39,8 @@ from drivers.emulate.camera_stream import CameraStream
 from drivers.emulate.faults import FaultSettings
 from drivers.emulate.fri_server import EmulatorSettings, EmulatorStats, FriEmulator
 from drivers.emulate.netft_box import NetFtServer
+from drivers.emulate.rtde_server import RtdeFaults
+from drivers.emulate.ur_server import UrEmulator
 from drivers.errors import ConfigError, NotConnectedError
 from drivers.sim.world import SimWorld
 
@@ -55,6 +60,8 @@ class SettingNames:
     netft_port: str = "--netft-port"
     camera_port: str = "--camera-port"
     camera_calibration: str = "--camera-calibration"
+    rtde: str = "--rtde"
+    robot: str = "--robot"
 
 
 @dataclass(frozen=True)
@@ -76,10 +83,15 @@ class EmulatedRigSettings:
         duration_s: stop after this much simulated time (0: until stopped).
         host: local address every server binds to.
         fields: how errors name these settings.
+        robot: ``lwr4`` (a KRC2 LR over FRI) or ``ur5e`` (a UR controller over RTDE;
+            the scene's arm must be the UR5e).
+        rtde: ``ur5e``: where the RTDE server listens (any loopback address may be chosen).
+        ur_disconnect_after: ``ur5e``: close a client's connection after this many data
+            packages (0: never).
     """
 
     scene: Scene
-    remote: tuple[str, int]
+    remote: tuple[str, int] | None = None
     seed: int | None = None
     port: int = 0
     pacing: Literal["realtime", "lockstep"] = "realtime"
@@ -92,6 +104,9 @@ class EmulatedRigSettings:
     duration_s: float = 0.0
     host: str = "0.0.0.0"
     fields: SettingNames = field(default_factory=SettingNames)
+    robot: Literal["lwr4", "ur5e"] = "lwr4"
+    rtde: tuple[str, int] = ("127.0.0.1", 30004)
+    ur_disconnect_after: int = 0
 
     @property
     def max_cycles(self) -> int | None:
@@ -106,12 +121,14 @@ class EmulatedRig:
         self.settings = settings
         self.world: SimWorld | None = None
         self.robot: FriEmulator | None = None
+        self.ur: UrEmulator | None = None
         self.netft: NetFtServer | None = None
         self.camera: CameraStream | None = None
         self._thread: threading.Thread | None = None
         self._failure: BaseException | None = None
         self._last_status = 0.0
         self._stats: EmulatorStats | None = None
+        self._ur_summary: str | None = None
 
     # ------------------------------------------------------------ lifecycle
     def __enter__(self) -> EmulatedRig:
@@ -126,6 +143,9 @@ class EmulatedRig:
         """Build the world and open every server (what opened is closed if one fails)."""
         s = self.settings
         self.world = world = SimWorld(s.scene, seed=s.seed)
+        if s.robot == "ur5e":
+            self._open_ur(world)
+            return
         try:
             if s.netft_port is not None:
                 self.netft = NetFtServer.open(s.host, s.netft_port, on_bias=world.tare_ft,
@@ -140,10 +160,25 @@ class EmulatedRig:
             self.close()
             raise
 
+    def _open_ur(self, world: SimWorld) -> None:
+        """The UR controller's RTDE server (the scene's arm must be a UR)."""
+        s = self.settings
+        if s.scene.arm.model != "ur5e":
+            raise ConfigError(s.fields.robot, s.robot, f"the scene ({s.scene.name}) has "
+                              f"arm.model {s.scene.arm.model!r}, not 'ur5e'")
+        faults = RtdeFaults(loss=s.faults.loss, delay_s=s.faults.delay_s,
+                            disconnect_after=s.ur_disconnect_after, seed=s.faults.seed)
+        host, port = s.rtde
+        self.ur = UrEmulator(world, host, port, pacing=s.pacing,
+                             lockstep_timeout_s=s.lockstep_timeout_s, faults=faults,
+                             where=s.fields.rtde).start()
+
     def _open_robot(self, world: SimWorld) -> FriEmulator:
         """The robot controller's server: a KRC2 LR over FRI 1.x (it closes the Net F/T box
         with itself)."""
         s = self.settings
+        if s.remote is None:
+            raise ConfigError("--remote", "", "the remote driver's address is required")
         return FriEmulator(
             world,
             EmulatorSettings(
@@ -167,11 +202,17 @@ class EmulatedRig:
 
     def stop(self) -> None:
         """Ask the KRC to stop after its current cycle (thread-safe)."""
+        if self.ur is not None:
+            self.ur.stop()
         if self.robot is not None:
             self.robot.stop()
 
     def close(self) -> None:
         """Stop serving and close every server (idempotent)."""
+        ur, self.ur = self.ur, None
+        if ur is not None:
+            ur.close()
+            self._ur_summary = ur.summary()
         robot, self.robot = self.robot, None
         if robot is not None:
             robot.stop()
@@ -190,7 +231,12 @@ class EmulatedRig:
     # ------------------------------------------------------------ serving
     def ready_line(self) -> str:
         """One line: where the KRC serves, to whom, the Net F/T box and camera, cycle, pacing."""
-        s, robot = self.settings, self._require()
+        s = self.settings
+        if self.ur is not None:
+            host, port = self.ur.address
+            return (f"UR5e controller (RTDE) on {host}:{port}, cycle "
+                    f"{s.scene.fri.cycle * 1000.0:g} ms, {s.pacing}")
+        robot = self._require()
         host, lport = robot.address
         ft = f"Net F/T on {s.host}:{self.netft.address[1]}" if self.netft is not None \
             else "no Net F/T"
@@ -198,15 +244,19 @@ class EmulatedRig:
             ft += (f", camera on http://{s.host}:{self.camera.port}/stream.mjpg at "
                    f"{s.camera_fps:g} fps")
         cycle_ms = round(s.scene.fri.cycle * 1000.0)
-        return (f"KRC on {host}:{lport} -> remote {s.remote[0]}:{s.remote[1]}, {ft}, "
+        remote = "?" if s.remote is None else f"{s.remote[0]}:{s.remote[1]}"
+        return (f"KRC on {host}:{lport} -> remote {remote}, {ft}, "
                 f"cycle {cycle_ms} ms, {s.pacing}")
 
     def serve(self, stop_requested: Callable[[], bool],
-              on_status: Callable[[str], None] | None = None) -> EmulatorStats:
+              on_status: Callable[[str], None] | None = None) -> EmulatorStats | None:
         """Serve in a thread of its own (started here: it inherits the caller's scheduling)
         until ``duration_s``, ``stop_requested()`` (polled every 0.1 s) or an error, which is
         re-raised here. ``on_status`` gets a status line every :data:`STATUS_PERIOD_S`.
-        Returns the KRC's counters."""
+        Returns the KRC's counters (``None`` for a UR: :meth:`summary`)."""
+        if self.ur is not None:
+            self._serve_ur(self.ur, stop_requested, on_status)
+            return None
         robot = self._require()
         self._last_status = time.monotonic()
 
@@ -236,8 +286,26 @@ class EmulatedRig:
             raise self._failure
         return robot.stats
 
+    def _serve_ur(self, ur: UrEmulator, stop_requested: Callable[[], bool],
+                  on_status: Callable[[str], None] | None) -> None:
+        self._last_status = time.monotonic()
+
+        def on_cycle(emu: UrEmulator) -> None:
+            if stop_requested():
+                emu.stop()
+            now = time.monotonic()
+            if on_status is not None and now - self._last_status >= STATUS_PERIOD_S:
+                self._last_status = now
+                on_status(emu.status())
+
+        ur.run(max_cycles=self.settings.max_cycles, on_cycle=on_cycle)
+
     def summary(self) -> str:
         """The KRC's counters in one line, with its last state and quality."""
+        if self.ur is not None:
+            return self.ur.summary()
+        if self._ur_summary is not None:
+            return self._ur_summary
         robot = self.robot
         if robot is not None:
             stats = robot.stats

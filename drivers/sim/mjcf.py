@@ -27,15 +27,17 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 
+from drivers.description.arm import rpy_matrix
 from drivers.description.funnel import tool_tip_offset
 from drivers.description.layout import Layout
-from drivers.description.lwr4 import LWR4
 from drivers.description.scene import Scene
 from drivers.sim import funnels
 
-ARM_JOINTS = tuple(f"a{i + 1}" for i in range(LWR4.joints))
+#: The arm's joint names (``a1`` .. ``a7``; the first six for a six-joint arm).
+ARM_JOINTS = tuple(f"a{i + 1}" for i in range(7))
 #: The last link's drawn capsule ends this far from the flange's joint (not a physical size).
 _FLANGE_CAPSULE = (0.0, 0.0, 0.02)
 TARGET_JOINTS = ("target_x", "target_y", "target_z", "target_yaw")
@@ -65,7 +67,7 @@ def _vec(v: object) -> str:
 
 
 def arm_xml(scene: Scene) -> str:
-    """The LWR4+ chain with sensor and tool, as nested bodies."""
+    """The scene's arm (``arm.model``) with sensor and tool, as nested bodies."""
     arm = scene.arm
     coul = arm.coulomb_friction()
     visc = arm.viscous_friction()
@@ -99,11 +101,14 @@ def arm_xml(scene: Scene) -> str:
         f"{funnels.tool_funnel_geoms(scene, tip, 'funnel')}\n"
         f"</body>\n</body>"
     )
-    lwr = LWR4
+    lwr = arm.description
     origins = (*lwr.joint_origins_m, _FLANGE_CAPSULE)
-    rotors = lwr.rotor_inertias_kgm2
-    if rotors is None or lwr.joint_rpy_rad is not None:
-        raise ValueError(f"{lwr.name}: the model needs rotor inertias, no fixed joint turns")
+    rotors = lwr.rotor_inertias_kgm2 or (0.0,) * lwr.joints  # none published: none
+    turns = lwr.joint_rpy_rad
+    if turns is not None:  # a DH arm: the flange turned in the last link (the tool on it)
+        inner = (f'<body name="flange" pos="{_vec(lwr.flange_m)}" '
+                 f'quat="{_vec(_quat(lwr.flange_rpy_rad))}">\n{inner}\n</body>')
+        origins = (*lwr.joint_origins_m, lwr.flange_m)
     for i in reversed(range(lwr.joints)):
         lim = math.radians(lwr.position_limits_deg[i])
         tl = arm.torque_limits[i]
@@ -117,8 +122,9 @@ def arm_xml(scene: Scene) -> str:
             f'solreffriction="{_f(max(0.002, 2 * scene.physics.timestep))} 1" '
             f'solimpfriction="0.99 0.999 0.001"/>'
         )
+        turn = "" if turns is None else f' quat="{_vec(_quat(turns[i]))}"'
         inner = (
-            f'<body name="link{i + 1}" pos="{_vec(origins[i])}" gravcomp="1">\n'
+            f'<body name="link{i + 1}" pos="{_vec(origins[i])}"{turn} gravcomp="1">\n'
             f'<inertial pos="{_vec(lwr.link_coms_m[i])}" mass="{_f(lwr.link_masses_kg[i])}" '
             f'diaginertia="{_vec(lwr.link_inertias_kgm2[i])}"/>\n'
             f"{joint}\n"
@@ -132,6 +138,13 @@ def arm_xml(scene: Scene) -> str:
         f'<geom type="cylinder" size="0.06 0.055" pos="0 0 0.055" {_VISUAL} mass="0"/>\n'
         f"{inner}\n</body>"
     )
+
+
+def _quat(rpy: object) -> np.ndarray:
+    """MuJoCo's ``w x y z`` quaternion of a roll-pitch-yaw turn."""
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, rpy_matrix(rpy).ravel())  # type: ignore[arg-type]
+    return quat
 
 
 def target_xml(scene: Scene, layout: Layout) -> str:
@@ -190,7 +203,7 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
     jnt = "\n".join(
         f'<general name="jnt_{j}" joint="{j}" gaintype="fixed" gainprm="0" '
         f'biastype="affine" biasprm="0 0 0"/>'
-        for j in ARM_JOINTS
+        for j in ARM_JOINTS[:scene.arm.description.joints]
     )
     return f"""<mujoco model="ffexp_lwr4p_airbed">
 <compiler angle="radian" autolimits="true"/>

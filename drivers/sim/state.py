@@ -32,7 +32,6 @@ if TYPE_CHECKING:
 
 __all__ = ["LazyArmState"]
 
-_N_ARM = 7
 _WARN_TORQUE = int(ArmWarning.TORQUE_LIMIT)
 _WARN_VELOCITY = int(ArmWarning.VELOCITY_LIMIT)
 _WARN_POSITION = int(ArmWarning.POSITION_LIMIT)
@@ -121,8 +120,8 @@ def _fill_joints(s: LazyArmState, w: SimWorld) -> None:
 def _fill_dynamics(s: LazyArmState, w: SimWorld) -> None:
     d = s.__dict__
     w._kinematics()
-    jac = w._jfull[:, :_N_ARM].copy()
-    mass = w._mfull[:_N_ARM, :_N_ARM].copy()
+    jac = w._jfull[:, :w._n].copy()
+    mass = w._mfull[:w._n, :w._n].copy()
     contact = w._contact
     tau_ext = jac.T @ contact
     # Link-side torque sensors: M qdd + c + g = tau_msr + tau_ext.

@@ -1,4 +1,4 @@
-"""The simulated rig: LWR4+ with its KRC impedance controller, air-bed target, F/T sensor.
+"""The simulated rig: the scene's arm with the KRC's impedance law, air-bed target, F/T sensor.
 
 :class:`SimWorld` is a physics world only: ``step(command)`` latches an ArmCommand (if
 given), runs one control cycle of physics and returns the ArmState (:mod:`drivers.sim.arm`) at
@@ -42,7 +42,7 @@ import mujoco
 import numpy as np
 
 from drivers.base.types import F64, FtSamples
-from drivers.description import LWR4, Scene, compute_layout, tool_tip_offset
+from drivers.description import Scene, compute_layout, tool_tip_offset
 from drivers.errors import InvalidCommandError
 from drivers.sim import mjcf
 from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
@@ -59,7 +59,6 @@ from drivers.sim.truth import pose as _pose
 #: into the funnel: 1 mrad keeps the damping within 0.06 % of the exact value
 #: (3 mrad: 0.4 %; 10 mrad: off by up to 8x near a poorly conditioned axis).
 INERTIA_REUSE_RAD = 1e-3
-_N_ARM = LWR4.joints
 
 _isfinite = math.isfinite
 # np.linalg.inv's LAPACK gufunc without its Python wrapper (the same values); the
@@ -101,11 +100,12 @@ class SimWorld:
         self.substeps = scene.substeps
         self.cycle_ns = round(scene.fri.cycle * 1e9)
         self.step_ns = round(self.dt * 1e9)
+        self._n = n = scene.arm.description.joints  # the scene's arm (arm.model)
 
         # 1. Arm alone: where is the TCF at the start pose?
         m0 = mujoco.MjModel.from_xml_string(mjcf.build_xml(scene, None))
         d0 = mujoco.MjData(m0)
-        d0.qpos[:_N_ARM] = scene.arm.q_init
+        d0.qpos[:n] = scene.arm.q_init
         mujoco.mj_forward(m0, d0)
         tcp0 = d0.site("tcp")
         self.layout = compute_layout(scene, tcp0.xpos.copy(), tcp0.xmat.reshape(3, 3).copy())
@@ -137,11 +137,11 @@ class SimWorld:
             if m.geom_contype[g] != 0 and m.geom_bodyid[g] != self._target_body
             and (g in self._tool_geoms or m.geom_contype[g] == 2)
         }
-        self._act_jnt = slice(0, 7)
-        self._act_cart = slice(7, 13)
-        self._act_ft = slice(13, 19)
-        self._vel_limits = np.radians(LWR4.velocity_limits_degps)
-        self._pos_limits = np.radians(LWR4.position_limits_deg)
+        self._act_jnt = slice(0, n)
+        self._act_cart = slice(n, n + 6)
+        self._act_ft = slice(n + 6, n + 12)
+        self._vel_limits = np.radians(scene.arm.description.velocity_limits_degps)
+        self._pos_limits = np.radians(scene.arm.description.position_limits_deg)
         self._torque_limits = np.asarray(scene.arm.torque_limits)
         self._pos_warn = self._pos_limits - 1e-3
         self._torque_warn = self._torque_limits - 1e-9
@@ -168,12 +168,12 @@ class SimWorld:
         self._ctrl_ft = d.ctrl[self._act_ft]
         self._mocap_pos = d.mocap_pos[self._cmd_mocap]
         self._mocap_quat = d.mocap_quat[self._cmd_mocap]
-        self._qvel_arm = d.qvel[:_N_ARM]
-        self._qpos_arm = d.qpos[:_N_ARM]
+        self._qvel_arm = d.qvel[:n]
+        self._qpos_arm = d.qpos[:n]
         self._qvel = d.qvel
         self._warn_number = d.warning.number
-        self._qacc_arm = d.qacc[:_N_ARM]
-        self._actuator_arm = d.qfrc_actuator[:_N_ARM]
+        self._qacc_arm = d.qacc[:n]
+        self._actuator_arm = d.qfrc_actuator[:n]
         self._tcp_xpos = d.site_xpos[self._tcp]
         self._tcp_xmat = d.site_xmat[self._tcp]
         self._tcp_rot_t = self._tcp_xmat.reshape(3, 3).T  # R^T, a view
@@ -188,10 +188,10 @@ class SimWorld:
         # the last stiffness/damping given and what they became (commands repeat them)
         self._given_k: tuple[bytes, F64, bool] | None = None
         self._given_d: tuple[bytes, F64] | None = None
-        self._bias_arm = d.qfrc_bias[:_N_ARM]
+        self._bias_arm = d.qfrc_bias[:n]
         self._qfrc_bias = d.qfrc_bias
-        self._gravcomp_arm = d.qfrc_gravcomp[:_N_ARM]
-        self._applied_arm = d.qfrc_applied[:_N_ARM]
+        self._gravcomp_arm = d.qfrc_gravcomp[:n]
+        self._applied_arm = d.qfrc_applied[:n]
         self._quat = np.zeros(4)
         self._ft_steps = FtSteps(
             m, d, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_FORCE),
@@ -201,7 +201,7 @@ class SimWorld:
 
         # Start state: arm at q_init, target yawed on its hinge.
         d.qpos[self._t_qadr[3]] = self.layout.target_yaw
-        d.qpos[:_N_ARM] = scene.arm.q_init
+        d.qpos[:n] = scene.arm.q_init
         mujoco.mj_forward(m, d)
         self._update_kinematics()
 
@@ -218,10 +218,10 @@ class SimWorld:
         self._cart_damp = np.asarray(ctl.cart_damping, dtype=np.float64)
         self._tcp_ft = np.zeros(6)
         self._tcp_ft_key = b""
-        self._jnt_pos = d.qpos[:_N_ARM].copy()
-        self._jnt_trq = np.zeros(7)
-        self._jnt_stiff = np.full(7, ctl.jnt_position_stiffness)
-        self._jnt_damp = np.full(7, ctl.jnt_position_damping)
+        self._jnt_pos = d.qpos[:n].copy()
+        self._jnt_trq = np.zeros(n)
+        self._jnt_stiff = np.full(n, ctl.jnt_position_stiffness)
+        self._jnt_damp = np.full(n, ctl.jnt_position_damping)
         self._warning = 0
         self._latched = True
         self._apply()
@@ -265,13 +265,13 @@ class SimWorld:
     def jacobian(self) -> F64:
         """TCP Jacobian of the arm's joints at the current state, TCF rows (a copy)."""
         self._kinematics()
-        return self._jfull[:, :_N_ARM].copy()
+        return self._jfull[:, :self._n].copy()
 
     @property
     def mass_matrix(self) -> F64:
         """The arm's joint-space inertia at the current state (a copy)."""
         self._kinematics()
-        return self._mfull[:_N_ARM, :_N_ARM].copy()
+        return self._mfull[:self._n, :self._n].copy()
 
     def target_frames(self) -> tuple[F64, F64]:
         """The target block's pose and its funnel mouth's frame, 4x4 in the world
@@ -314,7 +314,7 @@ class SimWorld:
         self.cart_inertia = lam if lam[0, 0] == lam[0, 0] else np.linalg.inv(a)
         self._lam_diag = self.cart_inertia.diagonal().copy()
         self._inertia_new = True
-        self._m_diag = self._mfull.diagonal()[:_N_ARM].copy()
+        self._m_diag = self._mfull.diagonal()[:self._n].copy()
         self._inertia_ql = self._qpos_arm.tolist()  # where it was computed
 
     def _update_kinematics(self) -> None:
@@ -368,8 +368,8 @@ class SimWorld:
             bias[cart, 2] = 0.0
             ctrl[self._act_ft] = 0.0
             if self.mode == ArmMode.JOINT_POSITION:
-                k = np.full(7, self.scene.controller.jnt_position_stiffness)
-                dd = np.full(7, self.scene.controller.jnt_position_damping)
+                k = np.full(self._n, self.scene.controller.jnt_position_stiffness)
+                dd = np.full(self._n, self.scene.controller.jnt_position_damping)
             else:
                 k, dd = self._jnt_stiff, self._jnt_damp
             damp = normalized_damping(k, dd, self._m_diag)
@@ -409,7 +409,7 @@ class SimWorld:
             self.mode = ArmMode(cmd.mode)
             self._cart_pos = self.tcp_pose.copy()
             self._cart_pos_key = b""
-            self._jnt_pos = self.data.qpos[:_N_ARM].copy()
+            self._jnt_pos = self.data.qpos[:self._n].copy()
         self._warning = 0
         # A pose or wrench with the bytes of the latched one keeps the latched object
         # (validated already; the actuators then need no rewrite).
@@ -450,18 +450,18 @@ class SimWorld:
                 self._tcp_ft = self._finite(ft, 6, "add_tcp_ft")
                 self._tcp_ft_key = key
         if cmd.jnt_pos_rad is not None:
-            self._jnt_pos = np.clip(self._finite(cmd.jnt_pos_rad, 7, "jnt_pos"),
+            self._jnt_pos = np.clip(self._finite(cmd.jnt_pos_rad, self._n, "jnt_pos"),
                                     -self._pos_limits, self._pos_limits)
         if cmd.jnt_trq_nm is not None:
-            self._jnt_trq = self._finite(cmd.jnt_trq_nm, 7, "add_jnt_trq")
+            self._jnt_trq = self._finite(cmd.jnt_trq_nm, self._n, "add_jnt_trq")
         if cmd.jnt_stiffness_nmprad is not None:
-            k = self._finite(cmd.jnt_stiffness_nmprad, 7, "jnt_stiffness")
+            k = self._finite(cmd.jnt_stiffness_nmprad, self._n, "jnt_stiffness")
             self._jnt_stiff = np.clip(k, 0.0, self.scene.controller.jnt_stiffness_max)
             if np.any(self._jnt_stiff != k):
                 self._warning |= _WARN_CLIPPED
         if cmd.jnt_damping_ratio is not None:
             self._jnt_damp = np.clip(
-                self._finite(cmd.jnt_damping_ratio, 7, "jnt_damping"), 0.0, 1.0)
+                self._finite(cmd.jnt_damping_ratio, self._n, "jnt_damping"), 0.0, 1.0)
 
     @staticmethod
     def _finite(v: F64, n: int, name: str) -> F64:
@@ -545,7 +545,7 @@ class SimWorld:
         self._step_count += self.substeps
         self.cycle += 1
         self._kin_ok = self._pose_ok = False
-        # a joint moved more than INERTIA_REUSE_RAD (plain floats: 7 values)
+        # a joint moved more than INERTIA_REUSE_RAD (plain floats: one per joint)
         for qi, q0 in zip(self._qpos_arm.tolist(), self._inertia_ql, strict=True):
             if abs(qi - q0) > INERTIA_REUSE_RAD:
                 self._update_inertia()

@@ -1,11 +1,11 @@
 """Settings of the UR driver: every number of the link and of ffexp's URScript program.
 
-A :class:`~drivers.config.StrictModel` (unknown keys are errors); the rig's
-``[robot]`` table of type ``ur`` will be this model (its registry line is
-added where the back-ends are registered). Defaults are UR's own where UR
-documents one (URScript manual: force_mode_set_damping 0.005, gain scaling 1,
-servoj lookahead 0.1 s and gain 300) and e-Series rates (RTDE Guide: 500 Hz;
-125 Hz on a CB3).
+The rig's ``[robot]`` table of type ``ur`` is this model as it is (a
+:class:`~drivers.base.backend.DeviceConfig`: unknown keys are errors; the entry is
+:mod:`drivers.ur.backend`), and :class:`~drivers.ur.driver.UrRobot` takes it.
+Defaults are UR's own where UR documents one (URScript manual:
+force_mode_set_damping 0.005, gain scaling 1, servoj lookahead 0.1 s and gain 300)
+and e-Series rates (RTDE Guide: 500 Hz; 125 Hz on a CB3).
 """
 
 from __future__ import annotations
@@ -14,14 +14,15 @@ from typing import Literal
 
 from pydantic import Field
 
-from drivers.config import StrictModel
+from drivers.base.backend import DeviceConfig
 
 Six = tuple[float, float, float, float, float, float]
 
 
-class UrSettings(StrictModel):
+class UrSettings(DeviceConfig):
     """Where the UR controller is and how ffexp drives it."""
 
+    type: Literal["ur"] = "ur"
     robot_ip: str = Field(description="the controller's address (IPv4 or host name)")
     rtde_port: int = Field(30004, ge=1, le=65535,
                            description="RTDE port (30004 on a real controller)")

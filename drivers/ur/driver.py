@@ -30,10 +30,10 @@ expects installed and running (``"installed"``).
 from __future__ import annotations
 
 import socket
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import Final
+from typing import Final, Protocol
 
 import numpy as np
 
@@ -53,7 +53,7 @@ from drivers.ur import registers
 from drivers.ur.config import UrSettings
 from drivers.ur.errors import UrSafetyStopError
 from drivers.ur.rtde.client import RtdeClient
-from drivers.ur.rtde.codec import ControllerVersion
+from drivers.ur.rtde.codec import ControllerVersion, DataPackage
 from drivers.ur.rtde.fields import Recipe
 from drivers.ur.rtde.variables import SAFETY_MODE, SAFETY_STATUS_BIT
 
@@ -97,7 +97,7 @@ def send_script(host: str, port: int, text: str, timeout_s: float) -> None:
 
 @dataclass
 class UrExtras(Extras):
-    """What only a UR reports, per cycle (no recording topics yet)."""
+    """What only a UR reports, per cycle (recorded on ``/robot/ur``: :mod:`drivers.ur.topics`)."""
 
     robot_mode: int = 0
     safety_mode: int = 0
@@ -111,21 +111,51 @@ class UrExtras(Extras):
     ft_raw_wrench: np.ndarray = field(default_factory=lambda: np.zeros(6))
     """The flange sensor's raw wrench, as the controller reports it [N, N m]."""
 
+    def topics(self) -> tuple[str, ...]:
+        return ("/robot/ur",)
+
+
+class RtdeLink(Protocol):
+    """What :class:`UrRobot` uses of its link: :class:`~drivers.ur.rtde.client.RtdeClient`
+    over TCP, or an in-process controller (:mod:`drivers.emulate.ur_lockstep`)."""
+
+    @property
+    def is_open(self) -> bool: ...
+    skipped: int
+
+    def connect(self) -> None: ...
+    def close(self) -> None: ...
+    def controller_version(self) -> ControllerVersion: ...
+    def setup_outputs(self, names: Sequence[str], frequency_hz: float) -> Recipe: ...
+    def setup_inputs(self, names: Sequence[str]) -> Recipe: ...
+    def start(self) -> None: ...
+    def receive_latest(self, timeout_s: float | None = None) -> DataPackage: ...
+    def send(self, recipe: Recipe, values: Mapping[str, object] | np.ndarray) -> None: ...
+
+
+def rtde_link(host: str, port: int, timeout_s: float) -> RtdeLink:
+    """The RTDE client of a real (or emulated) controller at ``host:port``."""
+    return RtdeClient(host, port, timeout_s=timeout_s)
+
 
 class UrRobot(RobotDriver):
     """A UR arm over RTDE with ffexp's URScript program. ``where`` names the settings
-    (a rig file and table) in address errors."""
+    (a rig file and table) in address errors; ``link`` opens the link (RTDE over TCP
+    unless given)."""
 
-    def __init__(self, settings: UrSettings, where: str = "UrSettings") -> None:
+    def __init__(self, settings: UrSettings, where: str = "UrSettings",
+                 link: Callable[[str, int, float], RtdeLink] = rtde_link) -> None:
         self.settings = settings
         self.where = where
         self.controller_version: ControllerVersion | None = None
-        self._client: RtdeClient | None = None
+        self._open_link = link
+        self._client: RtdeLink | None = None
         self._listeners: list[Callable[[RobotState], None]] = []
         self._inputs: Recipe | None = None
         self._record: np.ndarray | None = None
         self._seq = 0
         self._cycle = 0
+        self._time_ns: int | None = None
         self._pose = np.eye(4)
         s = settings
         self._speed_limits = np.array(s.compliant_speed_limits_mps_radps)
@@ -146,7 +176,7 @@ class UrRobot(RobotDriver):
         host = resolve_ipv4(f"{self.where}.robot_ip", s.robot_ip)
         if s.script == "send":
             send_script(host, s.script_port, control_script(), s.connect_timeout_s)
-        client = RtdeClient(host, s.rtde_port, timeout_s=s.connect_timeout_s)
+        client = self._open_link(host, s.rtde_port, s.connect_timeout_s)
         client.connect()
         try:
             self.controller_version = client.controller_version()
@@ -184,6 +214,11 @@ class UrRobot(RobotDriver):
             deviation_limits=self._deviation_limits, damping=s.force_mode_damping,
             gain_scaling=s.force_mode_gain_scaling, lookahead_s=s.servo_lookahead_s,
             servo_gain=s.servo_gain)
+
+    def now_ns(self) -> int | None:
+        """The controller's time of the newest state [ns] (``None`` before the first):
+        the clock an F/T sensor beside the UR stamps its samples in."""
+        return self._time_ns
 
     def add_listener(self, callback: Callable[[RobotState], None]) -> None:
         """Call ``callback`` with every state, before :meth:`measurements` yields it
@@ -224,7 +259,8 @@ class UrRobot(RobotDriver):
             healthy=extras.safety_mode in SAFETY_OK, cycle=self._cycle,
             cycle_s=1.0 / self.settings.frequency_hz)
         self._cycle += 1
-        return RobotState(time_ns=round(float(rec["timestamp"]) * 1e9), tcp_pose_m=pose,
+        self._time_ns = time_ns = round(float(rec["timestamp"]) * 1e9)
+        return RobotState(time_ns=time_ns, tcp_pose_m=pose,
                           joint_pos_rad=np.asarray(rec["actual_q"], dtype=np.float64),
                           link=link, tcp_twist_mps_radps=twist, ext_wrench_n_nm=wrench,
                           extras=extras)

@@ -15,12 +15,12 @@ servo; no command (``None``) holds the arm where it is.
 
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 from typing import Final
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from drivers.base.types import CartesianCommand
 
@@ -72,18 +72,54 @@ class ScriptState(IntEnum):
 
 
 def pose_vector(pose_m: NDArray[np.float64]) -> NDArray[np.float64]:
-    """A 4x4 pose as UR's 6-vector ``[x, y, z, rx, ry, rz]`` (rotation vector) [m, rad]."""
+    """A 4x4 pose as UR's 6-vector ``[x, y, z, rx, ry, rz]`` (rotation vector, angle in
+    [0, pi]) [m, rad].
+
+    The rotation vector via the unit quaternion (Shepperd's branches), in plain floats:
+    scipy's ``Rotation.from_matrix`` costs about 0.15 ms a call here, twice per cycle at
+    500 Hz (benchmarks/bench_ur_sim.py); tests/test_ur_sim.py checks this against it.
+    """
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = pose_m[:3, :3].tolist()
+    tr = m00 + m11 + m22
+    if tr > 0.0:
+        s = math.sqrt(tr + 1.0) * 2.0
+        w, x, y, z = 0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s
+    elif m00 > m11 and m00 > m22:
+        s = math.sqrt(1.0 + m00 - m11 - m22) * 2.0
+        w, x, y, z = (m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s
+    elif m11 > m22:
+        s = math.sqrt(1.0 + m11 - m00 - m22) * 2.0
+        w, x, y, z = (m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s
+    else:
+        s = math.sqrt(1.0 + m22 - m00 - m11) * 2.0
+        w, x, y, z = (m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    n = math.sqrt(x * x + y * y + z * z)
+    k = 2.0 * math.atan2(n, w) / n if n > 1e-12 else 2.0 / w
     out = np.empty(6)
     out[:3] = pose_m[:3, 3]
-    out[3:] = Rotation.from_matrix(pose_m[:3, :3]).as_rotvec()
+    out[3:] = (k * x, k * y, k * z)
     return out
 
 
 def pose_matrix(vector: NDArray[np.float64], out: NDArray[np.float64] | None = None
                 ) -> NDArray[np.float64]:
-    """UR's pose 6-vector as a 4x4 pose (into ``out`` when given)."""
+    """UR's pose 6-vector as a 4x4 pose (into ``out`` when given): Rodrigues' formula in
+    plain floats (scipy's ``Rotation`` is slow per call, as for :func:`pose_vector`)."""
     pose = np.eye(4) if out is None else out
-    pose[:3, :3] = Rotation.from_rotvec(np.asarray(vector[3:], dtype=np.float64)).as_matrix()
+    rx, ry, rz = (float(v) for v in vector[3:6])
+    angle = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if angle < 1e-12:
+        rot = [[1.0, -rz, ry], [rz, 1.0, -rx], [-ry, rx, 1.0]]
+    else:
+        kx, ky, kz = rx / angle, ry / angle, rz / angle
+        c, s = math.cos(angle), math.sin(angle)
+        v = 1.0 - c
+        rot = [[c + kx * kx * v, kx * ky * v - kz * s, kx * kz * v + ky * s],
+               [ky * kx * v + kz * s, c + ky * ky * v, ky * kz * v - kx * s],
+               [kz * kx * v - ky * s, kz * ky * v + kx * s, c + kz * kz * v]]
+    pose[:3, :3] = rot
     pose[:3, 3] = vector[:3]
     pose[3] = (0.0, 0.0, 0.0, 1.0)
     return pose

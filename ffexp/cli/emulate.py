@@ -39,9 +39,16 @@ def _ms(option: str, value: float) -> float:
 
 @cli_errors
 def emulate(
-    remote: str = typer.Option(
-        ..., "--remote", help="The remote driver as IP:PORT (FRIHOST and FRISOCK on a KRC)."
+    remote: str | None = typer.Option(
+        None, "--remote", help="The remote driver as IP:PORT (FRIHOST and FRISOCK on a KRC); "
+        "required with --robot lwr4."
     ),
+    robot: str = typer.Option(
+        "lwr4", "--robot", help="lwr4 (a KRC2 LR over FRI 1.x) or ur5e (a UR controller over "
+        "RTDE on --rtde; scene default: the paper's with the UR5e, docs/ur.md)."),
+    rtde: str = typer.Option(
+        "127.0.0.1:30004", "--rtde", help="--robot ur5e: where RTDE listens, HOST:PORT (any "
+        "loopback address)."),
     scene: Path | None = typer.Option(
         None, "--scene", help="Scene TOML (default: the paper's rig, data/scenes/paper.toml)."
     ),
@@ -104,7 +111,11 @@ def emulate(
         raise ConfigError("--pacing", pacing, "choose realtime or lockstep")
     if not 1 <= cycle_ms <= 100:
         raise ConfigError("--cycle-ms", str(cycle_ms), "the FRI cycle is 1..100 ms")
-    remote_addr = parse_host_port("--remote", remote)
+    if robot not in ("lwr4", "ur5e"):
+        raise ConfigError("--robot", robot, "choose lwr4 or ur5e")
+    if remote is None and robot == "lwr4":
+        raise ConfigError("--remote", "", "the remote driver's IP:PORT is required")
+    remote_addr = None if remote is None else parse_host_port("--remote", remote)
     faults = FaultSettings(
         loss=_pct("--loss", loss),
         delay_s=_ms("--delay-ms", delay_ms),
@@ -115,6 +126,10 @@ def emulate(
         seed=0 if seed is None else seed,
     )
     overrides = [*set_, f"fri.cycle={cycle_ms / 1000.0}"]
+    if robot == "ur5e":  # the UR's cycle is its scene's (2 ms); the paper's scene with the UR5e
+        from drivers.description.ur5e import PAPER_SCENE_OVERRIDES
+
+        overrides = [*set_] if scene is not None else [*PAPER_SCENE_OVERRIDES, *set_]
     if scene is None:
         sc = validate(Scene, apply_overrides({}, overrides), "<paper scene>")
     else:
@@ -132,6 +147,8 @@ def emulate(
         camera_fps=camera_fps,
         camera_calibration=camera_calibration,
         duration_s=duration,
+        robot="ur5e" if robot == "ur5e" else "lwr4",
+        rtde=parse_host_port("--rtde", rtde),
     )
     from ffexp.rt import realtime
 

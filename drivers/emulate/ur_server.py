@@ -1,0 +1,97 @@
+"""The emulated UR5e over RTDE: the simulated world behind a UR controller's port 30004.
+
+:class:`UrEmulator` serves :class:`~drivers.emulate.ur_controller.UrSimController`
+(ffexp's URScript program on the world) with
+:class:`~drivers.emulate.rtde_server.RtdeServer`: every base cycle (the scene's
+``fri.cycle``, 2 ms: 500 Hz) the server's thread runs the world one cycle with
+the input registers last written and sends each started client its outputs.
+Lockstep pacing steps as soon as every client holding inputs has answered (or
+after ``lockstep_timeout_s``, a miss); real-time pacing one step per period of
+the wall clock. Faults: output packages lost or delayed, the connection
+closed after a number of them (:class:`~drivers.emulate.rtde_server.RtdeFaults`).
+``ffexp emulate --robot ur5e`` serves it through
+:class:`~drivers.emulate.session.EmulatedRig`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Literal
+
+from drivers.emulate.rtde_server import RtdeFaults, RtdeServer
+from drivers.emulate.ur_controller import UrSimController
+from drivers.emulate.ur_lockstep import CONTROLLER_VERSION
+from drivers.sim.world import SimWorld
+
+__all__ = ["UrEmulator"]
+
+_POLL_S = 0.05
+
+
+class UrEmulator:
+    """The world's UR controller over RTDE on ``host:port`` (module docstring)."""
+
+    def __init__(self, world: SimWorld, host: str, port: int, *,
+                 pacing: Literal["realtime", "lockstep"] = "realtime",
+                 lockstep_timeout_s: float = 1.0, faults: RtdeFaults | None = None,
+                 where: str = "--rtde") -> None:
+        self.world = world
+        self.controller = UrSimController(world)
+        v = CONTROLLER_VERSION
+        self.server = RtdeServer(
+            self.controller.step, self.controller.take, host=host, port=port, pacing=pacing,
+            base_hz=1.0 / world.cycle_s, controller_version=(v.major, v.minor, v.bugfix, v.build),
+            lockstep_timeout_s=lockstep_timeout_s, faults=faults, where=where)
+        self._stop = False
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """Where it listens (the real port when 0 was asked for)."""
+        return self.server.address
+
+    def start(self) -> UrEmulator:
+        """Listen (an :class:`~drivers.errors.AddressError` naming the address) and serve."""
+        self.server.start()
+        return self
+
+    def stop(self) -> None:
+        """Make :meth:`run` return (thread-safe); the server serves on until :meth:`close`."""
+        self._stop = True
+
+    def close(self) -> None:
+        """Stop serving and drop every client."""
+        self._stop = True
+        self.server.close()
+
+    def run(self, max_cycles: int | None = None,
+            on_cycle: Callable[[UrEmulator], None] | None = None) -> None:
+        """Wait while the server's thread serves: until ``max_cycles`` world cycles,
+        :meth:`stop` or the server's error (re-raised here)."""
+        while not self._stop:
+            if self.server.error is not None:
+                raise self.server.error
+            if max_cycles is not None and self.controller.steps >= max_cycles:
+                break
+            if on_cycle is not None:
+                on_cycle(self)
+            time.sleep(_POLL_S)
+        self.server.close()
+        if self.server.error is not None:
+            raise self.server.error
+
+    def status(self) -> str:
+        """One line: simulated time, clients, the program's and safety state, counters."""
+        c, srv = self.controller, self.server
+        safety = "protective stop" if c.arm.stopped else "normal"
+        return (f"t={self.world.time:7.2f} s  clients {srv.clients}  script "
+                f"{c.script_state.name}  safety {safety}  {self._counters()}")
+
+    def _counters(self) -> str:
+        return " ".join(f"{k} {v}" for k, v in sorted(self.server.counters.items()))
+
+    def summary(self) -> str:
+        """The server's counters in one line, with the protective stop if any."""
+        stop = f"; protective stop: {self.controller.arm.stopped}" if self.controller.arm.stopped \
+            else ""
+        return f"UR5e over RTDE: {self.controller.steps} cycles; {self._counters()}{stop}"

@@ -1,0 +1,85 @@
+"""The UR back-end's entry: the ``ur`` robot (a Universal Robots e-Series controller over RTDE,
+real or ``ffexp emulate --robot ur5e``) and the ``ur-wrench`` F/T source (the UR's own wrench).
+
+:class:`~drivers.ur.config.UrSettings` is the rig's ``[robot]`` table and what
+:class:`~drivers.ur.driver.UrRobot` takes; its errors name the rig's fields. The
+in-process simulated UR5e (``ur-sim``) combines this back-end with the simulator:
+its entry is :mod:`drivers.emulate.backend`. Light: the driver is imported when a
+rig opens it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Literal
+
+from drivers.base.backend import (
+    Backend,
+    DeviceConfig,
+    FtBackend,
+    OpenContext,
+    OpenedRobot,
+    OpenedSensor,
+    RobotBackend,
+)
+from drivers.ur.config import UrSettings
+
+if TYPE_CHECKING:
+    from drivers.base.topics import CdrTopic
+
+__all__ = ["BACKEND", "UR_ROBOT_TYPES", "UrSettings", "UrWrenchFt"]
+
+#: The robot types whose driver is a :class:`~drivers.ur.driver.UrRobot`.
+UR_ROBOT_TYPES = ("ur", "ur-sim")
+
+
+class UrWrenchFt(DeviceConfig):
+    """The UR's own wrench read as an F/T sensor, one sample per controller cycle."""
+
+    type: Literal["ur-wrench"] = "ur-wrench"
+    source: Literal["tcp_force", "ft_raw"] = "tcp_force"
+    """``tcp_force``: ``actual_TCP_force`` (payload compensated, rotated into the TCF);
+    ``ft_raw``: ``ft_raw_wrench``, the flange sensor's raw reading (docs/ur.md)."""
+
+
+def _open_robot(cfg: UrSettings, ctx: OpenContext) -> OpenedRobot:
+    from drivers.ur.driver import UrRobot
+
+    robot = UrRobot(cfg, where=ctx.where("robot"))
+    return OpenedRobot(
+        robot, robot.now_ns, cfg.robot_ip,
+        {"driver": "ur", "robot_ip": cfg.robot_ip, "rtde_port": str(cfg.rtde_port)},
+        notice=f"ur: RTDE to {cfg.robot_ip}:{cfg.rtde_port} at {cfg.frequency_hz:g} Hz, "
+               f"script {cfg.script}",
+    )
+
+
+def _open_wrench(cfg: UrWrenchFt, ctx: OpenContext, robot: OpenedRobot) -> OpenedSensor:
+    from drivers.ur.driver import UrRobot
+    from drivers.ur.wrench import UrWrenchSensor
+
+    source = robot.robot
+    if not isinstance(source, UrRobot):  # the rig's check makes this unreachable
+        raise TypeError(f"{type(source).__name__} is not a UR")
+    return OpenedSensor(UrWrenchSensor(source, cfg.source), {"ur_wrench": cfg.source},
+                        f"F/T from the UR's {cfg.source}")
+
+
+def _check_wrench(cfg: UrWrenchFt, robot: DeviceConfig) -> str | None:
+    if robot.type in UR_ROBOT_TYPES:
+        return None
+    return "ft.type 'ur-wrench' needs robot.type 'ur' or 'ur-sim'"
+
+
+def _topics() -> Sequence[CdrTopic]:
+    from drivers.ur.topics import CDR_TOPICS
+
+    return CDR_TOPICS
+
+
+BACKEND = Backend(
+    "ur",
+    robots=(RobotBackend(UrSettings, _open_robot, driver="ur", default_ft="ur-wrench"),),
+    sensors=(FtBackend(UrWrenchFt, _open_wrench, _check_wrench),),
+    topics=_topics,
+)

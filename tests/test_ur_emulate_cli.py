@@ -1,0 +1,64 @@
+"""``ffexp emulate --robot ur5e`` serves the simulated UR5e over RTDE to ``ffexp run`` with
+rigs/ur5e-emulator.toml, in lockstep; a SIGTERM ends it with its counters; a bad --robot is
+one line and exit 2."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from test_rtde_ur_rtde import free_loopback_host
+
+ROOT = Path(__file__).resolve().parents[1]
+ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+
+
+def _line_with(stream: object, text: str, timeout_s: float) -> str:
+    """The first line of ``stream`` containing ``text`` (empty: none within the deadline)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if select.select([stream], [], [], 0.5)[0]:
+            line = stream.readline()  # type: ignore[attr-defined]
+            if not line:
+                return ""
+            if text in line:
+                return str(line)
+    return ""
+
+
+@pytest.mark.slow
+def test_ffexp_run_drives_the_emulated_ur5e_over_rtde(tmp_path: Path) -> None:
+    host = free_loopback_host()
+    emu = subprocess.Popen([sys.executable, "-m", "ffexp", "emulate", "--robot", "ur5e",
+                            "--rtde", f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
+                           cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                           text=True)
+    try:
+        assert f"UR5e controller (RTDE) on {host}:30004" in _line_with(emu.stderr, "UR5e", 60)
+        run = subprocess.run([sys.executable, "-m", "ffexp", "run",
+                              str(ROOT / "protocols/method1_case1.toml"),
+                              "--rig", str(ROOT / "rigs/ur5e-emulator.toml"),
+                              "--rig-set", f"robot.robot_ip={host}",
+                              "--set", "run.timeout_s=1.0", "--out", str(tmp_path)],
+                             cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=300)
+    finally:
+        emu.send_signal(signal.SIGTERM)
+        summary = _line_with(emu.stderr, "UR5e over RTDE", 60)
+        emu.wait(60)
+    assert run.returncode == 4, run.stdout + run.stderr  # the 1 s timeout, not aligned
+    assert len(list(tmp_path.glob("*.mcap"))) == 1
+    assert emu.returncode == 0 and "cycles" in summary
+
+
+def test_a_robot_ffexp_emulate_does_not_know_is_one_line_and_exit_2() -> None:
+    done = subprocess.run([sys.executable, "-m", "ffexp", "emulate", "--robot", "warp"],
+                          cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        "error: --robot: warp: choose lwr4 or ur5e"]

@@ -82,7 +82,7 @@ def main() -> None:
         sim_s, wall_in, outcome_in = run(args.protocol, "rigs/ur5e-sim.toml",
                                          ["--rig-set", "robot.truth=false"], Path(tmp) / "in")
         host = free_host()
-        emu = subprocess.Popen([PY, "-m", "ffexp", "emulate", "--robot", "ur5e", "--rtde",
+        emu = subprocess.Popen([PY, "-m", "ffexp", "emulate", "--robot", "ur5e", "--listen",
                                 f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
                                cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)

@@ -36,7 +36,7 @@ def _line_with(stream: object, text: str, timeout_s: float) -> str:
 def test_ffexp_run_drives_the_emulated_ur5e_over_rtde(tmp_path: Path) -> None:
     host = free_loopback_host()
     emu = subprocess.Popen([sys.executable, "-m", "ffexp", "emulate", "--robot", "ur5e",
-                            "--rtde", f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
+                            "--listen", f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
                            cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                            text=True)
     try:
@@ -61,4 +61,4 @@ def test_a_robot_ffexp_emulate_does_not_know_is_one_line_and_exit_2() -> None:
                           cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
-        "error: --robot: warp: choose lwr4 or ur5e"]
+        "error: --robot: warp: choose one of lwr4, ur5e"]

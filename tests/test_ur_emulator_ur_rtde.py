@@ -33,7 +33,7 @@ def serve(host: str, out: str) -> None:
 
     scene = load_scene(ROOT / "data/scenes/paper-ur5e.toml")
     rows: dict[str, list[np.ndarray]] = {name: [] for name in VARIABLES}
-    settings = EmulatedRigSettings(scene=scene, robot="ur5e", rtde=(host, 30004),
+    settings = EmulatedRigSettings(scene=scene, robot="ur5e", listen=(host, 30004),
                                    netft_port=None, pacing="realtime")
     with EmulatedRig(settings) as rig:
         assert rig.ur is not None

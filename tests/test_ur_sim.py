@@ -181,7 +181,7 @@ def test_the_emulated_rig_refuses_a_scene_whose_arm_is_not_a_ur() -> None:
     lwr = load_scene(ROOT / "data/scenes/paper.toml")
     with pytest.raises(ConfigError, match=r"^--robot: ur5e: the scene \(paper\) has "
                                           r"arm\.model 'lwr4', not 'ur5e'$"):
-        EmulatedRig(EmulatedRigSettings(scene=lwr, robot="ur5e", rtde=("127.0.0.1", 0),
+        EmulatedRig(EmulatedRigSettings(scene=lwr, robot="ur5e", listen=("127.0.0.1", 0),
                                         netft_port=None)).open()
 
 
@@ -228,7 +228,7 @@ def test_the_emulated_rigs_disconnect_fault_ends_the_ur_driver_naming_the_addres
     from drivers.emulate.session import EmulatedRig, EmulatedRigSettings
     from drivers.errors import LinkLostError
 
-    settings = EmulatedRigSettings(scene=scene, robot="ur5e", rtde=("127.0.0.1", 0),
+    settings = EmulatedRigSettings(scene=scene, robot="ur5e", listen=("127.0.0.1", 0),
                                    netft_port=None, pacing="lockstep", ur_disconnect_after=20)
     with EmulatedRig(settings) as rig:
         assert rig.ur is not None

@@ -18,7 +18,7 @@ in the caller's thread::
 
 Errors name the caller's fields (``settings.fields``: the command line's options
 for ``ffexp emulate``). The robot served is the LWR4+ on a KRC2 LR over FRI, or
-with ``robot = "ur5e"`` the UR5e of a UR scene over RTDE on ``rtde`` (127.0.0.1:30004
+with ``robot = "ur5e"`` the UR5e of a UR scene over RTDE on ``listen`` (127.0.0.1:30004
 by default; :class:`~drivers.emulate.ur_server.UrEmulator`; its wrench goes over
 RTDE, so no Net F/T box, and its faults are :class:`~drivers.emulate.rtde_server.RtdeFaults`:
 ``faults.loss`` and ``faults.delay_s`` of the output packages, ``ur_disconnect_after``).
@@ -39,6 +39,7 @@ from drivers.emulate.camera_stream import CameraStream
 from drivers.emulate.faults import FaultSettings
 from drivers.emulate.fri_server import EmulatorSettings, EmulatorStats, FriEmulator
 from drivers.emulate.netft_box import NetFtServer
+from drivers.emulate.robots import ROBOTS
 from drivers.emulate.rtde_server import RtdeFaults
 from drivers.emulate.ur_server import UrEmulator
 from drivers.errors import ConfigError, NotConnectedError
@@ -60,7 +61,7 @@ class SettingNames:
     netft_port: str = "--netft-port"
     camera_port: str = "--camera-port"
     camera_calibration: str = "--camera-calibration"
-    rtde: str = "--rtde"
+    listen: str = "--listen"
     robot: str = "--robot"
 
 
@@ -83,9 +84,10 @@ class EmulatedRigSettings:
         duration_s: stop after this much simulated time (0: until stopped).
         host: local address every server binds to.
         fields: how errors name these settings.
-        robot: ``lwr4`` (a KRC2 LR over FRI) or ``ur5e`` (a UR controller over RTDE;
-            the scene's arm must be the UR5e).
-        rtde: ``ur5e``: where the RTDE server listens (any loopback address may be chosen).
+        robot: a name of :data:`drivers.emulate.robots.ROBOTS`: ``lwr4`` (a KRC2 LR over
+            FRI) or ``ur5e`` (a UR controller over RTDE; the scene's arm must be the UR5e).
+        listen: a robot whose link the client opens (RTDE): where its server listens
+            (any loopback address may be chosen; None: the robot's default).
         ur_disconnect_after: ``ur5e``: close a client's connection after this many data
             packages (0: never).
     """
@@ -104,8 +106,8 @@ class EmulatedRigSettings:
     duration_s: float = 0.0
     host: str = "0.0.0.0"
     fields: SettingNames = field(default_factory=SettingNames)
-    robot: Literal["lwr4", "ur5e"] = "lwr4"
-    rtde: tuple[str, int] = ("127.0.0.1", 30004)
+    robot: str = "lwr4"
+    listen: tuple[str, int] | None = None
     ur_disconnect_after: int = 0
 
     @property
@@ -142,8 +144,14 @@ class EmulatedRig:
     def open(self) -> None:
         """Build the world and open every server (what opened is closed if one fails)."""
         s = self.settings
+        if s.robot not in ROBOTS:
+            raise ConfigError(s.fields.robot, s.robot,
+                              f"choose one of {', '.join(ROBOTS)}")
+        if s.scene.arm.model != s.robot:
+            raise ConfigError(s.fields.robot, s.robot, f"the scene ({s.scene.name}) has "
+                              f"arm.model {s.scene.arm.model!r}, not {s.robot!r}")
         self.world = world = SimWorld(s.scene, seed=s.seed)
-        if s.robot == "ur5e":
+        if ROBOTS[s.robot].link == "rtde":
             self._open_ur(world)
             return
         try:
@@ -163,15 +171,12 @@ class EmulatedRig:
     def _open_ur(self, world: SimWorld) -> None:
         """The UR controller's RTDE server (the scene's arm must be a UR)."""
         s = self.settings
-        if s.scene.arm.model != "ur5e":
-            raise ConfigError(s.fields.robot, s.robot, f"the scene ({s.scene.name}) has "
-                              f"arm.model {s.scene.arm.model!r}, not 'ur5e'")
         faults = RtdeFaults(loss=s.faults.loss, delay_s=s.faults.delay_s,
                             disconnect_after=s.ur_disconnect_after, seed=s.faults.seed)
-        host, port = s.rtde
+        host, port = s.listen or ROBOTS[s.robot].listen or ("127.0.0.1", 30004)
         self.ur = UrEmulator(world, host, port, pacing=s.pacing,
                              lockstep_timeout_s=s.lockstep_timeout_s, faults=faults,
-                             where=s.fields.rtde).start()
+                             where=s.fields.listen).start()
 
     def _open_robot(self, world: SimWorld) -> FriEmulator:
         """The robot controller's server: a KRC2 LR over FRI 1.x (it closes the Net F/T box

@@ -35,7 +35,7 @@ class UrEmulator:
     def __init__(self, world: SimWorld, host: str, port: int, *,
                  pacing: Literal["realtime", "lockstep"] = "realtime",
                  lockstep_timeout_s: float = 1.0, faults: RtdeFaults | None = None,
-                 where: str = "--rtde") -> None:
+                 where: str = "--listen") -> None:
         self.world = world
         self.controller = UrSimController(world)
         v = CONTROLLER_VERSION

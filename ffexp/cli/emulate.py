@@ -1,9 +1,11 @@
-"""``ffexp emulate``: a simulated KRC2 LR (FRI 1.x over UDP) and Net F/T box.
+"""``ffexp emulate``: a simulated robot controller (``--robot``) and Net F/T box.
 
-The controller side of the link, wrapping the MuJoCo rig: it sends FRI
-measurement packets to ``--remote`` every cycle and steps the world with the
-commands that come back (see :mod:`drivers.emulate.fri_server`), and serves the
-simulated Mini45 as an ATI Net F/T box on ``--netft-port``. This command parses
+The controller side of the link, wrapping the MuJoCo rig. The default, a KRC2
+LR, sends FRI measurement packets to ``--remote`` every cycle and steps the
+world with the commands that come back (see :mod:`drivers.emulate.fri_server`),
+and serves the simulated Mini45 as an ATI Net F/T box on ``--netft-port``;
+another controller (a UR over RTDE) listens on ``--listen``. The robots and
+their defaults are :data:`drivers.emulate.robots.ROBOTS`. This command parses
 its options into settings and reports; the rig is assembled and served by
 :class:`drivers.emulate.session.EmulatedRig`.
 
@@ -21,8 +23,14 @@ from pathlib import Path
 
 import typer
 
+from drivers.emulate.robots import ROBOTS
 from ffexp.cli._common import StopFlag, check_cpus, cli_errors, positive, stop_signals
 from ffexp.errors import ConfigError
+
+ROBOT_HELP = "The emulated controller: " + "; ".join(f"{r.name}, {r.what}" for r in ROBOTS.values())
+_LISTENERS = ", ".join(r.name for r in ROBOTS.values() if r.listen)
+LISTEN_HELP = (f"A robot its client connects to ({_LISTENERS}): where it listens, HOST:PORT "
+               "(any loopback address; default: the robot's own).")
 
 
 def _pct(option: str, value: float) -> float:
@@ -40,17 +48,14 @@ def _ms(option: str, value: float) -> float:
 @cli_errors
 def emulate(
     remote: str | None = typer.Option(
-        None, "--remote", help="The remote driver as IP:PORT (FRIHOST and FRISOCK on a KRC); "
-        "required with --robot lwr4."
+        None, "--remote", help="The remote driver as IP:PORT (FRIHOST and FRISOCK on a KRC): "
+        "required by a robot that sends to its client (lwr4)."
     ),
-    robot: str = typer.Option(
-        "lwr4", "--robot", help="lwr4 (a KRC2 LR over FRI 1.x) or ur5e (a UR controller over "
-        "RTDE on --rtde; scene default: the paper's with the UR5e, docs/ur.md)."),
-    rtde: str = typer.Option(
-        "127.0.0.1:30004", "--rtde", help="--robot ur5e: where RTDE listens, HOST:PORT (any "
-        "loopback address)."),
+    robot: str = typer.Option("lwr4", "--robot", help=ROBOT_HELP),
+    listen: str | None = typer.Option(None, "--listen", help=LISTEN_HELP),
     scene: Path | None = typer.Option(
-        None, "--scene", help="Scene TOML (default: the paper's rig, data/scenes/paper.toml)."
+        None, "--scene", help="Scene TOML (default: the paper's rig, data/scenes/paper.toml, "
+        "with the robot's arm)."
     ),
     port: int = typer.Option(0, "--port", help="Local UDP port the KRC sends from (0 = any)."),
     cycle_ms: int = typer.Option(5, "--cycle-ms", help="FRI cycle, 1..100 ms (friOpen)."),
@@ -89,7 +94,8 @@ def emulate(
         None, "--camera-calibration", help="Write the camera's calibration file here (also "
         "served at /calibration.toml) for the rig's tracker.calibration."),
 ) -> None:
-    """Emulate the KRC (FRI 1.x over UDP) and the Net F/T box on the simulated rig."""
+    """Emulate a robot controller (a KRC over FRI 1.x by default) and the Net F/T box on the
+    simulated rig."""
     # imported here: the other commands need not load the emulator
     from drivers.config import apply_overrides, validate
     from drivers.description.scene import Scene, load_scene
@@ -111,9 +117,10 @@ def emulate(
         raise ConfigError("--pacing", pacing, "choose realtime or lockstep")
     if not 1 <= cycle_ms <= 100:
         raise ConfigError("--cycle-ms", str(cycle_ms), "the FRI cycle is 1..100 ms")
-    if robot not in ("lwr4", "ur5e"):
-        raise ConfigError("--robot", robot, "choose lwr4 or ur5e")
-    if remote is None and robot == "lwr4":
+    if robot not in ROBOTS:
+        raise ConfigError("--robot", robot, f"choose one of {', '.join(ROBOTS)}")
+    entry = ROBOTS[robot]
+    if remote is None and entry.link == "fri":
         raise ConfigError("--remote", "", "the remote driver's IP:PORT is required")
     remote_addr = None if remote is None else parse_host_port("--remote", remote)
     faults = FaultSettings(
@@ -125,11 +132,10 @@ def emulate(
         corrupt=_pct("--corrupt", corrupt),
         seed=0 if seed is None else seed,
     )
-    overrides = [*set_, f"fri.cycle={cycle_ms / 1000.0}"]
-    if robot == "ur5e":  # the UR's cycle is its scene's (2 ms); the paper's scene with the UR5e
-        from drivers.description.ur5e import PAPER_SCENE_OVERRIDES
-
-        overrides = [*set_] if scene is not None else [*PAPER_SCENE_OVERRIDES, *set_]
+    # the default scene is the paper's rig with the robot's arm; FRI's cycle is friOpen's
+    overrides = [*(entry.scene_overrides if scene is None else ()), *set_]
+    if entry.takes_cycle:
+        overrides.append(f"fri.cycle={cycle_ms / 1000.0}")
     if scene is None:
         sc = validate(Scene, apply_overrides({}, overrides), "<paper scene>")
     else:
@@ -147,8 +153,8 @@ def emulate(
         camera_fps=camera_fps,
         camera_calibration=camera_calibration,
         duration_s=duration,
-        robot="ur5e" if robot == "ur5e" else "lwr4",
-        rtde=parse_host_port("--rtde", rtde),
+        robot=robot,
+        listen=None if listen is None else parse_host_port("--listen", listen),
     )
     from ffexp.rt import realtime
 

@@ -103,15 +103,15 @@ def backends() -> tuple[Backend, ...]:
 
 
 def _robots() -> dict[str, RobotBackend[Any]]:
-    return {r.type: r for b in _BACKENDS for r in b.robots}
+    return {r.rig_type: r for b in _BACKENDS for r in b.robots}
 
 
 def _sensors() -> dict[str, FtBackend[Any]]:
-    return {s.type: s for b in _BACKENDS for s in b.sensors}
+    return {s.rig_type: s for b in _BACKENDS for s in b.sensors}
 
 
 def _trackers() -> dict[str, TrackerBackend[Any]]:
-    return {t.type: t for b in _BACKENDS for t in b.trackers}
+    return {t.rig_type: t for b in _BACKENDS for t in b.trackers}
 
 
 def robot_types() -> tuple[str, ...]:
@@ -190,8 +190,8 @@ def _check_new(backend: Backend) -> None:
     for kinds, have in ((backend.robots, _robots()), (backend.sensors, _sensors()),
                         (backend.trackers, _trackers())):
         for kind in kinds:
-            if kind.type in have:
-                raise ValueError(f"back-end {backend.name!r}: type {kind.type!r} is taken")
+            if kind.rig_type in have:
+                raise ValueError(f"back-end {backend.name!r}: type {kind.rig_type!r} is taken")
     drivers = driver_names()
     for robot in backend.robots:
         if robot.driver in drivers:

@@ -54,7 +54,7 @@ def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
         names = ", ".join(registry.driver_names())
         raise ConfigError("--driver", driver, f"unknown driver; choose one of {names}")
     source = f"<built-in {driver} rig>"
-    data = {"robot": {"type": robot.type}, "ft": {"type": robot.default_ft}}
+    data = {"robot": {"type": robot.rig_type}, "ft": {"type": robot.default_ft}}
     return validate_rig(apply_overrides(data, choice.overrides), source), source
 
 

@@ -129,7 +129,7 @@ class RobotBackend(Generic[C]):
     """The ``[ft] type`` of the built-in rig ``--driver`` builds."""
 
     @property
-    def type(self) -> str:
+    def rig_type(self) -> str:
         """The ``type`` the rig names it by."""
         return _type_of(self.config)
 
@@ -144,7 +144,7 @@ class FtBackend(Generic[C]):
     """One line if this sensor cannot go with the rig's robot (its table), else ``None``."""
 
     @property
-    def type(self) -> str:
+    def rig_type(self) -> str:
         """The ``type`` the rig names it by."""
         return _type_of(self.config)
 
@@ -159,7 +159,7 @@ class TrackerBackend(Generic[C]):
     """One line if this tracker cannot go with the rig's robot (its table), else ``None``."""
 
     @property
-    def type(self) -> str:
+    def rig_type(self) -> str:
         """The ``type`` the rig names it by."""
         return _type_of(self.config)
 

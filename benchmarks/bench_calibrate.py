@@ -80,8 +80,8 @@ def main() -> int:
         print(f"recorded {len(fit_paths)} + {len(held)} runs in {time.perf_counter() - t:.1f} s")
 
         def show(stage: str, done: int, total: int | None, status: str) -> None:
-            print(f"  {time.perf_counter() - t0:6.1f} s  {stage:<9} {done}/{total} {status}",
-                  flush=True)
+            count = str(done) if total is None else f"{done}/{total}"
+            print(f"  {time.perf_counter() - t0:6.1f} s  {stage:<9} {count} {status}", flush=True)
 
         t0 = time.perf_counter()
         res, _ = calibrate(fit_paths, [*(f"{k}" for k in TRUTH)], ROOT / "data/scenes/paper.toml",

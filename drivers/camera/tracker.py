@@ -29,7 +29,7 @@ import numpy as np
 
 from drivers.base.interfaces import TargetTracker
 from drivers.base.types import F64, NS_PER_S, TargetObservation
-from drivers.camera.backend import CameraTrackerConfig
+from drivers.camera.config import CameraTrackerConfig
 from drivers.errors import ConfigError
 from drivers.vision.calibration import Calibration
 from drivers.vision.marker import aruco_dictionary, detector, find_marker

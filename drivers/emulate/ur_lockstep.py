@@ -15,11 +15,11 @@ lockstep``, with the ground truth added in-process (:class:`SimUrRobot`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from drivers.base.types import RobotState
-from drivers.emulate.backend import UrSimConfig
 from drivers.emulate.ur_controller import UrSimController
 from drivers.errors import LinkLostError
 from drivers.sim.world import SimWorld
@@ -27,6 +27,9 @@ from drivers.ur.driver import UrRobot
 from drivers.ur.rtde.codec import ControllerVersion, DataPackage
 from drivers.ur.rtde.fields import Recipe
 from drivers.ur.rtde.variables import INPUTS, OUTPUTS
+
+if TYPE_CHECKING:  # the rig table only types the argument; backend.py imports this module
+    from drivers.emulate.backend import UrSimConfig
 
 __all__ = ["CONTROLLER_VERSION", "LoopbackRtde", "SimUrRobot"]
 

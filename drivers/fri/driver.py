@@ -56,7 +56,6 @@ from drivers.base.guards import requires_open
 from drivers.base.interfaces import RobotDriver
 from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
 from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
-from drivers.fri.backend import FriRobotConfig
 from drivers.fri.codec import (
     CmdArrays,
     DecodeStats,
@@ -75,6 +74,7 @@ from drivers.fri.command import (
     robot_state_from_fri,
     to_fri_command,
 )
+from drivers.fri.config import FriRobotConfig
 from drivers.fri.convert import (
     LOCKSTEP_INDEX,
     LOCKSTEP_MARKER,

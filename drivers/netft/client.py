@@ -44,7 +44,6 @@ from drivers.base.interfaces import ForceTorqueSensor
 from drivers.base.types import FtSamples
 from drivers.errors import ConfigError, NotConnectedError
 from drivers.net.udp import bind_udp, resolve_ipv4
-from drivers.netft.backend import NetFtConfig
 from drivers.netft.codec import (
     MAX_RECORDS,
     Calibration,
@@ -57,6 +56,7 @@ from drivers.netft.codec import (
     encode_request,
     rdt_seq_delta,
 )
+from drivers.netft.config import NetFtConfig
 
 __all__ = ["NetFtClient", "NetFtConfig", "NetFtStats"]
 

@@ -20,7 +20,6 @@ differing key.
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +29,7 @@ import numpy as np
 
 from ffexp.errors import InputError
 from ffexp.recording import Recording, load
+from ffexp.sweeps.keys import toml_text
 
 #: Topics read from a recording (nothing else).
 TOPICS = ("/robot/state", "/robot/command", "/ft/raw", "/target/pose", "/sim/truth")
@@ -113,24 +113,7 @@ def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 def override(key: str, value: Any) -> str:
     """``key=value`` with the value as TOML (what ``--set`` parses)."""
-    return f"{key}={toml_value(value)}"
-
-
-def toml_value(value: Any) -> str:
-    """A scalar or list as a TOML value."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if not math.isfinite(value):
-            raise ValueError(f"{value!r} cannot be written to a scene")
-        return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {type(value).__name__} as TOML")
+    return f"{key}={toml_text(value)}"
 
 
 def _meta(rec: Recording) -> dict[str, str]:

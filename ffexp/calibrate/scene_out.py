@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ffexp.calibrate.inputs import toml_value
+from ffexp.sweeps.keys import toml_text
 
 
 def _table(lines: list[str], name: str, data: Mapping[str, Any],
@@ -26,7 +26,7 @@ def _table(lines: list[str], name: str, data: Mapping[str, Any],
     for key, value in scalars.items():
         full = f"{name}.{key}" if name else key
         note = notes.get(full)
-        lines.append(f"{key} = {toml_value(value)}" + (f"   # {note}" if note else ""))
+        lines.append(f"{key} = {toml_text(value)}" + (f"   # {note}" if note else ""))
     for key, sub in tables.items():
         _table(lines, f"{name}.{key}" if name else key, sub, notes)
 

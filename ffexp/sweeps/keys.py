@@ -106,8 +106,9 @@ def _floats_if_any(values: list[Value]) -> list[Value]:
     return values
 
 
-def toml_text(value: Value) -> str:
-    """A value as TOML text, canonical (floats by ``repr``, strings JSON-quoted)."""
+def toml_text(value: Value | tuple[Any, ...]) -> str:
+    """A value as TOML text, canonical (floats by ``repr``, strings JSON-quoted, a list or
+    tuple as an array): what ``--set`` parses, and what a written scene holds."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, int):
@@ -118,7 +119,9 @@ def toml_text(value: Value) -> str:
         return repr(value)
     if isinstance(value, str):
         return json.dumps(value)
-    return "[" + ", ".join(toml_text(v) for v in value) + "]"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_text(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} as TOML")
 
 
 def canonical(point: Mapping[str, Value], seed: int) -> str:

@@ -1,7 +1,7 @@
 """Fast start: help, argument errors and completion import nothing heavy.
 
 ``ffexp --help``, ``ffexp run --help``, ``-h`` and an argument error must not
-import mujoco, OpenCV, matplotlib, scipy or filterpy (each costs hundreds of
+import mujoco, OpenCV, matplotlib, scipy, filterpy or numpy (each costs hundreds of
 milliseconds to seconds): the CLI modules import those inside the commands.
 Checked in a fresh interpreter per command line (``sys.modules`` after the
 command ran), never by timing.
@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-HEAVY = ("mujoco", "cv2", "matplotlib", "scipy", "filterpy", "foxglove", "pandas")
+HEAVY = ("mujoco", "cv2", "matplotlib", "scipy", "filterpy", "foxglove", "pandas", "numpy")
 
 _SCRIPT = """
 import json, sys

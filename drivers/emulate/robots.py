@@ -11,6 +11,7 @@ here and its server in :mod:`drivers.emulate.session`, not a change of the CLI.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib import import_module
 from typing import Literal
 
 __all__ = ["ROBOTS", "EmulatedRobot", "robot_names"]
@@ -27,24 +28,27 @@ class EmulatedRobot:
     """``fri``: it sends to the remote driver (``--remote``); ``rtde``: it listens."""
     listen: tuple[str, int] | None
     """Where it listens by default (None: it does not listen, it sends)."""
-    scene_overrides: tuple[str, ...]
-    """The default scene: the paper's rig with these overrides."""
+    overrides_from: str | None
+    """``module:NAME`` of the overrides that make the paper's rig this robot's default
+    scene (None: the paper's rig as it is); read when asked, so that the command line's
+    start does not load the description."""
     takes_cycle: bool
     """Its cycle is set on the command line (FRI's friOpen); else the scene's."""
 
-
-def _ur5e_overrides() -> tuple[str, ...]:
-    from drivers.description.ur5e import PAPER_SCENE_OVERRIDES
-
-    return tuple(PAPER_SCENE_OVERRIDES)
+    def scene_overrides(self) -> tuple[str, ...]:
+        """The default scene: the paper's rig with these overrides."""
+        if self.overrides_from is None:
+            return ()
+        module, name = self.overrides_from.split(":")
+        return tuple(getattr(import_module(module), name))
 
 
 ROBOTS: dict[str, EmulatedRobot] = {
     "lwr4": EmulatedRobot("lwr4", "a KRC2 LR over FRI 1.x (sends to --remote)", "fri", None,
-                          (), True),
+                          None, True),
     "ur5e": EmulatedRobot("ur5e", "a UR e-Series controller over RTDE (listens on --listen, "
                           "default 127.0.0.1:30004)", "rtde", ("127.0.0.1", 30004),
-                          _ur5e_overrides(), False),
+                          "drivers.description.ur5e:PAPER_SCENE_OVERRIDES", False),
 }
 
 

@@ -133,7 +133,7 @@ def emulate(
         seed=0 if seed is None else seed,
     )
     # the default scene is the paper's rig with the robot's arm; FRI's cycle is friOpen's
-    overrides = [*(entry.scene_overrides if scene is None else ()), *set_]
+    overrides = [*(entry.scene_overrides() if scene is None else ()), *set_]
     if entry.takes_cycle:
         overrides.append(f"fri.cycle={cycle_ms / 1000.0}")
     if scene is None:

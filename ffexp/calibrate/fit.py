@@ -389,8 +389,9 @@ class Calibration:
         for p, ui in zip(ps, res.x, strict=True):
             self.values[p.key] = p.from_unit(float(ui))
         ok = bool(res.status > 0)
+        delay = self.values.get("fri.command_delay_cycles")
         self.stages.append(StageResult(
-            f"smooth, delay {self.values.get('fri.command_delay_cycles', '-')}",
+            f"smooth, delay {'-' if delay is None else f'{delay:g}'}",
             "least squares (scipy trf, finite-difference Jacobian)",
             [p.key for p in ps], ok, evals[0], float(r0 @ r0), float(2 * res.cost),
             str(res.message)))

@@ -93,12 +93,18 @@ def _figure(inp: ReplayInput, start: Trace, final: Trace, shift0: int, shift: in
     return buf.getvalue()
 
 
+def _cell(value: Any) -> str:
+    """A table cell for the reader: numbers to 6 significant digits (the CSV and JSON
+    beside the page keep every digit)."""
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
 def _table(rows: Sequence[dict[str, Any]]) -> str:
     if not rows:
         return "<p>none</p>"
     cols = list(rows[0])
     head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(r[c]))}</td>" for c in cols)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(_cell(r[c]))}</td>" for c in cols)
                    + "</tr>" for r in rows)
     return f"<table><tr>{head}</tr>{body}</table>"
 
@@ -106,6 +112,7 @@ def _table(rows: Sequence[dict[str, Any]]) -> str:
 _CSS = ("body{font-family:sans-serif;margin:1.5em;max-width:1200px}"
         "table{border-collapse:collapse;font-size:13px;margin:0.5em 0}"
         "td,th{border:1px solid #bbb;padding:3px 6px;text-align:left}th{background:#eee}"
+        "pre{white-space:pre-wrap;overflow-wrap:anywhere}"
         ".warn{color:#a00}img{max-width:100%}")
 
 

@@ -18,6 +18,11 @@ loopback address may be chosen, so that parallel tests each have their own
   back (``input_double_register_N`` ...);
 - ``M``: kept in :attr:`RtdeServer.messages`.
 
+A *session* starts when a connection starts its stream while no other one
+streams: the server then calls ``on_session()`` (if given; the emulated UR
+starts its world anew there) and keeps as its inputs only what that
+connection has already written, which go to ``sink`` again.
+
 The stream: while at least one connection is started, the server calls
 ``source()`` once per base cycle (``base_hz``, 500 Hz as an e-Series) and
 sends each started connection the package of that step when its frequency
@@ -109,6 +114,8 @@ class _Connection:
     answered: bool = True
     data_sent: int = 0
     delayed: deque[tuple[float, bytes]] = field(default_factory=deque)
+    written: dict[str, Any] = field(default_factory=dict)
+    """The input values this connection has written (a new session keeps these)."""
 
     def held(self) -> set[str]:
         return {n for r in self.inputs.values() for n in r.names}
@@ -124,13 +131,15 @@ class RtdeServer:
                  controller_version: tuple[int, int, int, int] = (5, 15, 0, 0),
                  protocol_versions: Iterable[int] = (codec.PROTOCOL_VERSION,),
                  lockstep_wait_inputs: bool = True, lockstep_timeout_s: float = 1.0,
-                 faults: RtdeFaults | None = None, where: str = "RtdeServer.host") -> None:
+                 faults: RtdeFaults | None = None, where: str = "RtdeServer.host",
+                 on_session: Callable[[], None] | None = None) -> None:
         if pacing not in ("lockstep", "realtime"):
             raise ValueError(f"pacing must be lockstep or realtime, not {pacing!r}")
         if not (math.isfinite(base_hz) and base_hz > 0):
             raise ValueError(f"base_hz must be positive, not {base_hz}")
         self.source = source
         self.sink = sink
+        self.on_session = on_session
         self.host = resolve_ipv4(where, host)
         self.port = parse_port(where, f"{host}:{port}", port, allow_zero=True)
         self.where = where
@@ -396,6 +405,7 @@ class RtdeServer:
         if isinstance(msg, codec.DataPackage):
             values = _values(conn.inputs[msg.recipe_id], msg.record)
             self.inputs.update(values)
+            conn.written.update(values)
             conn.answered = True
             self.counters["inputs"] += 1
             if self.sink is not None:
@@ -427,6 +437,12 @@ class RtdeServer:
     def _begin(self, conn: _Connection) -> None:
         if not self._streaming():
             self._next_due = time.monotonic()
+            if self.on_session is not None:
+                self.on_session()
+                self.inputs = dict(conn.written)
+                if self.sink is not None and conn.written:
+                    self.sink(conn.written)
+            self.counters["sessions"] += 1
         conn.streaming = True
         conn.answered = True
         conn.started_step = self._step

@@ -122,6 +122,7 @@ class EmulatedRig:
     def __init__(self, settings: EmulatedRigSettings) -> None:
         self.settings = settings
         self.world: SimWorld | None = None
+        """The world as opened (a UR's later sessions run a fresh one: ``ur.world``)."""
         self.robot: FriEmulator | None = None
         self.ur: UrEmulator | None = None
         self.netft: NetFtServer | None = None

@@ -11,13 +11,22 @@ the wall clock. Faults: output packages lost or delayed, the connection
 closed after a number of them (:class:`~drivers.emulate.rtde_server.RtdeFaults`).
 ``ffexp emulate --robot ur5e`` serves it through
 :class:`~drivers.emulate.session.EmulatedRig`.
+
+Sessions: a client that starts streaming after the previous session's clients
+stopped (a new ``ffexp run``, the next run of a campaign) finds the emulator
+as it was started: the world of the same scene and seed at its start pose,
+the program and its registers fresh (``reset_per_session``; the world is built
+anew only when the last session stepped it). So a campaign over RTDE against
+one emulator runs each protocol from the same start as in-process, as an
+operator re-places the target and homes the arm between runs. With
+``reset_per_session=False`` the world goes on where the last session left it.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from typing import Literal
+from collections.abc import Callable, Mapping
+from typing import Any, Literal
 
 from drivers.emulate.rtde_server import RtdeFaults, RtdeServer
 from drivers.emulate.ur_controller import UrSimController
@@ -35,15 +44,37 @@ class UrEmulator:
     def __init__(self, world: SimWorld, host: str, port: int, *,
                  pacing: Literal["realtime", "lockstep"] = "realtime",
                  lockstep_timeout_s: float = 1.0, faults: RtdeFaults | None = None,
-                 where: str = "--listen") -> None:
+                 where: str = "--listen", reset_per_session: bool = True) -> None:
         self.world = world
         self.controller = UrSimController(world)
+        self.reset_per_session = reset_per_session
+        self.sessions = 0
+        """Sessions started so far (module docstring)."""
+        self.steps = 0
+        """World cycles run over all sessions."""
         v = CONTROLLER_VERSION
         self.server = RtdeServer(
-            self.controller.step, self.controller.take, host=host, port=port, pacing=pacing,
+            self._step, self._take, host=host, port=port, pacing=pacing,
             base_hz=1.0 / world.cycle_s, controller_version=(v.major, v.minor, v.bugfix, v.build),
-            lockstep_timeout_s=lockstep_timeout_s, faults=faults, where=where)
+            lockstep_timeout_s=lockstep_timeout_s, faults=faults, where=where,
+            on_session=self._new_session)
         self._stop = False
+
+    def _step(self) -> Mapping[str, object]:
+        self.steps += 1
+        return self.controller.step()
+
+    def _take(self, values: Mapping[str, Any]) -> None:
+        self.controller.take(values)
+
+    def _new_session(self) -> None:
+        """A client starts the stream alone (server's thread): the world and the program
+        as at the emulator's start, if the last session stepped them."""
+        self.sessions += 1
+        if self.reset_per_session and self.controller.steps:
+            old = self.world
+            self.world = SimWorld(old.scene, seed=old.seed)
+            self.controller = UrSimController(self.world)
 
     @property
     def address(self) -> tuple[str, int]:
@@ -71,7 +102,7 @@ class UrEmulator:
         while not self._stop:
             if self.server.error is not None:
                 raise self.server.error
-            if max_cycles is not None and self.controller.steps >= max_cycles:
+            if max_cycles is not None and self.steps >= max_cycles:
                 break
             if on_cycle is not None:
                 on_cycle(self)
@@ -94,4 +125,5 @@ class UrEmulator:
         """The server's counters in one line, with the protective stop if any."""
         stop = f"; protective stop: {self.controller.arm.stopped}" if self.controller.arm.stopped \
             else ""
-        return f"UR5e over RTDE: {self.controller.steps} cycles; {self._counters()}{stop}"
+        return (f"UR5e over RTDE: {self.steps} cycles in {self.sessions} sessions; "
+                f"{self._counters()}{stop}")

@@ -1,49 +1,85 @@
-"""The simulated UR5e: a paper run in-process (``rigs/ur5e-sim.toml``) and over RTDE in lockstep
-(``ffexp emulate --robot ur5e`` and ``rigs/ur5e-emulator.toml``) vs the bare world.
+"""The simulated UR5e: a campaign in-process and over RTDE in lockstep, against its own physics.
 
-Each run is ``ffexp run PROTOCOL`` in a process of its own; its speed is simulated
-seconds per wall second (the run's length from its last line, "after X s"). The
-baseline is the bare world of the same scene (data/scenes/paper-ur5e.toml): the
-simulated UR's force mode held on Z for as many cycles, nothing else (no program,
-no driver, no estimator, no recording). Prints the three speeds and each run's ratio
-to the bare world::
+    .venv/bin/python benchmarks/bench_ur_sim.py [--campaign protocols/paper.toml] [--no-truth-run]
 
-    .venv/bin/python benchmarks/bench_ur_sim.py [--protocol protocols/method1_case1.toml]
+Runs the campaign (default: the paper's five runs) in this process with
+``ffexp.campaign.run_campaign``, three ways, each timed as a whole (wall time
+from the first run's start to the last run's end; the interpreter's start is
+not in it):
+
+* **in-process**: ``rigs/ur5e-sim.toml`` with ``robot.truth=false``, so the
+  observer judges as it must over RTDE (no ground truth crosses the wire);
+* **over RTDE**: ``rigs/ur5e-emulator.toml`` against one ``ffexp emulate
+  --robot ur5e --pacing lockstep`` (a process of its own on a free
+  127.0.0.x:30004, the campaign's seed), which starts each run's session
+  anew;
+* **in-process, judged by the truth** (the rig's default, what ``ffexp
+  campaign PAPER --rig rigs/ur5e-sim.toml`` does): runs end once aligned.
+
+The baseline is **bare physics**: the wall time of every ``mujoco.mj_step``
+call the in-process runs made (``bench_runner.timed_physics``: the same model,
+states and steps; the RTDE runs step the same states, their recordings being
+equal). Prints each path's simulated seconds, wall seconds, real-time factor
+and its ratio to the bare physics, and whether the two observer-judged paths
+ended every run the same way (end, alignment, breaks, cycles).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import re
 import socket
 import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
+from bench_runner import timed_physics
+
+from ffexp.campaign import check_campaign, run_campaign
+from ffexp.experiment import RunResult
+from ffexp.protocol import load_run_protocol
+from ffexp.rig_choice import RigChoice
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
 
 
-def run(protocol: Path, rig: str, extra: list[str], out: Path) -> tuple[float, float, str]:
-    """Simulated seconds, wall seconds and the outcome of one ``ffexp run``."""
+@dataclass
+class Way:
+    """One way of running the campaign, measured."""
+
+    name: str
+    sim_s: float
+    wall_s: float
+    physics_s: float | None
+    runs: list[RunResult]
+
+    @property
+    def factor(self) -> float:
+        return self.sim_s / self.wall_s
+
+
+def campaign(name: str, camp: Path, rig: RigChoice, out: Path, *, physics: bool) -> Way:
+    """Run ``camp`` on ``rig``; with ``physics``, also the time of its ``mj_step`` calls."""
     start = time.perf_counter()
-    done = subprocess.run([PY, "-m", "ffexp", "run", str(protocol), "--rig", str(ROOT / rig),
-                           *extra, "--out", str(out)], cwd=ROOT, env=ENV,
-                          capture_output=True, text=True)
+    if physics:
+        with timed_physics() as total:
+            result = run_campaign(camp, rig=rig, out_parent=out)
+        spent: float | None = total[0]
+    else:
+        result = run_campaign(camp, rig=rig, out_parent=out)
+        spent = None
     wall = time.perf_counter() - start
-    m = re.search(r"DONE \((.*?)\) after ([0-9.]+) s", done.stdout + done.stderr)
-    if m is None:
-        raise SystemExit(f"{rig}: no run end in its output:\n{done.stdout}{done.stderr}")
-    return float(m.group(2)), wall, m.group(1)
+    sim = sum(r.outcome.duration_s for r in result.results)
+    return Way(name, sim, wall, spent, list(result.results))
 
 
 def free_host() -> str:
+    """A loopback address whose port 30004 is free."""
     for i in range(40, 240):
         host = f"127.0.0.{i}"
         s = socket.socket()
@@ -57,33 +93,32 @@ def free_host() -> str:
     raise SystemExit("no loopback address with a free port 30004")
 
 
-def bare(seconds: float) -> float:
-    """Wall seconds of the bare world for ``seconds`` of simulated time."""
-    from drivers.description import load_scene
-    from drivers.sim.ur_control import ForceModeCommand, UrArmControl
-    from drivers.sim.world import SimWorld
-
-    world = SimWorld(load_scene(ROOT / "data/scenes/paper-ur5e.toml"))
-    arm = UrArmControl(world)
-    cmd = ForceModeCommand(world.tcp_pose.copy(), np.array([0, 0, 1, 0, 0, 0], dtype=bool),
-                           np.array([0, 0, 0.8, 0, 0, 0.0]), np.full(6, 0.1))
-    cycles = round(seconds / world.cycle_s)
-    start = time.perf_counter()
-    for _ in range(cycles):
-        world.advance(arm.command(cmd))
-    return time.perf_counter() - start
+def end(r: RunResult) -> tuple[str, bool, int, int]:
+    o = r.outcome
+    return o.stop_reason.value, o.aligned, o.breaks, o.cycles
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--protocol", type=Path, default=ROOT / "protocols/method1_case1.toml")
+    parser.add_argument("--campaign", type=Path, default=ROOT / "protocols/paper.toml")
+    parser.add_argument("--no-truth-run", action="store_true",
+                        help="skip the in-process campaign judged by the ground truth")
     args = parser.parse_args()
+    sim_rig = ROOT / "rigs/ur5e-sim.toml"
+    _, entries = check_campaign(args.campaign, (), RigChoice(sim_rig))
+    seeds = {load_run_protocol(e.protocol, e.overrides).seed for e in entries}
+    if len(seeds) != 1:
+        raise SystemExit(f"{args.campaign}: its runs have seeds {sorted(seeds)}; one emulator "
+                         "serves one seed")
+    (seed,) = seeds
+    paths: list[Way] = []
     with tempfile.TemporaryDirectory() as tmp:
-        sim_s, wall_in, outcome_in = run(args.protocol, "rigs/ur5e-sim.toml",
-                                         ["--rig-set", "robot.truth=false"], Path(tmp) / "in")
+        paths.append(campaign("in-process", args.campaign,
+                              RigChoice(sim_rig, ("robot.truth=false",)), Path(tmp),
+                              physics=True))
         host = free_host()
         emu = subprocess.Popen([PY, "-m", "ffexp", "emulate", "--robot", "ur5e", "--listen",
-                                f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
+                                f"{host}:30004", "--pacing", "lockstep", "--seed", str(seed)],
                                cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)
         try:
@@ -91,19 +126,37 @@ def main() -> None:
             while "UR5e controller" not in emu.stderr.readline():
                 if emu.poll() is not None:
                     raise SystemExit("the emulator ended before it served")
-            sim_w, wall_w, outcome_w = run(args.protocol, "rigs/ur5e-emulator.toml",
-                                           ["--rig-set", f"robot.robot_ip={host}"],
-                                           Path(tmp) / "wire")
+            paths.append(campaign("over RTDE, lockstep", args.campaign,
+                                  RigChoice(ROOT / "rigs/ur5e-emulator.toml",
+                                            (f"robot.robot_ip={host}",)),
+                                  Path(tmp), physics=False))
         finally:
             emu.terminate()
             emu.wait(30)
-    wall_bare = bare(sim_s)
-    print(f"{args.protocol.name}: {sim_s:.2f} s simulated")
-    print(f"  bare world        {sim_s / wall_bare:6.2f}x real time")
-    for name, s, w, o in (("in-process", sim_s, wall_in, outcome_in),
-                          ("RTDE lockstep", sim_w, wall_w, outcome_w)):
-        print(f"  {name:17s} {s / w:6.2f}x real time, {(s / w) / (sim_s / wall_bare):.2f} of "
-              f"the bare world; {o}")
+        if not args.no_truth_run:
+            paths.append(campaign("in-process, truth judges", args.campaign, RigChoice(sim_rig),
+                                  Path(tmp), physics=True))
+    observer, wire = paths[0], paths[1]
+    assert observer.physics_s is not None
+    bare = observer.sim_s / observer.physics_s
+    print(f"{args.campaign.name}: {len(observer.runs)} runs, seed {seed}")
+    print(f"  observer judges: {observer.sim_s:.1f} s simulated; bare physics "
+          f"{observer.physics_s:.1f} s = {bare:.2f}x real time")
+    for p in paths[:2]:
+        print(f"    {p.name:24s} {p.wall_s:7.1f} s  {p.factor:5.2f}x real time, "
+              f"{p.factor / bare:.2f} of the bare physics")
+    same = [end(a) == end(b) for a, b in zip(observer.runs, wire.runs, strict=True)]
+    print(f"    the same ends (end, aligned, breaks, cycles): {sum(same)} of {len(same)} runs")
+    for a, b, ok in zip(observer.runs, wire.runs, same, strict=True):
+        print(f"      {a.protocol.name:20s} {end(a)}  {'=' if ok else '!='}  {end(b)}")
+    if len(paths) > 2:
+        t = paths[2]
+        assert t.physics_s is not None
+        tb = t.sim_s / t.physics_s
+        print(f"  truth judges (in-process): {t.sim_s:.1f} s simulated; bare physics "
+              f"{t.physics_s:.1f} s = {tb:.2f}x real time")
+        print(f"    {t.name:24s} {t.wall_s:7.1f} s  {t.factor:5.2f}x real time, "
+              f"{t.factor / tb:.2f} of the bare physics")
 
 
 if __name__ == "__main__":

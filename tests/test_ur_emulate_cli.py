@@ -62,3 +62,43 @@ def test_a_robot_ffexp_emulate_does_not_know_is_one_line_and_exit_2() -> None:
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [
         "error: --robot: warp: choose one of lwr4, ur5e"]
+
+
+@pytest.mark.slow
+def test_a_campaign_over_rtde_against_one_emulator_equals_the_same_campaign_in_process(
+        tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from ffexp.cli import app
+
+    camp = tmp_path / "two.toml"
+    runs = "".join(f'\n[[runs]]\nprotocol = "{ROOT / "protocols" / name}.toml"\n'
+                   for name in ("method1_case1", "method2"))
+    camp.write_text(f'name = "two"\n{runs}')
+    common = ["campaign", str(camp), "--set", "run.timeout_s=4.2", "--no-figures"]
+    runner = CliRunner()
+    inproc = runner.invoke(app, [*common, "--rig", str(ROOT / "rigs/ur5e-sim.toml"),
+                                 "--rig-set", "robot.truth=false", "--out", str(tmp_path / "in")])
+    assert inproc.exit_code == 0, inproc.output
+    host = free_loopback_host()
+    emu = subprocess.Popen([sys.executable, "-m", "ffexp", "emulate", "--robot", "ur5e",
+                            "--listen", f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
+                           cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                           text=True)
+    try:
+        assert "UR5e controller" in _line_with(emu.stderr, "UR5e", 60)
+        wire = runner.invoke(app, [*common, "--rig", str(ROOT / "rigs/ur5e-emulator.toml"),
+                                   "--rig-set", f"robot.robot_ip={host}",
+                                   "--out", str(tmp_path / "wire")])
+    finally:
+        emu.send_signal(signal.SIGTERM)
+        summary = _line_with(emu.stderr, "UR5e over RTDE", 60)
+        emu.wait(60)
+    assert wire.exit_code == 0, wire.output
+    assert "in 2 sessions" in summary  # one emulator served both runs
+    for name in ("method1_case1", "method2"):
+        (a,) = (tmp_path / "in").glob(f"*/{name}-*.mcap")
+        (b,) = (tmp_path / "wire").glob(f"*/{name}-*.mcap")
+        same = runner.invoke(app, ["diff", str(a), str(b), "--rtol", "0", "--atol", "0"])
+        # the second run started from the emulator's start, as in-process: equal bit for bit
+        assert same.exit_code == 0, same.output

@@ -27,7 +27,7 @@ def _mujoco_tcp(scene: Scene, q: np.ndarray) -> np.ndarray:
     """The TCP site of the simulator's own arm model at joint positions ``q``."""
     model = mujoco.MjModel.from_xml_string(build_xml(scene, None))
     data = mujoco.MjData(model)
-    data.qpos[:7] = q
+    data.qpos[:len(q)] = q
     mujoco.mj_kinematics(model, data)
     site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "tcp")
     out = np.eye(4)
@@ -36,18 +36,25 @@ def _mujoco_tcp(scene: Scene, q: np.ndarray) -> np.ndarray:
     return out
 
 
+@pytest.mark.parametrize("scene_file", ["paper.toml", "paper-ur5e.toml"])
 @pytest.mark.parametrize("base_pos", [(0.0, 0.0, 0.0), (0.1, -0.2, 0.05)])
-def test_forward_kinematics_agrees_with_the_simulators_arm(base_pos: tuple[float, ...]) -> None:
-    scene = load_scene(ROOT / "data/scenes/paper.toml", [f"arm.base_pos={list(base_pos)}"])
-    limits = np.radians(LWR4.position_limits_deg)
+def test_forward_kinematics_agrees_with_the_simulators_arm(base_pos: tuple[float, ...],
+                                                           scene_file: str) -> None:
+    scene = load_scene(ROOT / "data/scenes" / scene_file, [f"arm.base_pos={list(base_pos)}"])
+    arm = scene.arm.description
+    limits = np.radians(arm.position_limits_deg)
     rng = np.random.default_rng(5)
-    for q in [np.array(scene.arm.q_init), *rng.uniform(-limits, limits, (12, 7))]:
+    for q in [np.array(scene.arm.q_init), *rng.uniform(-limits, limits, (12, arm.joints))]:
         np.testing.assert_allclose(tcp_pose(scene, q), _mujoco_tcp(scene, q), atol=1e-12)
 
 
-def test_link_transforms_reject_a_robot_without_seven_joints() -> None:
-    with pytest.raises(ValueError, match="7"):
+def test_link_transforms_reject_fewer_joint_positions_than_the_arm_has() -> None:
+    from drivers.description import UR5E
+
+    with pytest.raises(ValueError, match="6 joint positions; the KUKA LWR4\\+ has 7"):
         link_transforms(np.zeros(6))
+    with pytest.raises(ValueError, match="5 joint positions; the UR5e has 6"):
+        link_transforms(np.zeros(5), arm=UR5E)
 
 
 def test_a_joint_turns_the_links_after_it_about_its_axis() -> None:
@@ -182,6 +189,40 @@ def test_link_rows_are_the_link_transforms_bit_for_bit() -> None:
         want = np.array([t.tolist() for t in link_transforms(q, base)])
         assert np.array(link_rows(q, base)).tobytes() == want.tobytes()
         assert np.array(link_rows(q)).tobytes() == np.array(link_transforms(q)).tobytes()
+
+
+def test_a_dh_arms_links_are_its_descriptions_joint_transforms() -> None:
+    from drivers.description import UR5E
+    from ffexp.scene3d.kinematics import link_rows
+
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        q = rng.uniform(-3.0, 3.0, 6)
+        want = UR5E.joint_transforms(q)
+        got = link_transforms(q, arm=UR5E)
+        assert [t.tobytes() for t in got] == [t.tobytes() for t in want]
+        assert link_rows(q, arm=UR5E) == [t.tolist() for t in want]
+
+
+def test_a_ur5e_run_draws_its_six_links_and_the_tool_tip_at_the_tcp(tmp_path: Path) -> None:
+    result = run_file(ROOT / "protocols/method1_case1.toml", ["run.timeout_s=0.6"],
+                      rig=RigChoice(ROOT / "rigs/ur5e-sim.toml"), out_dir=tmp_path)
+    scenes, tf, _ = _read(result.path)
+    entities = {e["id"]: e for e in scenes[0][1]["entities"]}
+    links = {f"link{i}" for i in range(1, 7)}
+    assert links <= set(entities) and "link7" not in entities
+    assert all(entities[name]["cylinders"] for name in links)  # none of zero length
+    cone = entities["tool"]["cylinders"][-1]
+    assert entities["tool"]["frame_id"] == "link6"
+    # the cone's narrow end (its pose holds the flange offset) is the TCP on /tf
+    tip_in_link6 = _pose(cone["pose"]) @ np.array([0, 0, cone["size"]["z"] / 2, 1])
+    checked = 0
+    for frames in tf.values():
+        if "link6" in frames and "tool" in frames:
+            np.testing.assert_allclose((_in_base(frames, "link6") @ tip_in_link6)[:3],
+                                       _in_base(frames, "tool")[:3, 3], atol=1e-9)
+            checked += 1
+    assert checked > 10
 
 
 def test_the_scene_writer_batched_writes_what_it_writes_alone(tmp_path: Path) -> None:

@@ -6,11 +6,12 @@ Every entity is locked to a ``/tf`` frame and placed in it:
   glass plane, centred under the target's start position
   (:func:`drivers.description.layout.compute_layout`); the scene gives no bed size, so
   it is :data:`BED_SIZE_M` square;
-- ``base``, ``link1`` .. ``link7``: the arm's links as cylinders of the
+- ``base``, ``link1`` .. ``link{n}`` (the scene's arm, ``arm.description``:
+  seven links for the LWR4+, six for the UR5e): the links as cylinders of the
   simulator's link capsules (0.06 m radius, from the link's origin to the
-  next joint along z);
-- ``tool`` (frame ``link7``, the flange): the F/T sensor, the adapter shaft
-  and the tool funnel, a cone on the nose whose tip is the TCF;
+  next joint's, the last one's to the flange or 20 mm along z);
+- ``tool`` (frame ``link{n}``, placed at the flange): the F/T sensor, the
+  adapter shaft and the tool funnel, a cone on the nose whose tip is the TCF;
 - ``target`` (the target's frame): the block and its funnel, a hollow cone
   drawn as a translucent frustum whose wide end is the funnel mouth, its axis
   along the block's +x (:mod:`drivers.description.funnel`);
@@ -26,9 +27,10 @@ from typing import Any
 import numpy as np
 
 from drivers.base.types import F64, NS_PER_S
-from drivers.description import LWR4, Layout, Scene, tool_tip_offset
+from drivers.description import LWR4, ArmDescription, Layout, Scene, tool_tip_offset
 from ffexp.recording.recorder import pose_to_transform
 from ffexp.recording.topics.scene import PRIMITIVES
+from ffexp.scene3d.kinematics import flange_in_last_link, link_frames
 
 __all__ = ["BED_SIZE_M", "LINK_FRAMES", "LINK_RADIUS_M", "scene_update"]
 
@@ -37,12 +39,13 @@ BED_SIZE_M = 1.0
 _BED_THICKNESS_M = 0.02
 #: Radius of the links' cylinders [m] (the simulator's link capsules).
 LINK_RADIUS_M = 0.06
-#: ``/tf`` frames of the links, ``link1`` .. ``link7``.
-LINK_FRAMES = tuple(f"link{i + 1}" for i in range(LWR4.joints))
-#: Each joint's origin along its parent's z (the LWR4+'s chain runs along z): the links' lengths.
-_LINK_Z_M = tuple(origin[2] for origin in LWR4.joint_origins_m)
-#: Length of ``link7``'s cylinder [m] (the simulator's flange capsule).
-_FLANGE_LEN_M = 0.02
+#: ``/tf`` frames of the LWR4+'s links, ``link1`` .. ``link7`` (another arm's:
+#: :func:`~ffexp.scene3d.kinematics.link_frames`).
+LINK_FRAMES = link_frames(LWR4)
+#: Height of the base's cylinder [m] (the simulator's drawn base).
+_BASE_HEIGHT_M = 0.11
+#: The last link's cylinder of an arm without fixed turns [m] (the simulator's flange capsule).
+_FLANGE_CAPSULE_M = (0.0, 0.0, 0.02)
 _SHAFT_RADIUS_M = 0.012
 
 _ORANGE = {"r": 1.0, "g": 0.5, "b": 0.0, "a": 0.8}
@@ -81,6 +84,32 @@ def _cylinder(z0: float, z1: float, radius0: float, radius1: float,
     centre = (np.zeros(3) if origin is None else origin) + axis * (z0 + z1) / 2.0
     return {"pose": _pose(centre, rotation), "size": _vec(2 * r, 2 * r, abs(z1 - z0)),
             "bottom_scale": radius0 / r, "top_scale": radius1 / r, "color": color}
+
+
+def _along(v: tuple[float, float, float]) -> F64 | None:
+    """A rotation taking z to the direction of ``v`` (``None``: ``v`` is along +z)."""
+    if v[0] == 0.0 and v[1] == 0.0 and v[2] > 0.0:
+        return None
+    z = np.asarray(v, dtype=np.float64) / math.hypot(*v)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return np.column_stack((x, np.cross(z, x), z))
+
+
+def _links(arm: ArmDescription) -> list[tuple[str, list[dict[str, Any]]]]:
+    """Each link's frame and cylinder: from its origin to the next joint's (the last
+    link's to the flange of a DH arm, else :data:`_FLANGE_CAPSULE_M`), as the simulator."""
+    last = arm.flange_m if arm.joint_rpy_rad is not None else _FLANGE_CAPSULE_M
+    ends = (*arm.joint_origins_m[1:], last)
+    out = []
+    for frame, end in zip(link_frames(arm), ends, strict=True):
+        turn = _along(end)
+        length = end[2] if turn is None else math.hypot(*end)
+        cyl = [_cylinder(0.0, length, LINK_RADIUS_M, LINK_RADIUS_M, _ORANGE,
+                         rotation=turn)] if length > 0.0 else []
+        out.append((frame, cyl))
+    return out
 
 
 def _entity(stamp: dict[str, int], frame: str, name: str,
@@ -122,20 +151,22 @@ def scene_update(scene: Scene, layout: Layout, time_ns: int, target_frame: str,
     entities.append(_entity(stamp, "base", "bed", cubes=[bed]))
     base_pos = base[:3, 3]
     entities.append(_entity(stamp, "base", "base", cylinders=[
-        _cylinder(0.0, _LINK_Z_M[0], LINK_RADIUS_M, LINK_RADIUS_M, _GREY, origin=base_pos)]))
-    for i, frame in enumerate(LINK_FRAMES):
-        length = _LINK_Z_M[i + 1] if i + 1 < len(_LINK_Z_M) else _FLANGE_LEN_M
-        entities.append(_entity(stamp, frame, frame, cylinders=[
-            _cylinder(0.0, length, LINK_RADIUS_M, LINK_RADIUS_M, _ORANGE)]))
+        _cylinder(0.0, _BASE_HEIGHT_M, LINK_RADIUS_M, LINK_RADIUS_M, _GREY, origin=base_pos)]))
+    arm = scene.arm.description
+    for frame, cylinders in _links(arm):
+        entities.append(_entity(stamp, frame, frame, cylinders=cylinders))
+    flange = flange_in_last_link(arm)
+    at_flange: dict[str, F64] = {} if flange is None else {
+        "rotation": flange[:3, :3], "origin": flange[:3, 3]}
     tool = scene.tool
     h_s = tool.sensor_height
     cone_base = h_s + tool.shaft_length
     tip = h_s + tool_tip_offset(scene)
     r_cone = tool_funnel_radius(scene)
-    entities.append(_entity(stamp, LINK_FRAMES[-1], "tool", cylinders=[
-        _cylinder(0.0, h_s, tool.sensor_radius, tool.sensor_radius, _DARK),
-        _cylinder(h_s, cone_base, _SHAFT_RADIUS_M, _SHAFT_RADIUS_M, _GREY),
-        _cylinder(cone_base, tip, r_cone, min(tool.nose_radius, r_cone), _BLUE),
+    entities.append(_entity(stamp, link_frames(arm)[-1], "tool", cylinders=[
+        _cylinder(0.0, h_s, tool.sensor_radius, tool.sensor_radius, _DARK, **at_flange),
+        _cylinder(h_s, cone_base, _SHAFT_RADIUS_M, _SHAFT_RADIUS_M, _GREY, **at_flange),
+        _cylinder(cone_base, tip, r_cone, min(tool.nose_radius, r_cone), _BLUE, **at_flange),
     ]))
     tg = scene.target
     mouth = np.asarray(layout.funnel_in_target, dtype=np.float64)

@@ -1,16 +1,21 @@
-"""Forward kinematics of the KUKA LWR4+ with the rig's sensor and tool. Pure, no I/O.
+"""Forward kinematics of the scene's arm with the rig's sensor and tool. Pure, no I/O.
 
-The chain is the published one the simulator is built from
-(:data:`drivers.description.lwr4.LWR4`, an :class:`~drivers.description.arm.ArmDescription`):
-frame ``link{i}`` sits at ``joint_origins_m[i-1]`` (along the z axis) of its parent
-(``link{i-1}``, the base for ``link1``) and turns by joint ``i`` about its
-axis (``+z`` or ``-y``/``+y`` of the link). The flange is ``link7``'s origin;
-the F/T sensor and the tool follow along its z axis, and the TCF (the tool
-tip) is the flange frame moved ``sensor_height + shaft_length + funnel.depth``
-along z and turned by 180 deg about it (as the simulator's model, :mod:`drivers.sim.mjcf`).
+The chain is the published one the simulator is built from, the scene's
+``arm.description`` (an :class:`~drivers.description.arm.ArmDescription`: the
+LWR4+ by default, :data:`~drivers.description.lwr4.LWR4`, or the UR5e): frame
+``link{i}`` sits at ``joint_origins_m[i-1]`` of its parent (``link{i-1}``, the
+base for ``link1``), turned by ``joint_rpy_rad[i-1]`` (a DH arm's fixed turns;
+the LWR4+ has none), and turns by joint ``i`` about its axis. The flange is
+``flange_m`` (turned by ``flange_rpy_rad``) in the last link, the LWR4+'s at
+``link7``'s origin; the F/T sensor and the tool follow along its z axis, and
+the TCF (the tool tip) is the flange frame moved ``sensor_height +
+shaft_length + funnel.depth`` along z and turned by 180 deg about it (as the
+simulator's model, :mod:`drivers.sim.mjcf`).
 
-The rotations about a coordinate axis are written out: a 4x4 from ``cos`` and
-``sin`` costs a few microseconds where ``scipy``'s ``Rotation`` costs tens.
+For a chain without fixed turns whose axes are +-y and +-z (the LWR4+) the
+rotations are written out: a 4x4 from ``cos`` and ``sin`` costs a few
+microseconds where ``scipy``'s ``Rotation`` costs tens. Other chains take the
+description's own :meth:`~drivers.description.arm.ArmDescription.joint_transforms`.
 """
 
 from __future__ import annotations
@@ -22,14 +27,10 @@ import numpy as np
 
 from drivers.base.types import F64
 from drivers.description import LWR4, Scene, tool_tip_offset
-from drivers.description.arm import Vec3
+from drivers.description.arm import ArmDescription, Vec3, rpy_matrix
 
-__all__ = ["JOINTS", "flange_to_tcp", "link_rows", "link_transforms", "translation"]
-
-#: Joints of the LWR4+.
-JOINTS = LWR4.joints
-_ORIGINS = LWR4.joint_origins_m
-_AXES = LWR4.joint_axes
+__all__ = ["flange_in_last_link", "flange_to_tcp", "link_frames", "link_rows",
+           "link_transforms", "translation"]
 
 
 def translation(x: float, y: float, z: float) -> F64:
@@ -37,6 +38,22 @@ def translation(x: float, y: float, z: float) -> F64:
     out = np.eye(4)
     out[:3, 3] = (x, y, z)
     return out
+
+
+def link_frames(arm: ArmDescription = LWR4) -> tuple[str, ...]:
+    """``/tf`` frames of the arm's links: ``link1`` .. ``link{joints}``."""
+    return tuple(f"link{i + 1}" for i in range(arm.joints))
+
+
+def _written_out(arm: ArmDescription) -> bool:
+    """Whether the chain's rotations are the written-out ones (module docstring)."""
+    return arm.joint_rpy_rad is None and all(not a[0] for a in arm.joint_axes)
+
+
+def _angles(q_rad: Sequence[float] | F64, arm: ArmDescription) -> list[float]:
+    if len(q_rad) < arm.joints:
+        raise ValueError(f"{len(q_rad)} joint positions; the {arm.name} has {arm.joints}")
+    return [float(v) for v in q_rad[:arm.joints]]
 
 
 def _joint(origin_m: Vec3, axis: Sequence[int], angle_rad: float) -> F64:
@@ -51,16 +68,20 @@ def _joint(origin_m: Vec3, axis: Sequence[int], angle_rad: float) -> F64:
         s *= axis[1]
         out[0, 0], out[0, 2], out[2, 0], out[2, 2] = c, s, -s, c
     else:
-        raise ValueError(f"joint axis {tuple(axis)}: only +-y and +-z are used by the LWR4+")
+        raise ValueError(f"joint axis {tuple(axis)}: only +-y and +-z are written out")
     return out
 
 
-def link_transforms(q_rad: Sequence[float] | F64, base: F64 | None = None) -> list[F64]:
-    """Pose of every ``link{i}`` (i = 1..7) in its parent (``base``'s frame for
+def link_transforms(q_rad: Sequence[float] | F64, base: F64 | None = None,
+                    arm: ArmDescription = LWR4) -> list[F64]:
+    """Pose of every ``link{i}`` of ``arm`` in its parent (``base``'s frame for
     ``link1``, which includes ``base``, the arm's base in the robot's frame)."""
-    if len(q_rad) < JOINTS:
-        raise ValueError(f"{len(q_rad)} joint positions; the LWR4+ has {JOINTS}")
-    out = [_joint(_ORIGINS[i], _AXES[i], float(q_rad[i])) for i in range(JOINTS)]
+    q = _angles(q_rad, arm)
+    if _written_out(arm):
+        out = [_joint(arm.joint_origins_m[i], arm.joint_axes[i], q[i])
+               for i in range(arm.joints)]
+    else:
+        out = arm.joint_transforms(q)
     if base is not None:
         out[0] = base @ out[0]
     return out
@@ -76,16 +97,18 @@ def _joint_rows(origin_m: Vec3, axis: Sequence[int], angle_rad: float) -> list[l
     if axis[1]:
         s *= axis[1]
         return [[c, 0.0, s, x], [0.0, 1.0, 0.0, y], [-s, 0.0, c, z], [0.0, 0.0, 0.0, 1.0]]
-    raise ValueError(f"joint axis {tuple(axis)}: only +-y and +-z are used by the LWR4+")
+    raise ValueError(f"joint axis {tuple(axis)}: only +-y and +-z are written out")
 
 
-def link_rows(q_rad: Sequence[float] | F64, base: F64 | None = None) -> list[list[list[float]]]:
+def link_rows(q_rad: Sequence[float] | F64, base: F64 | None = None,
+              arm: ArmDescription = LWR4) -> list[list[list[float]]]:
     """:func:`link_transforms` as rows of floats (``[t.tolist() for t in ...]``, the same
-    values): what ``/tf`` needs, at a fraction of the cost of seven 4x4 arrays."""
-    if len(q_rad) < JOINTS:
-        raise ValueError(f"{len(q_rad)} joint positions; the LWR4+ has {JOINTS}")
-    q = [float(v) for v in q_rad[:JOINTS]]
-    out = [_joint_rows(_ORIGINS[i], _AXES[i], q[i]) for i in range(JOINTS)]
+    values): what ``/tf`` needs, written out at a fraction of the cost of 4x4 arrays."""
+    if not _written_out(arm):
+        return [t.tolist() for t in link_transforms(q_rad, base, arm)]
+    q = _angles(q_rad, arm)
+    out = [_joint_rows(arm.joint_origins_m[i], arm.joint_axes[i], q[i])
+           for i in range(arm.joints)]
     if base is not None:
         first: list[list[float]] = (base @ np.array(out[0])).tolist()
         out[0] = first
@@ -102,8 +125,17 @@ def chain(transforms: Sequence[F64]) -> list[F64]:
     return out
 
 
+def flange_in_last_link(arm: ArmDescription) -> F64 | None:
+    """The flange in the arm's last link frame (``None``: at its origin, unturned)."""
+    if not any(arm.flange_m) and not any(arm.flange_rpy_rad):
+        return None
+    out = translation(*arm.flange_m)
+    out[:3, :3] = rpy_matrix(arm.flange_rpy_rad)
+    return out
+
+
 def flange_to_tcp(scene: Scene) -> F64:
-    """The TCF in the flange (``link7``) frame: along z to the tool tip, turned 180 deg."""
+    """The TCF in the flange frame: along z to the tool tip, turned 180 deg."""
     out = translation(0.0, 0.0, scene.tool.sensor_height + tool_tip_offset(scene))
     out[:2, :2] = -np.eye(2)
     return out
@@ -117,4 +149,7 @@ def base_pose(scene: Scene) -> F64:
 
 def tcp_pose(scene: Scene, q_rad: Sequence[float] | F64) -> F64:
     """The TCF pose in the robot's frame for joint positions ``q_rad``."""
-    return chain(link_transforms(q_rad, base_pose(scene)))[-1] @ flange_to_tcp(scene)
+    arm = scene.arm.description
+    last = chain(link_transforms(q_rad, base_pose(scene), arm))[-1]
+    flange = flange_in_last_link(arm)
+    return (last if flange is None else last @ flange) @ flange_to_tcp(scene)

@@ -10,10 +10,10 @@ is drawn too, as a ghost). Then it writes
 
 - ``/scene/rig`` (:func:`ffexp.scene3d.entities.scene_update`) at the start
   and every ``scene_period_s`` of log time;
-- ``/tf``: ``link1`` .. ``link7`` from the joint positions by forward
-  kinematics (:mod:`ffexp.scene3d.kinematics`), each in its parent, every
-  ``tf_period_s`` (the run log's ``/tf`` period), on robots with the LWR4+'s
-  seven joints.
+- ``/tf``: ``link1`` .. ``link{n}`` of the scene's arm from the joint
+  positions by forward kinematics (:mod:`ffexp.scene3d.kinematics`), each in
+  its parent, every ``tf_period_s`` (the run log's ``/tf`` period), when the
+  robot reports as many joints as that arm has.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from drivers.base.types import NS_PER_S, RobotState, TargetObservation
 from drivers.description import Layout, Scene, compute_layout
 from ffexp.recording import Recorder
 from ffexp.recording.topics.target import TRACKED_FRAME
-from ffexp.scene3d.entities import LINK_FRAMES, scene_update
-from ffexp.scene3d.kinematics import JOINTS, base_pose, link_rows, translation
+from ffexp.scene3d.entities import scene_update
+from ffexp.scene3d.kinematics import base_pose, link_frames, link_rows, translation
 
 __all__ = ["NOMINAL_FRAME", "SCENE_TOPIC", "TRUTH_FRAME", "SceneWriter"]
 
@@ -53,6 +53,8 @@ class SceneWriter:
         self.tf_period_ns = max(1, round(tf_period_s * NS_PER_S))
         self.scene_period_ns = max(1, round(scene_period_s * NS_PER_S))
         self.base = base_pose(scene)
+        self.arm = scene.arm.description
+        self.frames = link_frames(self.arm)
         self.layout: Layout | None = None
         self.target_frame = ""
         self.tracked_frame = ""
@@ -83,7 +85,7 @@ class SceneWriter:
         if layout is None:
             layout = self.layout = self._start(state, target)
         q = state.joint_pos_rad
-        tf_due = log_ns >= self._next_tf_ns and len(q) == JOINTS
+        tf_due = log_ns >= self._next_tf_ns and len(q) == self.arm.joints
         if log_ns < self._next_scene_ns and not tf_due:
             return  # nothing due this cycle
         rec = self.rec
@@ -100,7 +102,7 @@ class SceneWriter:
             self._next_tf_ns = log_ns + self.tf_period_ns
             parent = "base"
             encode = rec.encode_transform
-            for frame, rows in zip(LINK_FRAMES, link_rows(q, self.base), strict=True):
+            for frame, rows in zip(self.frames, link_rows(q, self.base, self.arm), strict=True):
                 msgs.append(("/tf", encode(log_ns, parent, frame, rows)))
                 parent = frame
         if out is None and msgs:

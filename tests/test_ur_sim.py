@@ -252,3 +252,26 @@ def test_the_ur5e_scene_file_is_the_papers_with_the_ur5e_overrides(scene) -> Non
     assert load_scene(ROOT / "data/scenes/paper.toml").arm.model == "lwr4"  # the default
     with pytest.raises(ConfigError, match=r"arm\.q_init has 7 values; the UR5e"):
         load_scene(ROOT / "data/scenes/paper.toml", ("arm.model='ur5e'",))
+
+
+def test_the_sim_tracker_judges_a_ur_sim_run_without_ground_truth(tmp_path: Path) -> None:
+    import json
+
+    from mcap.reader import make_reader
+
+    from ffexp.experiment import RigChoice, run_file
+
+    rig = RigChoice(ROOT / "rigs/ur5e-sim.toml", ("robot.truth=false", "tracker.type='sim'"))
+    result = run_file(ROOT / "protocols/method1_case2.toml", ["run.timeout_s=1.0"], rig=rig,
+                      out_dir=tmp_path)
+    verdicts, poses = [], 0
+    with result.path.open("rb") as fh:
+        for _, channel, message in make_reader(fh).iter_messages(
+                topics=["/alignment/verdict", "/target/pose"]):
+            if channel.topic == "/target/pose":
+                poses += 1
+            else:
+                verdicts.append(json.loads(message.data))
+    assert poses >= 40  # the camera model's 50 frames a second
+    assert verdicts[0]["source"] == "tracker" and verdicts[-1]["final"]
+    assert verdicts[-1]["truth"] == ""  # no ground truth on this rig

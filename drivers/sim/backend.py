@@ -1,6 +1,7 @@
 """The simulator back-end's entry: the ``sim`` F/T sensor (the world's Mini45 model) and the
 ``sim`` target tracker (the world's target seen like a camera), both read from the world of
-the ``sim`` robot.
+the ``sim`` robot; the tracker also from the ``ur-sim`` robot's (whose program already reads
+the world's F/T samples for ``actual_TCP_force``: its sensor is ``ur-wrench``).
 
 The ``sim`` robot itself is the lockstep KRC in front of the world, which combines
 this back-end with FRI's link: its entry is :mod:`drivers.emulate.backend`. Light:
@@ -40,7 +41,7 @@ class SimFt(DeviceConfig):
 
 
 class SimTrackerConfig(DeviceConfig):
-    """The simulated target's pose as a camera would report it (sim robot only)."""
+    """The simulated target's pose as a camera would report it (sim and ur-sim robots)."""
 
     type: Literal["sim"] = "sim"
     rate_hz: Annotated[float, Field(gt=0.0)] = 50.0
@@ -88,11 +89,15 @@ def _check_ft(cfg: SimFt, robot: DeviceConfig) -> str | None:
             "is served by the emulator: use 'netft')")
 
 
+#: Robots that run the simulated world in-process (their opened robot has ``world``).
+_IN_PROCESS_WORLDS = ("sim", "ur-sim")
+
+
 def _check_tracker(cfg: SimTrackerConfig, robot: DeviceConfig) -> str | None:
-    if robot.type == "sim":
+    if robot.type in _IN_PROCESS_WORLDS:
         return None
-    return ("tracker.type 'sim' needs robot.type 'sim' (over FRI the emulator serves a "
-            "camera stream: use 'camera')")
+    return ("tracker.type 'sim' needs robot.type 'sim' or 'ur-sim' (over FRI the emulator "
+            "serves a camera stream: use 'camera')")
 
 
 BACKEND = Backend(

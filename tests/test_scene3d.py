@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from drivers.description.lwr4 import LWR4
 from drivers.description.scene import Scene, load_scene
 from drivers.sim.mjcf import build_xml
 from ffexp.experiment import RigChoice, run_file
@@ -263,3 +262,26 @@ def test_the_scene_writer_batched_writes_what_it_writes_alone(tmp_path: Path) ->
     assert seen["alone"] == seen["batched"]
     assert added[:5] == [1 + 1 + 7, 0, 0, 0, 7]  # scene, its nominal target, the links
     assert sum(n == 0 for n in added) == 75
+
+
+@pytest.mark.parametrize("scene_file", ["paper.toml", "paper-ur5e.toml"])
+def test_each_links_cylinder_ends_at_the_next_joint_as_the_simulators_capsule(
+        scene_file: str) -> None:
+    from drivers.description import compute_layout
+    from ffexp.scene3d.entities import LINK_RADIUS_M, scene_update
+
+    scene = load_scene(ROOT / "data/scenes" / scene_file)
+    arm = scene.arm.description
+    tcp = tcp_pose(scene, np.array(scene.arm.q_init))
+    layout = compute_layout(scene, tcp[:3, 3].copy(), tcp[:3, :3].copy())
+    msg = scene_update(scene, layout, 0, "target", np.eye(4))
+    entities = {e["id"]: e for e in msg["entities"]}
+    last = arm.flange_m if arm.joint_rpy_rad is not None else (0.0, 0.0, 0.02)
+    for i, end in enumerate((*arm.joint_origins_m[1:], last)):
+        (cyl,) = entities[f"link{i + 1}"]["cylinders"]
+        pose = _pose(cyl["pose"])
+        half = cyl["size"]["z"] / 2
+        np.testing.assert_allclose((pose @ [0, 0, -half, 1])[:3], 0.0, atol=1e-12)
+        np.testing.assert_allclose((pose @ [0, 0, half, 1])[:3], end, atol=1e-12)
+        assert cyl["size"]["x"] == pytest.approx(2 * LINK_RADIUS_M)
+        np.testing.assert_allclose(np.linalg.det(pose[:3, :3]), 1.0, atol=1e-12)

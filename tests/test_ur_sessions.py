@@ -100,3 +100,20 @@ def test_registers_written_before_the_start_survive_the_new_session(scene) -> No
     assert emu.server.inputs[registers.SEQ] == 41  # kept for the new program
     assert package.record["timestamp"] == pytest.approx(scene.fri.cycle)  # the world anew
     assert package.record[registers.APPLIED_SEQ] == 41  # the new program applied it
+
+
+def test_a_pause_and_a_start_again_is_the_same_session(scene) -> None:  # type: ignore[no-untyped-def]
+    emu = UrEmulator(SimWorld(scene, seed=3), "127.0.0.1", 0, pacing="lockstep").start()
+    try:
+        with RtdeClient("127.0.0.1", emu.address[1], timeout_s=5.0) as client:
+            client.setup_outputs(["timestamp"], 500.0)
+            client.start()
+            before = [float(client.receive(5.0).record["timestamp"]) for _ in range(5)]
+            client.pause()
+            client.start()
+            after = float(client.receive(5.0).record["timestamp"])
+    finally:
+        emu.close()
+    assert before[0] == pytest.approx(scene.fri.cycle)
+    assert after > before[-1]  # the world went on
+    assert emu.sessions == 1 and emu.server.counters["sessions"] == 1

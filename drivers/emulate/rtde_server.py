@@ -18,8 +18,9 @@ loopback address may be chosen, so that parallel tests each have their own
   back (``input_double_register_N`` ...);
 - ``M``: kept in :attr:`RtdeServer.messages`.
 
-A *session* starts when a connection starts its stream while no other one
-streams: the server then calls ``on_session()`` (if given; the emulated UR
+A *session* starts when a connection starts its stream for the first time
+while no other one streams (a pause and a start again is not a new one): the
+server then calls ``on_session()`` (if given; the emulated UR
 starts its world anew there) and keeps as its inputs only what that
 connection has already written, which go to ``sink`` again.
 
@@ -110,6 +111,8 @@ class _Connection:
     inputs: dict[int, Recipe] = field(default_factory=dict)
     next_id: int = 1
     streaming: bool = False
+    started_once: bool = False
+    """It has started its stream before (a pause and a start again is the same session)."""
     started_step: int = 0
     answered: bool = True
     data_sent: int = 0
@@ -437,12 +440,14 @@ class RtdeServer:
     def _begin(self, conn: _Connection) -> None:
         if not self._streaming():
             self._next_due = time.monotonic()
-            if self.on_session is not None:
-                self.on_session()
-                self.inputs = dict(conn.written)
-                if self.sink is not None and conn.written:
-                    self.sink(conn.written)
-            self.counters["sessions"] += 1
+            if not conn.started_once:  # a new client alone: a new session
+                if self.on_session is not None:
+                    self.on_session()
+                    self.inputs = dict(conn.written)
+                    if self.sink is not None and conn.written:
+                        self.sink(conn.written)
+                self.counters["sessions"] += 1
+        conn.started_once = True
         conn.streaming = True
         conn.answered = True
         conn.started_step = self._step

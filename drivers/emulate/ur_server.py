@@ -12,11 +12,12 @@ closed after a number of them (:class:`~drivers.emulate.rtde_server.RtdeFaults`)
 ``ffexp emulate --robot ur5e`` serves it through
 :class:`~drivers.emulate.session.EmulatedRig`.
 
-Sessions: a client that starts streaming after the previous session's clients
-stopped (a new ``ffexp run``, the next run of a campaign) finds the emulator
-as it was started: the world of the same scene and seed at its start pose,
-the program and its registers fresh (``reset_per_session``; the world is built
-anew only when the last session stepped it). So a campaign over RTDE against
+Sessions: a new client that starts streaming after the previous session's
+clients stopped (a new ``ffexp run``, the next run of a campaign) finds the
+emulator as it was started: the world of the same scene and seed at its start
+pose, the program and its registers fresh (``reset_per_session``; the world is
+built anew only when the last session stepped it). A client that pauses and
+starts again stays in its session. So a campaign over RTDE against
 one emulator runs each protocol from the same start as in-process, as an
 operator re-places the target and homes the arm between runs. With
 ``reset_per_session=False`` the world goes on where the last session left it.

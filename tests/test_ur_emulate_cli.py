@@ -32,13 +32,18 @@ def _line_with(stream: object, text: str, timeout_s: float) -> str:
     return ""
 
 
+def _emulator(host: str) -> subprocess.Popen[str]:
+    """``ffexp emulate --robot ur5e`` in lockstep on ``host:30004`` (its log on stderr)."""
+    return subprocess.Popen([sys.executable, "-m", "ffexp", "emulate", "--robot", "ur5e",
+                             "--listen", f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
+                            cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+
+
 @pytest.mark.slow
 def test_ffexp_run_drives_the_emulated_ur5e_over_rtde(tmp_path: Path) -> None:
     host = free_loopback_host()
-    emu = subprocess.Popen([sys.executable, "-m", "ffexp", "emulate", "--robot", "ur5e",
-                            "--listen", f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
-                           cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                           text=True)
+    emu = _emulator(host)
     try:
         assert f"UR5e controller (RTDE) on {host}:30004" in _line_with(emu.stderr, "UR5e", 60)
         run = subprocess.run([sys.executable, "-m", "ffexp", "run",
@@ -81,10 +86,7 @@ def test_a_campaign_over_rtde_against_one_emulator_equals_the_same_campaign_in_p
                                  "--rig-set", "robot.truth=false", "--out", str(tmp_path / "in")])
     assert inproc.exit_code == 0, inproc.output
     host = free_loopback_host()
-    emu = subprocess.Popen([sys.executable, "-m", "ffexp", "emulate", "--robot", "ur5e",
-                            "--listen", f"{host}:30004", "--pacing", "lockstep", "--seed", "1"],
-                           cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                           text=True)
+    emu = _emulator(host)
     try:
         assert "UR5e controller" in _line_with(emu.stderr, "UR5e", 60)
         wire = runner.invoke(app, [*common, "--rig", str(ROOT / "rigs/ur5e-emulator.toml"),

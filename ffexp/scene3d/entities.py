@@ -102,13 +102,15 @@ def _links(arm: ArmDescription) -> list[tuple[str, list[dict[str, Any]]]]:
     link's to the flange of a DH arm, else :data:`_FLANGE_CAPSULE_M`), as the simulator."""
     last = arm.flange_m if arm.joint_rpy_rad is not None else _FLANGE_CAPSULE_M
     ends = (*arm.joint_origins_m[1:], last)
-    out = []
+    out: list[tuple[str, list[dict[str, Any]]]] = []
     for frame, end in zip(link_frames(arm), ends, strict=True):
+        if not any(end):  # the next joint at this one's origin: nothing to draw
+            out.append((frame, []))
+            continue
         turn = _along(end)
         length = end[2] if turn is None else math.hypot(*end)
-        cyl = [_cylinder(0.0, length, LINK_RADIUS_M, LINK_RADIUS_M, _ORANGE,
-                         rotation=turn)] if length > 0.0 else []
-        out.append((frame, cyl))
+        out.append((frame, [_cylinder(0.0, length, LINK_RADIUS_M, LINK_RADIUS_M, _ORANGE,
+                                      rotation=turn)]))
     return out
 
 

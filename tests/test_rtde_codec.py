@@ -152,6 +152,27 @@ def test_encoding_refuses_what_a_field_cannot_carry() -> None:
         codec.encode(codec.SetupInputs(("a,b",)))
 
 
+def test_a_record_with_a_non_finite_double_anywhere_is_refused_naming_its_field() -> None:
+    recipe = every_type_recipe()
+    record = recipe.empty()
+    for name in recipe.names:
+        record[name] = every_type_values()[name]
+    assert recipe.encode(record) == recipe.encode(every_type_values())
+    doubles = [(n, k) for n, t in zip(recipe.names, recipe.types, strict=True)
+               for k in range({"DOUBLE": 1, "VECTOR3D": 3, "VECTOR6D": 6}.get(t, 0))]
+    assert len(doubles) == 10
+    for (name, k), bad in zip(doubles, [float("nan"), float("inf"), -float("inf")] * 4,
+                              strict=False):
+        broken = record.copy()
+        if broken[name].ndim:
+            broken[name][k] = bad
+        else:
+            broken[name] = bad
+        with pytest.raises(PacketEncodeError, match=f"^cannot encode {name}: NaN or infinite"):
+            recipe.encode(broken)
+        assert recipe.encode_outputs(broken) == broken.tobytes()  # a controller's may
+
+
 def test_ur_rtdes_trailing_comma_is_one_empty_name_dropped() -> None:
     assert codec.split_names("a,b,") == (("a", "b"), True)
     assert codec.split_names("a,,b") == (("a", "", "b"), False)

@@ -93,6 +93,9 @@ class Recipe:
     dtype: np.dtype[np.void] = field(init=False, repr=False, compare=False)
     size: int = field(init=False, repr=False, compare=False)
     _bools: tuple[tuple[str, int], ...] = field(init=False, repr=False, compare=False)
+    _doubles: np.ndarray = field(init=False, repr=False, compare=False)
+    """The byte positions of every double (each field's value after value), in order:
+    one finiteness check of a whole record."""
 
     def __post_init__(self) -> None:
         if not 0 <= self.recipe_id <= 255:
@@ -114,6 +117,12 @@ class Recipe:
         bools = tuple((n, dtype.fields[n][1]) for n, t in zip(self.names, self.types, strict=True)
                       if t == "BOOL") if dtype.fields else ()
         object.__setattr__(self, "_bools", bools)
+        starts = [dtype.fields[n][1] + 8 * k
+                  for n, t in zip(self.names, self.types, strict=True)
+                  if FIELD_TYPES[t][0] == ">f8" for k in range(FIELD_TYPES[t][1])] \
+            if dtype.fields else []
+        object.__setattr__(self, "_doubles",
+                           (np.asarray(starts, dtype=np.intp)[:, None] + np.arange(8)).ravel())
 
     def decode(self, data: bytes | memoryview, source: object = None) -> np.ndarray:
         """The fields of one data package (after its recipe id) as a 0-d read-only record.
@@ -159,10 +168,12 @@ class Recipe:
         if isinstance(values, np.ndarray):
             if values.dtype != self.dtype:
                 raise PacketEncodeError("recipe", "record of another recipe's layout")
-            if finite:
+            data = values.tobytes()
+            if finite and not np.isfinite(
+                    np.frombuffer(data, np.uint8)[self._doubles].view(">f8")).all():
                 for name, type_name in zip(self.names, self.types, strict=True):
-                    _check_finite(name, type_name, values[name])
-            return values.tobytes()
+                    _check_finite(name, type_name, values[name])  # names the field
+            return data
         record = self.empty()
         for name, type_name in zip(self.names, self.types, strict=True):
             if name not in values:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -89,15 +90,21 @@ class ArmDescription:
         """Each link's pose in its parent at joint positions ``q_rad`` (4x4 each)."""
         if len(q_rad) != self.joints:
             raise ValueError(f"{len(q_rad)} joint positions; the {self.name} has {self.joints}")
-        rpy = self.joint_rpy_rad or (_ZERO,) * self.joints
         out = []
-        for origin, turn, axis, q in zip(self.joint_origins_m, rpy, self.joint_axes, q_rad,
-                                         strict=True):
+        for origin, turn, axis, q in zip(self.joint_origins_m, self._fixed_turns,
+                                         self.joint_axes, q_rad, strict=True):
             t = np.eye(4)
             t[:3, 3] = origin
-            t[:3, :3] = rpy_matrix(turn) @ _axis_rotation(axis, float(q))
+            t[:3, :3] = turn @ _axis_rotation(axis, float(q))
             out.append(t)
         return out
+
+    @cached_property
+    def _fixed_turns(self) -> tuple[F64, ...]:
+        """Each joint frame's fixed rotation matrix (:func:`rpy_matrix` of
+        ``joint_rpy_rad``, identity without), computed once per description."""
+        rpy = self.joint_rpy_rad or (_ZERO,) * self.joints
+        return tuple(rpy_matrix(turn) for turn in rpy)
 
     def flange_pose(self, q_rad: Sequence[float] | F64) -> F64:
         """The flange's pose in the arm's base frame at joint positions ``q_rad``."""

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from importlib import import_module
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
@@ -43,6 +44,8 @@ __all__ = [
     "OpenedTracker",
     "RobotBackend",
     "TrackerBackend",
+    "cdr_topics_of",
+    "needs_robot",
 ]
 
 
@@ -113,6 +116,30 @@ class OpenedTracker:
 
 def _any_robot(cfg: Any, robot: DeviceConfig) -> str | None:
     return None
+
+
+def needs_robot(table: str, *types: str, hint: str = ""
+                ) -> Callable[[Any, DeviceConfig], str | None]:
+    """A device's ``check``: it goes only with a robot of one of ``types``; otherwise one
+    line, ``<table>.type '<its type>' needs robot.type 'a' or 'b'``, then `` (<hint>)``."""
+    wanted = " or ".join(f"'{t}'" for t in types)
+    why = f" ({hint})" if hint else ""
+
+    def check(cfg: Any, robot: DeviceConfig) -> str | None:
+        if robot.type in types:
+            return None
+        return f"{table}.type '{cfg.type}' needs robot.type {wanted}{why}"
+
+    return check
+
+
+def cdr_topics_of(module: str) -> Callable[[], Sequence[CdrTopic]]:
+    """A back-end's ``topics``: ``CDR_TOPICS`` of ``module``, imported when called."""
+    def topics() -> Sequence[CdrTopic]:
+        found: Sequence[CdrTopic] = import_module(module).CDR_TOPICS
+        return found
+
+    return topics
 
 
 @dataclass(frozen=True)

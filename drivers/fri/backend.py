@@ -8,22 +8,17 @@ Light: the driver is imported when a rig opens it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
-
 from drivers.base.backend import (
     Backend,
-    DeviceConfig,
     FtBackend,
     OpenContext,
     OpenedRobot,
     OpenedSensor,
     RobotBackend,
+    cdr_topics_of,
+    needs_robot,
 )
 from drivers.fri.config import FriEstimateFt, FriRobotConfig
-
-if TYPE_CHECKING:
-    from drivers.base.topics import CdrTopic
 
 __all__ = ["BACKEND", "FriEstimateFt", "FriRobotConfig"]
 
@@ -53,21 +48,9 @@ def _open_estimate(cfg: FriEstimateFt, ctx: OpenContext, robot: OpenedRobot) -> 
     return OpenedSensor(FriEstimateSensor(source), note="F/T from estExtTcpFT")
 
 
-def _check_estimate(cfg: FriEstimateFt, robot: DeviceConfig) -> str | None:
-    if robot.type in ("fri1", "sim"):
-        return None
-    return "ft.type 'fri-estimate' needs robot.type 'fri1' or 'sim'"
-
-
-def _topics() -> Sequence[CdrTopic]:
-    from drivers.fri.topics import CDR_TOPICS
-
-    return CDR_TOPICS
-
-
 BACKEND = Backend(
     "fri",
     robots=(RobotBackend(FriRobotConfig, _open_robot, driver="fri", default_ft="netft"),),
-    sensors=(FtBackend(FriEstimateFt, _open_estimate, _check_estimate),),
-    topics=_topics,
+    sensors=(FtBackend(FriEstimateFt, _open_estimate, needs_robot("ft", "fri1", "sim")),),
+    topics=cdr_topics_of("drivers.fri.topics"),
 )

@@ -23,6 +23,7 @@ from drivers.base.backend import (
     OpenedSensor,
     OpenedTracker,
     TrackerBackend,
+    needs_robot,
 )
 from drivers.errors import ConfigError
 
@@ -82,22 +83,12 @@ def _open_tracker(cfg: SimTrackerConfig, ctx: OpenContext, robot: OpenedRobot) -
     return OpenedTracker(tracker)
 
 
-def _check_ft(cfg: SimFt, robot: DeviceConfig) -> str | None:
-    if robot.type == "sim":
-        return None
-    return ("ft.type 'sim' needs robot.type 'sim' (with an FRI robot the simulated sensor "
-            "is served by the emulator: use 'netft')")
-
-
-#: Robots that run the simulated world in-process (their opened robot has ``world``).
-_IN_PROCESS_WORLDS = ("sim", "ur-sim")
-
-
-def _check_tracker(cfg: SimTrackerConfig, robot: DeviceConfig) -> str | None:
-    if robot.type in _IN_PROCESS_WORLDS:
-        return None
-    return ("tracker.type 'sim' needs robot.type 'sim' or 'ur-sim' (over FRI the emulator "
-            "serves a camera stream: use 'camera')")
+#: The F/T model goes with the sim robot only (the ur-sim program drains its samples).
+_check_ft = needs_robot("ft", "sim", hint="with an FRI robot the simulated sensor is served "
+                        "by the emulator: use 'netft'")
+#: The tracker watches the world of a robot that runs it in-process (it has ``world``).
+_check_tracker = needs_robot("tracker", "sim", "ur-sim", hint="over FRI the emulator serves "
+                             "a camera stream: use 'camera'")
 
 
 BACKEND = Backend(

@@ -10,8 +10,7 @@ rig opens it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 from drivers.base.backend import (
     Backend,
@@ -21,11 +20,10 @@ from drivers.base.backend import (
     OpenedRobot,
     OpenedSensor,
     RobotBackend,
+    cdr_topics_of,
+    needs_robot,
 )
 from drivers.ur.config import UrSettings
-
-if TYPE_CHECKING:
-    from drivers.base.topics import CdrTopic
 
 __all__ = ["BACKEND", "UR_ROBOT_TYPES", "UrSettings", "UrWrenchFt"]
 
@@ -65,21 +63,9 @@ def _open_wrench(cfg: UrWrenchFt, ctx: OpenContext, robot: OpenedRobot) -> Opene
                         f"F/T from the UR's {cfg.source}")
 
 
-def _check_wrench(cfg: UrWrenchFt, robot: DeviceConfig) -> str | None:
-    if robot.type in UR_ROBOT_TYPES:
-        return None
-    return "ft.type 'ur-wrench' needs robot.type 'ur' or 'ur-sim'"
-
-
-def _topics() -> Sequence[CdrTopic]:
-    from drivers.ur.topics import CDR_TOPICS
-
-    return CDR_TOPICS
-
-
 BACKEND = Backend(
     "ur",
     robots=(RobotBackend(UrSettings, _open_robot, driver="ur", default_ft="ur-wrench"),),
-    sensors=(FtBackend(UrWrenchFt, _open_wrench, _check_wrench),),
-    topics=_topics,
+    sensors=(FtBackend(UrWrenchFt, _open_wrench, needs_robot("ft", *UR_ROBOT_TYPES)),),
+    topics=cdr_topics_of("drivers.ur.topics"),
 )

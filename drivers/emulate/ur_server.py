@@ -49,10 +49,6 @@ class UrEmulator:
         self.world = world
         self.controller = UrSimController(world)
         self.reset_per_session = reset_per_session
-        self.sessions = 0
-        """Sessions started so far (module docstring)."""
-        self.steps = 0
-        """World cycles run over all sessions."""
         v = CONTROLLER_VERSION
         self.server = RtdeServer(
             self._step, self._take, host=host, port=port, pacing=pacing,
@@ -61,8 +57,17 @@ class UrEmulator:
             on_session=self._new_session)
         self._stop = False
 
-    def _step(self) -> Mapping[str, object]:
-        self.steps += 1
+    @property
+    def sessions(self) -> int:
+        """Sessions started so far (module docstring)."""
+        return self.server.counters["sessions"]
+
+    @property
+    def steps(self) -> int:
+        """World cycles run over all sessions."""
+        return self.server.counters["steps"]
+
+    def _step(self) -> Mapping[str, object]:  # the current session's program
         return self.controller.step()
 
     def _take(self, values: Mapping[str, Any]) -> None:
@@ -71,7 +76,6 @@ class UrEmulator:
     def _new_session(self) -> None:
         """A client starts the stream alone (server's thread): the world and the program
         as at the emulator's start, if the last session stepped them."""
-        self.sessions += 1
         if self.reset_per_session and self.controller.steps:
             old = self.world
             self.world = SimWorld(old.scene, seed=old.seed)

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_ur_sim import _drive
 
-from drivers.base.types import CartesianCommand
 from drivers.description import load_scene
 from drivers.emulate.ur_server import UrEmulator
 from drivers.sim.world import SimWorld
@@ -29,24 +29,9 @@ def scene():  # type: ignore[no-untyped-def]
 
 
 def _session(port: int, push_n: float) -> list[tuple[np.ndarray, ...]]:
-    """One client's run: force mode along Z with ``push_n`` (time, pose, joints, wrench)."""
-    robot = UrRobot(UrSettings(robot_ip="127.0.0.1", rtde_port=port, script="installed",
-                               cycle_timeout_s=5.0))
-    robot.connect()
-    got: list[tuple[np.ndarray, ...]] = []
-    try:
-        for k, state in enumerate(robot.measurements()):
-            got.append((np.array(state.time_ns), state.tcp_pose_m.copy(),
-                        state.joint_pos_rad.copy(), np.array(state.ext_wrench_n_nm)))
-            if k == CYCLES:
-                break
-            robot.send(CartesianCommand(
-                pose_m=state.tcp_pose_m.copy(),
-                stiffness_npm_nmprad=np.array([5000, 0, 0, 0, 300, 300.0]),
-                wrench_n_nm=np.array([0, 0, push_n, 0, 0, 0])))
-    finally:
-        robot.close()
-    return got
+    """One client's run against the emulator: force mode along Z with ``push_n``."""
+    return _drive(UrRobot(UrSettings(robot_ip="127.0.0.1", rtde_port=port, script="installed",
+                                     cycle_timeout_s=5.0)), CYCLES, push_n)
 
 
 def _equal(a: list[tuple[np.ndarray, ...]], b: list[tuple[np.ndarray, ...]]) -> bool:

@@ -116,8 +116,9 @@ def test_the_program_holds_on_a_stale_sequence_and_restarts_after_an_end(scene) 
     assert out[registers.SCRIPT_STATE] == ScriptState.RUNNING and out[registers.APPLIED_SEQ] == 3
 
 
-def _drive(robot: UrRobot, cycles: int) -> list[tuple[np.ndarray, ...]]:
-    """Push along Z in force mode (the paper's stiffness: Y, Z, rot-X compliant)."""
+def _drive(robot: UrRobot, cycles: int, push_n: float = 2.0) -> list[tuple[np.ndarray, ...]]:
+    """Push along Z with ``push_n`` in force mode (the paper's stiffness: Y, Z, rot-X
+    compliant); each cycle's time, pose, joints and wrench."""
     robot.connect()
     got = []
     try:
@@ -128,7 +129,7 @@ def _drive(robot: UrRobot, cycles: int) -> list[tuple[np.ndarray, ...]]:
                 break
             cmd = CartesianCommand(pose_m=state.tcp_pose_m.copy(),
                                    stiffness_npm_nmprad=np.array([5000, 0, 0, 0, 300, 300.0]),
-                                   wrench_n_nm=np.array([0, 0.1 * np.sin(k / 9), 2.0, 0, 0, 0]))
+                                   wrench_n_nm=np.array([0, 0.1 * np.sin(k / 9), push_n, 0, 0, 0]))
             robot.send(cmd)
     finally:
         robot.close()

@@ -27,21 +27,18 @@ from typing import Any
 import numpy as np
 
 from drivers.base.types import F64, NS_PER_S
-from drivers.description import LWR4, ArmDescription, Layout, Scene, tool_tip_offset
+from drivers.description import ArmDescription, Layout, Scene, tool_tip_offset
 from ffexp.recording.recorder import pose_to_transform
 from ffexp.recording.topics.scene import PRIMITIVES
 from ffexp.scene3d.kinematics import flange_in_last_link, link_frames
 
-__all__ = ["BED_SIZE_M", "LINK_FRAMES", "LINK_RADIUS_M", "scene_update"]
+__all__ = ["BED_SIZE_M", "LINK_RADIUS_M", "scene_update"]
 
 #: Side of the drawn air bed [m] (the scene has no bed size; the simulator's plane is unbounded).
 BED_SIZE_M = 1.0
 _BED_THICKNESS_M = 0.02
 #: Radius of the links' cylinders [m] (the simulator's link capsules).
 LINK_RADIUS_M = 0.06
-#: ``/tf`` frames of the LWR4+'s links, ``link1`` .. ``link7`` (another arm's:
-#: :func:`~ffexp.scene3d.kinematics.link_frames`).
-LINK_FRAMES = link_frames(LWR4)
 #: Height of the base's cylinder [m] (the simulator's drawn base).
 _BASE_HEIGHT_M = 0.11
 #: The last link's cylinder of an arm without fixed turns [m] (the simulator's flange capsule).

@@ -76,9 +76,9 @@ def truth_at_end(path: Path) -> str:
     from ffexp.task import Alignment
 
     a = Alignment()
-    tr = load(path).topic("/sim/truth")
-    ok = (abs(float(tr["lateral_error"][-1])) <= a.lateral_tol_m
-          and abs(math.degrees(float(tr["yaw_error"][-1]))) <= a.yaw_tol_deg
+    tr = load(path).topic("/task/funnel")
+    ok = (abs(float(tr["lateral"][-1])) <= a.lateral_tol_m
+          and abs(math.degrees(float(tr["yaw"][-1]))) <= a.yaw_tol_deg
           and float(tr["insertion"][-1]) >= a.min_insertion_m)
     return "aligned" if ok else "not aligned"
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from drivers.base.types import NS_PER_S as NS
-from ffexp import controllers
+from ffexp import controllers, impulse
 from ffexp.contracts import Phase, StopReason
 from ffexp.errors import InputError
 from ffexp.linkcheck import check_link
@@ -56,6 +56,15 @@ class RunMetrics:
     target_displacement_m: float | None
     final_lateral_error_m: float | None
     final_yaw_error_deg: float | None
+    target_momentum_ns: float | None
+    """The target's momentum change over the run, from the simulator's truth [N s]."""
+    contact_impulse_ns: float | None
+    """The impulse the F/T sensor measured on the tool, in the world frame [N s] (the
+    estimator's compensated wrench)."""
+    base_max_displacement_m: float | None
+    """A floating base's largest distance from where it started (``None``: fixed)."""
+    base_max_rotation_deg: float | None
+    """A floating base's largest rotation from its start attitude."""
     mean_abs_wrench_align: list[float] | None
     peak_abs_wrench_align: list[float] | None
     duration_s: float
@@ -179,20 +188,33 @@ def metrics(rec: Recording) -> RunMetrics:
         settled = in_align & (_time_in_phase(s) >= SETTLE_S)
         if settled.any() and force_control:
             rmse = float(np.sqrt(np.mean((f_z[settled] - s.f_ref[settled, 2]) ** 2)))
-    speed_mean = speed_max = disp = lat = yaw = None
-    truth = rec.topics.get("/sim/truth")
-    if truth is not None and len(truth):
-        tt = (truth.log_time_ns - t0_ns) / NS
-        speed = np.hypot(truth["target_twist"][:, 0], truth["target_twist"][:, 1])
+    speed_mean = speed_max = disp = lat = yaw = momentum = None
+    body = rec.topics.get("/sim/body/target")
+    if body is not None and len(body):
+        tt = (body.log_time_ns - t0_ns) / NS
+        speed = np.linalg.norm(body["twist"][:, :3], axis=1)
         after = tt >= first_contact if first_contact is not None else np.zeros_like(tt, bool)
         if after.any():
             speed_mean = float(np.mean(speed[after]))
             speed_max = float(np.max(speed[after]))
-            p0 = truth["target_pose"][after][0].reshape(4, 4)[:3, 3]
-            p1 = truth["target_pose"][-1].reshape(4, 4)[:3, 3]
+            p0 = body["pose"][after][0].reshape(4, 4)[:3, 3]
+            p1 = body["pose"][-1].reshape(4, 4)[:3, 3]
             disp = float(np.linalg.norm(p1 - p0))
-        lat = float(truth["lateral_error"][-1])
-        yaw = math.degrees(float(truth["yaw_error"][-1]))
+        momentum = impulse.momentum_change_ns(float(body["mass_kg"][-1]), body["twist"])
+    placed = rec.topics.get("/task/funnel")
+    if placed is not None and len(placed):
+        lat = float(placed["lateral"][-1])
+        yaw = math.degrees(float(placed["yaw"][-1]))
+    st = rec.topics.get("/robot/state")
+    est = rec.topic("/estimator/state")
+    contact_impulse = None
+    if st is not None and len(st) == len(est):
+        contact_impulse = impulse.contact_impulse_ns(
+            (est.log_time_ns - t0_ns) / NS, est["wrench"], st["tcp_pose"].reshape(-1, 4, 4))
+    base_move = base_turn = None
+    base = rec.topics.get("/sim/body/chaser")
+    if base is not None and len(base):
+        base_move, base_turn = impulse.base_excursion(base["pose"].reshape(-1, 4, 4))
     link = _link_summary(rec)
     after_tare = s.phase != Phase.CONNECT
     peak_run = peak_w_run = None
@@ -222,6 +244,10 @@ def metrics(rec: Recording) -> RunMetrics:
         target_displacement_m=disp,
         final_lateral_error_m=lat,
         final_yaw_error_deg=yaw,
+        target_momentum_ns=momentum,
+        contact_impulse_ns=contact_impulse,
+        base_max_displacement_m=base_move,
+        base_max_rotation_deg=base_turn,
         mean_abs_wrench_align=mean_w,
         peak_abs_wrench_align=peak_w,
         duration_s=float(s.t_s[-1]),

@@ -50,6 +50,7 @@ from drivers.base.types import (
     NS_PER_S,
     AppliedCommand,
     ApplyStatus,
+    BodyTruth,
     CartesianCommand,
     FtSamples,
     GroundTruth,
@@ -65,6 +66,7 @@ from ffexp.errors import ConfigError, InputError
 from ffexp.loop import Cycle
 from ffexp.protocol import RunProtocol, load_run_protocol
 from ffexp.recording import Recorder, Recording, TopicData, load
+from ffexp.recording.topics import CDR_TOPICS
 
 #: The tolerance of "the same command": float rounding, not a physical threshold.
 RTOL = 1e-9
@@ -72,8 +74,11 @@ ATOL = 1e-9
 #: The intent fields of ``/control/command`` compared cycle by cycle.
 COMMAND_FIELDS = ("given", "pose", "stiffness", "damping", "wrench")
 #: What the replay needs of a recording (and reads, nothing else).
-INPUT_TOPICS = ("/robot/state", "/ft/raw", "/estimator/state", "/sim/truth", "/target/pose",
-                "/control/command")
+TRUTH_PREFIX = GroundTruth().topic_prefix
+INPUT_TOPICS = ("/robot/state", "/ft/raw", "/estimator/state", f"{TRUTH_PREFIX}/truth",
+                *(t for t in CDR_TOPICS if t.startswith((f"{TRUTH_PREFIX}/body/",
+                                                         f"{TRUTH_PREFIX}/site/"))),
+                "/target/pose", "/control/command")
 
 OPEN_LOOP = (
     "open-loop replay: the recorded measurements answer the recorded commands, so the replay "
@@ -184,7 +189,13 @@ class Inputs:
         self.t0_ns = int(st["time_ns"][0])
         self.start_ns = int(self.log_ns[0])
         self._split_ft(rec)
-        self.truth = self._at_cycles(rec.topics.get("/sim/truth"))
+        pre = TRUTH_PREFIX
+        self.truth = self._at_cycles(rec.topics.get(f"{pre}/truth"))
+        #: per free body / named frame of the truth: (its data, its index per cycle)
+        self.truth_parts = {
+            (kind, topic.rsplit("/", 1)[1]): (data, self._at_cycles(data, keep=False))
+            for topic, data in rec.topics.items()
+            for kind in ("body", "site") if topic.startswith(f"{pre}/{kind}/")}
         tp = rec.topics.get("/target/pose")
         self.target_log_ns = tp.log_time_ns if tp is not None else np.zeros(0, np.int64)
         self.target = tp
@@ -216,8 +227,9 @@ class Inputs:
             upto = np.searchsorted(ft.log_time_ns, self.log_ns, side="right")
             self.ft_bounds = np.concatenate([[0], upto])
 
-    def _at_cycles(self, data: TopicData | None) -> np.ndarray:
-        """Per cycle, the index of ``data``'s message at the cycle's log time (-1: none)."""
+    def _at_cycles(self, data: TopicData | None, keep: bool = True) -> np.ndarray:
+        """Per cycle, the index of ``data``'s message at the cycle's log time (-1: none);
+        ``keep``: remember ``data`` as the truth's own topic."""
         out = np.full(len(self), -1, dtype=np.int64)
         if data is None or len(data) == 0:
             return out
@@ -225,7 +237,8 @@ class Inputs:
         jc = np.minimum(j, len(data) - 1)
         hit = data.log_time_ns[jc] == self.log_ns
         out[hit] = jc[hit]
-        self.truth_data = data
+        if keep:
+            self.truth_data = data
         return out
 
     def ft(self, i: int) -> FtSamples:
@@ -246,12 +259,19 @@ class Inputs:
         k = int(self.truth[i])
         if k >= 0:
             t = self.truth_data
-            truth = GroundTruth(
-                t["target_pose"][k].reshape(4, 4).copy(), t["target_twist"][k].copy(),
-                t["contact_wrench"][k].copy(), float(t["lateral_error"][k]),
-                float(t["vertical_error"][k]), float(t["yaw_error"][k]),
-                float(t["insertion"][k]), bool(t["seated"][k]), bool(t["in_contact"][k]),
-                t["tcp_twist"][k].copy())
+            truth = GroundTruth(contact_wrench=t["contact_wrench"][k].copy(),
+                                in_contact=bool(t["in_contact"][k]),
+                                tcp_twist=t["tcp_twist"][k].copy())
+            for (kind, name), (data, at) in self.truth_parts.items():
+                j = int(at[i])
+                if j < 0:
+                    continue
+                pose = data["pose"][j].reshape(4, 4).copy()
+                if kind == "body":
+                    truth.bodies[name] = BodyTruth(pose, data["twist"][j].copy(),
+                                                   float(data["mass_kg"][j]))
+                else:
+                    truth.sites[name] = pose
         return RobotState(int(st["time_ns"][i]), st["tcp_pose"][i].reshape(4, 4).copy(),
                           st["joint_pos"][i][:n_joints].copy(), link, twist, ext, truth)
 

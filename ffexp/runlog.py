@@ -8,7 +8,8 @@ topics they name (FRI: ``/robot/measurement``, ``/robot/link``), the estimate
 (``/estimator/state``), the control terms (``/control/terms``, plus the
 method's own topic if it declares one), the runner's intent beside what the
 driver really applied (``/control/command``; the back-end's own form, e.g.
-``/robot/command``), ground truth when the robot has it (``/sim/truth``), every new tracker
+``/robot/command``), ground truth when the robot has it (the topics it names: ``/sim/truth``,
+``/sim/body/<name>``, ...), the scenario's own measures (``/task/funnel``), every new tracker
 observation (``/target/pose``, and ``/tf`` frame ``target_tracked``) and,
 every ``tf_period_s``, ``/tf``. Verdict notes of the task go to
 ``/alignment/verdict``.
@@ -31,6 +32,7 @@ from drivers.base.types import (
     AppliedCommand,
     CartesianCommand,
     FtSamples,
+    GroundTruth,
     RobotState,
     TargetObservation,
 )
@@ -41,6 +43,7 @@ from ffexp.recording import Recorder
 from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import STATE_JOINTS
 from ffexp.recording.topics.target import TRACKED_FRAME
+from ffexp.scenarios.base import Scenario
 from ffexp.task import Event, Note, PhaseChange, Verdict
 
 _TERMS = ("p", "i", "ri", "ff", "impedance")
@@ -188,6 +191,7 @@ class RunLog:
         intent: CartesianCommand | None,
         applied: AppliedCommand,
         target: TargetObservation | None = None,
+        scenario: Scenario | None = None,
     ) -> None:
         """Everything of one cycle but its F/T samples (:meth:`samples`).
         ``approach_wrench`` is the approach law's output when it acted this
@@ -235,20 +239,37 @@ class RunLog:
                 msgs.append((topic, rec.encode_fields(topic, applied.extras)))
         truth = state.truth
         if truth is not None:
-            msgs.append(("/sim/truth", rec.encode_fields("/sim/truth", truth)))
+            for topic, source in truth.messages():
+                msgs.append((topic, rec.encode_fields(topic, source)))
+        if scenario is not None:
+            for topic, source in scenario.messages():
+                msgs.append((topic, rec.encode_fields(topic, source)))
         if t_ns >= self._next_tf_ns:
             self._next_tf_ns = t_ns + self.tf_period_ns
             msgs.append(("/tf", rec.encode_transform(log_ns, "base", "tool",
                                                      state.tcp_pose_m.tolist())))
             if truth is not None:
-                msgs.append(("/tf", rec.encode_transform(log_ns, "base", "target",
-                                                         truth.target_pose.tolist())))
+                self._truth_tf(log_ns, truth, msgs)
         if target is not None and (target.frames != self._target_frames
                                    or target.valid != self._target_valid):
             self._target(log_ns, state, target, msgs)
         for sink in self.sinks:
             sink.cycle(log_ns, state, target, msgs)
         rec.write_batch(log_ns, msgs)  # the cycle's one write
+
+    def _truth_tf(self, log_ns: int, truth: GroundTruth,
+                  msgs: list[tuple[str, bytes]]) -> None:
+        """``/tf`` of the truth's bodies in the robot's base frame (and, on a floating
+        base, the world in it)."""
+        assert self.rec is not None
+        inv = None if truth.base_pose is None else np.linalg.inv(truth.base_pose)
+        if inv is not None:
+            msgs.append(("/tf", self.rec.encode_transform(log_ns, "base", "world",
+                                                          inv.tolist())))
+        for name, body in truth.bodies.items():
+            pose = body.pose if inv is None else inv @ body.pose
+            msgs.append(("/tf", self.rec.encode_transform(log_ns, "base", name,
+                                                          pose.tolist())))
 
     def _target(self, log_ns: int, state: RobotState, target: TargetObservation,
                 msgs: list[tuple[str, bytes]]) -> None:

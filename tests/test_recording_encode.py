@@ -56,9 +56,9 @@ def test_encoder_declines_what_numpy_would_convert_and_the_recorder_falls_back(
     values = _values(spec, np.random.default_rng(3))
     enc = FieldsEncoder(spec)
     odd: list[dict[str, object]] = [
-        {"seated": 1.0},  # a float into a uint8 field
-        {"seated": np.bool_(True)},  # a numpy bool
-        {"target_pose": np.reshape(values["target_pose"], (4, 4))},  # type: ignore[call-overload]
+        {"in_contact": 1.0},  # a float into a uint8 field
+        {"in_contact": np.bool_(True)},  # a numpy bool
+        {"contact_wrench": np.reshape(values["contact_wrench"], (2, 3))},  # type: ignore[call-overload]
         {"tcp_twist": np.arange(6, dtype=np.float32)},  # another type: numpy converts
         {"tcp_twist": [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]},  # a list
     ]
@@ -67,7 +67,7 @@ def test_encoder_declines_what_numpy_would_convert_and_the_recorder_falls_back(
     with Recorder(path) as rec:
         for k, change in enumerate(odd):
             source = SimpleNamespace(**{**values, **change})
-            if "target_pose" not in change:
+            if "contact_wrench" not in change:
                 assert enc.encode(source) is None
             wants.append(_record(spec, {**values, **change}))
             rec.write_fields("/sim/truth", 10**9 + k, source)

@@ -47,8 +47,8 @@ def test_plain_mcap_reader_decodes_every_message(recording: Path) -> None:
         assert summary is not None and summary.statistics is not None
         topics = {c.topic: c for c in summary.channels.values()}
         for topic in ("/robot/measurement", "/ft/raw", "/estimator/state", "/control/terms",
-                      "/robot/command", "/robot/link", "/sim/truth", "/events", "/tf",
-                      "/runner/phase"):
+                      "/robot/command", "/robot/link", "/sim/truth", "/sim/body/target",
+                      "/events", "/tf", "/runner/phase"):
             assert topic in topics
         for schema, channel, message in reader.iter_messages():
             assert schema is not None

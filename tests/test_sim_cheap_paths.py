@@ -122,10 +122,12 @@ def _values(s: ArmState) -> list[bytes]:
     out = [repr((s.cycle, s.time_ns, int(s.mode), int(s.warning))).encode()]
     out += [np.asarray(getattr(s, name)).tobytes() for name in FIELDS]
     t = s.truth
-    out += [t.target_pose.tobytes(), t.target_twist.tobytes(), t.contact_wrench.tobytes(),
-            t.tcp_twist.tobytes(),
-            repr((t.lateral_error, t.vertical_error, t.yaw_error, t.insertion, t.seated,
-                  t.in_contact)).encode()]
+    for name, body in sorted(t.bodies.items()):
+        out += [name.encode(), body.pose.tobytes(), body.twist.tobytes(),
+                repr(body.mass_kg).encode()]
+    for name, frame in sorted(t.sites.items()):
+        out += [name.encode(), frame.tobytes()]
+    out += [t.contact_wrench.tobytes(), t.tcp_twist.tobytes(), repr(t.in_contact).encode()]
     return out
 
 

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from funnel_truth import funnel_truth
 from loop_script import pose_at
 
 from drivers.base.types import GroundTruth, RobotState
@@ -32,8 +33,7 @@ def in_align(alignment: Alignment, end_on_aligned: bool = True) -> Task:
 def truth(
     lateral_m: float, yaw_deg: float, insertion_m: float, seated: bool = False
 ) -> GroundTruth:
-    return GroundTruth(lateral_error=lateral_m, yaw_error=math.radians(yaw_deg),
-                       insertion=insertion_m, seated=seated)
+    return funnel_truth(insertion_m, lateral_m, 0.0, math.radians(yaw_deg))
 
 
 def hold(task: Task, t: GroundTruth | None, seconds: float, z: float = 0.0) -> None:

@@ -108,11 +108,11 @@ def test_a_stale_or_lost_tracker_pose_hands_the_verdict_to_the_observer_and_back
 
 
 def test_truth_beats_the_tracker_and_the_verdict_records_both() -> None:
-    from drivers.base.types import GroundTruth
+    from funnel_truth import funnel_truth
 
     clock = Clock()
     task = start(Alignment(hold_s=0.1), clock, None)
-    off = GroundTruth(lateral_error=0.01, insertion=0.03)
+    off = funnel_truth(insertion_m=0.03, lateral_m=0.01)
     for _ in range(40):
         clock.t += STEP
         task.step(clock.t, RobotState(time_ns=clock.t, tcp_pose_m=pose_at(0.0), truth=off),

@@ -67,31 +67,64 @@ class Extras:
 
 
 @dataclass
+class BodyTruth:
+    """One free-moving body of a simulated scene (the target, a floating base, ...)."""
+
+    pose: F64 = field(default_factory=_eye4)
+    """4x4 pose of the body frame in the world frame [m]."""
+    twist: F64 = field(default_factory=lambda: _zeros(6))
+    """``[vx, vy, vz, wx, wy, wz]``: the body frame origin's velocity and the angular
+    velocity, both in world coordinates [m/s, rad/s]."""
+    mass_kg: float = 0.0
+    """The body's own mass (not what it carries)."""
+
+
+@dataclass
 class GroundTruth:
     """What only a simulator knows, attached to a robot state (``None`` on hardware).
 
-    World frame: z up, the bed plane is horizontal.
+    Neutral: every free-moving body of the scene by name (``"target"``, ``"base"``,
+    ...), named frames on them (``"funnel_mouth"``), the true contact wrench on the
+    tool and the true TCP twist. What a task makes of them (a funnel's lateral
+    error, an insertion depth) is the scenario's (:mod:`ffexp.scenarios`). World
+    frame: z up. The back-end that makes it names its recording topics
+    (:meth:`messages`).
     """
 
-    target_pose: F64 = field(default_factory=_eye4)
-    """4x4 pose of the target block's centre in the world frame [m]."""
-    target_twist: F64 = field(default_factory=lambda: _zeros(3))
-    """``[vx, vy, wz]`` of the target in the world frame [m/s, rad/s]."""
+    bodies: dict[str, BodyTruth] = field(default_factory=dict)
+    sites: dict[str, F64] = field(default_factory=dict)
+    """Named frames, 4x4 in the world frame [m]."""
     contact_wrench: F64 = field(default_factory=lambda: _zeros(6))
-    """True wrench the target funnel exerts on the tool, TCF at the TCP [N, N m]."""
-    lateral_error: float = 0.0
-    """Tool tip offset from the target funnel axis, horizontal [m] (signed, funnel y)."""
-    vertical_error: float = 0.0
-    """Tool tip offset from the funnel axis along the vertical [m]."""
-    yaw_error: float = 0.0
-    """Tool axis yaw minus funnel axis yaw [rad], wrapped to (-pi, pi]."""
-    insertion: float = 0.0
-    """Tool tip depth past the funnel mouth along the funnel axis [m]."""
-    seated: bool = False
-    """The simulator's own seating test (reported, not used as the verdict)."""
+    """True wrench the environment exerts on the tool, TCF at the TCP [N, N m]."""
     in_contact: bool = False
     tcp_twist: F64 = field(default_factory=lambda: _zeros(6))
     """True TCP twist ``[v, w]`` in the TCF [m/s, rad/s]."""
+    base_pose: F64 | None = None
+    """The robot's base frame in the world, 4x4, when it moves (a floating base);
+    ``None``: the base frame is the world frame."""
+    topic_prefix: str = "/sim"
+    """The recording topics: ``<prefix>/truth``, ``<prefix>/body/<name>``,
+    ``<prefix>/site/<name>`` (declared by the back-end that makes the truth)."""
+
+    def body(self, name: str) -> BodyTruth | None:
+        """The body ``name`` (``None``: the scene has none)."""
+        return self.bodies.get(name)
+
+    def messages(self) -> list[tuple[str, object]]:
+        """``(topic, source)`` of every recording message of this truth: each source's
+        attributes are its topic's fields by name."""
+        pre = self.topic_prefix
+        out: list[tuple[str, object]] = [(f"{pre}/truth", self)]
+        out += [(f"{pre}/body/{name}", body) for name, body in self.bodies.items()]
+        out += [(f"{pre}/site/{name}", _Frame(pose)) for name, pose in self.sites.items()]
+        return out
+
+
+@dataclass
+class _Frame:
+    """A named frame as a recording message's source (its field ``pose``)."""
+
+    pose: F64
 
 
 @dataclass

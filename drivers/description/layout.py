@@ -26,6 +26,10 @@ class Layout:
     glass_z: float
     target_pos: NDArray[np.float64]
     target_yaw: float
+    """The target's turn about the vertical [rad] (the air bed's hinge angle)."""
+    target_rot: NDArray[np.float64]
+    """The target's orientation, 3x3 in the world frame (yaw, then the free target's
+    pitch about its own y and roll about its own x)."""
     funnel_in_target: NDArray[np.float64]
     """Mouth centre of the target funnel in the target body frame."""
     funnel_seat_depth: float
@@ -36,6 +40,16 @@ def funnel_axis_height(scene: Scene) -> float:
     """Height of the target funnel's axis above the glass [m]."""
     f = scene.target.funnel
     return scene.target.size[2] + f.opening + f.capsule_radius + 0.005
+
+
+def _turn(axis: int, angle: float) -> NDArray[np.float64]:
+    """The rotation by ``angle`` [rad] about coordinate axis ``axis`` (0 x, 1 y, 2 z)."""
+    c, s = math.cos(angle), math.sin(angle)
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    out = np.eye(3)
+    out[i, i] = out[j, j] = c
+    out[j, i], out[i, j] = s, -s
+    return out
 
 
 def compute_layout(
@@ -52,7 +66,7 @@ def compute_layout(
     h = funnel_axis_height(scene)
     glass_z = float(tcp_pos[2]) - h
     mouth = tcp_pos + tg.distance * z_axis + tg.lateral * y_axis
-    mouth[2] = tcp_pos[2]
+    mouth[2] = tcp_pos[2] + tg.vertical
     yaw0 = math.atan2(z_axis[1], z_axis[0])
     yaw = yaw0 + math.radians(tg.yaw_deg)
     funnel_in_target = np.array(
@@ -60,11 +74,16 @@ def compute_layout(
     )
     c, s = math.cos(yaw), math.sin(yaw)
     rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    center = mouth - rz @ funnel_in_target
+    if tg.pitch_deg or tg.roll_deg:
+        rot = rz @ _turn(1, math.radians(tg.pitch_deg)) @ _turn(0, math.radians(tg.roll_deg))
+    else:
+        rot = rz
+    center = mouth - rot @ funnel_in_target
     return Layout(
         glass_z=glass_z,
         target_pos=center,
         target_yaw=yaw,
+        target_rot=rot,
         funnel_in_target=funnel_in_target,
         funnel_seat_depth=seat_depth(scene),
     )

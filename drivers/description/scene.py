@@ -20,6 +20,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Annotated, Literal
 
+import numpy as np
+from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
 from drivers.config import StrictModel, load_model
@@ -42,13 +44,20 @@ class PhysicsSettings(StrictModel):
     """MuJoCo solver settings. ``timestep`` must divide the FRI cycle."""
 
     timestep: Annotated[float, Field(gt=0.0, le=0.001)] = 0.001
-    integrator: Literal["implicitfast", "implicit", "Euler"] = "implicitfast"
+    integrator: Literal["implicitfast", "implicit", "Euler", "RK4"] = "implicitfast"
+    """MuJoCo's integrator. A body in free flight (``target.support = "free"``) keeps
+    its energy and angular momentum only with ``RK4``: over 60 s of a tumbling 12 kg
+    block at 1 ms, Euler gains 1.5e-3 of its energy and implicitfast loses as much,
+    RK4 drifts below 1e-9 (measured: tests/test_zero_g.py; the zero-g scene uses it)."""
     impratio: Annotated[float, Field(ge=1.0)] = 10.0
     iterations: Annotated[int, Field(ge=1)] = 50
     tolerance: PosFloat = 1e-8
-    gravity: PosFloat = 9.81
+    gravity: NonNeg = 9.81
+    """[m/s^2] along world -z; 0 for an orbit's micro-gravity (a target on
+    ``support = "free"``: an air bed needs gravity to carry the target on its pads)."""
     settle_time: NonNeg = 0.05
-    """Physics time run before t = 0 so the target settles on its pads."""
+    """Physics time run before t = 0 so the target settles on its pads (none in free
+    flight: a free target starts at t = 0 where the scene puts it)."""
 
 
 class FriTiming(StrictModel):
@@ -275,12 +284,24 @@ class HoseSettings(StrictModel):
 
 
 class TargetSettings(StrictModel):
-    """The 12 kg aluminium block on the air bed, placed relative to the start TCF."""
+    """The target, placed relative to the start TCF: by default the paper's 12 kg
+    aluminium block on the air bed.
 
+    ``support`` says what carries it: ``"air_bed"`` (the paper's: planar motion on the
+    glass, bed friction ``mu`` and the ``hose``; it moves along x, y and turns about
+    the vertical) or ``"free"`` (nothing: a free body in six degrees of freedom, as in
+    orbit; it is weightless whatever ``physics.gravity``, which then loads only the
+    arm and its tool, as in a ground facility, and ``mu``/``hose`` do not apply).
+    """
+
+    support: Literal["air_bed", "free"] = "air_bed"
     mass: PosFloat = 12.0
     size: Vec3 = (0.25, 0.25, 0.05)
+    inertia: Vec6 | None = None
+    """Inertia tensor about the centre of mass in the block's frame,
+    ``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2]; none: a uniform block of ``size``."""
     mu: Annotated[float, Field(ge=0.0, le=0.02)] = 0.0085
-    """Residual bed friction coefficient. The paper bounds it (< 0.01, camera
+    """Residual bed friction coefficient (air bed). The paper bounds it (< 0.01, camera
     resolution) and its outcomes bound it from below: with the target free,
     below about 0.007 Method II at 0.8 N aligns by pushing the target along
     (measured; the band and the nominal value: docs/fidelity.md)."""
@@ -288,12 +309,57 @@ class TargetSettings(StrictModel):
     """Gap along TCF Z from the tool tip to the funnel mouth plane at start [m]."""
     lateral: float = 0.012
     """Offset of the funnel axis along TCF Y at start [m]."""
+    vertical: float = 0.0
+    """Offset of the funnel axis along the world vertical at start [m] (free only)."""
     yaw_deg: float = 8.0
     """Rotation of the target about the vertical (TCF X) at start [deg]."""
+    pitch_deg: float = 0.0
+    """Tilt of the funnel axis about the block's lateral axis at start [deg] (free only):
+    the block turned by yaw about the vertical, then pitch about its own y, then roll."""
+    roll_deg: float = 0.0
+    """Rotation of the block about its funnel axis at start [deg] (free only)."""
     velocity: Vec3 = (0.0, 0.0, 0.0)
-    """Initial twist in the bed plane: [vx, vy] world [m/s], yaw rate [rad/s]."""
+    """Initial twist in the bed plane: [vx, vy] world [m/s], yaw rate [rad/s] (air bed)."""
+    drift_mps: Vec3 = (0.0, 0.0, 0.0)
+    """Initial velocity of the centre of mass in the world frame [m/s] (free only)."""
+    tumble_radps: Vec3 = (0.0, 0.0, 0.0)
+    """Initial angular velocity in the world frame [rad/s] (free only)."""
     funnel: FunnelGeometry = FunnelGeometry()
     hose: HoseSettings = HoseSettings()
+
+    @model_validator(mode="after")
+    def _check_support(self) -> TargetSettings:
+        if self.support == "air_bed":
+            for name in ("vertical", "pitch_deg", "roll_deg"):
+                if getattr(self, name) != 0.0:
+                    raise ValueError(f"target.{name} needs target.support = 'free': the air "
+                                     "bed keeps the target level at the funnels' height")
+            for name in ("drift_mps", "tumble_radps"):
+                if any(getattr(self, name)):
+                    raise ValueError(f"target.{name} needs target.support = 'free' (on the "
+                                     "air bed: target.velocity = [vx, vy, wz])")
+        elif any(self.velocity):
+            raise ValueError("target.velocity is the air bed's planar twist; a free target "
+                             "starts with target.drift_mps and target.tumble_radps")
+        if self.inertia is not None:
+            full = self.inertia_matrix()
+            eig = np.linalg.eigvalsh(full)
+            a, b, c = sorted(eig.tolist())
+            if a <= 0.0 or a + b < c * (1.0 - 1e-9):
+                raise ValueError(f"target.inertia: principal moments {a:.4g}, {b:.4g}, "
+                                 f"{c:.4g} kg m^2 are not a rigid body's (each positive, "
+                                 "no one above the sum of the other two)")
+        return self
+
+    def inertia_matrix(self) -> NDArray[np.float64]:
+        """The 3x3 inertia tensor about the centre of mass, block frame [kg m^2]."""
+        if self.inertia is None:
+            m = self.mass
+            sx, sy, sz = self.size
+            return np.diag([m * (sy**2 + sz**2) / 12.0, m * (sx**2 + sz**2) / 12.0,
+                            m * (sx**2 + sy**2) / 12.0])
+        ixx, iyy, izz, ixy, ixz, iyz = self.inertia
+        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
 
     def impulse_test_deceleration(self, gravity: float = 9.81,
                                   glide_m: float = IMPULSE_TEST_GLIDE_M,
@@ -303,6 +369,66 @@ class TargetSettings(StrictModel):
         and its drag. The paper's test puts it below ``IMPULSE_TEST_MU_BOUND * gravity``."""
         h = self.hose
         return self.mu * gravity + (h.stiffness * glide_m + h.damping * speed_mps) / self.mass
+
+
+class BaseSettings(StrictModel):
+    """What the arm stands on: the ground (``"fixed"``) or a spacecraft that floats.
+
+    A floating base is a free body (the chaser) with the arm on its top face at
+    ``arm.base_pos``; the arm's controller and ffexp's loop work in the arm's base
+    frame, which moves with it, as on a real servicer. Its modes:
+
+    * ``free_floating``: no actuation; the momentum of base, arm and target together
+      is conserved (Umetani and Yoshida's free-floating regime);
+    * ``attitude_held``: a PD on the base's attitude, each body axis' torque limited as
+      reaction wheels limit it (the position floats);
+    * ``pose_held``: PDs on attitude and position, forces limited as thrusters limit
+      them (a free-flying base).
+
+    The wrenches are computed once per control cycle and held (a spacecraft's attitude
+    loop runs at about the arm's rate or slower). Needs ``physics.gravity = 0``.
+    The defaults are assumptions of the small-satellite class, not one servicer's
+    data: 150 kg, a 0.6 m cube (for scale: ETS-VII, the first free-floating space
+    robot, was a 2500 kg satellite with a 2 m arm; National Academies, "Assessment
+    of Options for Extending the Life of the Hubble Space Telescope", 2005, p. 129).
+    """
+
+    mode: Literal["fixed", "free_floating", "attitude_held", "pose_held"] = "fixed"
+    mass: PosFloat = 150.0
+    """[kg]"""
+    size: Vec3 = (0.6, 0.6, 0.6)
+    """Edges of the base's box [m] (its inertia, unless ``inertia`` is given, and its drawing)."""
+    inertia: Vec6 | None = None
+    """``[ixx, iyy, izz, ixy, ixz, iyz]`` about its centre of mass [kg m^2]; none: a
+    uniform box of ``size``."""
+    attitude_kp: NonNeg = 2.25
+    """[N m/rad]: 0.5 rad/s of bandwidth on the default 9 kg m^2 (an assumption)."""
+    attitude_kd: NonNeg = 6.3
+    """[N m s/rad]: damping ratio 0.7 at that bandwidth."""
+    torque_limit: PosFloat = 0.1
+    """Largest torque per body axis [N m] (reaction wheels of the small-satellite class;
+    an assumption)."""
+    position_kp: NonNeg = 6.0
+    """[N/m] (pose_held): 0.2 rad/s on 150 kg."""
+    position_kd: NonNeg = 42.0
+    """[N s/m] (pose_held): damping ratio 0.7."""
+    force_limit: PosFloat = 1.0
+    """Largest force per body axis [N] (pose_held: 1 N class cold-gas thrusters; an
+    assumption)."""
+
+    def inertia_matrix(self) -> NDArray[np.float64]:
+        """The 3x3 inertia tensor about the centre of mass [kg m^2]."""
+        if self.inertia is None:
+            m = self.mass
+            sx, sy, sz = self.size
+            return np.diag([m * (sy**2 + sz**2) / 12.0, m * (sx**2 + sz**2) / 12.0,
+                            m * (sx**2 + sy**2) / 12.0])
+        ixx, iyy, izz, ixy, ixz, iyz = self.inertia
+        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+    @property
+    def floating(self) -> bool:
+        return self.mode != "fixed"
 
 
 class Scene(StrictModel):
@@ -318,6 +444,7 @@ class Scene(StrictModel):
     ft_sensor: FtSensorSettings = FtSensorSettings()
     contact: ContactSettings = ContactSettings()
     target: TargetSettings = TargetSettings()
+    base: BaseSettings = BaseSettings()
 
     @model_validator(mode="after")
     def _check_rates(self) -> Scene:
@@ -331,6 +458,14 @@ class Scene(StrictModel):
         if abs(k - round(k)) > 1e-6 or round(k) < 1:
             raise ValueError(f"ft_sensor.rate {self.ft_sensor.rate} Hz: period is not a multiple "
                              f"of physics.timestep {dt}")
+        if self.target.support == "air_bed" and self.physics.gravity == 0.0:
+            raise ValueError("physics.gravity = 0 needs target.support = 'free': the air "
+                             "bed carries the target on its pads by its weight")
+        if self.base.floating and self.physics.gravity != 0.0:
+            raise ValueError(f"base.mode {self.base.mode!r} needs physics.gravity = 0: a "
+                             "floating base is a spacecraft in orbit")
+        if self.base.floating and self.target.support != "free":
+            raise ValueError(f"base.mode {self.base.mode!r} needs target.support = 'free'")
         tool = self.tool.funnel
         if tool.opening >= self.target.funnel.opening:
             raise ValueError("tool.funnel.opening must be smaller than target.funnel.opening")

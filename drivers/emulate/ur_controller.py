@@ -131,7 +131,7 @@ class UrSimController:
         return {
             "timestamp": w.time,
             "actual_q": np.array(state.jnt_pos_rad[:6]),
-            "actual_qd": np.array(w.data.qvel[:n][:6]),
+            "actual_qd": np.array(w.arm_qvel[:n][:6]),
             "actual_TCP_pose": registers.pose_vector(pose),
             "actual_TCP_speed": np.concatenate((rot @ twist[:3], rot @ twist[3:])),
             "actual_TCP_force": self._force.copy(),

@@ -23,6 +23,7 @@ from drivers.base.backend import (
     OpenedSensor,
     OpenedTracker,
     TrackerBackend,
+    cdr_topics_of,
     needs_robot,
 )
 from drivers.errors import ConfigError
@@ -95,4 +96,5 @@ BACKEND = Backend(
     "sim",
     sensors=(FtBackend(SimFt, _open_ft, _check_ft),),
     trackers=(TrackerBackend(SimTrackerConfig, _open_tracker, _check_tracker),),
+    topics=cdr_topics_of("drivers.sim.topics"),
 )

@@ -87,11 +87,12 @@ class JointFriction:
         v = np.abs(np.asarray(speed_radps, dtype=np.float64))
         return self.dry_level_nm(v) + self.viscous_nmsprad * v
 
-    def install(self, model: mujoco.MjModel) -> None:
-        """Write the viscous part and the level at rest into a compiled model."""
-        n = self._n
-        model.dof_damping[:n] = self.viscous_nmsprad
-        model.dof_frictionloss[:n] = self.static_nm
+    def install(self, model: mujoco.MjModel, first_dof: int = 0) -> None:
+        """Write the viscous part and the level at rest into a compiled model (the arm's
+        dofs from ``first_dof``)."""
+        arm = slice(first_dof, first_dof + self._n)
+        model.dof_damping[arm] = self.viscous_nmsprad
+        model.dof_frictionloss[arm] = self.static_nm
 
     def apply(self, model: mujoco.MjModel, qvel: F64) -> None:
         """Set the dry level from the current joint speeds (call once per control cycle)."""

@@ -40,7 +40,19 @@ from drivers.sim import funnels
 ARM_JOINTS = tuple(f"a{i + 1}" for i in range(7))
 #: The last link's drawn capsule ends this far from the flange's joint (not a physical size).
 _FLANGE_CAPSULE = (0.0, 0.0, 0.02)
+#: The air-bed target's joints (slides along world x, y, z and a hinge about the vertical).
 TARGET_JOINTS = ("target_x", "target_y", "target_z", "target_yaw")
+#: The free target's joint (``target.support = "free"``).
+TARGET_FREE_JOINT = "target_free"
+#: The scene's free-moving bodies, reported by the simulator's truth under these names.
+TARGET_BODY = "target"
+#: The floating base (``base.mode`` not ``"fixed"``): the chaser spacecraft, its free joint.
+BASE_BODY = "chaser"
+BASE_FREE_JOINT = "chaser_free"
+#: A floating base's sites on the arm's base (link0): the commanded frame, and the frame
+#: the superposed wrench acts in (turned to the TCF every cycle).
+CMD_SITE = "cmd"
+FT_REF_SITE = "ft_ref"
 FT_SENSOR_FORCE = "ft_force"
 FT_SENSOR_TORQUE = "ft_torque"
 
@@ -132,11 +144,37 @@ def arm_xml(scene: Scene) -> str:
             f'mass="0" rgba="1 0.5 0 0.6"/>\n'
             f"{inner}\n</body>"
         )
+    if scene.base.floating:
+        return _floating_base_xml(scene, inner)
     base = _vec(arm.base_pos)
     return (
         f'<body name="link0" pos="{base}">\n'
         f'<geom type="cylinder" size="0.06 0.055" pos="0 0 0.055" {_VISUAL} mass="0"/>\n'
         f"{inner}\n</body>"
+    )
+
+
+def _full(i: np.ndarray) -> str:
+    """MJCF ``fullinertia`` of a 3x3 tensor."""
+    return _vec((i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]))
+
+
+def _floating_base_xml(scene: Scene, arm: str) -> str:
+    """The arm on a free-floating spacecraft: a free body whose top face carries link0 at
+    ``arm.base_pos``, with the commanded frame and the wrench's frame as sites of link0."""
+    b = scene.base
+    sx, sy, sz = b.size
+    centre = np.asarray(scene.arm.base_pos) - np.array([0.0, 0.0, sz / 2.0])
+    return (
+        f'<body name="{BASE_BODY}" pos="{_vec(centre)}">\n'
+        f'<freejoint name="{BASE_FREE_JOINT}"/>\n'
+        f'<inertial pos="0 0 0" mass="{_f(b.mass)}" fullinertia="{_full(b.inertia_matrix())}"/>\n'
+        f'<geom type="box" size="{_f(sx / 2)} {_f(sy / 2)} {_f(sz / 2)}" {_VISUAL} mass="0" '
+        f'rgba="0.85 0.75 0.3 1"/>\n'
+        f'<body name="link0" pos="0 0 {_f(sz / 2)}">\n'
+        f'<site name="{CMD_SITE}"/>\n<site name="{FT_REF_SITE}"/>\n'
+        f'<geom type="cylinder" size="0.06 0.055" pos="0 0 0.055" {_VISUAL} mass="0"/>\n'
+        f"{arm}\n</body>\n</body>"
     )
 
 
@@ -147,11 +185,41 @@ def _quat(rpy: object) -> np.ndarray:
     return quat
 
 
-def target_xml(scene: Scene, layout: Layout) -> str:
+def _free_target_xml(scene: Scene, layout: Layout) -> str:
+    """A target in free flight: a free joint, weightless (``gravcomp``), no pads or hose."""
     tg = scene.target
+    sx, sy, sz = tg.size
+    i = tg.inertia_matrix()
+    full = (i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2])
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(layout.target_rot).ravel())
+    return (
+        f'<body name="{TARGET_BODY}" pos="{_vec(layout.target_pos)}" quat="{_vec(quat)}" '
+        f'gravcomp="1">\n'
+        f'<freejoint name="{TARGET_FREE_JOINT}"/>\n'
+        f'<inertial pos="0 0 0" mass="{_f(tg.mass)}" fullinertia="{_vec(full)}"/>\n'
+        f'<geom type="box" size="{_f(sx / 2)} {_f(sy / 2)} {_f(sz / 2)}" {_VISUAL} mass="0" '
+        f'rgba="0.75 0.75 0.8 1"/>\n'
+        f'<body name="target_funnel" pos="{_vec(layout.funnel_in_target)}">\n'
+        f'<site name="funnel_mouth" pos="0 0 0"/>\n'
+        f"{funnels.target_funnel_geoms(tg.funnel, 'funnel')}\n</body>\n</body>"
+    )
+
+
+def target_xml(scene: Scene, layout: Layout) -> str:
+    """The target body on its support (:attr:`TargetSettings.support
+    <drivers.description.scene.TargetSettings.support>`)."""
+    tg = scene.target
+    if tg.support == "free":
+        return _free_target_xml(scene, layout)
     sx, sy, sz = tg.size
     m = tg.mass
     inertia = (m * (sy**2 + sz**2) / 12.0, m * (sx**2 + sz**2) / 12.0, m * (sx**2 + sy**2) / 12.0)
+    body_inertia = f'diaginertia="{_vec(inertia)}"'
+    if tg.inertia is not None:
+        i = tg.inertia_matrix()
+        full = (i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2])
+        body_inertia = f'fullinertia="{_vec(full)}"'
     pad_r = 0.008
     pads = []
     for k, (px, py) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
@@ -166,7 +234,7 @@ def target_xml(scene: Scene, layout: Layout) -> str:
     # the start yaw is the hinge's initial angle (set in ``qpos0`` by SimWorld).
     return (
         f'<body name="target" pos="{_vec(layout.target_pos)}">\n'
-        f'<inertial pos="0 0 0" mass="{_f(m)}" diaginertia="{_vec(inertia)}"/>\n'
+        f'<inertial pos="0 0 0" mass="{_f(m)}" {body_inertia}/>\n'
         f'<joint name="target_x" type="slide" axis="1 0 0" stiffness="{_f(hose_k)}" '
         f'damping="{_f(hose_b)}" ref="0"/>\n'
         f'<joint name="target_y" type="slide" axis="0 1 0" stiffness="{_f(hose_k)}" '
@@ -189,17 +257,27 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
     target = "" if layout is None else target_xml(scene, layout)
     glass_z = 0.0 if layout is None else layout.glass_z
     mu = scene.target.mu
+    glass = "" if scene.target.support == "free" else (
+        f'<geom name="glass" type="plane" size="3 3 0.01" pos="0 0 {_f(glass_z)}" {_GLASS}\n'
+        f'      friction="{_f(mu)} 0.005 0.0001" solref="0.004 1" '
+        f'solimp="0.95 0.99 0.001 0.5 2"\n      rgba="0.8 0.9 1 0.3"/>')
     pad_condim = 3 if mu > 0.0 else 1
     cart = "\n".join(
         f'<general name="cart_{ax}" site="tcp" refsite="cmd" gear="{_vec(np.eye(6)[i])}" '
         f'gaintype="fixed" gainprm="0" biastype="affine" biasprm="0 0 0"/>'
         for i, ax in enumerate(("x", "y", "z", "rx", "ry", "rz"))
     )
+    # On a floating base the superposed wrench acts between the TCP and the arm's base
+    # (joint torques, internal to the spacecraft), along the axes of a base site turned
+    # to the TCF every cycle; on a fixed base it acts at the TCP in the TCF.
+    ref = f' refsite="{FT_REF_SITE}"' if scene.base.floating else ""
     ft = "\n".join(
-        f'<general name="ft_{ax}" site="tcp" gear="{_vec(np.eye(6)[i])}" '
+        f'<general name="ft_{ax}" site="tcp"{ref} gear="{_vec(np.eye(6)[i])}" '
         f'gaintype="fixed" gainprm="1" biastype="none"/>'
         for i, ax in enumerate(("x", "y", "z", "rx", "ry", "rz"))
     )
+    cmd_frame = "" if scene.base.floating else (
+        f'<body name="cmd_frame" mocap="true"><site name="{CMD_SITE}"/></body>')
     jnt = "\n".join(
         f'<general name="jnt_{j}" joint="{j}" gaintype="fixed" gainprm="0" '
         f'biastype="affine" biasprm="0 0 0"/>'
@@ -224,10 +302,8 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
   </default>
 </default>
 <worldbody>
-<geom name="glass" type="plane" size="3 3 0.01" pos="0 0 {_f(glass_z)}" {_GLASS}
-      friction="{_f(mu)} 0.005 0.0001" solref="0.004 1" solimp="0.95 0.99 0.001 0.5 2"
-      rgba="0.8 0.9 1 0.3"/>
-<body name="cmd_frame" mocap="true"><site name="cmd"/></body>
+{glass}
+{cmd_frame}
 {arm_xml(scene)}
 {target}
 </worldbody>

@@ -120,8 +120,8 @@ def _fill_joints(s: LazyArmState, w: SimWorld) -> None:
 def _fill_dynamics(s: LazyArmState, w: SimWorld) -> None:
     d = s.__dict__
     w._kinematics()
-    jac = w._jfull[:, :w._n].copy()
-    mass = w._mfull[:w._n, :w._n].copy()
+    jac = w._jfull[:, w._va].copy()
+    mass = w._mfull[w._va, w._va].copy()
     contact = w._contact
     tau_ext = jac.T @ contact
     # Link-side torque sensors: M qdd + c + g = tau_msr + tau_ext.
@@ -139,10 +139,11 @@ def _fill_dynamics(s: LazyArmState, w: SimWorld) -> None:
 def _fill_truth(s: LazyArmState, w: SimWorld) -> None:
     tcp_twist = s.jacobian @ w._qvel_arm
     s.__dict__["truth"] = ground_truth(
-        pose(w._target_xpos, w._target_xmat),
-        w._qvel.take(w._t_twist_adr), w.tcp_pose, w._mouth_xpos, w._mouth_xmat,
-        w.layout.funnel_seat_depth, w._contact, w._touching, tcp_twist,
-    )
+        w.bodies.truth(), {"funnel_mouth": pose(w._mouth_xpos, w._mouth_xmat),
+                           "tcp": w.tcp_pose if w.chaser is None
+                           else pose(w._tcp_xpos, w._tcp_xmat)},
+        w._contact, w._touching, tcp_twist,
+        None if w.chaser is None else w.chaser.arm_base_pose())
 
 
 _FILL: dict[str, Callable[[LazyArmState, SimWorld], None]] = {

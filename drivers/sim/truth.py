@@ -1,25 +1,17 @@
-"""What only the simulator knows about a cycle: the target's pose and motion, the tool's
-placement in the funnel and the simulator's own seating test. Pure, no I/O."""
+"""What only the simulator knows about a cycle, in neutral form: the scene's free bodies,
+its named frames, the tool's true contact and motion. Pure, no I/O.
+
+A scenario derives its own measures from it (the funnel's placement:
+:mod:`ffexp.scenarios.funnel`); nothing here knows a task.
+"""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from drivers.base.placement import placement_at_mouth
-from drivers.base.types import F64, GroundTruth
+from drivers.base.types import F64, BodyTruth, GroundTruth
 
-__all__ = ["SEAT_DEPTH_TOL", "SEAT_LATERAL_TOL", "SEAT_YAW_TOL", "ground_truth", "pose"]
-
-#: Seated: tool tip within this of the (estimated) seat depth [m] ...
-SEAT_DEPTH_TOL = 0.005
-#: ... and this close to the funnel axis [m] ...
-SEAT_LATERAL_TOL = 0.0025
-#: ... and axes within this yaw [rad]. Lateral and yaw tolerances were set from
-#: the play of the earlier capsule funnels (about 1-2 mm, 2-3 deg); they are
-#: unchanged for the smooth funnels.
-SEAT_YAW_TOL = math.radians(3.0)
+__all__ = ["ground_truth", "pose"]
 
 _EYE4 = np.eye(4)
 
@@ -32,34 +24,8 @@ def pose(pos: F64, mat9: F64) -> F64:
     return out
 
 
-def ground_truth(
-    target_pose: F64,
-    target_twist: F64,
-    tcp_pose: F64,
-    mouth_pos: F64,
-    mouth_mat9: F64,
-    seat_depth_m: float,
-    contact: F64,
-    touching: bool,
-    tcp_twist: F64,
-) -> GroundTruth:
-    """The tool tip in the funnel-mouth frame (x along the funnel axis), its yaw
-    against the funnel's, and whether the simulator calls it seated."""
-    insertion, lateral, vertical, yaw_err = placement_at_mouth(tcp_pose, mouth_pos, mouth_mat9)
-    seated = (
-        insertion >= seat_depth_m - SEAT_DEPTH_TOL
-        and abs(lateral) <= SEAT_LATERAL_TOL
-        and abs(yaw_err) <= SEAT_YAW_TOL
-    )
-    return GroundTruth(
-        target_pose=target_pose,
-        target_twist=target_twist,
-        contact_wrench=contact,
-        lateral_error=lateral,
-        vertical_error=vertical,
-        yaw_error=yaw_err,
-        insertion=insertion,
-        seated=seated,
-        in_contact=touching,
-        tcp_twist=tcp_twist,
-    )
+def ground_truth(bodies: dict[str, BodyTruth], sites: dict[str, F64], contact: F64,
+                 touching: bool, tcp_twist: F64, base_pose: F64 | None = None) -> GroundTruth:
+    """The cycle's truth from the world's bodies, frames and tool contact."""
+    return GroundTruth(bodies=bodies, sites=sites, contact_wrench=contact,
+                       in_contact=touching, tcp_twist=tcp_twist, base_pose=base_pose)

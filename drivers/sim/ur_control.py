@@ -126,8 +126,7 @@ class UrArmControl:
         """After a cycle: latch a protective stop if a joint is at its position limit or
         beyond its speed limit; return why (``None``: no stop)."""
         if self.stopped is None:
-            d, n = self.world.data, len(self._pos_limits)
-            q, qd = d.qpos[:n], d.qvel[:n]
+            q, qd = self.world.arm_qpos, self.world.arm_qvel
             for name, qi, qdi, lim_q, lim_qd in zip(self._names, q, qd, self._pos_limits,
                                                     self._vel_limits, strict=True):
                 if abs(qi) >= lim_q:

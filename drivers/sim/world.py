@@ -34,7 +34,6 @@ torques/wrench are exact (no torque-sensor noise or model error).
 
 from __future__ import annotations
 
-import math
 import weakref
 from collections.abc import Callable
 
@@ -43,14 +42,16 @@ import numpy as np
 
 from drivers.base.types import F64, FtSamples
 from drivers.description import Scene, compute_layout, tool_tip_offset
-from drivers.errors import InvalidCommandError
 from drivers.sim import mjcf
-from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
+from drivers.sim.arm import ArmCommand, ArmMode
+from drivers.sim.bodies import FreeBodies
+from drivers.sim.chaser import FloatingBase
 from drivers.sim.contact import ToolContact, configure_contact
-from drivers.sim.controller import clip_cart_stiffness, normalized_damping
+from drivers.sim.controller import normalized_damping
 from drivers.sim.divergence import check_divergence, quiet_divergence
 from drivers.sim.friction import JointFriction
 from drivers.sim.ftsensor import FtSensorModel, FtSteps
+from drivers.sim.latch import take
 from drivers.sim.state import LazyArmState
 from drivers.sim.truth import pose as _pose
 
@@ -60,22 +61,15 @@ from drivers.sim.truth import pose as _pose
 #: (3 mrad: 0.4 %; 10 mrad: off by up to 8x near a poorly conditioned axis).
 INERTIA_REUSE_RAD = 1e-3
 
-_isfinite = math.isfinite
 # np.linalg.inv's LAPACK gufunc without its Python wrapper (the same values); the
 # module is private: without it, the public function
 _inv: Callable[..., F64] = getattr(getattr(np.linalg, "_umath_linalg", None), "inv", np.linalg.inv)
-
-
-def _all_finite(a: F64) -> bool:
-    """Every value of a small array finite (plain floats: cheaper than numpy for a few)."""
-    return all(map(_isfinite, a.ravel().tolist()))
 
 
 def _no_state() -> LazyArmState | None:
     return None
 
 
-_WARN_CLIPPED = int(ArmWarning.STIFFNESS_CLIPPED)
 _MODES = {
     "cart_impedance": ArmMode.CART_IMPEDANCE,
     "joint_position": ArmMode.JOINT_POSITION,
@@ -105,7 +99,8 @@ class SimWorld:
         # 1. Arm alone: where is the TCF at the start pose?
         m0 = mujoco.MjModel.from_xml_string(mjcf.build_xml(scene, None))
         d0 = mujoco.MjData(m0)
-        d0.qpos[:n] = scene.arm.q_init
+        q0 = int(m0.jnt_qposadr[mujoco.mj_name2id(m0, mujoco.mjtObj.mjOBJ_JOINT, "a1")])
+        d0.qpos[q0:q0 + n] = scene.arm.q_init
         mujoco.mj_forward(m0, d0)
         tcp0 = d0.site("tcp")
         self.layout = compute_layout(scene, tcp0.xpos.copy(), tcp0.xmat.reshape(3, 3).copy())
@@ -116,20 +111,29 @@ class SimWorld:
         self.data = d = mujoco.MjData(m)
         self._ready = False
         quiet_divergence(m, d)
+        a1 = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "a1")
+        # the arm's joints in qpos and qvel (after a floating base's free joint)
+        self._qa = qa = slice(int(m.jnt_qposadr[a1]), int(m.jnt_qposadr[a1]) + n)
+        self._va = va = slice(int(m.jnt_dofadr[a1]), int(m.jnt_dofadr[a1]) + n)
         self._friction = JointFriction.of_arm(scene.arm)
-        self._friction.install(m)
-        self._frictionloss = m.dof_frictionloss[:self._friction.joints]
+        self._friction.install(m, va.start)
+        self._frictionloss = m.dof_frictionloss[va]
         self._tcp = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "tcp")
         self._ft_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "ft_site")
         self._mouth = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "funnel_mouth")
-        cmd_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "cmd_frame")
-        self._cmd_mocap = int(m.body_mocapid[cmd_body])
-        self._target_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "target")
+        self._target_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, mjcf.TARGET_BODY)
         self._tool_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "tool")
-        jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in mjcf.TARGET_JOINTS]
-        self._t_qadr = np.array([m.jnt_qposadr[j] for j in jid])
-        self._t_vadr = np.array([m.jnt_dofadr[j] for j in jid])
-        self._t_twist_adr = self._t_vadr[[0, 1, 3]]
+        self.chaser = FloatingBase(scene.base, m, d) if scene.base.floating else None
+        """The floating base (``None``: the arm stands on the ground)."""
+        self.bodies = FreeBodies(m, d, (mjcf.TARGET_BODY,) if self.chaser is None
+                                 else (mjcf.TARGET_BODY, mjcf.BASE_BODY))
+        """The scene's free-moving bodies (the truth reports them by name)."""
+        self._on_bed = scene.target.support == "air_bed"
+        if self._on_bed:  # the bed's slides and hinge
+            jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)
+                   for n in mjcf.TARGET_JOINTS]
+            self._t_qadr = np.array([m.jnt_qposadr[j] for j in jid])
+            self._t_vadr = np.array([m.jnt_dofadr[j] for j in jid])
         self._tool_geoms = {g for g in range(m.ngeom) if m.geom_bodyid[g] == self._tool_body
                             and m.geom_contype[g] != 0}
         self._funnel_geoms = {
@@ -166,32 +170,36 @@ class SimWorld:
         self._cart_stiff_prm = m.actuator_biasprm[self._act_cart, 1]
         self._jnt_trq_prm = m.actuator_biasprm[self._act_jnt, 0]
         self._ctrl_ft = d.ctrl[self._act_ft]
-        self._mocap_pos = d.mocap_pos[self._cmd_mocap]
-        self._mocap_quat = d.mocap_quat[self._cmd_mocap]
-        self._qvel_arm = d.qvel[:n]
-        self._qpos_arm = d.qpos[:n]
+        if self.chaser is None:  # the commanded frame: a mocap body, or a site of link0
+            cmd = int(m.body_mocapid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY,
+                                                       "cmd_frame")])
+            self._mocap_pos, self._mocap_quat = d.mocap_pos[cmd], d.mocap_quat[cmd]
+        else:
+            cmd = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, mjcf.CMD_SITE)
+            m.site_sameframe[cmd] = 0  # its pose is written at run time: not its body's
+            self._mocap_pos, self._mocap_quat = m.site_pos[cmd], m.site_quat[cmd]
+        self._qvel_arm = d.qvel[va]
+        self._qpos_arm = d.qpos[qa]
         self._qvel = d.qvel
         self._warn_number = d.warning.number
-        self._qacc_arm = d.qacc[:n]
-        self._actuator_arm = d.qfrc_actuator[:n]
+        self._qacc_arm = d.qacc[va]
+        self._actuator_arm = d.qfrc_actuator[va]
         self._tcp_xpos = d.site_xpos[self._tcp]
         self._tcp_xmat = d.site_xmat[self._tcp]
         self._tcp_rot_t = self._tcp_xmat.reshape(3, 3).T  # R^T, a view
         self._pose_ok = False  # _tcp_pose is the current state's
         self._mouth_xpos = d.site_xpos[self._mouth]
         self._mouth_xmat = d.site_xmat[self._mouth]
-        self._target_xpos = d.xpos[self._target_body]
-        self._target_xmat = d.xmat[self._target_body]
         self._tool_contact = ToolContact(m, d, self._tool_body, self._tool_geoms, self._tcp)
         # what the actuators hold now (the objects last written; None: rewrite)
         self._written: dict[str, object] = {}
         # the last stiffness/damping given and what they became (commands repeat them)
         self._given_k: tuple[bytes, F64, bool] | None = None
         self._given_d: tuple[bytes, F64] | None = None
-        self._bias_arm = d.qfrc_bias[:n]
+        self._bias_arm = d.qfrc_bias[va]
         self._qfrc_bias = d.qfrc_bias
-        self._gravcomp_arm = d.qfrc_gravcomp[:n]
-        self._applied_arm = d.qfrc_applied[:n]
+        self._gravcomp_arm = d.qfrc_gravcomp[va]
+        self._applied_arm = d.qfrc_applied[va]
         self._quat = np.zeros(4)
         self._ft_steps = FtSteps(
             m, d, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_FORCE),
@@ -199,9 +207,11 @@ class SimWorld:
             self.substeps)
         self._ft_raw = self._ft_steps.raw
 
-        # Start state: arm at q_init, target yawed on its hinge.
-        d.qpos[self._t_qadr[3]] = self.layout.target_yaw
-        d.qpos[:n] = scene.arm.q_init
+        # Start state: arm at q_init, target yawed on its hinge (in free flight the
+        # body's own orientation is its pose in the model).
+        if self._on_bed:
+            d.qpos[self._t_qadr[3]] = self.layout.target_yaw
+        d.qpos[qa] = scene.arm.q_init
         mujoco.mj_forward(m, d)
         self._update_kinematics()
 
@@ -218,13 +228,16 @@ class SimWorld:
         self._cart_damp = np.asarray(ctl.cart_damping, dtype=np.float64)
         self._tcp_ft = np.zeros(6)
         self._tcp_ft_key = b""
-        self._jnt_pos = d.qpos[:n].copy()
+        self._jnt_pos = d.qpos[qa].copy()
         self._jnt_trq = np.zeros(n)
         self._jnt_stiff = np.full(n, ctl.jnt_position_stiffness)
         self._jnt_damp = np.full(n, ctl.jnt_position_damping)
         self._warning = 0
         self._latched = True
         self._apply()
+        if self.chaser is not None:
+            self.chaser.hold()
+            self.chaser.cycle(self.tcp_pose)
 
         # Let the target settle on its pads, then start the clock.
         for _ in range(round(scene.physics.settle_time / self.dt)):
@@ -232,8 +245,14 @@ class SimWorld:
         self._check_divergence()
         d.time = 0.0
         self._ft_steps.restart()
-        vx, vy, wz = scene.target.velocity
-        self.set_target_velocity(vx, vy, wz)
+        if self.chaser is not None:
+            self.chaser.hold()  # the base holds where it starts
+        tg = scene.target
+        if self._on_bed:
+            self.set_target_velocity(*tg.velocity)
+        else:
+            self.bodies.set_free_twist(mjcf.TARGET_BODY, np.asarray(tg.drift_mps),
+                                       np.asarray(tg.tumble_radps))
         mujoco.mj_forward(m, d)
         self._contact, self._touching = self.contact_wrench()
         self._update_kinematics()
@@ -251,7 +270,10 @@ class SimWorld:
 
     # ------------------------------------------------------------------ setup
     def set_target_velocity(self, vx: float, vy: float, wz: float) -> None:
-        """Give the target a twist in the bed plane (world frame) [m/s, rad/s]."""
+        """Give the air-bed target a twist in the bed plane (world frame) [m/s, rad/s]."""
+        if not self._on_bed:
+            raise ValueError("set_target_velocity is the air bed's planar twist; a free "
+                             "target: bodies.set_free_twist")
         if self._ready:  # keep the end state of this cycle as it was
             state = self.last_state
             state.resolve()
@@ -265,13 +287,25 @@ class SimWorld:
     def jacobian(self) -> F64:
         """TCP Jacobian of the arm's joints at the current state, TCF rows (a copy)."""
         self._kinematics()
-        return self._jfull[:, :self._n].copy()
+        return self._jfull[:, self._va].copy()
+
+    @property
+    def arm_qpos(self) -> F64:
+        """The arm's joint positions now (a view into the state: do not modify)."""
+        out: F64 = self._qpos_arm
+        return out
+
+    @property
+    def arm_qvel(self) -> F64:
+        """The arm's joint speeds now (a view into the state: do not modify)."""
+        out: F64 = self._qvel_arm
+        return out
 
     @property
     def mass_matrix(self) -> F64:
         """The arm's joint-space inertia at the current state (a copy)."""
         self._kinematics()
-        return self._mfull[:self._n, :self._n].copy()
+        return self._mfull[self._va, self._va].copy()
 
     def target_frames(self) -> tuple[F64, F64]:
         """The target block's pose and its funnel mouth's frame, 4x4 in the world
@@ -284,7 +318,8 @@ class SimWorld:
     def tcp_pose(self) -> F64:
         """4x4 TCP pose in the base frame at the current state (do not modify)."""
         if not self._pose_ok:
-            self._tcp_pose = _pose(self._tcp_xpos, self._tcp_xmat)
+            self._tcp_pose = (_pose(self._tcp_xpos, self._tcp_xmat) if self.chaser is None
+                              else self.chaser.in_base(self._tcp_xpos, self._tcp_xmat))
             self._pose_ok = True
         return self._tcp_pose
 
@@ -314,7 +349,7 @@ class SimWorld:
         self.cart_inertia = lam if lam[0, 0] == lam[0, 0] else np.linalg.inv(a)
         self._lam_diag = self.cart_inertia.diagonal().copy()
         self._inertia_new = True
-        self._m_diag = self._mfull.diagonal()[:self._n].copy()
+        self._m_diag = self._mfull.diagonal()[self._va].copy()
         self._inertia_ql = self._qpos_arm.tolist()  # where it was computed
 
     def _update_kinematics(self) -> None:
@@ -400,75 +435,9 @@ class SimWorld:
         np.multiply(self._neg_2d, t, out=self._cart_damp_prm)
 
     def _take(self, cmd: ArmCommand) -> None:
-        """Latch the fields ``cmd`` gives (the others keep their values)."""
-        self._latched = True
-        if cmd.mode is not None and cmd.mode != self.mode:
-            if cmd.mode not in (ArmMode.CART_IMPEDANCE, ArmMode.JOINT_POSITION,
-                                ArmMode.JOINT_IMPEDANCE):
-                raise InvalidCommandError(f"control mode {cmd.mode!r} not supported")
-            self.mode = ArmMode(cmd.mode)
-            self._cart_pos = self.tcp_pose.copy()
-            self._cart_pos_key = b""
-            self._jnt_pos = self.data.qpos[:self._n].copy()
-        self._warning = 0
-        # A pose or wrench with the bytes of the latched one keeps the latched object
-        # (validated already; the actuators then need no rewrite).
-        if cmd.cart_pose_m is not None:
-            p = np.asarray(cmd.cart_pose_m, dtype=np.float64)
-            key = p.tobytes()
-            if key != self._cart_pos_key or p.shape != (4, 4):
-                p = np.array(p)
-                if p.shape != (4, 4) or not _all_finite(p):
-                    raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
-                self._cart_pos = p
-                self._cart_pos_key = key
-        if cmd.cart_stiffness_npm_nmprad is not None:
-            k = np.asarray(cmd.cart_stiffness_npm_nmprad, dtype=np.float64)
-            key = k.tobytes()
-            given = self._given_k
-            if given is None or given[0] != key or k.shape != (6,):
-                if k.shape != (6,) or not _all_finite(k):
-                    raise InvalidCommandError("cart_stiffness must be 6 finite values")
-                mx = self.scene.controller.cart_stiffness_max
-                clipped_k, clipped = clip_cart_stiffness(k, mx[0], mx[1])
-                given = self._given_k = (key, clipped_k, clipped)
-            self._cart_stiff = given[1]
-            if given[2]:
-                self._warning |= _WARN_CLIPPED
-        if cmd.cart_damping_ratio is not None:
-            dr = np.asarray(cmd.cart_damping_ratio, dtype=np.float64)
-            key = dr.tobytes()
-            given_d = self._given_d
-            if given_d is None or given_d[0] != key or dr.shape != (6,):
-                given_d = self._given_d = (
-                    key, np.clip(self._finite(dr, 6, "cart_damping"), 0.0, 1.0))
-            self._cart_damp = given_d[1]
-        if cmd.tcp_wrench_n_nm is not None:
-            ft = np.asarray(cmd.tcp_wrench_n_nm, dtype=np.float64)
-            key = ft.tobytes()
-            if key != self._tcp_ft_key or ft.shape != (6,):
-                self._tcp_ft = self._finite(ft, 6, "add_tcp_ft")
-                self._tcp_ft_key = key
-        if cmd.jnt_pos_rad is not None:
-            self._jnt_pos = np.clip(self._finite(cmd.jnt_pos_rad, self._n, "jnt_pos"),
-                                    -self._pos_limits, self._pos_limits)
-        if cmd.jnt_trq_nm is not None:
-            self._jnt_trq = self._finite(cmd.jnt_trq_nm, self._n, "add_jnt_trq")
-        if cmd.jnt_stiffness_nmprad is not None:
-            k = self._finite(cmd.jnt_stiffness_nmprad, self._n, "jnt_stiffness")
-            self._jnt_stiff = np.clip(k, 0.0, self.scene.controller.jnt_stiffness_max)
-            if np.any(self._jnt_stiff != k):
-                self._warning |= _WARN_CLIPPED
-        if cmd.jnt_damping_ratio is not None:
-            self._jnt_damp = np.clip(
-                self._finite(cmd.jnt_damping_ratio, self._n, "jnt_damping"), 0.0, 1.0)
-
-    @staticmethod
-    def _finite(v: F64, n: int, name: str) -> F64:
-        a = np.array(v, dtype=np.float64)
-        if a.shape != (n,) or not _all_finite(a):
-            raise InvalidCommandError(f"{name} must be {n} finite values")
-        return a
+        """Latch the fields ``cmd`` gives (the others keep their values):
+        :func:`drivers.sim.latch.take`."""
+        take(self, cmd)
 
     def _check_divergence(self) -> None:
         """Raise SimulationError if the physics diverged (:mod:`drivers.sim.divergence`)."""
@@ -524,6 +493,8 @@ class SimWorld:
         if command is not None:
             self._take(command)
         self._apply()
+        if self.chaser is not None:  # the base's own control, and the wrench's frame
+            self.chaser.cycle(self.tcp_pose)
         d = self.data
         self._friction.apply_into(self._qvel_arm, self._frictionloss)
         self._ft_steps.step()  # the cycle's physics steps, their sensor readings

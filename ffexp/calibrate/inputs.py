@@ -32,7 +32,7 @@ from ffexp.recording import Recording, load
 from ffexp.sweeps.keys import toml_text
 
 #: Topics read from a recording (nothing else).
-TOPICS = ("/robot/state", "/robot/command", "/ft/raw", "/target/pose", "/sim/truth")
+TOPICS = ("/robot/state", "/robot/command", "/ft/raw", "/target/pose", "/task/funnel")
 #: Scene keys that say where a run started: taken from each recording's own scene.
 START_KEYS = ("arm.q_init", "arm.base_pos", "target.distance", "target.lateral",
               "target.yaw_deg", "target.velocity", "seed")
@@ -203,8 +203,8 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
     pose = cmd["cart_pos"][:n].reshape(n, 4, 4)
     ft = rec.topic("/ft/raw")
     tracked_t, tracked = _target(rec, int(state["time_ns"][0]))  # the robot's clock
-    truth = rec.topics.get("/sim/truth")
-    seated = bool(truth["seated"][-1]) if truth is not None and len(truth) else None
+    placed = rec.topics.get("/task/funnel")  # the funnel's placement by the truth
+    seated = bool(placed["within"][-1]) if placed is not None and len(placed) else None
     return ReplayInput(
         path=path, cycle_s=cycle_s, start_cycles=start_cycles, commanding=commanding,
         pose=pose.astype(np.float64), stiffness=cmd["cart_stiffness"][:n].astype(np.float64),

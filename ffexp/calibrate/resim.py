@@ -28,11 +28,14 @@ from drivers.factory import open_devices
 from drivers.rig import validate_rig
 from ffexp.calibrate.inputs import ReplayInput
 from ffexp.errors import FfexpError, SimulationError
+from ffexp.scenarios.funnel import Alignment, truth_placement
 
 #: Overrides that make the simulated sensor an ideal one (no noise, bias, drift, delay).
 QUIET = ("ft_sensor.noise_std=[0.0, 0.0]", "ft_sensor.bias_std=[0.0, 0.0]",
          "ft_sensor.drift_density=[0.0, 0.0]", "ft_sensor.delay_s=0.0")
 _SOURCE = "<calibration replay>"
+#: "Seated" in a replay: the funnel alignment's default tolerances, by the truth.
+_ALIGNED = Alignment()
 
 
 @dataclass(frozen=True)
@@ -122,9 +125,12 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
                 ext[k] = state.ext_wrench_n_nm
             truth = state.truth
             if truth is not None:
-                p = truth.target_pose
-                target[k] = (p[0, 3], p[1, 3], np.arctan2(p[1, 0], p[0, 0]))
-                seated[k] = truth.seated
+                body = truth.body("target")
+                if body is not None:
+                    p = body.pose
+                    target[k] = (p[0, 3], p[1, 3], np.arctan2(p[1, 0], p[0, 0]))
+                placed = truth_placement(truth, state.tcp_pose_m)
+                seated[k] = placed is not None and _ALIGNED.within(placed)
                 contact[k] = truth.in_contact
             samples = sensor.samples()
             if len(samples):

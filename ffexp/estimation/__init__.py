@@ -143,11 +143,12 @@ class Estimator:
         self._mass_kg = config.tool_load.mass_kg
         self._com_skew = skew(np.asarray(config.tool_load.com_m, dtype=np.float64))
         self._load = np.zeros(6)
+        self._gravity = config.tool_load.gravity_base()
         self.out = Estimate()
 
     def _tool_load(self, r_base_sensor: F64, accel_base: F64 | None) -> F64:
         """:meth:`ToolLoad.wrench <ffexp.estimation.ToolLoad.wrench>` into a reused array."""
-        g = GRAVITY_BASE_MPS2 if accel_base is None else GRAVITY_BASE_MPS2 - accel_base
+        g = self._gravity if accel_base is None else self._gravity - accel_base
         f = self._mass_kg * (g @ r_base_sensor)
         load = self._load
         load[:3] = f

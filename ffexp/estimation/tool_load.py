@@ -33,14 +33,24 @@ class ToolLoad(StrictModel):
 
     mass_kg: float = Field(0.0, ge=0)
     com_m: Vec3 = (0.0, 0.0, 0.0)
+    gravity_mps2: float = Field(
+        9.81, ge=0, description="The gravity the tool's weight is taken with, along the base "
+        "frame's -Z [m/s^2]: 0 in orbit (a scene with physics.gravity = 0).")
+
+    def gravity_base(self) -> FloatArray:
+        """Gravity in the robot base frame [m/s^2]."""
+        return np.array([0.0, 0.0, -self.gravity_mps2])
 
     def wrench(
         self,
         r_base_sensor: FloatArray,
         accel_base: FloatArray | None = None,
-        gravity: FloatArray = GRAVITY_BASE_MPS2,
+        gravity: FloatArray | None = None,
     ) -> FloatArray:
-        """Wrench the tool's weight (and inertia, given ``accel_base``) adds to the reading."""
+        """Wrench the tool's weight (and inertia, given ``accel_base``) adds to the reading
+        (``gravity``: :attr:`gravity_mps2` along -Z unless given)."""
+        if gravity is None:
+            gravity = self.gravity_base()
         g = gravity if accel_base is None else gravity - accel_base
         f = self.mass_kg * (r_base_sensor.T @ g)
         return np.concatenate([f, np.cross(np.asarray(self.com_m), f)])

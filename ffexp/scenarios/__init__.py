@@ -14,25 +14,31 @@ scenario; ``schemas/protocol.json`` is generated from this registry.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any
 
 from pydantic import GetJsonSchemaHandler, SerializeAsAny, ValidationError, WrapValidator
 from pydantic.json_schema import JsonSchemaValue
 from pydantic_core import PydanticCustomError, core_schema
 
+from drivers.base.topics import CdrTopic
 from ffexp.scenarios.base import Scenario, ScenarioConfig, SourceChange, Verdict
+from ffexp.scenarios.docking6 import Docking6
 from ffexp.scenarios.funnel import FunnelAlignment, FunnelTask
 
 if TYPE_CHECKING:
     from ffexp.protocol import RunProtocol
 
-_SCENARIOS: tuple[type[Scenario], ...] = (FunnelAlignment,)
+_SCENARIOS: tuple[type[Scenario], ...] = (FunnelAlignment, Docking6)
 
 DEFAULT = FunnelAlignment.name
 """The scenario of a protocol that names none."""
 
 #: scenario name -> scenario class
 REGISTRY: dict[str, type[Scenario]] = {cls.name: cls for cls in _SCENARIOS}
+
+
+_listeners: list[Callable[[], None]] = []
 
 
 def register(cls: type[Scenario]) -> type[Scenario]:
@@ -42,7 +48,20 @@ def register(cls: type[Scenario]) -> type[Scenario]:
     if known is not None and known is not cls:
         raise ValueError(f"scenario {cls.name!r} is already registered ({known.__qualname__})")
     REGISTRY[cls.name] = cls
+    for callback in _listeners:
+        callback()
     return cls
+
+
+def on_change(callback: Callable[[], None]) -> None:
+    """Call ``callback()`` whenever :func:`register` changed the registry (the recording's
+    topics follow it)."""
+    _listeners.append(callback)
+
+
+def scenario_topics() -> tuple[CdrTopic, ...]:
+    """The recording topics every registered scenario declares."""
+    return tuple(t for cls in REGISTRY.values() for t in cls.topics)
 
 
 def scenario_class(name: str) -> type[Scenario]:
@@ -124,7 +143,9 @@ __all__ = [
     "build",
     "is_default",
     "label",
+    "on_change",
     "other_tables",
     "register",
     "scenario_class",
+    "scenario_topics",
 ]

@@ -14,7 +14,9 @@ A judge sees a cycle's :class:`~drivers.base.types.RobotState` (with
 :class:`~drivers.base.types.TargetObservation` (if any) and the estimator's
 :class:`~ffexp.estimation.Estimate`. Verdict labels are the recording's
 words, read by :mod:`ffexp.analysis`: ``"aligned"`` (the goal held),
-``"not aligned"`` and ``"unverified"``.
+``"not aligned"`` and ``"unverified"``. A scenario measures its own objects from
+the truth's neutral bodies and frames (the funnel's errors) and records them on
+the topics it declares (:attr:`Scenario.topics`, :meth:`Scenario.messages`).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
+from drivers.base.topics import CdrTopic
 from drivers.base.types import RobotState, TargetObservation
 from drivers.config import StrictModel
 from ffexp.estimation import Estimate
@@ -80,6 +83,9 @@ class Scenario(ABC):
     config_model: ClassVar[type[ScenarioConfig]]
     tables: ClassVar[tuple[str, ...]] = ()
     goal: ClassVar[str] = "goal reached"
+    topics: ClassVar[tuple[CdrTopic, ...]] = ()
+    """The recording topics of its own measures (:meth:`messages`), declared here so the
+    recording knows them (the scenario's observation, as dm_control's task has one)."""
 
     source: str | None = None
     """Who judges this cycle (``None`` before the first judged cycle)."""
@@ -120,6 +126,11 @@ class Scenario(ABC):
               target: TargetObservation | None) -> bool:
         """In ALIGN: whether the goal holds this cycle, as :attr:`source` sees it (before
         the task's hold time)."""
+
+    def messages(self) -> list[tuple[str, object]]:
+        """This cycle's messages on :attr:`topics`: ``(topic, source)``, each source's
+        attributes its topic's fields by name (called after :meth:`observe`)."""
+        return []
 
     def truth_label(self) -> str:
         """The simulator's own verdict so far (``""`` without ground truth)."""

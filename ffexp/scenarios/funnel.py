@@ -25,8 +25,9 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from pydantic import Field
 
-from drivers.base.placement import Placement, placement
-from drivers.base.types import NS_PER_S, RobotState, TargetObservation
+from drivers.base.placement import Placement, placement, placement_at_mouth
+from drivers.base.topics import CdrTopic, FieldSpec, MessageSpec
+from drivers.base.types import NS_PER_S, GroundTruth, RobotState, TargetObservation
 from drivers.config import StrictModel
 from ffexp.estimation import Estimate
 from ffexp.observer import ObserverLimits, WrenchObserver
@@ -36,6 +37,45 @@ if TYPE_CHECKING:
     from ffexp.protocol import RunProtocol
 
 Source = Literal["truth", "tracker", "observer", "settings"]
+
+#: The simulator's named frame of the target funnel's mouth (x along the funnel axis).
+MOUTH_SITE = "funnel_mouth"
+#: The simulator's named frame of the true TCP (a robot's measured pose may lag it).
+TCP_SITE = "tcp"
+
+PLACEMENT = MessageSpec(
+    "ffexp_msgs/msg/FunnelPlacement",
+    (
+        FieldSpec("insertion", "float64", 1, "m", "tool tip depth past the funnel mouth"),
+        FieldSpec("lateral", "float64", 1, "m", "tool tip offset from the funnel axis, "
+                  "horizontal"),
+        FieldSpec("vertical", "float64", 1, "m", "tool tip offset from the funnel axis, "
+                  "vertical"),
+        FieldSpec("yaw", "float64", 1, "rad", "tool axis heading minus funnel axis heading"),
+        FieldSpec("within", "uint8", 1, "", "within the [alignment] tolerances this cycle"),
+    ),
+    "The tool tip in the target funnel by the simulator's truth (funnel alignment).",
+)
+
+
+def truth_placement(truth: GroundTruth, tcp_pose: np.ndarray) -> Placement | None:
+    """The tool tip in the funnel from the simulator's truth (``None``: no funnel mouth); the
+    truth's own TCP frame when it has one, else ``tcp_pose`` (the robot's measurement)."""
+    mouth = truth.sites.get(MOUTH_SITE)
+    if mouth is None:
+        return None
+    tcp_pose = truth.sites.get(TCP_SITE, tcp_pose)
+    return placement_at_mouth(tcp_pose, mouth[:3, 3], mouth[:3, :3].reshape(9))
+
+
+class _PlacementRecord:
+    """``/task/funnel``'s fields."""
+
+    __slots__ = ("insertion", "lateral", "vertical", "within", "yaw")
+
+    def __init__(self, p: Placement, within: bool) -> None:
+        self.insertion, self.lateral, self.vertical, self.yaw = p
+        self.within = int(within)
 
 
 class Alignment(StrictModel):
@@ -76,6 +116,12 @@ class Alignment(StrictModel):
     target_mass_kg: float = Field(
         12.0, gt=0, description="Observer: the target's mass (bounds how far pushing moved it).")
 
+    def within(self, p: Placement) -> bool:
+        """The tool tip at ``p`` within the lateral, yaw and insertion tolerances."""
+        return (abs(p.lateral) <= self.lateral_tol_m
+                and abs(math.degrees(p.yaw)) <= self.yaw_tol_deg
+                and p.insertion >= self.min_insertion_m)
+
 
 class FunnelTask(ScenarioConfig):
     """``[task]`` of the funnel alignment: the scenario's name only (its settings are
@@ -92,6 +138,7 @@ class FunnelAlignment(Scenario):
     config_model = FunnelTask
     tables = ("alignment",)
     goal = "funnels aligned"
+    topics = (CdrTopic("/task/funnel", PLACEMENT, "every controller cycle with ground truth"),)
 
     @classmethod
     def create(cls, config: object, protocol: RunProtocol) -> FunnelAlignment:
@@ -117,6 +164,9 @@ class FunnelAlignment(Scenario):
         self._truth_since_ns: int | None = None
         self._tracker_seen = False
         self._target: TargetObservation | None = None
+        self._truth_p: Placement | None = None
+        """The truth's placement this cycle (``None``: no truth)."""
+        self._unrecorded = False  # this cycle's placement is still to be recorded
 
     @property
     def hold_s(self) -> float:
@@ -175,8 +225,11 @@ class FunnelAlignment(Scenario):
     # -- every cycle ---------------------------------------------------------
     def observe(self, t_ns: int, state: RobotState, est: Estimate,
                 target: TargetObservation | None) -> None:
-        if state.truth is not None and self.truth_aligned is None:
+        truth = state.truth
+        if truth is not None and self.truth_aligned is None:
             self.truth_aligned = False  # the truth is there: it says "not aligned" until held
+        self._truth_p = None if truth is None else truth_placement(truth, state.tcp_pose_m)
+        self._unrecorded = self._truth_p is not None
         self._place(state)
         z = self._advance(state)
         if est.in_contact:
@@ -193,18 +246,14 @@ class FunnelAlignment(Scenario):
         self._truth_since_ns = None
 
     def _within(self, p: Placement) -> bool:
-        a = self.alignment
-        return (abs(p.lateral) <= a.lateral_tol_m and abs(math.degrees(p.yaw)) <= a.yaw_tol_deg
-                and p.insertion >= a.min_insertion_m)
+        return self.alignment.within(p)
 
     def _shadow_truth(self, t_ns: int, state: RobotState) -> None:
-        truth = state.truth
-        if truth is None:
+        p = self._truth_p
+        if p is None:
             return
         if self.truth_aligned is None:
             self.truth_aligned = False
-        p = Placement((truth.insertion, truth.lateral_error, truth.vertical_error,
-                       truth.yaw_error))
         if not self._within(p):
             self._truth_since_ns = None
             return
@@ -225,13 +274,18 @@ class FunnelAlignment(Scenario):
         """The relative pose of tool and funnel the judging source sees (truth, tracker)."""
         src = self.source
         if src == "truth":
-            truth = state.truth
-            self.placement = None if truth is None else Placement(
-                (truth.insertion, truth.lateral_error, truth.vertical_error, truth.yaw_error))
+            self.placement = self._truth_p
         elif src == "tracker":
             target = self._target
             self.placement = (None if target is None
                               else placement(state.tcp_pose_m, target.mouth_m))
+
+    def messages(self) -> list[tuple[str, object]]:
+        p = self._truth_p
+        if p is None or not self._unrecorded:  # not observed this cycle
+            return []
+        self._unrecorded = False
+        return [("/task/funnel", _PlacementRecord(p, self._within(p)))]
 
     # -- the verdict ---------------------------------------------------------
     def holds(self, t_ns: int, state: RobotState, est: Estimate,

@@ -27,6 +27,7 @@ from __future__ import annotations
 from typing import Any
 
 from drivers import registry
+from ffexp import scenarios
 from ffexp.recording.schema import (
     QUAT_SCHEMA,
     TIME_SCHEMA,
@@ -135,24 +136,6 @@ ADMITTANCE = MessageSpec(
     "The admittance method's virtual mass-damper, every cycle in ALIGN.",
 )
 
-TRUTH = MessageSpec(
-    "ffexp_msgs/msg/SimTruth",
-    (
-        F("target_pose", "float64", 16, "m", "target block pose in the world, 4x4 row-major"),
-        F("target_twist", "float64", 3, "m/s, rad/s", "vx, vy, wz in the world"),
-        F("contact_wrench", "float64", 6, "N, N m", "true wrench of the target on the tool, TCF"),
-        F("tcp_twist", "float64", 6, "m/s, rad/s", "true TCP twist, TCF"),
-        F("lateral_error", "float64", 1, "m", "tool tip offset from the funnel axis"),
-        F("vertical_error", "float64", 1, "m"),
-        F("yaw_error", "float64", 1, "rad", "tool yaw minus funnel yaw"),
-        F("insertion", "float64", 1, "m", "tool tip depth past the funnel mouth"),
-        F("seated", "uint8"),
-        F("in_contact", "uint8"),
-    ),
-    "Ground truth that only the simulator has.",
-)
-
-
 #: The core topics before the back-ends' (kept in this order: ``ffexp topics`` lists them so).
 _CDR_HEAD = (CdrTopic("/robot/state", ROBOT_STATE, "every controller cycle"),)
 _CDR_CORE = (
@@ -161,7 +144,6 @@ _CDR_CORE = (
     CdrTopic("/ft/raw", FT_SAMPLE, "every sensor sample"),
     CdrTopic("/estimator/state", ESTIMATE, "every controller cycle"),
     CdrTopic("/control/terms", CONTROL, "every controller cycle"),
-    CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
     *topics_target.CDR, *topics_scene.CDR,
 )
 
@@ -285,7 +267,8 @@ JSON_TOPICS: dict[str, JsonTopic] = {}
 def _collect() -> None:
     """Fill :data:`CDR_TOPICS` and :data:`JSON_TOPICS` (in place) from the core topics and
     the back-ends' (:mod:`drivers.registry`); again whenever the registry changes."""
-    cdr: tuple[CdrTopic, ...] = (*_CDR_HEAD, *registry.backend_cdr_topics(), *_CDR_CORE)
+    cdr: tuple[CdrTopic, ...] = (*_CDR_HEAD, *registry.backend_cdr_topics(), *_CDR_CORE,
+                                 *scenarios.scenario_topics())
     json_topics: tuple[JsonTopic, ...] = (*_JSON_CORE, *registry.backend_json_topics())
     names = [t.topic for t in cdr] + [t.topic for t in json_topics]
     twice = sorted({n for n in names if names.count(n) > 1})
@@ -299,6 +282,7 @@ def _collect() -> None:
 
 _collect()
 registry.on_change(_collect)
+scenarios.on_change(_collect)
 
 
 def describe() -> str:

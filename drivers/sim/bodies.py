@@ -1,0 +1,84 @@
+"""The scene's free-moving bodies as the simulator's truth reports them: each by name,
+its pose and twist in the world frame. No I/O.
+
+A body is free-moving when a joint other than the arm's moves it: the air-bed
+target (slides and a hinge), a target in free flight (a free joint), a floating
+base. :class:`FreeBodies` finds them in a compiled model, sets their start
+velocity and reads their state; what a scenario makes of them (a funnel's
+errors, an insertion depth) is the scenario's.
+
+Twists are ``[vx, vy, vz, wx, wy, wz]``: the velocity of the body frame's
+origin and the angular velocity, both in world coordinates
+(``mj_objectVelocity`` with world orientation).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from drivers.base.types import F64, BodyTruth
+
+__all__ = ["FreeBodies"]
+
+
+class FreeBodies:
+    """The free-moving bodies of a model, by name (the order of the model's tree).
+
+    Args:
+        model, data: the compiled world.
+        names: the bodies to report, each moved by a joint of its own.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData,
+                 names: tuple[str, ...]) -> None:
+        self.model, self.data = model, data
+        self.ids: dict[str, int] = {}
+        for name in names:
+            bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+            if bid < 0:
+                raise KeyError(f"no body {name!r} in the model")
+            self.ids[name] = bid
+        self._vel = np.zeros(6)
+
+    def _free_dofs(self, name: str) -> int | None:
+        """The first dof of the body's free joint (``None``: it has none)."""
+        m = self.model
+        bid = self.ids[name]
+        for j in range(m.body_jntadr[bid], m.body_jntadr[bid] + m.body_jntnum[bid]):
+            if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                return int(m.jnt_dofadr[j])
+        return None
+
+    def set_free_twist(self, name: str, linear_mps: F64, angular_radps: F64) -> None:
+        """Give the free body ``name`` a twist: its centre of mass' velocity and its angular
+        velocity, both in the world frame (MuJoCo's free joint takes the angular velocity
+        in the body frame: turned here)."""
+        adr = self._free_dofs(name)
+        if adr is None:
+            raise ValueError(f"body {name!r} has no free joint")
+        rot = self.data.xmat[self.ids[name]].reshape(3, 3)
+        qvel = self.data.qvel
+        qvel[adr:adr + 3] = linear_mps
+        qvel[adr + 3:adr + 6] = rot.T @ np.asarray(angular_radps, dtype=np.float64)
+
+    def pose(self, name: str) -> F64:
+        """The body frame's 4x4 pose in the world (a new array)."""
+        bid = self.ids[name]
+        out = np.eye(4)
+        out[:3, :3] = self.data.xmat[bid].reshape(3, 3)
+        out[:3, 3] = self.data.xpos[bid]
+        return out
+
+    def twist(self, name: str) -> F64:
+        """``[v, w]`` of the body frame's origin, world coordinates (a new array; needs
+        the velocities of the state: ``mj_comVel`` done)."""
+        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY,
+                                 self.ids[name], self._vel, 0)
+        return np.concatenate((self._vel[3:], self._vel[:3]))
+
+    def truth(self) -> dict[str, BodyTruth]:
+        """Every body's state now."""
+        mass = self.model.body_mass
+        return {name: BodyTruth(self.pose(name), self.twist(name), float(mass[bid]))
+                for name, bid in self.ids.items()}

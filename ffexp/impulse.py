@@ -1,0 +1,51 @@
+"""What a run imparted to the scene's free bodies, from its recording. Pure maths on arrays.
+
+In free flight every newton-second the tool pushes is the target's motion: the
+target's momentum change over the run (from the simulator's truth) and the
+contact impulse the F/T sensor measured (its wrench turned into the world
+frame and integrated) are the same number, up to what else acts on the target
+(bed friction and hose on the air bed, none in orbit). For a floating base the
+largest displacement and rotation of the base from where it started.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+__all__ = ["base_excursion", "contact_impulse_ns", "momentum_change_ns"]
+
+
+def momentum_change_ns(mass_kg: float, twist: F64) -> float:
+    """``|m (v_end - v_start)|`` of a body from its twists ``[v, w]`` (rows, world) [N s]."""
+    if len(twist) == 0:
+        return 0.0
+    return float(mass_kg * np.linalg.norm(twist[-1, :3] - twist[0, :3]))
+
+
+def contact_impulse_ns(t_s: F64, wrench_tcf: F64, tcp_pose: F64) -> float:
+    """``|integral R f dt|``: the impulse of the measured contact force (TCF, the
+    environment on the tool) in the world frame, trapezoidal over the cycles [N s].
+
+    ``tcp_pose`` is ``(n, 4, 4)`` (the TCF's axes are its rotation's columns)."""
+    if len(t_s) < 2:
+        return 0.0
+    f_world = np.einsum("nij,nj->ni", tcp_pose[:, :3, :3], wrench_tcf[:, :3])
+    dt = np.diff(t_s)[:, None]
+    impulse = np.sum(0.5 * (f_world[1:] + f_world[:-1]) * dt, axis=0)
+    return float(np.linalg.norm(impulse))
+
+
+def base_excursion(pose: F64) -> tuple[float, float]:
+    """The largest distance [m] and rotation [deg] of a body from its first pose
+    (``(n, 4, 4)``; the rotation is the angle of ``R_0^T R``)."""
+    if len(pose) == 0:
+        return 0.0, 0.0
+    d = np.linalg.norm(pose[:, :3, 3] - pose[0, :3, 3], axis=1)
+    rel = np.einsum("ji,njk->nik", pose[0, :3, :3], pose[:, :3, :3])
+    cos = np.clip((np.trace(rel, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.max(d)), math.degrees(float(np.max(np.arccos(cos))))

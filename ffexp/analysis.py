@@ -205,12 +205,7 @@ def metrics(rec: Recording) -> RunMetrics:
     if placed is not None and len(placed):
         lat = float(placed["lateral"][-1])
         yaw = math.degrees(float(placed["yaw"][-1]))
-    st = rec.topics.get("/robot/state")
-    est = rec.topic("/estimator/state")
-    contact_impulse = None
-    if st is not None and len(st) == len(est):
-        contact_impulse = impulse.contact_impulse_ns(
-            (est.log_time_ns - t0_ns) / NS, est["wrench"], st["tcp_pose"].reshape(-1, 4, 4))
+    contact_impulse = _contact_impulse(rec, t0_ns)
     base_move = base_turn = None
     base = rec.topics.get("/sim/body/chaser")
     if base is not None and len(base):
@@ -264,6 +259,23 @@ def metrics(rec: Recording) -> RunMetrics:
         trial_valid=trial.trial_valid,
         trial_validity=trial.validity,
     )
+
+
+def _contact_impulse(rec: Recording, t0_ns: int) -> float | None:
+    """The contact impulse in the world frame (:func:`ffexp.impulse.contact_impulse_ns`):
+    the TCF's world orientation from the simulator's TCP frame when recorded (a floating
+    base moves the robot's base frame), else the robot's pose (its base is the world)."""
+    est = rec.topic("/estimator/state")
+    tcp = rec.topics.get("/sim/site/tcp")
+    frame = tcp["pose"] if tcp is not None else None
+    if frame is None or len(frame) != len(est):
+        st = rec.topics.get("/robot/state")
+        if st is None or len(st) != len(est):
+            return None
+        frame = st["tcp_pose"]
+    rot = frame.reshape(-1, 4, 4)[:, :3, :3]
+    return impulse.contact_impulse_ns((est.log_time_ns - t0_ns) / NS, est["wrench"], rot,
+                                      est["in_contact"])
 
 
 def final_verdict(rec: Recording) -> dict[str, Any]:
@@ -339,6 +351,7 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("peak |f_z| run [N]", "peak_abs_fz_run_n", 7),
     ("f_z rmse [N]", "fz_tracking_rmse_n", 5),
     ("target v [m/s]", "target_speed_after_contact_mps", 7),
+    ("momentum [N s]", "target_momentum_ns", 1),
     ("end", "end", 0),
     ("complete", "complete", 1),
 )
@@ -349,8 +362,9 @@ COMPARE_KEYS: tuple[str, ...] = (
     "alignment_time_s", "contact_breaks", "breaks_align", "mean_fz_align_n", "peak_abs_fz_n",
     "peak_abs_fz_run_n", "fz_tracking_rmse_n", "target_speed_after_contact_mps",
     "target_max_speed_mps", "target_displacement_m", "final_lateral_error_m",
-    "final_yaw_error_deg", "duration_s", "end", "aborted", "trial_valid", "trial_validity",
-    "source_revision",
+    "final_yaw_error_deg", "target_momentum_ns", "contact_impulse_ns",
+    "base_max_displacement_m", "base_max_rotation_deg", "duration_s", "end", "aborted",
+    "trial_valid", "trial_validity", "source_revision",
 )
 
 

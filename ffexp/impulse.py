@@ -27,17 +27,24 @@ def momentum_change_ns(mass_kg: float, twist: F64) -> float:
     return float(mass_kg * np.linalg.norm(twist[-1, :3] - twist[0, :3]))
 
 
-def contact_impulse_ns(t_s: F64, wrench_tcf: F64, tcp_pose: F64) -> float:
-    """``|integral R f dt|``: the impulse of the measured contact force (TCF, the
-    environment on the tool) in the world frame, trapezoidal over the cycles [N s].
+def contact_impulse_ns(t_s: F64, wrench_tcf: F64, tcf_rot: F64, in_contact: F64) -> float:
+    """``|sum R f dt|`` from the first cycle in contact to the last: the impulse of the
+    measured contact force (TCF, the environment on the tool) in the world frame [N s].
+    Each cycle counts its force for the time to the next. Light touches between the
+    detector's contacts count (a detector misses many in free flight); before the first
+    contact and after the last the reading is the sensor's noise and drift, which
+    would otherwise add up over a long run.
 
-    ``tcp_pose`` is ``(n, 4, 4)`` (the TCF's axes are its rotation's columns)."""
+    ``tcf_rot`` is ``(n, 3, 3)``: the TCF's axes in the world frame."""
     if len(t_s) < 2:
         return 0.0
-    f_world = np.einsum("nij,nj->ni", tcp_pose[:, :3, :3], wrench_tcf[:, :3])
-    dt = np.diff(t_s)[:, None]
-    impulse = np.sum(0.5 * (f_world[1:] + f_world[:-1]) * dt, axis=0)
-    return float(np.linalg.norm(impulse))
+    touching = np.flatnonzero(np.asarray(in_contact, bool))
+    if len(touching) == 0:
+        return 0.0
+    window = slice(int(touching[0]), int(touching[-1]) + 1)
+    f_world = np.einsum("nij,nj->ni", tcf_rot[window], wrench_tcf[window, :3])
+    dt = np.diff(t_s, append=t_s[-1])[window, None]
+    return float(np.linalg.norm(np.sum(f_world * dt, axis=0)))
 
 
 def base_excursion(pose: F64) -> tuple[float, float]:

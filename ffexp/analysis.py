@@ -351,7 +351,7 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("peak |f_z| run [N]", "peak_abs_fz_run_n", 7),
     ("f_z rmse [N]", "fz_tracking_rmse_n", 5),
     ("target v [m/s]", "target_speed_after_contact_mps", 7),
-    ("momentum [N s]", "target_momentum_ns", 1),
+    ("momentum [N s]", "target_momentum_ns", 0),
     ("end", "end", 0),
     ("complete", "complete", 1),
 )

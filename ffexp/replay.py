@@ -66,7 +66,7 @@ from ffexp.errors import ConfigError, InputError
 from ffexp.loop import Cycle
 from ffexp.protocol import RunProtocol, load_run_protocol
 from ffexp.recording import Recorder, Recording, TopicData, load
-from ffexp.recording.topics import CDR_TOPICS
+from ffexp.recording.reader import contents
 
 #: The tolerance of "the same command": float rounding, not a physical threshold.
 RTOL = 1e-9
@@ -76,9 +76,9 @@ COMMAND_FIELDS = ("given", "pose", "stiffness", "damping", "wrench")
 #: What the replay needs of a recording (and reads, nothing else).
 TRUTH_PREFIX = GroundTruth().topic_prefix
 INPUT_TOPICS = ("/robot/state", "/ft/raw", "/estimator/state", f"{TRUTH_PREFIX}/truth",
-                *(t for t in CDR_TOPICS if t.startswith((f"{TRUTH_PREFIX}/body/",
-                                                         f"{TRUTH_PREFIX}/site/"))),
                 "/target/pose", "/control/command")
+#: The truth's topics of each body and named frame (one per name: their prefixes).
+TRUTH_PART_PREFIXES = (f"{TRUTH_PREFIX}/body/", f"{TRUTH_PREFIX}/site/")
 
 OPEN_LOOP = (
     "open-loop replay: the recorded measurements answer the recorded commands, so the replay "
@@ -373,7 +373,9 @@ def replay(
 
     if out.exists() and src.exists() and out.resolve() == src.resolve():
         raise InputError(f"{out}: --out must differ from the recording replayed")
-    rec = load(src, INPUT_TOPICS)
+    parts = [row["topic"] for row in contents(src).rows
+             if str(row["topic"]).startswith(TRUTH_PART_PREFIXES)]
+    rec = load(src, (*INPUT_TOPICS, *parts))
     protocol = (load_run_protocol(protocol_path, list(overrides)) if protocol_path is not None
                 else recorded_protocol(rec, overrides))
     inputs = Inputs(rec)

@@ -34,6 +34,8 @@ class Layout:
     """Mouth centre of the target funnel in the target body frame."""
     funnel_seat_depth: float
     """Insertion depth of the tool tip when the cones are seated [m]."""
+    objects: dict[str, NDArray[np.float64]]
+    """Where each of the scene's ``objects`` starts: its centre in the world [m]."""
 
 
 def funnel_axis_height(scene: Scene) -> float:
@@ -86,4 +88,6 @@ def compute_layout(
         target_rot=rot,
         funnel_in_target=funnel_in_target,
         funnel_seat_depth=seat_depth(scene),
+        objects={o.name: tcp_pos + o.distance * z_axis + o.lateral * y_axis
+                 + np.array([0.0, 0.0, o.vertical]) for o in scene.objects},
     )

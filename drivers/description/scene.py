@@ -371,6 +371,50 @@ class TargetSettings(StrictModel):
         return self.mu * gravity + (h.stiffness * glide_m + h.damping * speed_mps) / self.mass
 
 
+#: Body names the simulator uses itself (an object may not take them).
+RESERVED_BODIES = ("target", "chaser", "world")
+
+
+class ObjectSettings(StrictModel):
+    """A body of the world beside the target, for a scenario of its own (a plate to press,
+    a ball to push, a handle to reach): a primitive shape, placed like the target from
+    the start TCF, free (weightless, in six degrees of freedom) or fixed to the world.
+
+    The tool touches it with the scene's ``[contact]``; the simulator's truth reports a
+    free object by ``name`` (pose, twist, mass) and each of its ``sites`` as the named
+    frame ``<name>.<site>``, for the scenario to measure."""
+
+    name: Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]*$")]
+    shape: Literal["box", "sphere", "cylinder"] = "box"
+    size: Vec3 = (0.1, 0.1, 0.1)
+    """box: edges; sphere: diameter (first value); cylinder: diameter, -, length [m]."""
+    mass: PosFloat = 1.0
+    support: Literal["free", "fixed"] = "free"
+    distance: float = 0.1
+    """From the tool tip along TCF Z at start to the object's centre [m]."""
+    lateral: float = 0.0
+    """Along TCF Y at start [m]."""
+    vertical: float = 0.0
+    """Along the world vertical [m]."""
+    drift_mps: Vec3 = (0.0, 0.0, 0.0)
+    """Initial velocity, world frame [m/s] (free only)."""
+    tumble_radps: Vec3 = (0.0, 0.0, 0.0)
+    """Initial angular velocity, world frame [rad/s] (free only)."""
+    sites: dict[str, Vec3] = Field(default_factory=dict)
+    """Named frames on it, positions in its frame [m] (axes: the world's at start)."""
+
+    @model_validator(mode="after")
+    def _check(self) -> ObjectSettings:
+        if self.name in RESERVED_BODIES:
+            raise ValueError(f"objects: name {self.name!r} is the simulator's own; "
+                             "pick another")
+        if self.support == "fixed" and (any(self.drift_mps) or any(self.tumble_radps)):
+            raise ValueError(f"objects.{self.name}: a fixed object cannot drift or tumble")
+        if any(size <= 0.0 for size in self.size[:1] + self.size[2:]):
+            raise ValueError(f"objects.{self.name}.size must be positive")
+        return self
+
+
 class BaseSettings(StrictModel):
     """What the arm stands on: the ground (``"fixed"``) or a spacecraft that floats.
 
@@ -445,6 +489,8 @@ class Scene(StrictModel):
     contact: ContactSettings = ContactSettings()
     target: TargetSettings = TargetSettings()
     base: BaseSettings = BaseSettings()
+    objects: list[ObjectSettings] = Field(default_factory=list)
+    """Further bodies of the world (``[[objects]]``), for scenarios of their own."""
 
     @model_validator(mode="after")
     def _check_rates(self) -> Scene:
@@ -464,6 +510,10 @@ class Scene(StrictModel):
         if self.base.floating and self.physics.gravity != 0.0:
             raise ValueError(f"base.mode {self.base.mode!r} needs physics.gravity = 0: a "
                              "floating base is a spacecraft in orbit")
+        names = [o.name for o in self.objects]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"objects: {', '.join(twice)} named twice")
         if self.base.floating and self.target.support != "free":
             raise ValueError(f"base.mode {self.base.mode!r} needs target.support = 'free'")
         tool = self.tool.funnel

@@ -33,7 +33,7 @@ import numpy as np
 from drivers.description.arm import rpy_matrix
 from drivers.description.funnel import tool_tip_offset
 from drivers.description.layout import Layout
-from drivers.description.scene import Scene
+from drivers.description.scene import ObjectSettings, Scene
 from drivers.sim import funnels
 
 #: The arm's joint names (``a1`` .. ``a7``; the first six for a six-joint arm).
@@ -68,6 +68,8 @@ TOUCH_MARGIN = 2e-4
 _PAD = 'contype="4" conaffinity="8"'
 _GLASS = 'contype="8" conaffinity="4"'
 _VISUAL = 'contype="0" conaffinity="0"'
+# An object collides with the tool as the target's funnel does (drivers.sim.funnels).
+_OBJECT = 'contype="2" conaffinity="1"'
 
 
 def _f(v: float) -> str:
@@ -206,6 +208,38 @@ def _free_target_xml(scene: Scene, layout: Layout) -> str:
     )
 
 
+def _object_xml(obj: ObjectSettings, centre: np.ndarray) -> str:
+    """One of the scene's objects: a primitive the tool touches, free or fixed."""
+    m = obj.mass
+    a, b, c = obj.size
+    if obj.shape == "box":
+        geom = f'type="box" size="{_f(a / 2)} {_f(b / 2)} {_f(c / 2)}"'
+        inertia = (m * (b**2 + c**2) / 12, m * (a**2 + c**2) / 12, m * (a**2 + b**2) / 12)
+    elif obj.shape == "sphere":
+        geom = f'type="sphere" size="{_f(a / 2)}"'
+        inertia = (m * a**2 / 10,) * 3
+    else:
+        r = a / 2
+        geom = f'type="cylinder" size="{_f(r)} {_f(c / 2)}"'
+        inertia = (m * (3 * r**2 + c**2) / 12, m * (3 * r**2 + c**2) / 12, m * r**2 / 2)
+    free = obj.support == "free"
+    sites = "".join(f'<site name="{obj.name}.{site}" pos="{_vec(pos)}"/>\n'
+                    for site, pos in obj.sites.items())
+    weightless = ' gravcomp="1"' if free else ""
+    return (
+        f'<body name="{obj.name}" pos="{_vec(centre)}"{weightless}>\n'
+        + (f'<freejoint name="{obj.name}_free"/>\n' if free else "")
+        + f'<inertial pos="0 0 0" mass="{_f(m)}" diaginertia="{_vec(inertia)}"/>\n'
+        f'<geom name="{obj.name}" {geom} class="funnel" {_OBJECT} rgba="0.4 0.7 0.4 1"/>\n'
+        f"{sites}</body>"
+    )
+
+
+def objects_xml(scene: Scene, layout: Layout) -> str:
+    """The scene's ``[[objects]]``."""
+    return "\n".join(_object_xml(o, layout.objects[o.name]) for o in scene.objects)
+
+
 def target_xml(scene: Scene, layout: Layout) -> str:
     """The target body on its support (:attr:`TargetSettings.support
     <drivers.description.scene.TargetSettings.support>`)."""
@@ -254,7 +288,7 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
     """The whole model. With ``layout=None`` only the arm (used to find the start TCF)."""
     ph = scene.physics
     ct = scene.contact
-    target = "" if layout is None else target_xml(scene, layout)
+    target = "" if layout is None else target_xml(scene, layout) + objects_xml(scene, layout)
     glass_z = 0.0 if layout is None else layout.glass_z
     mu = scene.target.mu
     glass = "" if scene.target.support == "free" else (

@@ -138,10 +138,13 @@ def _fill_dynamics(s: LazyArmState, w: SimWorld) -> None:
 
 def _fill_truth(s: LazyArmState, w: SimWorld) -> None:
     tcp_twist = s.jacobian @ w._qvel_arm
+    sites = {"funnel_mouth": pose(w._mouth_xpos, w._mouth_xmat),
+             "tcp": w.tcp_pose if w.chaser is None else pose(w._tcp_xpos, w._tcp_xmat)}
+    for name in w._object_sites:
+        site = w.data.site(name)
+        sites[name] = pose(site.xpos, site.xmat)
     s.__dict__["truth"] = ground_truth(
-        w.bodies.truth(), {"funnel_mouth": pose(w._mouth_xpos, w._mouth_xmat),
-                           "tcp": w.tcp_pose if w.chaser is None
-                           else pose(w._tcp_xpos, w._tcp_xmat)},
+        w.bodies.truth(), sites,
         w._contact, w._touching, tcp_twist,
         None if w.chaser is None else w.chaser.arm_base_pose())
 

@@ -1,7 +1,8 @@
 """The simulator's recording topics: its ground truth (:class:`~drivers.base.types.GroundTruth`).
 
 Neutral: the truth's own fields on ``/sim/truth``, every free-moving body of the
-scene on ``/sim/body/<name>`` and every named frame on ``/sim/site/<name>``.
+scene on ``/sim/body/<name>`` and every named frame on ``/sim/site/<name>`` (a topic
+name ending in ``/*`` stands for every topic of that prefix with one more name).
 What a scenario derives from them (a funnel's errors) it records itself.
 """
 
@@ -11,9 +12,6 @@ from drivers.base.topics import CdrTopic, FieldSpec, MessageSpec
 
 F = FieldSpec
 
-#: The bodies and frames a simulated scene reports (:mod:`drivers.sim.bodies`).
-BODIES = ("target", "chaser")
-SITES = ("funnel_mouth", "tcp")
 
 TRUTH = MessageSpec(
     "ffexp_msgs/msg/SimTruth",
@@ -43,10 +41,11 @@ SITE = MessageSpec(
     "A named frame of the simulated scene (simulator only).",
 )
 
+#: ``/*``: one topic per body or frame of the scene, by its name (``/sim/body/target``,
+#: ``/sim/body/chaser``, ``/sim/site/funnel_mouth``, ``/sim/site/tcp``, an object's).
 CDR_TOPICS: tuple[CdrTopic, ...] = (
     CdrTopic("/sim/truth", TRUTH, "every controller cycle, simulator only"),
-    *(CdrTopic(f"/sim/body/{name}", BODY, "every controller cycle, simulator only")
-      for name in BODIES),
-    *(CdrTopic(f"/sim/site/{name}", SITE, "every controller cycle, simulator only")
-      for name in SITES),
+    CdrTopic("/sim/body/*", BODY, "every controller cycle, simulator only: one per free body"),
+    CdrTopic("/sim/site/*", SITE, "every controller cycle, simulator only: one per named "
+             "frame"),
 )

@@ -125,8 +125,10 @@ class SimWorld:
         self._tool_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "tool")
         self.chaser = FloatingBase(scene.base, m, d) if scene.base.floating else None
         """The floating base (``None``: the arm stands on the ground)."""
-        self.bodies = FreeBodies(m, d, (mjcf.TARGET_BODY,) if self.chaser is None
-                                 else (mjcf.TARGET_BODY, mjcf.BASE_BODY))
+        self.bodies = FreeBodies(m, d, (
+            mjcf.TARGET_BODY, *(() if self.chaser is None else (mjcf.BASE_BODY,)),
+            *(o.name for o in scene.objects if o.support == "free")))
+        self._object_sites = [f"{o.name}.{site}" for o in scene.objects for site in o.sites]
         """The scene's free-moving bodies (the truth reports them by name)."""
         self._on_bed = scene.target.support == "air_bed"
         if self._on_bed:  # the bed's slides and hinge
@@ -247,6 +249,10 @@ class SimWorld:
         self._ft_steps.restart()
         if self.chaser is not None:
             self.chaser.hold()  # the base holds where it starts
+        for obj in scene.objects:
+            if obj.support == "free":
+                self.bodies.set_free_twist(obj.name, np.asarray(obj.drift_mps),
+                                           np.asarray(obj.tumble_radps))
         tg = scene.target
         if self._on_bed:
             self.set_target_velocity(*tg.velocity)

@@ -141,10 +141,11 @@ class LiveServer:
         # a viewer is connected is advertised to it before the server accepts subscribing
         # to it (foxglove-sdk 0.30: "unknown channel"), and a viewer that subscribes at
         # once would never get that topic
+        # (a family's topics, ``/sim/body/*``, are named by the run: each gets its channel
+        # with its first message)
         for topic in (*CDR_TOPICS, *JSON_TOPICS):
-            channel = self._channel(topic)
-            self._channels[topic] = channel
-            self._topic_of[channel.id()] = topic
+            if not topic.endswith("/*"):
+                self._add_channel(topic)
         self._thread = threading.Thread(target=self._publish, name="ffexp-live", daemon=True)
         self._thread.start()
 
@@ -225,7 +226,8 @@ class LiveServer:
     # -- the loop's side ------------------------------------------------------
     def tap(self, topic: str, log_time_ns: int, data: bytes) -> None:
         """A message the recorder wrote: queue it if it is due, never wait."""
-        if topic in self._decimated and log_time_ns != self._last_ns.get(topic):
+        fast = topic in self._decimated or CDR_TOPICS.family(topic) is not None
+        if fast and log_time_ns != self._last_ns.get(topic):
             if log_time_ns < self._next_ns.get(topic, log_time_ns):
                 return
             self._next_ns[topic] = log_time_ns + self.period_ns
@@ -276,9 +278,17 @@ class LiveServer:
             for data in messages:
                 self._log(topic, log_time_ns, data)
 
+    def _add_channel(self, topic: str) -> foxglove.Channel:
+        channel = self._channels[topic] = self._channel(topic)
+        self._topic_of[channel.id()] = topic
+        return channel
+
     def _log(self, topic: str, log_time_ns: int, data: bytes) -> None:
         try:
-            self._channels[topic].log(data, log_time=log_time_ns)
+            channel = self._channels.get(topic)
+            if channel is None:
+                channel = self._add_channel(topic)
+            channel.log(data, log_time=log_time_ns)
             self.published += 1
         except Exception as exc:  # a viewer must never end the run
             self.error = self.error or f"{topic}: {exc}"

@@ -260,7 +260,33 @@ _JSON_CORE = (
     *topics_target.JSON, *topics_scene.JSON,
 )
 
-CDR_TOPICS: dict[str, CdrTopic] = {}
+class TopicTable(dict[str, CdrTopic]):
+    """The CDR topics by name; a name ending in ``/*`` is a family: it stands for every
+    topic of its prefix with one more name (``/sim/body/*``: ``/sim/body/target``, ...),
+    as a back-end whose topics follow its scene declares them."""
+
+    def family(self, topic: str) -> CdrTopic | None:
+        """The family ``topic`` belongs to (``None``: none)."""
+        head, _, name = topic.rpartition("/")
+        if not name or name == "*":
+            return None
+        return dict.get(self, f"{head}/*")
+
+    def __missing__(self, topic: str) -> CdrTopic:
+        found = self.family(topic)
+        if found is None:
+            raise KeyError(topic)
+        return found
+
+    def __contains__(self, topic: object) -> bool:
+        return dict.__contains__(self, topic) or (
+            isinstance(topic, str) and self.family(topic) is not None)
+
+    def get(self, topic: str, default: CdrTopic | None = None) -> CdrTopic | None:  # type: ignore[override]
+        return self[topic] if topic in self else default
+
+
+CDR_TOPICS: TopicTable = TopicTable()
 JSON_TOPICS: dict[str, JsonTopic] = {}
 
 

@@ -225,12 +225,11 @@ def _scene_writer(rec: Recorder, protocol_path: Path, protocol: RunProtocol, dev
                   notice: Callable[[str], None] | None) -> SceneWriter | None:
     """The 3-D scene of the rig: the sim's own scene, else the protocol's scene file
     (a rig without a usable one records no scene, said in a notice)."""
-    from drivers.description.scene import Scene, load_scene
+    from drivers.description.scene import load_scene
     from ffexp.scene3d import SceneWriter
 
-    scene_json = devices.metadata.get("scene_json")
     try:
-        scene = (Scene.model_validate_json(scene_json) if scene_json is not None
+        scene = (devices.scene if devices.scene is not None
                  else load_scene(scene_path(protocol_path, protocol), protocol.scene.set))
     except ConfigError as exc:
         if notice is not None:

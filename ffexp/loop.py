@@ -228,13 +228,11 @@ def _split_samples(ft: FtSamples, time_ns: int) -> tuple[FtSamples, FtSamples] |
 
 
 def _link_events(log: RunLog, t_ns: int, state: RobotState) -> None:
-    """The back-end's notes on its link since the last cycle (FRI: state and quality
-    changes, foreign senders), as events at this cycle's time."""
-    events = getattr(state.extras, "link_events", None)
-    if events:
-        for _krc_ns, level, name, message in events:
+    """The back-end's notes on its link since the last cycle
+    (:meth:`~drivers.base.types.Extras.take_events`), as events at this cycle's time."""
+    if state.extras is not None:
+        for _robot_ns, level, name, message in state.extras.take_events():
             log.event(t_ns, level, name, message)
-        events.clear()
 
 
 def _no_measurement(log: RunLog, message: str) -> RunOutcome:

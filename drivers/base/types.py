@@ -65,6 +65,12 @@ class Extras:
         """Recording topics whose fields are attributes of this object."""
         return ()
 
+    def take_events(self) -> list[tuple[int, str, str, str]]:
+        """The back-end's notes on its link since the last call (``(robot time [ns],
+        level, name, message)``: state and quality changes, foreign senders), which the
+        run logs as events; it forgets them. None by default."""
+        return []
+
 
 @dataclass
 class GroundTruth:

@@ -31,7 +31,7 @@ from ffexp.naming import overrides_id, reserve, run_stem
 from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, scene_path
 from ffexp.recording import Recorder
 from ffexp.revision import source_revision
-from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
+from ffexp.rig_choice import DEFAULT_DRIVER, DRIVERS, FT_SOURCES, RigChoice
 from ffexp.runlog import RunLog
 
 if TYPE_CHECKING:
@@ -48,7 +48,7 @@ def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
     """The rig and the name its errors use (the file, or ``<built-in DRIVER rig>``)."""
     if choice.path is not None:
         return load_rig(choice.path, choice.overrides), str(choice.path)
-    driver = choice.driver or "sim"
+    driver = choice.driver or DEFAULT_DRIVER
     robot = registry.robot_for_driver(driver)
     if robot is None:
         names = ", ".join(registry.driver_names())

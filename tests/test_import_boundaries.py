@@ -272,3 +272,42 @@ def test_the_string_check_sees_names_and_topics_but_not_docstrings() -> None:
                    "ffexp/thing.py:5: names a back-end: '/robot/link_driver'"]
     assert string_violations('x = "fri"\n', "ffexp/cli/emulate.py", frozenset({"fri"}),
                              frozenset()) == []  # an explicit exception
+
+
+#: The project's type aliases and the one module that declares each.
+ALIAS_HOMES = {
+    **dict.fromkeys(("Vec3", "Vec6", "Bool6", "PosFloat", "NonNeg", "Port", "Floats2",
+                     "Floats3", "Floats6", "PerJoint"), "drivers/config.py"),
+    "F64": "drivers/base/types.py",
+    "FloatArray": "",  # F64's old second name: declared nowhere
+    "Six": "",  # Vec6's old second name
+}
+#: Files that still declare an alias of their own, and why.
+ALIAS_EXCEPTIONS = frozenset({
+    "drivers/description/scene.py",  # its own vectors, until the scene's rewrite imports them
+})
+
+
+def alias_declarations(source: str, rel: str) -> list[str]:
+    """Module-level assignments to an :data:`ALIAS_HOMES` name outside its home."""
+    found = []
+    for node in ast.parse(source).body:
+        targets = (node.targets if isinstance(node, ast.Assign)
+                   else [node.target] if isinstance(node, ast.AnnAssign) else [])
+        for target in targets:
+            if (isinstance(target, ast.Name) and target.id in ALIAS_HOMES
+                    and ALIAS_HOMES[target.id] != rel):
+                found.append(f"{rel}:{node.lineno}: declares {target.id} again")
+    return found
+
+
+def test_each_type_alias_is_declared_once() -> None:
+    found = []
+    for package in ("drivers", "ffexp"):
+        for path, _module in _sources(ROOT / package):
+            rel = path.relative_to(ROOT).as_posix()
+            if rel not in ALIAS_EXCEPTIONS:
+                found += alias_declarations(path.read_text(), rel)
+    assert found == [], "\n".join(found)
+    assert alias_declarations("Vec6 = tuple[float, ...]\nx: int = 1\n", "ffexp/x.py") == [
+        "ffexp/x.py:1: declares Vec6 again"]

@@ -23,11 +23,9 @@ from enum import IntFlag
 import numpy as np
 from numpy.typing import NDArray
 
-#: The type aliases of the project, defined once: a float64 array, and the
-#: fixed-length tuples config models use for 3- and 6-vectors.
+#: A float64 numpy array: the project's one array alias (its tuple and number aliases,
+#: ``Vec3``, ``Vec6``, ``PosFloat``, ..., are :mod:`drivers.config`'s, light).
 F64 = NDArray[np.float64]
-Vec3 = tuple[float, float, float]
-Vec6 = tuple[float, float, float, float, float, float]
 
 #: Nanoseconds per second: the one definition (log times are integer ns).
 NS_PER_S = 1_000_000_000

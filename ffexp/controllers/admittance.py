@@ -26,14 +26,12 @@ import numpy as np
 from pydantic import Field, model_validator
 from scipy.spatial.transform import Rotation
 
-from drivers.base.types import F64, RobotState, Vec6
-from drivers.config import StrictModel
+from drivers.base.types import F64, RobotState
+from drivers.config import Bool6, StrictModel, Vec6
 from ffexp.controllers.base import ControlContext, Controller
 from ffexp.controllers.laws import AXES, pose_error_tcf
 from ffexp.estimation import Estimate
 from ffexp.recording.topics import CDR_TOPICS
-
-Bool6 = tuple[bool, bool, bool, bool, bool, bool]
 
 
 class AdmittanceConfig(StrictModel):

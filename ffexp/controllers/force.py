@@ -12,7 +12,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from drivers.base.types import F64, RobotState, Vec6
+from drivers.base.types import F64, RobotState
+from drivers.config import Vec6
 from ffexp.controllers.base import ControlContext, Controller
 from ffexp.controllers.laws import ForceControlConfig, ForceController, ForceControlTerms
 from ffexp.estimation import Estimate

@@ -55,7 +55,7 @@ class Cycle:
                          end_on_aligned=p.run.end_on_aligned)
         self.approach = controllers.Approach(p.approach)
         ctx = controllers.ControlContext(cycle_s, self.approach)
-        self.controller = controllers.build(p.align, ctx)
+        self.controller = controllers.build_controller(p.align, ctx)
         self.hold_pose = first.tcp_pose_m.copy()
         self.cmd = CartesianCommand()
         self.total = np.zeros(6)  # the wrench sent this cycle (reused)

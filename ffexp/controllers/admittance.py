@@ -113,6 +113,7 @@ class Admittance(Controller):
     """A virtual mass-damper set-point the robot is pulled to."""
 
     name = "admittance"
+    config_model = AdmittanceConfig
     label = "Admittance control (virtual mass-damper)"
     tracks_force_reference = True
     topic = CDR_TOPICS["/control/admittance"]

@@ -11,6 +11,17 @@ overflows to ``inf``, such as ``1e400``, are errors), and every time is in
 range: a field in seconds (``*_s``), milliseconds (``*_ms``) or a rate
 (``*_hz``, its period) at most :data:`MAX_TIME_S` seconds, so that every time
 is an int64 number of nanoseconds from the run's start.
+
+The project's type aliases for numbers and vectors are declared here, once (light:
+pydantic only), in two kinds:
+
+* fixed-length tuples, a static type (``Vec3``, ``Vec6``, ``Bool6``): code and models
+  that take exactly three or six values;
+* validated fields of a config model (``PosFloat``, ``NonNeg``, ``Port``, and
+  ``Floats2``/``Floats3``/``Floats6``/``PerJoint``, a ``tuple[float, ...]`` whose length
+  pydantic checks: the scene's vectors).
+
+The array alias ``F64`` (a float64 numpy array) is :mod:`drivers.base.types`'.
 """
 
 from __future__ import annotations
@@ -18,13 +29,42 @@ from __future__ import annotations
 import tomllib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
 
-from pydantic import BaseModel, ConfigDict, ValidationError, ValidationInfo, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+)
 
 from drivers.errors import ConfigError
 
 M = TypeVar("M", bound=BaseModel)
+
+#: Three floats (a point, an axis, a size) [its unit in the name that holds it].
+Vec3 = tuple[float, float, float]
+#: Six floats: per TCF axis ``[x, y, z, rx, ry, rz]``, or a wrench or twist.
+Vec6 = tuple[float, float, float, float, float, float]
+#: Six flags, per TCF axis.
+Bool6 = tuple[bool, bool, bool, bool, bool, bool]
+
+#: A float above zero.
+PosFloat = Annotated[float, Field(gt=0.0)]
+#: A float of zero or more.
+NonNeg = Annotated[float, Field(ge=0.0)]
+#: A UDP or TCP port number (0: any free one, where a field allows it).
+Port = Annotated[int, Field(ge=0, le=65535)]
+#: Two floats (a force's and a torque's value), length checked.
+Floats2 = Annotated[tuple[float, ...], Field(min_length=2, max_length=2)]
+#: Three floats, length checked.
+Floats3 = Annotated[tuple[float, ...], Field(min_length=3, max_length=3)]
+#: Six floats, length checked.
+Floats6 = Annotated[tuple[float, ...], Field(min_length=6, max_length=6)]
+#: One float per joint, for arms of up to seven joints (its model says how many).
+PerJoint = Annotated[tuple[float, ...], Field(min_length=1, max_length=7)]
 
 
 #: The longest time any configuration may give (about 11.6 days) [s].

@@ -13,11 +13,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from drivers import registry
 from drivers.base.backend import OpenContext
 from drivers.base.interfaces import ForceTorqueSensor, RobotDriver, TargetTracker
 from drivers.rig import Rig
+
+if TYPE_CHECKING:
+    from drivers.description.scene import Scene
 
 __all__ = ["Devices", "open_devices"]
 
@@ -36,6 +40,8 @@ class Devices:
     """One line for the user about the devices (where a link listens), or ``None``."""
     tracker: TargetTracker | None = None
     """The target tracker, when the rig has one."""
+    scene: Scene | None = None
+    """The scene a simulated robot runs in (``None``: a real robot)."""
 
     def close(self) -> None:
         """Stop the tracker and the sensor and close the robot; idempotent."""
@@ -77,7 +83,8 @@ def open_devices(
     notice = None
     if opened.notice is not None:
         notice = f"{opened.notice}; {got.note or f'F/T: {rig.ft.type}'}"
-    devices = Devices(opened.robot, got.sensor, meta, opened.attachments, notice)
+    devices = Devices(opened.robot, got.sensor, meta, opened.attachments, notice,
+                      scene=opened.scene)
     try:
         tracked = registry.tracker_backend(rig.tracker.type).open(rig.tracker, ctx, opened)
     except BaseException:

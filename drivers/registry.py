@@ -5,10 +5,13 @@ Each folder ``drivers/<name>/`` contributes one :class:`~drivers.base.backend.Ba
 it offers, its ``--driver`` name, and the recording topics of its extras. From
 these entries come the rig's discriminated unions (:mod:`drivers.rig`), the
 factory's dispatch (:mod:`drivers.factory`), the command line's ``--driver``
-and ``--ft`` names and the back-end topics of the recording
-(``ffexp.recording.topics``). The ``none`` tracker (no tracker) is built in; the
-``sim`` robot's entry is in :mod:`drivers.emulate` (the lockstep KRC in front of
-the simulator's world), its sensor's and tracker's in :mod:`drivers.sim`.
+and ``--ft`` names, the back-end topics of the recording
+(``ffexp.recording.topics``), the link-fault counters and link statistics
+``ffexp`` reads from those topics (:func:`link_faults`, :func:`link_stats`) and
+the simulated robot that replays a recording (:func:`replayer`). The ``none``
+tracker (no tracker) is built in; the ``sim`` robot's entry is in
+:mod:`drivers.emulate` (the lockstep KRC in front of the simulator's world), its
+sensor's and tracker's in :mod:`drivers.sim`.
 
 :func:`register` adds a back-end at run time (a plug-in, a test's toy back-end);
 the rig's unions are rebuilt from the registry then.
@@ -27,6 +30,8 @@ from drivers.base.backend import (
     Backend,
     DeviceConfig,
     FtBackend,
+    LinkCounter,
+    LinkStat,
     OpenContext,
     OpenedRobot,
     OpenedTracker,
@@ -46,9 +51,12 @@ __all__ = [
     "driver_names",
     "ft_backend",
     "ft_types",
+    "link_faults",
+    "link_stats",
     "on_change",
     "register",
     "registered",
+    "replayer",
     "robot_backend",
     "robot_for_driver",
     "robot_types",
@@ -152,6 +160,23 @@ def tracker_backend(type_: str) -> TrackerBackend[Any]:
 def robot_for_driver(driver: str) -> RobotBackend[Any] | None:
     """The robot back-end of a ``--driver`` name, or ``None``."""
     return next((r for r in _robots().values() if r.driver == driver), None)
+
+
+def replayer(type_: str) -> RobotBackend[Any] | None:
+    """The simulated robot that replays recordings of the ``[robot] type`` ``type_``
+    (:class:`~drivers.base.backend.Replay`), or ``None``."""
+    return next((r for r in _robots().values()
+                 if r.replay is not None and type_ in r.replay.robots), None)
+
+
+def link_faults() -> tuple[LinkCounter, ...]:
+    """Every back-end's link-fault counters, in registry order."""
+    return tuple(c for b in _BACKENDS for c in b.link_faults)
+
+
+def link_stats() -> tuple[LinkStat, ...]:
+    """Every back-end's link statistics, in registry order."""
+    return tuple(c for b in _BACKENDS for c in b.link_stats)
 
 
 def union(table: Literal["robot", "ft", "tracker"]) -> Any:

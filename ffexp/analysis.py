@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from drivers import registry
 from drivers.base.types import NS_PER_S as NS
 from ffexp import controllers, impulse
 from ffexp.contracts import Phase, StopReason
@@ -316,18 +317,23 @@ def _time_in_phase(s: RunSeries) -> np.ndarray:
 
 
 def _link_summary(rec: Recording) -> dict[str, float]:
-    link = rec.topics.get("/robot/link")
-    if link is None or len(link) == 0:
-        return {}
-    q = link["quality"]
-    return {
-        "cycles": float(len(link)),
-        "min_answer_rate": float(np.min(link["answer_rate"])),
-        "max_latency_s": float(np.max(link["latency_s"])),
-        "max_jitter_s": float(np.max(link["jitter_s"])),
-        "miss_counter": float(link["miss_counter"][-1]),
-        "fraction_below_ok": float(np.mean(q < 2)),
-    }
+    """The link's statistics the back-ends state (:func:`drivers.registry.link_stats`),
+    those the recording has."""
+    out: dict[str, float] = {}
+    for stat in registry.link_stats():
+        data = rec.topics.get(stat.topic)
+        if data is None or len(data) == 0:
+            continue
+        if stat.reduce == "count":
+            out[stat.name] = float(len(data))
+            continue
+        if stat.field not in data.fields:
+            continue
+        v = data[stat.field]
+        out[stat.name] = float(
+            np.min(v) if stat.reduce == "min" else np.max(v) if stat.reduce == "max"
+            else v[-1] if stat.reduce == "last" else np.mean(v < stat.below))
+    return out
 
 
 # -- tables ----------------------------------------------------------------------

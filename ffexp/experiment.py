@@ -31,7 +31,7 @@ from ffexp.naming import overrides_id, reserve, run_stem
 from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, scene_path
 from ffexp.recording import Recorder
 from ffexp.revision import source_revision
-from ffexp.rig_choice import DRIVERS, FT_SOURCES, RigChoice
+from ffexp.rig_choice import DEFAULT_DRIVER, DRIVERS, FT_SOURCES, RigChoice
 from ffexp.runlog import RunLog
 
 if TYPE_CHECKING:
@@ -48,7 +48,7 @@ def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
     """The rig and the name its errors use (the file, or ``<built-in DRIVER rig>``)."""
     if choice.path is not None:
         return load_rig(choice.path, choice.overrides), str(choice.path)
-    driver = choice.driver or "sim"
+    driver = choice.driver or DEFAULT_DRIVER
     robot = registry.robot_for_driver(driver)
     if robot is None:
         names = ", ".join(registry.driver_names())
@@ -225,12 +225,11 @@ def _scene_writer(rec: Recorder, protocol_path: Path, protocol: RunProtocol, dev
                   notice: Callable[[str], None] | None) -> SceneWriter | None:
     """The 3-D scene of the rig: the sim's own scene, else the protocol's scene file
     (a rig without a usable one records no scene, said in a notice)."""
-    from drivers.description.scene import Scene, load_scene
+    from drivers.description.scene import load_scene
     from ffexp.scene3d import SceneWriter
 
-    scene_json = devices.metadata.get("scene_json")
     try:
-        scene = (Scene.model_validate_json(scene_json) if scene_json is not None
+        scene = (devices.scene if devices.scene is not None
                  else load_scene(scene_path(protocol_path, protocol), protocol.scene.set))
     except ConfigError as exc:
         if notice is not None:

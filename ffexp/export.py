@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from ffexp.errors import ConfigError, InputError
+from ffexp.linkcheck import fault_topics
 from ffexp.recording import Recording
 
 FORMATS = ("parquet", "csv")
@@ -92,9 +93,10 @@ def column_names(topic: str, columns: Sequence[str]) -> dict[str, str]:
     return out
 #: The file beside the tables that says whether the run's end is in them.
 SUMMARY_FILE = "recording.json"
-#: What :func:`summary` reads besides the exported topics.
-SUMMARY_TOPICS = ("/runner/phase", "/robot/state", "/estimator/state", "/robot/link",
-                  "/robot/link_driver", "/events")
+#: What :func:`summary` reads besides the exported topics (the link's verdict: its
+#: faults are on the topics the back-ends name, :func:`ffexp.linkcheck.fault_topics`).
+SUMMARY_TOPICS = ("/runner/phase", "/robot/state", "/estimator/state", *fault_topics(),
+                  "/events")
 
 
 def summary(rec: Recording) -> dict[str, Any]:

@@ -13,9 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
-F64 = NDArray[np.float64]
+from drivers.base.types import F64
 
 __all__ = ["base_excursion", "contact_impulse_ns", "momentum_change_ns"]
 

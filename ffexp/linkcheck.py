@@ -1,22 +1,21 @@
 """Was the robot link good enough for a run to count? A pure reading of its recording.
 
 A trial is valid for the link when nothing went wrong on it while the method
-was in control (ALIGN): no measurement lost, doubled, out of order, rejected
-or skipped by the runner, no cycle answered late (at the driver's deadline),
-no answer the KRC missed, and the robot commanding with an acceptable link
-quality every cycle. Faults outside ALIGN are reported but do not invalidate
-the trial. A recording without a single robot state is "no measurement
-received" (the robot never answered), not a missing topic. A recording
-without the run's end (:attr:`Recording.complete
-<ffexp.recording.Recording.complete>` false: a killed run, recovered, or a cut
-file) is neither: its trial's validity is :data:`UNKNOWN`, since what happened
-after its last record is not known.
+was in control (ALIGN): none of the back-end's link-fault counters grew (FRI:
+measurements lost, doubled, out of order, rejected or skipped by the runner,
+cycles answered late, answers the KRC missed; a UR: data packages skipped),
+and the robot was commanding with an acceptable link quality every cycle.
+Faults outside ALIGN are reported but do not invalidate the trial. A
+recording without a single robot state is "no measurement received" (the
+robot never answered), not a missing topic. A recording without the run's end
+(:attr:`Recording.complete <ffexp.recording.Recording.complete>` false: a
+killed run, recovered, or a cut file) is neither: its trial's validity is
+:data:`UNKNOWN`, since what happened after its last record is not known.
 
-Sources (whichever the recording has): ``/robot/link_driver`` (the UDP
-driver's own cumulative counters, :mod:`drivers.fri.topics`),
-``/robot/link`` (the KRC's miss counter), ``/robot/state`` (commanding,
-healthy), ``/runner/phase`` (when ALIGN was) and ``/events`` (the driver's
-message when nothing arrived).
+Sources (whichever the recording has): the counters every back-end states
+(:attr:`Backend.link_faults <drivers.base.backend.Backend.link_faults>`, on its
+own topics), ``/robot/state`` (commanding, healthy), ``/runner/phase`` (when
+ALIGN was) and ``/events`` (the driver's message when nothing arrived).
 """
 
 from __future__ import annotations
@@ -25,23 +24,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from drivers import registry
+from drivers.base.backend import LinkCounter
 from ffexp.contracts import Phase
 from ffexp.recording.reader import Recording
 
-#: Counters of ``/robot/link_driver`` that are faults, and how a verdict names them.
-DRIVER_FAULTS: tuple[tuple[str, str], ...] = (
-    ("lost", "measurements lost"),
-    ("duplicates", "duplicate measurements"),
-    ("reordered", "reordered measurements"),
-    ("rejected", "malformed datagrams"),
-    ("implausible", "implausible measurements"),
-    ("restarts", "sequence restarts"),
-    ("skipped", "measurements the runner skipped"),
-    ("deadline_answers", "cycles answered late (deadline repeat)"),
-    ("runner_late", "late runner commands"),
-    ("foreign", "datagrams from another address"),
-)
-_MISSED = ("krc_missed", "answers the KRC missed")
 _OUT_OF_CMD = ("not_commanding", "cycles not commanding")
 _UNHEALTHY = ("unhealthy", "cycles with unacceptable link quality")
 #: The trial validity of a run whose end is not recorded.
@@ -100,8 +87,22 @@ class LinkVerdict:
         return "link: INVALID trial: " + ", ".join(self.reasons()) + rest
 
 
+def fault_counters() -> tuple[LinkCounter, ...]:
+    """The link-fault counters of every registered back-end (:mod:`drivers.registry`)."""
+    return registry.link_faults()
+
+
+def fault_topics() -> tuple[str, ...]:
+    """The topics those counters are on (what :func:`check_link` reads besides
+    ``/robot/state``, ``/runner/phase`` and ``/events``)."""
+    return tuple(dict.fromkeys(c.topic for c in fault_counters()))
+
+
 def _label(key: str) -> str:
-    for k, label in (*DRIVER_FAULTS, _MISSED, _OUT_OF_CMD, _UNHEALTHY):
+    for c in fault_counters():
+        if c.name == key:
+            return c.meaning
+    for k, label in (_OUT_OF_CMD, _UNHEALTHY):
         if k == key:
             return label
     return key
@@ -147,17 +148,15 @@ def check_link(rec: Recording) -> LinkVerdict:
     whole: dict[str, int] = {}
     align: dict[str, int] = {}
     align_s = 0.0
-    drv = rec.topics.get("/robot/link_driver")
-    if drv is not None and len(drv):
-        mask = align_mask(drv.log_time_ns, p_t, p_id)
-        for key, _ in DRIVER_FAULTS:
-            if key in drv.fields:
-                _count(whole, align, key, _increments(drv[key]), mask)
-    krc = rec.topics.get("/robot/link")
-    if krc is not None and len(krc) and "miss_counter" in krc.fields:
-        mask = align_mask(krc.log_time_ns, p_t, p_id)
-        inc = np.maximum(_increments(krc["miss_counter"]), 0)  # the KRC resets it on restart
-        _count(whole, align, _MISSED[0], inc, mask)
+    masks: dict[str, np.ndarray] = {}
+    for counter in fault_counters():
+        data = rec.topics.get(counter.topic)
+        if data is None or not len(data) or counter.field not in data.fields:
+            continue
+        if counter.topic not in masks:
+            masks[counter.topic] = align_mask(data.log_time_ns, p_t, p_id)
+        inc = np.maximum(_increments(data[counter.field]), 0)  # a restart resets a counter
+        _count(whole, align, counter.name, inc, masks[counter.topic])
     if states is not None and len(states):
         mask = align_mask(states.log_time_ns, p_t, p_id)
         t = states.log_time_ns.astype(np.int64)

@@ -55,7 +55,7 @@ class Cycle:
                          end_on_aligned=p.run.end_on_aligned)
         self.approach = controllers.Approach(p.approach)
         ctx = controllers.ControlContext(cycle_s, self.approach)
-        self.controller = controllers.build(p.align, ctx)
+        self.controller = controllers.build_controller(p.align, ctx)
         self.hold_pose = first.tcp_pose_m.copy()
         self.cmd = CartesianCommand()
         self.total = np.zeros(6)  # the wrench sent this cycle (reused)
@@ -228,13 +228,11 @@ def _split_samples(ft: FtSamples, time_ns: int) -> tuple[FtSamples, FtSamples] |
 
 
 def _link_events(log: RunLog, t_ns: int, state: RobotState) -> None:
-    """The back-end's notes on its link since the last cycle (FRI: state and quality
-    changes, foreign senders), as events at this cycle's time."""
-    events = getattr(state.extras, "link_events", None)
-    if events:
-        for _krc_ns, level, name, message in events:
+    """The back-end's notes on its link since the last cycle
+    (:meth:`~drivers.base.types.Extras.take_events`), as events at this cycle's time."""
+    if state.extras is not None:
+        for _robot_ns, level, name, message in state.extras.take_events():
             log.event(t_ns, level, name, message)
-        events.clear()
 
 
 def _no_measurement(log: RunLog, message: str) -> RunOutcome:

@@ -13,8 +13,7 @@ from typing import Any
 from pydantic import Field, ValidationError, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from drivers.base.types import Vec6
-from drivers.config import StrictModel, load_model
+from drivers.config import StrictModel, Vec6, load_model
 from ffexp import scenarios
 from ffexp.contracts import PAPER_OUTCOMES
 from ffexp.controllers import REGISTRY, AlignConfig

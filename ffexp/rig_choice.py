@@ -10,9 +10,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from drivers import registry
+from drivers.rig import default_rig
 
 #: ``--driver`` shortcuts: the robot back-end of the rig when no ``--rig`` is given.
 DRIVERS = registry.driver_names()
+#: The ``--driver`` of the built-in rig (:func:`drivers.rig.default_rig`'s robot).
+DEFAULT_DRIVER = registry.robot_backend(default_rig().robot.type).driver
 #: ``--ft`` values: the F/T back-end of the rig.
 FT_SOURCES = registry.ft_types()
 #: ``--tracker`` values: the rig's target tracker.

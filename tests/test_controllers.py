@@ -30,13 +30,28 @@ def test_every_registered_method_builds_from_its_config() -> None:
     assert set(controllers.REGISTRY) >= {"force_ri", "force", "impedance", "admittance"}
     for name in controllers.REGISTRY:
         p = RunProtocol.model_validate({"name": "x", "align": {"method": name}})
-        c = controllers.build(p.align, ctx())
+        c = controllers.build_controller(p.align, ctx())
         assert c.name == name and p.method == name
+        assert type(p.align) is controllers.REGISTRY[name].config_model
+
+
+def test_the_align_table_is_the_registrys_config_models() -> None:
+    """``[align]``'s union is built from the registry: one schema per registered method,
+    and a method name nobody registered is an error naming the known ones."""
+    schema = RunProtocol.model_json_schema()
+    align = schema["properties"]["align"]
+    mapping = align["discriminator"]["mapping"]
+    assert sorted(mapping) == sorted(controllers.REGISTRY)
+    for name, ref in mapping.items():
+        model = controllers.REGISTRY[name].config_model
+        assert ref.endswith("/" + model.__name__)
+    with pytest.raises(ValueError, match="force_ri"):
+        RunProtocol.model_validate({"name": "x", "align": {"method": "nope"}})
 
 
 def test_force_ri_is_eq_9() -> None:
     p = RunProtocol.model_validate({"name": "x", "align": {"method": "force_ri"}})
-    c = controllers.build(p.align, ctx())
+    c = controllers.build_controller(p.align, ctx())
     ref = ForceController(p.align, 0.005)  # type: ignore[arg-type]
     rng = np.random.default_rng(1)
     s = RobotState()

@@ -12,6 +12,12 @@ literal name):
 - The neutral packages import no back-end, and the description and vision packages no
   MuJoCo and no sockets.
 - ``drivers`` never imports ``ffexp``.
+
+And one rule on strings, since an import rule cannot see them: no string in ``ffexp``'s
+code (docstrings aside) is a back-end's type or ``--driver`` name, or holds a back-end's
+recording topic, both read from :mod:`drivers.registry` (so a new back-end is covered at
+once), except the few :data:`STRING_EXCEPTIONS`. What ``ffexp`` needs of a back-end it
+reads from the back-end's declaration (link-fault counters, command fields, its scene).
 """
 
 from __future__ import annotations
@@ -19,6 +25,8 @@ from __future__ import annotations
 import ast
 from collections.abc import Iterator
 from pathlib import Path
+
+from drivers import registry
 
 ROOT = Path(__file__).resolve().parents[1]
 DRIVERS = ROOT / "drivers"
@@ -37,6 +45,12 @@ FFEXP_EXCEPTIONS = {
     # ``ffexp emulate`` serves the emulated rig (drivers.emulate.session.EmulatedRig);
     # drivers.emulate is the combiner, not one back-end
     "ffexp/cli/emulate.py": frozenset({COMBINER}),
+}
+#: The strings ``ffexp`` code may hold although they name a back-end (file, string), and why.
+STRING_EXCEPTIONS = {
+    # ``ffexp emulate`` serves drivers.emulate's robots (its import exception above); a robot
+    # of the FRI link kind answers a remote driver, which that command must be given
+    ("ffexp/cli/emulate.py", "fri"): "drivers.emulate.robots' link kind",
 }
 #: Modules the neutral description and vision packages must not use (no simulation, no I/O
 #: beyond reading their files).
@@ -182,3 +196,116 @@ def test_the_checks_see_every_form_of_import() -> None:
     assert got == ["drivers/sim/thing.py:1: imports drivers.fri.codec"]
     assert backend_violations("from ffexp.errors import X\n", "drivers.sim.x", "x.py", "sim",
                               frozenset({"sim"})) == ["x.py:1: imports ffexp.errors"]
+
+
+def backend_names() -> frozenset[str]:
+    """Every back-end's rig type and ``--driver`` name (``none``, no tracker, is none)."""
+    return frozenset({*registry.robot_types(), *registry.ft_types(), *registry.tracker_types(),
+                      *registry.driver_names()} - {"none"})
+
+
+def backend_topics() -> frozenset[str]:
+    """Every back-end's recording topics."""
+    return frozenset(t.topic for t in (*registry.backend_cdr_topics(),
+                                       *registry.backend_json_topics()))
+
+
+def _docstrings(tree: ast.AST) -> set[int]:
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef):
+            first = node.body[0] if node.body else None
+            if (isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
+                    and isinstance(first.value.value, str)):
+                found.add(id(first.value))
+    return found
+
+
+def string_violations(source: str, rel: str, names: frozenset[str],
+                      topics: frozenset[str]) -> list[str]:
+    """Each string of ``source`` (file ``rel``) that is one of ``names`` or holds one of
+    ``topics``, docstrings and :data:`STRING_EXCEPTIONS` aside."""
+    tree = ast.parse(source)
+    docs = _docstrings(tree)
+    found = []
+    for node in ast.walk(tree):
+        if (not isinstance(node, ast.Constant) or not isinstance(node.value, str)
+                or id(node) in docs or (rel, node.value) in STRING_EXCEPTIONS):
+            continue
+        if node.value in names or any(t in node.value for t in topics):
+            found.append(f"{rel}:{node.lineno}: names a back-end: {node.value!r}")
+    return found
+
+
+def test_ffexp_names_no_backend_and_no_backend_topic() -> None:
+    names, topics = backend_names(), backend_topics()
+    assert {"fri1", "ur", "ur-sim", "sim", "fri-estimate"} <= names  # the shipped ones are seen
+    assert {"/robot/command", "/robot/link", "/robot/link_driver", "/robot/ur"} <= topics
+    found = []
+    for path, _module in _sources(ROOT / "ffexp"):
+        rel = path.relative_to(ROOT).as_posix()
+        found += string_violations(path.read_text(), rel, names, topics)
+    assert found == [], "\n".join(found)
+
+
+def test_every_string_exception_is_still_needed() -> None:
+    names, topics = backend_names(), backend_topics()
+    for rel, text in STRING_EXCEPTIONS:
+        source = (ROOT / rel).read_text()
+        assert text in names or any(t in text for t in topics), (rel, text)
+        assert any(isinstance(n, ast.Constant) and n.value == text
+                   for n in ast.walk(ast.parse(source))), f"{rel}: no {text!r} any more"
+
+
+def test_the_string_check_sees_names_and_topics_but_not_docstrings() -> None:
+    source = (
+        '"""Reads /robot/link (FRI)."""\n'
+        'def f(rec, kind):\n'
+        '    """The fri1 robot\'s link."""\n'
+        '    if kind == "fri1":\n'
+        '        return rec.topics.get(f"{kind}/robot/link_driver")\n'
+        '    return "sim-like", "/robot/state"\n'
+    )
+    got = string_violations(source, "ffexp/thing.py", frozenset({"fri1", "sim"}),
+                            frozenset({"/robot/link", "/robot/link_driver"}))
+    assert got == ["ffexp/thing.py:4: names a back-end: 'fri1'",
+                   "ffexp/thing.py:5: names a back-end: '/robot/link_driver'"]
+    assert string_violations('x = "fri"\n', "ffexp/cli/emulate.py", frozenset({"fri"}),
+                             frozenset()) == []  # an explicit exception
+
+
+#: The project's type aliases and the one module that declares each.
+ALIAS_HOMES = {
+    **dict.fromkeys(("Vec3", "Vec6", "Bool6", "PosFloat", "NonNeg", "Port", "Floats2",
+                     "Floats3", "Floats6", "PerJoint"), "drivers/config.py"),
+    "F64": "drivers/base/types.py",
+    "FloatArray": "",  # F64's old second name: declared nowhere
+    "Six": "",  # Vec6's old second name
+}
+#: Files that still declare an alias of their own, and why.
+ALIAS_EXCEPTIONS: frozenset[str] = frozenset()
+
+
+def alias_declarations(source: str, rel: str) -> list[str]:
+    """Module-level assignments to an :data:`ALIAS_HOMES` name outside its home."""
+    found = []
+    for node in ast.parse(source).body:
+        targets = (node.targets if isinstance(node, ast.Assign)
+                   else [node.target] if isinstance(node, ast.AnnAssign) else [])
+        for target in targets:
+            if (isinstance(target, ast.Name) and target.id in ALIAS_HOMES
+                    and ALIAS_HOMES[target.id] != rel):
+                found.append(f"{rel}:{node.lineno}: declares {target.id} again")
+    return found
+
+
+def test_each_type_alias_is_declared_once() -> None:
+    found = []
+    for package in ("drivers", "ffexp"):
+        for path, _module in _sources(ROOT / package):
+            rel = path.relative_to(ROOT).as_posix()
+            if rel not in ALIAS_EXCEPTIONS:
+                found += alias_declarations(path.read_text(), rel)
+    assert found == [], "\n".join(found)
+    assert alias_declarations("Vec6 = tuple[float, ...]\nx: int = 1\n", "ffexp/x.py") == [
+        "ffexp/x.py:1: declares Vec6 again"]

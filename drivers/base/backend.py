@@ -18,6 +18,16 @@ relative to the rig file (:func:`drivers.rig.load_rig` resolves it).
 driver): each ``open`` imports its driver when it is called, so a run imports
 only the back-ends its rig uses, and ``topics`` imports the topic definitions
 when the recording asks for them.
+
+A back-end also states what ``ffexp`` must know of it without naming it: the
+counters of its link that are faults (:class:`LinkCounter`: a trial whose
+counter grew while the method was in control is invalid), the statistics of
+its link worth a run's summary (:class:`LinkStat`), and, for a simulated robot,
+how it replays another robot's recordings open loop (:class:`Replay`: which
+robots, where their recordings hold the applied commands, its own rig table).
+A simulated robot states its scene before it opens (``RobotBackend.scene``)
+and hands the same :class:`~drivers.description.scene.Scene` to the run
+(``OpenedRobot.scene``).
 """
 
 from __future__ import annotations
@@ -26,22 +36,27 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from importlib import import_module
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, Literal, TypeVar
 
 from drivers.config import StrictModel
 
 if TYPE_CHECKING:  # (annotations only: this module stays light, without numpy)
     from drivers.base.interfaces import ForceTorqueSensor, RobotDriver, TargetTracker
     from drivers.base.topics import CdrTopic, JsonTopic
+    from drivers.description.scene import Scene
 
 __all__ = [
     "Backend",
+    "CommandFields",
     "DeviceConfig",
     "FtBackend",
+    "LinkCounter",
+    "LinkStat",
     "OpenContext",
     "OpenedRobot",
     "OpenedSensor",
     "OpenedTracker",
+    "Replay",
     "RobotBackend",
     "TrackerBackend",
     "cdr_topics_of",
@@ -94,6 +109,9 @@ class OpenedRobot:
     """Files the recording attaches (name, bytes): the sim's scene TOML."""
     notice: str | None = None
     """One line for the user (where a link listens); the sensor's note is appended."""
+    scene: Scene | None = None
+    """The scene a simulated robot runs in (the one its ``RobotBackend.scene`` states);
+    ``None``: a real robot, whose scene is the protocol's file."""
 
 
 @dataclass
@@ -143,6 +161,82 @@ def cdr_topics_of(module: str) -> Callable[[], Sequence[CdrTopic]]:
 
 
 @dataclass(frozen=True)
+class LinkCounter:
+    """A cumulative counter a back-end records about its link: each increment is a fault.
+
+    A trial is invalid when the counter grew while the method was in control
+    (``ffexp.linkcheck``); a counter that goes back (a controller's restart) counts
+    nothing for that step.
+    """
+
+    topic: str
+    """The recording topic that holds it (``/robot/link_driver``)."""
+    field: str
+    """Its field on that topic (``lost``)."""
+    meaning: str
+    """What one increment is, plural, as a verdict names it (``measurements lost``)."""
+    key: str = ""
+    """The name verdicts and ``ffexp analyze --json`` give it; empty: ``field``."""
+
+    @property
+    def name(self) -> str:
+        """The verdict's key for it."""
+        return self.key or self.field
+
+
+@dataclass(frozen=True)
+class LinkStat:
+    """A statistic of a back-end's link for a run's summary (``link`` of ``ffexp analyze``)."""
+
+    name: str
+    """Its key in the summary (``max_latency_s``)."""
+    topic: str
+    field: str
+    reduce: Literal["count", "min", "max", "last", "fraction_below"]
+    """``count``: messages on the topic; ``min``/``max``/``last`` of the field;
+    ``fraction_below``: the fraction of messages whose field is below :attr:`below`."""
+    below: float = 0.0
+
+
+@dataclass(frozen=True)
+class CommandFields:
+    """Where a robot's recordings hold the Cartesian impedance command it applied, per
+    cycle (the fields of one topic)."""
+
+    topic: str
+    pose: str
+    """The set-point, 4x4 row-major in the base frame [m]."""
+    stiffness: str
+    """Per TCF axis ``[x, y, z, rx, ry, rz]`` [N/m, N m/rad]."""
+    damping: str
+    """Per TCF axis, normalised."""
+    wrench: str
+    """The superposed wrench, TCF at the TCP [N, N m]."""
+
+
+@dataclass(frozen=True)
+class Replay:
+    """How a simulated robot replays, open loop, the commands another robot's recording
+    holds (``ffexp calibrate``, ``ffexp resimulate``)."""
+
+    robots: tuple[str, ...]
+    """The ``[robot] type`` names whose recordings it replays."""
+    commands: CommandFields
+    """Where those recordings hold the applied commands."""
+    table: Callable[[int, bool], dict[str, Any]]
+    """Its own ``[robot]`` table for a replay: ``(cycles before the recorded robot first
+    commanded, the commands crossed a float32 wire)``."""
+    cycle_s: Callable[[Scene], float]
+    """Its control cycle in a scene [s]."""
+    wire: tuple[str, ...] = ()
+    """Of :attr:`robots`, those whose commands always cross a float32 wire."""
+    estimate_ft: tuple[str, ...] = ()
+    """``[ft]`` types that are the robot's own wrench estimate (one sample a cycle, no
+    sensor path), replayed as they are; any other F/T is replayed by the robot's
+    ``default_ft``."""
+
+
+@dataclass(frozen=True)
 class RobotBackend(Generic[C]):
     """A ``[robot] type``: its config model and how it opens."""
 
@@ -154,6 +248,11 @@ class RobotBackend(Generic[C]):
     """Its ``--driver`` name (the built-in rig of the command line)."""
     default_ft: str
     """The ``[ft] type`` of the built-in rig ``--driver`` builds."""
+    scene: Callable[[C, OpenContext], Scene] | None = None
+    """A simulated robot's scene from its table, known before it opens (what ``open``
+    then puts on ``OpenedRobot.scene``); ``None``: a real robot."""
+    replay: Replay | None = None
+    """A simulated robot's way of replaying recordings; ``None``: it replays none."""
 
     @property
     def rig_type(self) -> str:
@@ -203,6 +302,10 @@ class Backend:
     topics: Callable[[], Sequence[CdrTopic | JsonTopic]] = tuple
     """The recording topics of its extras (:meth:`drivers.base.types.Extras.topics`
     names them), imported when called."""
+    link_faults: tuple[LinkCounter, ...] = ()
+    """The counters of those topics that are link faults (they invalidate a trial)."""
+    link_stats: tuple[LinkStat, ...] = ()
+    """The statistics of those topics that summarise its link in a run's metrics."""
 
 
 def _type_of(model: type[DeviceConfig]) -> str:

@@ -23,11 +23,9 @@ from enum import IntFlag
 import numpy as np
 from numpy.typing import NDArray
 
-#: The type aliases of the project, defined once: a float64 array, and the
-#: fixed-length tuples config models use for 3- and 6-vectors.
+#: A float64 numpy array: the project's one array alias (its tuple and number aliases,
+#: ``Vec3``, ``Vec6``, ``PosFloat``, ..., are :mod:`drivers.config`'s, light).
 F64 = NDArray[np.float64]
-Vec3 = tuple[float, float, float]
-Vec6 = tuple[float, float, float, float, float, float]
 
 #: Nanoseconds per second: the one definition (log times are integer ns).
 NS_PER_S = 1_000_000_000
@@ -64,6 +62,12 @@ class Extras:
     def topics(self) -> tuple[str, ...]:
         """Recording topics whose fields are attributes of this object."""
         return ()
+
+    def take_events(self) -> list[tuple[int, str, str, str]]:
+        """The back-end's notes on its link since the last call (``(robot time [ns],
+        level, name, message)``: state and quality changes, foreign senders), which the
+        run logs as events; it forgets them. None by default."""
+        return []
 
 
 @dataclass

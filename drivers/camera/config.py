@@ -12,15 +12,9 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from drivers.base.backend import DeviceConfig
+from drivers.config import NonNeg, PosFloat, Vec3
 
 __all__ = ["CameraTrackerConfig"]
-
-
-NonNeg = Annotated[float, Field(ge=0.0)]
-PosFloat = Annotated[float, Field(gt=0.0)]
-
-
-Vec3 = tuple[float, float, float]
 
 
 class CameraTrackerConfig(DeviceConfig):

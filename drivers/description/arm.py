@@ -23,10 +23,10 @@ from functools import cached_property
 import numpy as np
 
 from drivers.base.types import F64
+from drivers.config import Vec3
 
-__all__ = ["ArmDescription", "DhChain", "Vec3", "dh_chain", "rpy_matrix"]
+__all__ = ["ArmDescription", "DhChain", "dh_chain", "rpy_matrix"]
 
-Vec3 = tuple[float, float, float]
 _ZERO: Vec3 = (0.0, 0.0, 0.0)
 
 

@@ -24,20 +24,22 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
-from drivers.config import StrictModel, load_model
+from drivers.config import (
+    Floats2,
+    Floats3,
+    Floats6,
+    NonNeg,
+    PerJoint,
+    PosFloat,
+    StrictModel,
+    load_model,
+)
 from drivers.description.arm import ArmDescription
 from drivers.description.lwr4 import LWR4
 from drivers.description.ur5e import UR5E
 
 #: The arm models a scene may name (``arm.model``), each its published description.
 ARMS: dict[str, ArmDescription] = {"lwr4": LWR4, "ur5e": UR5E}
-#: One value per joint of the scene's arm (``arm.model``: 7 for the LWR4+, 6 for the UR5e).
-Vec7 = Annotated[tuple[float, ...], Field(min_length=1, max_length=7)]
-Vec6 = Annotated[tuple[float, ...], Field(min_length=6, max_length=6)]
-Vec3 = Annotated[tuple[float, ...], Field(min_length=3, max_length=3)]
-Pair = Annotated[tuple[float, ...], Field(min_length=2, max_length=2)]
-PosFloat = Annotated[float, Field(gt=0.0)]
-NonNeg = Annotated[float, Field(ge=0.0)]
 
 
 class PhysicsSettings(StrictModel):
@@ -83,12 +85,12 @@ class ControllerSettings(StrictModel):
     ``[x, y, z, A(rz), B(ry), C(rx)]``; the codec reorders).
     """
 
-    cart_stiffness_max: Pair = (5000.0, 300.0)
+    cart_stiffness_max: Floats2 = (5000.0, 300.0)
     """Upper limits [N/m, N m/rad]. Not confirmed for the LWR4+ by a primary
     source (fact sheet sec. 2): the commonly quoted 5000 / 300."""
-    cart_stiffness: Vec6 = (5000.0, 0.0, 0.0, 0.0, 300.0, 300.0)
+    cart_stiffness: Floats6 = (5000.0, 0.0, 0.0, 0.0, 300.0, 300.0)
     """Initial stiffness: the paper's setting (X, rot-Y, rot-Z maximal; Y, Z, rot-X zero)."""
-    cart_damping: Vec6 = (0.7, 0.0, 0.0, 0.0, 0.7, 0.7)
+    cart_damping: Floats6 = (0.7, 0.0, 0.0, 0.0, 0.7, 0.7)
     jnt_stiffness_max: PosFloat = 5000.0
     """Joint stiffness upper limit [N m/rad] (CentroEPiaggio URDF ``max_stiffness``)."""
     jnt_position_stiffness: PosFloat = 3000.0
@@ -102,8 +104,8 @@ class ArmSettings(StrictModel):
 
     model: Literal["lwr4", "ur5e"] = "lwr4"
     """The arm model (:data:`ARMS`): ``lwr4`` (KUKA LWR4+, the paper's) or ``ur5e``."""
-    base_pos: Vec3 = (0.0, 0.0, 0.0)
-    q_init: Vec7 = (0.0, -0.3533, 0.0, 1.714, 0.0, 0.4965, 0.0)
+    base_pos: Floats3 = (0.0, 0.0, 0.0)
+    q_init: PerJoint = (0.0, -0.3533, 0.0, 1.714, 0.0, 0.4965, 0.0)
     """Initial joint angles [rad]; the paper pose: flange horizontal along
     world +x, flange X up (so TCF X is vertical as in the paper)."""
     friction_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.00069
@@ -114,9 +116,9 @@ class ArmSettings(StrictModel):
     Method I case I stops aligning with at most one break above 0.000858 (``ffexp
     limits``, nominal scene); 0.00069 is the band's geometric centre, so +-15 %
     stays inside it (docs/fidelity.md, drivers/sim/NOTES.md)."""
-    coulomb: Vec7 | None = None
+    coulomb: PerJoint | None = None
     """Explicit joint Coulomb friction [N m]; overrides ``friction_scale``."""
-    viscous: Vec7 | None = None
+    viscous: PerJoint | None = None
     """Explicit joint viscous friction [N m s/rad]; overrides ``friction_scale``."""
     static_ratio: Annotated[float, Field(ge=1.0, le=5.0)] = 1.3
     """Breakaway (static) over Coulomb friction (Stribeck curve, :mod:`drivers.sim.friction`).
@@ -126,7 +128,7 @@ class ArmSettings(StrictModel):
     """Joint speed [rad/s] over which friction falls from static to Coulomb (assumption)."""
     armature_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.05
     """Fraction of Jubien's reflected rotor inertia seen link-side (assumption)."""
-    torque_limits: Vec7 = (176.0, 176.0, 100.0, 100.0, 100.0, 38.0, 38.0)
+    torque_limits: PerJoint = (176.0, 176.0, 100.0, 100.0, 100.0, 38.0, 38.0)
     """[N m], CentroEPiaggio URDF effort limits (fact sheet sec. 1)."""
 
     @model_validator(mode="after")
@@ -215,15 +217,15 @@ class FtSensorSettings(StrictModel):
 
     rate: PosFloat = 1000.0
     """Sample rate [Hz]; its period must be a multiple of the physics step."""
-    range: Vec6 = (145.0, 145.0, 290.0, 5.0, 5.0, 5.0)
+    range: Floats6 = (145.0, 145.0, 290.0, 5.0, 5.0, 5.0)
     """Saturation limits in the sensor frame [N, N m]."""
-    resolution: Pair = (1.0 / 16.0, 1.0 / 752.0)
+    resolution: Floats2 = (1.0 / 16.0, 1.0 / 752.0)
     """Quantisation step [N, N m]."""
-    noise_std: Pair = (0.03, 0.0005)
+    noise_std: Floats2 = (0.03, 0.0005)
     """White noise per sample [N, N m] (an assumption: half a count on force)."""
-    bias_std: Pair = (0.5, 0.01)
+    bias_std: Floats2 = (0.5, 0.01)
     """Standard deviation of the random start-up bias [N, N m]."""
-    drift_density: Pair = (0.002, 2e-5)
+    drift_density: Floats2 = (0.002, 2e-5)
     """Random-walk drift density [N/sqrt(s), N m/sqrt(s)]."""
     delay_s: Annotated[float, Field(ge=0.0, le=0.1)] = 0.001
     """Age of a sample's wrench when it is stamped [s], rounded to whole samples:
@@ -296,8 +298,8 @@ class TargetSettings(StrictModel):
 
     support: Literal["air_bed", "free"] = "air_bed"
     mass: PosFloat = 12.0
-    size: Vec3 = (0.25, 0.25, 0.05)
-    inertia: Vec6 | None = None
+    size: Floats3 = (0.25, 0.25, 0.05)
+    inertia: Floats6 | None = None
     """Inertia tensor about the centre of mass in the block's frame,
     ``[ixx, iyy, izz, ixy, ixz, iyz]`` [kg m^2]; none: a uniform block of ``size``."""
     mu: Annotated[float, Field(ge=0.0, le=0.02)] = 0.0085
@@ -318,11 +320,11 @@ class TargetSettings(StrictModel):
     the block turned by yaw about the vertical, then pitch about its own y, then roll."""
     roll_deg: float = 0.0
     """Rotation of the block about its funnel axis at start [deg] (free only)."""
-    velocity: Vec3 = (0.0, 0.0, 0.0)
+    velocity: Floats3 = (0.0, 0.0, 0.0)
     """Initial twist in the bed plane: [vx, vy] world [m/s], yaw rate [rad/s] (air bed)."""
-    drift_mps: Vec3 = (0.0, 0.0, 0.0)
+    drift_mps: Floats3 = (0.0, 0.0, 0.0)
     """Initial velocity of the centre of mass in the world frame [m/s] (free only)."""
-    tumble_radps: Vec3 = (0.0, 0.0, 0.0)
+    tumble_radps: Floats3 = (0.0, 0.0, 0.0)
     """Initial angular velocity in the world frame [rad/s] (free only)."""
     funnel: FunnelGeometry = FunnelGeometry()
     hose: HoseSettings = HoseSettings()
@@ -386,7 +388,7 @@ class ObjectSettings(StrictModel):
 
     name: Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]*$")]
     shape: Literal["box", "sphere", "cylinder"] = "box"
-    size: Vec3 = (0.1, 0.1, 0.1)
+    size: Floats3 = (0.1, 0.1, 0.1)
     """box: edges; sphere: diameter (first value); cylinder: diameter, -, length [m]."""
     mass: PosFloat = 1.0
     support: Literal["free", "fixed"] = "free"
@@ -396,11 +398,11 @@ class ObjectSettings(StrictModel):
     """Along TCF Y at start [m]."""
     vertical: float = 0.0
     """Along the world vertical [m]."""
-    drift_mps: Vec3 = (0.0, 0.0, 0.0)
+    drift_mps: Floats3 = (0.0, 0.0, 0.0)
     """Initial velocity, world frame [m/s] (free only)."""
-    tumble_radps: Vec3 = (0.0, 0.0, 0.0)
+    tumble_radps: Floats3 = (0.0, 0.0, 0.0)
     """Initial angular velocity, world frame [rad/s] (free only)."""
-    sites: dict[str, Vec3] = Field(default_factory=dict)
+    sites: dict[str, Floats3] = Field(default_factory=dict)
     """Named frames on it, positions in its frame [m] (axes: the world's at start)."""
 
     @model_validator(mode="after")
@@ -440,9 +442,9 @@ class BaseSettings(StrictModel):
     mode: Literal["fixed", "free_floating", "attitude_held", "pose_held"] = "fixed"
     mass: PosFloat = 150.0
     """[kg]"""
-    size: Vec3 = (0.6, 0.6, 0.6)
+    size: Floats3 = (0.6, 0.6, 0.6)
     """Edges of the base's box [m] (its inertia, unless ``inertia`` is given, and its drawing)."""
-    inertia: Vec6 | None = None
+    inertia: Floats6 | None = None
     """``[ixx, iyy, izz, ixy, ixz, iyz]`` about its centre of mass [kg m^2]; none: a
     uniform box of ``size``."""
     attitude_kp: NonNeg = 2.25

@@ -30,7 +30,8 @@ from typing import Final
 
 import numpy as np
 
-from drivers.description.arm import ArmDescription, Vec3, dh_chain, rpy_matrix
+from drivers.config import Vec3
+from drivers.description.arm import ArmDescription, dh_chain, rpy_matrix
 
 __all__ = ["DH_ALPHA_RAD", "DH_A_M", "DH_D_M", "DH_LINK_COM_M", "LINK_MASS_KG", "LINK_RADIUS_M",
            "PAPER_SCENE_OVERRIDES",

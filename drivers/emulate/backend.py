@@ -12,12 +12,23 @@ Light: the world is imported when a rig opens it.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import Field
 
-from drivers.base.backend import Backend, DeviceConfig, OpenContext, OpenedRobot, RobotBackend
+from drivers.base.backend import (
+    Backend,
+    DeviceConfig,
+    OpenContext,
+    OpenedRobot,
+    Replay,
+    RobotBackend,
+)
+from drivers.fri.backend import FRI_COMMANDS
 from drivers.ur.config import UrSettings
+
+if TYPE_CHECKING:
+    from drivers.description.scene import Scene
 
 __all__ = ["BACKEND", "SimRobotConfig", "UrSimConfig"]
 
@@ -38,13 +49,22 @@ class SimRobotConfig(DeviceConfig):
     over UDP against ``ffexp emulate``, bit for bit."""
 
 
-def _open_robot(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
+def _scene_path(cfg: SimRobotConfig | UrSimConfig, ctx: OpenContext) -> Path:
+    return cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
+
+
+def _sim_scene(cfg: SimRobotConfig, ctx: OpenContext) -> Scene:
     from drivers.description import load_scene
+
+    return load_scene(_scene_path(cfg, ctx), ctx.scene_overrides)
+
+
+def _open_robot(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
     from drivers.emulate.lockstep import SimRobot
     from drivers.sim.world import SimWorld
 
-    path = cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
-    scene = load_scene(path, ctx.scene_overrides)
+    path = _scene_path(cfg, ctx)
+    scene = _sim_scene(cfg, ctx)
     world = SimWorld(scene, seed=ctx.seed)
     robot = SimRobot(world, start_cycles=cfg.start_cycles,
                      max_consecutive_misses=cfg.max_consecutive_misses,
@@ -56,7 +76,21 @@ def _open_robot(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
         "wire_precision": str(cfg.wire_precision).lower(),
     }
     return OpenedRobot(robot, lambda: world.cycle * world.cycle_ns, None, meta,
-                       [(path.name, path.read_bytes())])
+                       [(path.name, path.read_bytes())], scene=scene)
+
+
+def _replay_table(start_cycles: int, wire_precision: bool) -> dict[str, Any]:
+    return {"type": "sim", "start_cycles": start_cycles, "wire_precision": wire_precision}
+
+
+def _krc_cycle_s(scene: Scene) -> float:
+    return scene.fri.cycle
+
+
+#: The simulated LWR4+ replays recordings of an LWR4+ behind a KRC, simulated or real
+#: (the commands FRI records); a real one's crossed FRI's float32 wire.
+_REPLAY = Replay(robots=("sim", "fri1"), commands=FRI_COMMANDS, table=_replay_table,
+                 cycle_s=_krc_cycle_s, wire=("fri1",), estimate_ft=("fri-estimate",))
 
 
 class UrSimConfig(UrSettings):
@@ -72,25 +106,34 @@ class UrSimConfig(UrSettings):
     as over RTDE, where the verdict comes from a tracker or the observer."""
 
 
-def _open_ur(cfg: UrSimConfig, ctx: OpenContext) -> OpenedRobot:
+def _ur_scene(cfg: UrSimConfig, ctx: OpenContext) -> Scene:
     from drivers.description import load_scene
     from drivers.description.ur5e import PAPER_SCENE_OVERRIDES
-    from drivers.emulate.ur_lockstep import SimUrRobot
-    from drivers.sim.world import SimWorld
 
-    path = cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
+    path = _scene_path(cfg, ctx)
     scene = load_scene(path, ctx.scene_overrides)
     if scene.arm.model != "ur5e":  # an LWR4+ scene (the protocol's): the UR5e in its place
         scene = load_scene(path, (*PAPER_SCENE_OVERRIDES, *ctx.scene_overrides))
+    return scene
+
+
+def _open_ur(cfg: UrSimConfig, ctx: OpenContext) -> OpenedRobot:
+    from drivers.emulate.ur_lockstep import SimUrRobot
+    from drivers.sim.world import SimWorld
+
+    path = _scene_path(cfg, ctx)
+    scene = _ur_scene(cfg, ctx)
     world = SimWorld(scene, seed=ctx.seed)
     robot = SimUrRobot(world, cfg, where=ctx.where("robot"))
     meta = {"driver": "ur-sim", "scene_file": str(path), "scene_json": scene.model_dump_json()}
     return OpenedRobot(robot, lambda: world.cycle * world.cycle_ns, None, meta,
-                       [(path.name, path.read_bytes())])
+                       [(path.name, path.read_bytes())], scene=scene)
 
 
 BACKEND = Backend(
     "emulate",
-    robots=(RobotBackend(SimRobotConfig, _open_robot, driver="sim", default_ft="sim"),
-            RobotBackend(UrSimConfig, _open_ur, driver="ur-sim", default_ft="ur-wrench")),
+    robots=(RobotBackend(SimRobotConfig, _open_robot, driver="sim", default_ft="sim",
+                         scene=_sim_scene, replay=_REPLAY),
+            RobotBackend(UrSimConfig, _open_ur, driver="ur-sim", default_ft="ur-wrench",
+                         scene=_ur_scene)),
 )

@@ -1,6 +1,11 @@
 """The FRI back-end's entry: the ``fri1`` robot (a KUKA KRC2 LR over FRI 1.x on UDP) and the
 ``fri-estimate`` F/T source (the KRC's own external-wrench estimate).
 
+It states what ``ffexp`` reads of FRI's topics without naming them: the link-fault
+counters (the UDP driver's own on ``/robot/link_driver``, the KRC's misses on
+``/robot/link``), the link's statistics, and where the applied command is recorded
+(:data:`FRI_COMMANDS`, which the simulated LWR4+ replays: :mod:`drivers.emulate.backend`).
+
 :class:`FriRobotConfig` (:mod:`drivers.fri.config`) is the rig's ``[robot]`` table and what
 :class:`~drivers.fri.driver.FriRobot` takes; its errors name the rig's fields.
 Light: the driver is imported when a rig opens it.
@@ -10,7 +15,10 @@ from __future__ import annotations
 
 from drivers.base.backend import (
     Backend,
+    CommandFields,
     FtBackend,
+    LinkCounter,
+    LinkStat,
     OpenContext,
     OpenedRobot,
     OpenedSensor,
@@ -20,7 +28,40 @@ from drivers.base.backend import (
 )
 from drivers.fri.config import FriEstimateFt, FriRobotConfig
 
-__all__ = ["BACKEND", "FriEstimateFt", "FriRobotConfig"]
+__all__ = ["BACKEND", "FRI_COMMANDS", "FriEstimateFt", "FriRobotConfig"]
+
+#: Where FRI back-ends record the command packet the KRC applied (``tFriCmdData``).
+FRI_COMMANDS = CommandFields("/robot/command", pose="cart_pos", stiffness="cart_stiffness",
+                             damping="cart_damping", wrench="add_tcp_ft")
+
+_DRIVER = "/robot/link_driver"  # the UDP driver's own counters (cumulative since connect)
+_KRC = "/robot/link"  # the KRC's view of the link
+
+#: Faults on the link: the UDP driver's counters, then the answers the KRC missed (its
+#: counter restarts with the KRC).
+LINK_FAULTS = (
+    LinkCounter(_DRIVER, "lost", "measurements lost"),
+    LinkCounter(_DRIVER, "duplicates", "duplicate measurements"),
+    LinkCounter(_DRIVER, "reordered", "reordered measurements"),
+    LinkCounter(_DRIVER, "rejected", "malformed datagrams"),
+    LinkCounter(_DRIVER, "implausible", "implausible measurements"),
+    LinkCounter(_DRIVER, "restarts", "sequence restarts"),
+    LinkCounter(_DRIVER, "skipped", "measurements the runner skipped"),
+    LinkCounter(_DRIVER, "deadline_answers", "cycles answered late (deadline repeat)"),
+    LinkCounter(_DRIVER, "runner_late", "late runner commands"),
+    LinkCounter(_DRIVER, "foreign", "datagrams from another address"),
+    LinkCounter(_KRC, "miss_counter", "answers the KRC missed", key="krc_missed"),
+)
+
+#: The KRC's view of the link, summarised per run.
+LINK_STATS = (
+    LinkStat("cycles", _KRC, "quality", "count"),
+    LinkStat("min_answer_rate", _KRC, "answer_rate", "min"),
+    LinkStat("max_latency_s", _KRC, "latency_s", "max"),
+    LinkStat("max_jitter_s", _KRC, "jitter_s", "max"),
+    LinkStat("miss_counter", _KRC, "miss_counter", "last"),
+    LinkStat("fraction_below_ok", _KRC, "quality", "fraction_below", below=2),  # OK = 2
+)
 
 
 def _open_robot(cfg: FriRobotConfig, ctx: OpenContext) -> OpenedRobot:
@@ -53,4 +94,6 @@ BACKEND = Backend(
     robots=(RobotBackend(FriRobotConfig, _open_robot, driver="fri", default_ft="netft"),),
     sensors=(FtBackend(FriEstimateFt, _open_estimate, needs_robot("ft", "fri1", "sim")),),
     topics=cdr_topics_of("drivers.fri.topics"),
+    link_faults=LINK_FAULTS,
+    link_stats=LINK_STATS,
 )

@@ -11,12 +11,9 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from drivers.base.backend import DeviceConfig
+from drivers.config import Port, PosFloat
 
 __all__ = ["FriEstimateFt", "FriRobotConfig"]
-
-
-Port = Annotated[int, Field(ge=0, le=65535)]
-PosFloat = Annotated[float, Field(gt=0.0)]
 
 
 class FriRobotConfig(DeviceConfig):

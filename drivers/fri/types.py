@@ -131,10 +131,16 @@ class FriMeasurement(Extras):
     link_events: list[tuple[int, str, str, str]] = field(
         default_factory=list, compare=False, repr=False)
     """Changes of the link seen up to this measurement that the runner has not yet
-    been told about: ``(KRC time [ns], level, name, message)``; the reader clears it."""
+    been told about: ``(KRC time [ns], level, name, message)``; :meth:`take_events`
+    clears it."""
 
     def topics(self) -> tuple[str, ...]:
         return ("/robot/measurement", "/robot/link")
+
+    def take_events(self) -> list[tuple[int, str, str, str]]:
+        events = list(self.link_events)
+        self.link_events.clear()
+        return events
 
 
 @dataclass

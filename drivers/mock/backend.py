@@ -20,15 +20,12 @@ from drivers.base.backend import (
     OpenedSensor,
     RobotBackend,
 )
+from drivers.config import Vec3, Vec6
 
 if TYPE_CHECKING:
     import numpy as np
 
 __all__ = ["BACKEND", "MockFt", "MockRobotConfig"]
-
-
-Vec3 = tuple[float, float, float]
-Vec6 = tuple[float, float, float, float, float, float]
 
 
 class MockRobotConfig(DeviceConfig):

@@ -11,11 +11,9 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from drivers.base.backend import DeviceConfig
+from drivers.config import PosFloat
 
 __all__ = ["NetFtConfig"]
-
-
-PosFloat = Annotated[float, Field(gt=0.0)]
 
 
 class NetFtConfig(DeviceConfig):

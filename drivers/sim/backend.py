@@ -26,14 +26,13 @@ from drivers.base.backend import (
     cdr_topics_of,
     needs_robot,
 )
+from drivers.config import NonNeg
 from drivers.errors import ConfigError
 
 if TYPE_CHECKING:
     from drivers.sim.world import SimWorld
 
 __all__ = ["BACKEND", "SimFt", "SimTrackerConfig"]
-
-NonNeg = Annotated[float, Field(ge=0.0)]
 
 
 class SimFt(DeviceConfig):

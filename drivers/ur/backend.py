@@ -16,6 +16,7 @@ from drivers.base.backend import (
     Backend,
     DeviceConfig,
     FtBackend,
+    LinkCounter,
     OpenContext,
     OpenedRobot,
     OpenedSensor,
@@ -68,4 +69,6 @@ BACKEND = Backend(
     robots=(RobotBackend(UrSettings, _open_robot, driver="ur", default_ft="ur-wrench"),),
     sensors=(FtBackend(UrWrenchFt, _open_wrench, needs_robot("ft", *UR_ROBOT_TYPES)),),
     topics=cdr_topics_of("drivers.ur.topics"),
+    # data packages the reader skipped: a cycle the runner never saw, as FRI's skipped
+    link_faults=(LinkCounter("/robot/ur", "skipped_packages", "data packages the runner skipped"),),
 )

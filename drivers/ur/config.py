@@ -15,8 +15,7 @@ from typing import Literal
 from pydantic import Field
 
 from drivers.base.backend import DeviceConfig
-
-Six = tuple[float, float, float, float, float, float]
+from drivers.config import Vec6
 
 
 class UrSettings(DeviceConfig):
@@ -44,10 +43,10 @@ class UrSettings(DeviceConfig):
                                       description="force_mode_set_damping, 0..1")
     force_mode_gain_scaling: float = Field(1.0, ge=0.0, le=2.0,
                                            description="force_mode_set_gain_scaling, 0..2")
-    compliant_speed_limits_mps_radps: Six = Field(
+    compliant_speed_limits_mps_radps: Vec6 = Field(
         (0.1, 0.1, 0.1, 0.5, 0.5, 0.5),
         description="force mode's speed cap on compliant axes [m/s, rad/s]")
-    deviation_limits_m_rad: Six = Field(
+    deviation_limits_m_rad: Vec6 = Field(
         (0.05, 0.05, 0.05, 0.17, 0.17, 0.17),
         description="force mode's deviation cap on the other axes [m, rad]")
     servo_lookahead_s: float = Field(0.1, ge=0.03, le=0.2,

@@ -1,8 +1,10 @@
 """What a calibration needs of a recording, read once and checked: :class:`ReplayInput`.
 
-A recording can be replayed into the simulator when it holds the commands as
-the robot applied them (``/robot/command``: set-point, stiffness, damping and
-superposed wrench of every cycle, what an FRI back-end records), the states it
+A recording can be replayed into the simulator when a simulated robot replays
+its robot's recordings (:class:`drivers.base.backend.Replay`: the simulated
+LWR4+ those of an LWR4+ behind a KRC) and it holds the commands as the robot
+applied them (set-point, stiffness, damping and superposed wrench of every
+cycle, on the topic and fields that robot's back-end states), the states it
 measured (``/robot/state``) and the F/T samples (``/ft/raw``). The tracked
 target (``/target/pose``) is used where the rig had a tracker. The
 simulator's own truth (``/sim/truth``) is never fitted to (a real rig has
@@ -27,21 +29,22 @@ from typing import Any
 
 import numpy as np
 
+from drivers import registry
+from drivers.base.backend import RobotBackend
+from drivers.description.scene import Scene
+from drivers.rig import validate_rig
 from ffexp.errors import InputError
 from ffexp.recording import Recording, load
 from ffexp.sweeps.keys import toml_text
 
-#: Topics read from a recording (nothing else).
-TOPICS = ("/robot/state", "/robot/command", "/ft/raw", "/target/pose", "/task/funnel")
+#: Topics read from a recording besides the applied commands' (its robot's back-end names
+#: those: :class:`drivers.base.backend.CommandFields`).
+TOPICS = ("/robot/state", "/ft/raw", "/target/pose", "/task/funnel")
 #: Scene keys that say where a run started: taken from each recording's own scene.
 START_KEYS = ("arm.q_init", "arm.base_pos", "target.distance", "target.lateral",
               "target.yaw_deg", "target.velocity", "seed")
 #: Scene keys of noise and chance: the replay is noise-free, they may differ freely.
 NOISE_KEYS = ("ft_sensor.noise_std", "ft_sensor.bias_std", "ft_sensor.drift_density")
-#: Robot back-ends whose recordings hold the KRC's applied commands.
-FRI_DRIVERS = ("sim", "fri1")
-#: Joints of the LWR4+ the simulator models.
-JOINTS = 7
 #: Fewest cycles worth replaying (0.5 s at 200 Hz).
 MIN_CYCLES = 100
 
@@ -80,10 +83,17 @@ class ReplayInput:
     """(k, 3) tracked target ``[x, y, yaw]`` in the base frame [m, m, rad]."""
     start_overrides: tuple[str, ...]
     """Scene overrides that put the simulator at this recording's start."""
+    robot: str
+    """The simulated robot (its ``[robot] type``) that replays it."""
+    sim_cycle_s: float
+    """That robot's control cycle in the base scene [s]."""
     ft_type: str
-    """The rig's F/T back-end as the simulator replays it: ``sim`` or ``fri-estimate``."""
+    """The rig's F/T back-end as the simulator replays it (the simulated robot's default
+    sensor, or the robot's own estimate)."""
+    ft_estimate: bool
+    """The F/T is the robot's own estimate: one sample a cycle, no sensor path to delay."""
     wire_precision: bool
-    """The commands crossed FRI's float32 wire (fri1, or a sim rig at wire precision)."""
+    """The commands crossed a float32 wire (FRI's, or a sim rig at wire precision)."""
     seed: int
     scene: dict[str, Any] | None
     """The recording's scene (a simulator's run), else ``None``."""
@@ -131,6 +141,34 @@ def _json(rec: Recording, key: str) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
+def default_robot() -> RobotBackend[Any]:
+    """The robot of the default rig (the simulator's): what a recording without its driver
+    named was made with, and what the base scene is built for."""
+    return registry.robot_backend(validate_rig({}, "<calibration replay>").robot.type)
+
+
+def replayer(path: Path, driver: str) -> RobotBackend[Any]:
+    """The simulated robot that replays recordings of ``driver`` (a recording's robot type;
+    empty: the default rig's), else :class:`InputError`."""
+    if not driver and default_robot().replay is not None:
+        return default_robot()
+    found = registry.replayer(driver)
+    if found is None:
+        can = sorted({t for r in registry.robot_types()
+                      if (rep := registry.robot_backend(r).replay) is not None
+                      for t in rep.robots})
+        raise InputError(f"{path}: recorded with robot driver {driver!r}; the simulator "
+                         f"replays recordings of robot types {', '.join(can)}")
+    return found
+
+
+def _command_topics() -> tuple[str, ...]:
+    """Where the replayable robots' recordings hold their applied commands."""
+    return tuple(dict.fromkeys(
+        rep.commands.topic for r in registry.robot_types()
+        if (rep := registry.robot_backend(r).replay) is not None))
+
+
 def _need(rec: Recording, topic: str, why: str) -> None:
     data = rec.topics.get(topic)
     if data is None or len(data) == 0:
@@ -159,25 +197,28 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
         free: scene keys allowed to differ from the base scene (the fitted ones,
             and every fittable key: the rig's own values are what is unknown).
     """
-    rec = load(path, TOPICS)
+    rec = load(path, (*TOPICS, *_command_topics()))
     if not rec.complete:
         raise InputError(f"{path}: recording is incomplete (a killed run or a truncated file); "
                          "`ffexp recover` rewrites it, calibration needs whole runs")
     meta = _meta(rec)
     driver = meta.get("driver", "")
-    if driver and driver not in FRI_DRIVERS:
-        raise InputError(f"{path}: recorded with robot driver {driver!r}; the simulator "
-                         f"replays LWR4+ recordings over FRI ({', '.join(FRI_DRIVERS)})")
+    sim = replayer(path, driver)
+    replay = sim.replay
+    assert replay is not None  # (what registry.replayer finds)
+    cmd_fields = replay.commands
     _need(rec, "/robot/state", "the measured states are what the replay is compared with")
-    _need(rec, "/robot/command", "a recording without the applied commands cannot be "
-          "replayed (an FRI back-end records them)")
+    _need(rec, cmd_fields.topic, "a recording without the applied commands cannot be "
+          f"replayed (the {sim.rig_type} robot replays them from there)")
     _need(rec, "/ft/raw", "the F/T samples are compared with the simulated ones")
-    state, cmd = rec.topic("/robot/state"), rec.topic("/robot/command")
+    state, cmd = rec.topic("/robot/state"), rec.topic(cmd_fields.topic)
     n = min(len(state), len(cmd))
     n_joints = int(state["n_joints"][0])
-    if n_joints != JOINTS:
-        raise InputError(f"{path}: a robot with {n_joints} joints; the simulator is the "
-                         f"{JOINTS}-joint LWR4+")
+    sim_scene = Scene.model_validate(base_scene)
+    joints = sim_scene.arm.description.joints
+    if n_joints != joints:
+        raise InputError(f"{path}: a robot with {n_joints} joints; the simulator's arm is the "
+                         f"{joints}-joint {sim_scene.arm.description.name}")
     if n < MIN_CYCLES:
         raise InputError(f"{path}: {n} cycles; calibration needs at least {MIN_CYCLES}")
     commanding = state["commanding"][:n].astype(bool)
@@ -185,12 +226,12 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
         raise InputError(f"{path}: the robot never commanded; nothing to replay")
     start_cycles = int(np.argmax(commanding))
     cycle_s = float(state["cycle_s"][0])
-    scene_cycle = float(base_scene["fri"]["cycle"])
+    scene_cycle = replay.cycle_s(sim_scene)
     if abs(cycle_s - scene_cycle) > 1e-6:
         raise InputError(f"{path}: recorded at a {cycle_s * 1e3:g} ms cycle; the base scene's "
-                         f"fri.cycle is {scene_cycle * 1e3:g} ms")
+                         f"control cycle is {scene_cycle * 1e3:g} ms")
     t0 = rec.run_start_ns
-    scene = _json(rec, "scene_json") if driver == "sim" else None
+    scene = _json(rec, "scene_json")  # a simulator's run
     if scene is not None:
         check_scene(path, scene, base_scene, free)
         flat = flatten(scene)
@@ -198,24 +239,28 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
     else:
         q0 = [float(v) for v in state["joint_pos"][0]]
         starts = (override("arm.q_init", q0),)
-    ft_type = "fri-estimate" if meta.get("ft") == "fri-estimate" else "sim"
-    wire = driver == "fri1" or meta.get("wire_precision") == "true"
-    pose = cmd["cart_pos"][:n].reshape(n, 4, 4)
+    recorded_ft = meta.get("ft", "")
+    estimate = recorded_ft in replay.estimate_ft
+    ft_type = recorded_ft if estimate else sim.default_ft
+    wire = driver in replay.wire or meta.get("wire_precision") == "true"
+    pose = cmd[cmd_fields.pose][:n].reshape(n, 4, 4)
     ft = rec.topic("/ft/raw")
     tracked_t, tracked = _target(rec, int(state["time_ns"][0]))  # the robot's clock
     placed = rec.topics.get("/task/funnel")  # the funnel's placement by the truth
     seated = bool(placed["within"][-1]) if placed is not None and len(placed) else None
     return ReplayInput(
         path=path, cycle_s=cycle_s, start_cycles=start_cycles, commanding=commanding,
-        pose=pose.astype(np.float64), stiffness=cmd["cart_stiffness"][:n].astype(np.float64),
-        damping=cmd["cart_damping"][:n].astype(np.float64),
-        wrench=cmd["add_tcp_ft"][:n].astype(np.float64),
+        pose=pose.astype(np.float64),
+        stiffness=cmd[cmd_fields.stiffness][:n].astype(np.float64),
+        damping=cmd[cmd_fields.damping][:n].astype(np.float64),
+        wrench=cmd[cmd_fields.wrench][:n].astype(np.float64),
         t_s=(state.log_time_ns[:n] - t0) / 1e9,
         tcp=state["tcp_pose"][:n].reshape(n, 4, 4)[:, :3, 3].astype(np.float64),
         joints=state["joint_pos"][:n].astype(np.float64),
         ft_t_s=(ft.log_time_ns - t0) / 1e9, ft=ft["wrench"].astype(np.float64),
-        target_t_s=tracked_t, target=tracked, start_overrides=starts, ft_type=ft_type,
-        wire_precision=wire, seed=int(meta.get("seed", "0") or 0), scene=scene,
+        target_t_s=tracked_t, target=tracked, start_overrides=starts, robot=sim.rig_type,
+        sim_cycle_s=scene_cycle, ft_type=ft_type, ft_estimate=estimate, wire_precision=wire,
+        seed=int(meta.get("seed", "0") or 0), scene=scene,
         truth_seated=seated,
     )
 

@@ -1,11 +1,13 @@
 """Replay a recording's applied commands, open loop, into the simulated rig: :func:`rollout`.
 
-The simulator is reached through the neutral seams only: a sim rig
-(:mod:`drivers.rig`) opened by :func:`drivers.factory.open_devices` with the
-base scene and overrides (the recording's start, the candidate parameters,
-a noise-free sensor), then ``robot.send()`` of the recorded command of every
-cycle (``None`` while the recorded robot did not command: the KRC mirrors),
-collecting each :class:`~drivers.base.types.RobotState` and the F/T samples.
+The simulator is reached through the neutral seams only: a rig of the simulated
+robot that replays the recording (:attr:`ReplayInput.robot`, its table from its
+:class:`~drivers.base.backend.Replay`) opened by
+:func:`drivers.factory.open_devices` with the base scene and overrides (the
+recording's start, the candidate parameters, a noise-free sensor), then
+``robot.send()`` of the recorded command of every cycle (``None`` while the
+recorded robot did not command: the KRC mirrors), collecting each
+:class:`~drivers.base.types.RobotState` and the F/T samples.
 
 The simulated F/T sensor runs without noise, bias, drift or delay: the
 recording's bias is estimated per recording and its delay is a shift of the
@@ -15,7 +17,6 @@ rollout of its own.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,11 +24,15 @@ from typing import Any
 
 import numpy as np
 
+from drivers import registry
+from drivers.base.backend import OpenContext
 from drivers.base.types import CartesianCommand
+from drivers.description.scene import Scene
 from drivers.factory import open_devices
 from drivers.rig import validate_rig
-from ffexp.calibrate.inputs import ReplayInput
+from ffexp.calibrate.inputs import ReplayInput, default_robot
 from ffexp.errors import FfexpError, SimulationError
+from ffexp.recording.topics import STATE_JOINTS
 from ffexp.scenarios.funnel import Alignment, truth_placement
 
 #: Overrides that make the simulated sensor an ideal one (no noise, bias, drift, delay).
@@ -46,7 +51,7 @@ class Trace:
     pose: np.ndarray
     """(n, 4, 4) TCP poses in the base frame [m]"""
     joints: np.ndarray
-    """(n, 7) [rad]"""
+    """(n, STATE_JOINTS) [rad] (NaN past the arm's joints)"""
     ft_t_s: np.ndarray
     ft: np.ndarray
     """(m, 6) ideal sensor readings [N, N m]"""
@@ -60,7 +65,7 @@ class Trace:
     """(n, 6) the robot's reported TCP twist (``None``: it reports none)."""
     ext_wrench: np.ndarray | None = None
     """(n, 6) the robot's external wrench estimate (``None``: it reports none)."""
-    scene_json: str = ""
+    scene: Scene | None = None
     """The scene the replay ran in."""
 
     @property
@@ -70,22 +75,24 @@ class Trace:
 
 
 def _rig(inp: ReplayInput) -> Any:
-    return validate_rig({"robot": {"type": "sim", "start_cycles": inp.start_cycles,
-                                   "wire_precision": inp.wire_precision},
+    replay = registry.robot_backend(inp.robot).replay
+    assert replay is not None  # (read_input chose a robot that replays)
+    return validate_rig({"robot": replay.table(inp.start_cycles, inp.wire_precision),
                          "ft": {"type": inp.ft_type}}, _SOURCE)
 
 
 def base_scene(scene_file: Path, overrides: Sequence[str] = ()) -> dict[str, Any]:
-    """The scene the simulator builds from ``scene_file`` and ``overrides``, as JSON data.
+    """The scene the default rig's simulated robot runs in from ``scene_file`` and
+    ``overrides``, as JSON data; read, no world built.
 
     Raises :class:`~ffexp.errors.ConfigError` naming the file and key of a bad value.
     """
-    devices = open_devices(validate_rig({}, _SOURCE), source=_SOURCE, scene_file=scene_file,
-                           scene_overrides=overrides)
-    try:
-        data: dict[str, Any] = json.loads(devices.metadata["scene_json"])
-    finally:
-        devices.close()
+    robot = default_robot()
+    if robot.scene is None:  # (the default rig is the simulator's)
+        raise TypeError(f"the default rig's robot {robot.rig_type!r} states no scene")
+    cfg = validate_rig({}, _SOURCE).robot
+    scene = robot.scene(cfg, OpenContext(_SOURCE, scene_file, tuple(overrides)))
+    data: dict[str, Any] = scene.model_dump(mode="json")
     return data
 
 
@@ -97,7 +104,7 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
                            seed=inp.seed)
     robot, sensor = devices.robot, devices.sensor
     pose = np.full((n, 4, 4), np.nan)
-    joints = np.full((n, 7), np.nan)
+    joints = np.full((n, STATE_JOINTS), np.nan)
     target = np.full((n, 3), np.nan)
     seated = np.zeros(n, dtype=bool)
     contact = np.zeros(n, dtype=bool)
@@ -118,7 +125,8 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
                 t0 = state.time_ns
             t_s[k] = (state.time_ns - t0) / 1e9
             pose[k] = state.tcp_pose_m
-            joints[k] = state.joint_pos_rad[:7]
+            q = state.joint_pos_rad[:STATE_JOINTS]
+            joints[k, :q.shape[0]] = q
             if state.tcp_twist_mps_radps is not None:
                 twist[k] = state.tcp_twist_mps_radps
             if state.ext_wrench_n_nm is not None:
@@ -152,12 +160,15 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
         failed = f"replay stopped at cycle {k}: {exc}"
     finally:
         devices.close()
-    scene_json = devices.metadata["scene_json"]
-    base = np.asarray(json.loads(scene_json)["arm"]["base_pos"])
+    scene = devices.scene
+    if scene is None:  # (a replaying robot is a simulated one)
+        raise TypeError(f"robot {inp.robot!r} replays without a scene")
+    base = np.asarray(scene.arm.base_pos)
     target[:, :2] -= base[:2]
     return Trace(t_s=t_s, pose=pose, joints=joints,
                  ft_t_s=np.concatenate(ft_t) if ft_t else np.zeros(0),
                  ft=np.concatenate(ft_w) if ft_w else np.zeros((0, 6)),
                  target=target, seated=seated, in_contact=contact, failed=failed,
                  twist=twist if np.isfinite(twist[0]).all() else None,
-                 ext_wrench=ext if np.isfinite(ext[0]).all() else None, scene_json=scene_json)
+                 ext_wrench=ext if np.isfinite(ext[0]).all() else None,
+                 scene=scene)

@@ -47,17 +47,19 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
     if both:
         raise ConfigError("--holdout", str(sorted(both)[0]), "is also a recording to fit")
     if "ft_sensor.delay_s" in [p.key for p in params] and any(
-            i.ft_type != "sim" for i in fit_in):
-        raise InputError("ft_sensor.delay_s: the recordings' F/T is the KRC's estimate "
-                         "(fri-estimate), which has no sensor path to delay")
+            i.ft_estimate for i in fit_in):
+        raise InputError("ft_sensor.delay_s: the recordings' F/T is the robot's own estimate "
+                         f"({next(i.ft_type for i in fit_in if i.ft_estimate)}), which has "
+                         "no sensor path to delay")
     sources = {i.ft_type for i in (*fit_in, *held)}
     if len(sources) > 1:
         raise InputError("the recordings' F/T sources differ (a Net F/T and the KRC's estimate): "
                          "calibrate with recordings of one source at a time")
     period = 1.0 / float(scene["ft_sensor"]["rate"])
     delay_s = float(scene["ft_sensor"]["delay_s"])
-    if any(i.ft_type == "fri-estimate" for i in fit_in):  # samples once a cycle, no delay
-        period, delay_s = float(scene["fri"]["cycle"]), 0.0
+    estimated = [i for i in fit_in if i.ft_estimate]
+    if estimated:  # the robot's own estimate: one sample a cycle, no delay
+        period, delay_s = estimated[0].sim_cycle_s, 0.0
     t0 = time.monotonic()
     all_in = [*fit_in, *held]
     def done(n: int) -> None:

@@ -41,16 +41,19 @@ def _write(path: Path, inp: ReplayInput, tr: Trace, shift: int, bias: np.ndarray
            t0_ns: int, robot_t0_ns: int, source: Path) -> None:
     n = min(inp.cycles, int(np.isfinite(tr.t_s).sum()))
     ft = ft_on_recorded(inp, tr, shift) + bias
+    if tr.scene is None:  # (a replay runs in a scene)
+        raise TypeError("a replay without its scene")
+    joints = tr.scene.arm.description.joints
     with Recorder(path) as rec:
-        rec.metadata("run", {"resimulated_from": str(source), "driver": "sim",
-                             "scene_json": tr.scene_json,
+        rec.metadata("run", {"resimulated_from": str(source), "driver": inp.robot,
+                             "scene_json": tr.scene.model_dump_json(),
                              "ft_delay_samples": str(shift)})
         state = rec.record("/robot/state")
         for k in range(n):
             state["time_ns"] = robot_t0_ns + round(tr.t_s[k] * 1e9)
             state["tcp_pose"] = tr.pose[k].reshape(-1)
             state["joint_pos"] = tr.joints[k]
-            state["n_joints"] = 7
+            state["n_joints"] = joints
             state["commanding"] = int(inp.commanding[k])
             state["healthy"] = 1
             state["cycle"] = k
@@ -92,7 +95,7 @@ def resimulate(recording: Path, out: Path, scene_file: Path | None = None,
         scene = base_scene(scene_file, overrides)
         inp = read_input(recording, scene, tuple(FITTABLE))
         tr = rollout(inp, scene_file, overrides)
-    shift = 0 if inp.ft_type == "fri-estimate" else round(  # the KRC's estimate: no delay
+    shift = 0 if inp.ft_estimate else round(  # the robot's own estimate: no delay
         float(scene["ft_sensor"]["delay_s"]) * float(scene["ft_sensor"]["rate"]))
     comp = compare(inp, tr, shift)
     rec_o, sim_o = outcomes(inp, tr, shift)

@@ -23,8 +23,8 @@ DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "data" / "scenes" / "paper
 
 @cli_errors
 def resimulate(
-    recording: Path = typer.Argument(..., help="A run recording (.mcap) with the applied "
-                                     "commands (/robot/command)."),
+    recording: Path = typer.Argument(..., help="A run recording (.mcap) with the commands "
+                                     "its robot applied (an LWR4+'s, over FRI or simulated)."),
     out: Path = typer.Option(..., "--out", help="The simulated recording (.mcap) to write."),
     scene: Path | None = typer.Option(None, "--scene", help="Replay in this scene (default: "
                                       "the recording's own, a simulator's run)."),

@@ -25,7 +25,7 @@ from ffexp.cli._common import (
 )
 from ffexp.cli.live import live_view, serve_after_run
 from ffexp.cli.progress import Steps
-from ffexp.rig_choice import DRIVERS, FT_SOURCES, TRACKERS, RigChoice
+from ffexp.rig_choice import DEFAULT_DRIVER, DRIVERS, FT_SOURCES, TRACKERS, RigChoice
 
 if TYPE_CHECKING:
     from ffexp.campaign import CampaignEntry
@@ -131,7 +131,7 @@ def _check_out(out: Path) -> None:
 def run(
     protocol: Path = typer.Argument(..., help="Run protocol TOML (protocols/method*.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
-    driver: str = typer.Option("sim", "--driver", help=DRIVER_HELP),
+    driver: str = typer.Option(DEFAULT_DRIVER, "--driver", help=DRIVER_HELP),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(Path("runs"), "--out", help="Directory for the MCAP recording."),
@@ -213,7 +213,7 @@ def _print_runs(recs: Sequence[Recording], wide: bool) -> None:
 def campaign(
     campaign_file: Path = typer.Argument(..., help="Campaign TOML (protocols/paper.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
-    driver: str = typer.Option("sim", "--driver", help=DRIVER_HELP),
+    driver: str = typer.Option(DEFAULT_DRIVER, "--driver", help=DRIVER_HELP),
     set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol."),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(

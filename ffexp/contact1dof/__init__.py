@@ -29,7 +29,7 @@ import numpy as np
 from pydantic import Field
 from scipy.linalg import expm
 
-from drivers.base.types import F64 as FloatArray
+from drivers.base.types import F64
 from drivers.config import StrictModel
 from ffexp.errors import SimulationError
 
@@ -69,19 +69,19 @@ class Trajectory:
     All arrays have the same length; ``f_c`` is the contact force on the target.
     """
 
-    t_s: FloatArray
-    x_i: FloatArray
-    v_i: FloatArray
-    x_t: FloatArray
-    v_t: FloatArray
-    f_c: FloatArray
+    t_s: F64
+    x_i: F64
+    v_i: F64
+    x_t: F64
+    v_t: F64
+    f_c: F64
 
     @property
-    def p(self) -> FloatArray:
+    def p(self) -> F64:
         """Penetration ``x_i - x_t`` [m]."""
         return self.x_i - self.x_t
 
-    def table(self) -> FloatArray:
+    def table(self) -> F64:
         """The run as an (N, 7) array in :data:`COLUMNS` order."""
         return np.column_stack([self.t_s, self.x_i, self.v_i, self.x_t, self.v_t, self.p, self.f_c])
 
@@ -101,7 +101,7 @@ class Summary:
     """Last time |F_c - F_c(end)| exceeds 2 % of the peak |F_c|; None if never inside."""
 
 
-def system_matrices(params: ContactParams) -> tuple[FloatArray, FloatArray]:
+def system_matrices(params: ContactParams) -> tuple[F64, F64]:
     """State-space form ``s' = A s + c`` of the bilateral model.
 
     The state is ``s = [x_i, v_i, x_t, v_t]``; ``c`` is the constant input
@@ -122,7 +122,7 @@ def system_matrices(params: ContactParams) -> tuple[FloatArray, FloatArray]:
     return a, c
 
 
-def contact_force(params: ContactParams, states: FloatArray) -> FloatArray:
+def contact_force(params: ContactParams, states: F64) -> F64:
     """Contact force on the target for states of shape (..., 4)."""
     p = states[..., 0] - states[..., 2]
     p_dot = states[..., 1] - states[..., 3]
@@ -161,7 +161,7 @@ def simulate(params: ContactParams, duration_s: float, dt_s: float) -> Trajector
     )
 
 
-def _linear(params: ContactParams, s0: FloatArray, dt_s: float, n: int) -> FloatArray:
+def _linear(params: ContactParams, s0: F64, dt_s: float, n: int) -> F64:
     """Exact propagation of the affine system by the augmented matrix exponential."""
     a, c = system_matrices(params)
     aug = np.zeros((5, 5))
@@ -176,12 +176,12 @@ def _linear(params: ContactParams, s0: FloatArray, dt_s: float, n: int) -> Float
     return out[:, :4]
 
 
-def _unilateral(params: ContactParams, s0: FloatArray, t: FloatArray) -> FloatArray:
+def _unilateral(params: ContactParams, s0: F64, t: F64) -> F64:
     from scipy.integrate import solve_ivp  # imported here: it costs ~0.6 s at start-up
 
     m_ri, m_t = params.m_ri, params.m_t
 
-    def rhs(_t: float, s: FloatArray) -> FloatArray:
+    def rhs(_t: float, s: F64) -> F64:
         f_c = float(contact_force(params, s))
         p_dot = s[1] - s[3]
         p = s[0] - s[2]

@@ -26,14 +26,12 @@ import numpy as np
 from pydantic import Field, model_validator
 from scipy.spatial.transform import Rotation
 
-from drivers.base.types import F64, RobotState, Vec6
-from drivers.config import StrictModel
+from drivers.base.types import F64, RobotState
+from drivers.config import Bool6, StrictModel, Vec6
 from ffexp.controllers.base import ControlContext, Controller
 from ffexp.controllers.laws import AXES, pose_error_tcf
 from ffexp.estimation import Estimate
 from ffexp.recording.topics import CDR_TOPICS
-
-Bool6 = tuple[bool, bool, bool, bool, bool, bool]
 
 
 class AdmittanceConfig(StrictModel):
@@ -115,6 +113,7 @@ class Admittance(Controller):
     """A virtual mass-damper set-point the robot is pulled to."""
 
     name = "admittance"
+    config_model = AdmittanceConfig
     label = "Admittance control (virtual mass-damper)"
     tracks_force_reference = True
     topic = CDR_TOPICS["/control/admittance"]

@@ -60,6 +60,8 @@ class Controller(abc.ABC):
 
     name: ClassVar[str]
     """The ``[align] method`` value."""
+    config_model: ClassVar[type[StrictModel]]
+    """Its ``[align]`` table (``method: Literal["<name>"]`` and the method's settings)."""
     label: ClassVar[str]
     """How tables and figures name the method."""
     tracks_force_reference: ClassVar[bool] = False

@@ -7,12 +7,13 @@ apparent inertia reduction (positive feedback of the measured wrench) on the oth
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 from pydantic import Field, model_validator
 
-from drivers.base.types import F64, RobotState, Vec6
+from drivers.base.types import F64, RobotState
+from drivers.config import Vec6
 from ffexp.controllers.base import ControlContext, Controller
 from ffexp.controllers.laws import ForceControlConfig, ForceController, ForceControlTerms
 from ffexp.estimation import Estimate
@@ -41,6 +42,7 @@ class ForceRi(Controller):
     """Force control with apparent inertia reduction (Method I)."""
 
     name = "force_ri"
+    config_model: ClassVar[type[ForceControlConfig]] = ForceRiConfig
     label = "Method I (force control + inertia reduction)"
     tracks_force_reference = True
 
@@ -65,4 +67,5 @@ class Force(ForceRi):
     """Force control alone (Method II)."""
 
     name = "force"
+    config_model = ForceConfig
     label = "Method II (force control)"

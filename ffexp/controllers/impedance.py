@@ -25,6 +25,7 @@ class Impedance(Controller):
     """The approach line continues: set-point and time as if contact had not happened."""
 
     name = "impedance"
+    config_model = ImpedanceAlignConfig
     label = "Method III (impedance control)"
 
     def enter(self, t_ns: int, state: RobotState, est: Estimate) -> None:

@@ -39,10 +39,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from drivers.base.types import F64, Vec6
-from drivers.config import StrictModel
-
-FloatArray = F64  # the project's alias (drivers.base.types)
+from drivers.base.types import F64
+from drivers.config import StrictModel, Vec6
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
 
@@ -91,7 +89,7 @@ class ForceControlConfig(StrictModel):
                 raise ValueError(f"limits[{i}] ({axis}) must be >= 0")
         return self
 
-    def ki_per_second(self, cycle_s: float) -> FloatArray:
+    def ki_per_second(self, cycle_s: float) -> F64:
         """K_i in 1/s whatever the file's reading."""
         ki = np.asarray(self.ki, dtype=np.float64)
         return ki / cycle_s if self.ki_unit == "per_sample" else ki
@@ -101,11 +99,11 @@ class ForceControlConfig(StrictModel):
 class ForceControlTerms:
     """One cycle of eq. (9), split into its terms (all TCF, [N, N m])."""
 
-    p: FloatArray = field(default_factory=lambda: np.zeros(6))
-    i: FloatArray = field(default_factory=lambda: np.zeros(6))
-    ri: FloatArray = field(default_factory=lambda: np.zeros(6))
-    ff: FloatArray = field(default_factory=lambda: np.zeros(6))
-    total: FloatArray = field(default_factory=lambda: np.zeros(6))
+    p: F64 = field(default_factory=lambda: np.zeros(6))
+    i: F64 = field(default_factory=lambda: np.zeros(6))
+    ri: F64 = field(default_factory=lambda: np.zeros(6))
+    ff: F64 = field(default_factory=lambda: np.zeros(6))
+    total: F64 = field(default_factory=lambda: np.zeros(6))
     saturated: bool = False
 
 
@@ -151,11 +149,11 @@ class ForceController:
         self._integral[:] = 0.0
 
     @property
-    def integral(self) -> FloatArray:
+    def integral(self) -> F64:
         """∫ (F_ref - F_c) dt per axis [N s, N m s] (a copy)."""
         return self._integral.copy()
 
-    def update(self, w: FloatArray) -> ForceControlTerms:
+    def update(self, w: F64) -> ForceControlTerms:
         """One controller cycle from the measured wrench ``w`` (environment on tool).
 
         Per axis on floats: the six axes are independent, and these are the same
@@ -235,27 +233,27 @@ class ImpedanceConfig(StrictModel):
         return self
 
 
-def rotation_log(r: FloatArray) -> FloatArray:
+def rotation_log(r: F64) -> F64:
     """Rotation vector (axis * angle) of a 3x3 rotation matrix."""
     m = r.tolist()  # the trace and the differences on floats: the same operations
     cos = _clip((m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0, -1.0, 1.0)
     angle = float(np.arccos(cos))
     v = np.array([m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1]])
     if angle < 1e-9:
-        small: FloatArray = 0.5 * v
+        small: F64 = 0.5 * v
         return small
     if np.pi - angle < 1e-6:
         # near pi: axis from the diagonal of (R + I) / 2
         b = (r + np.eye(3)) / 2.0
         k = int(np.argmax(np.diag(b)))
         axis = b[:, k] / np.sqrt(max(b[k, k], 1e-300))
-        near_pi: FloatArray = axis * angle
+        near_pi: F64 = axis * angle
         return near_pi
-    general: FloatArray = v * (angle / (2.0 * np.sin(angle)))
+    general: F64 = v * (angle / (2.0 * np.sin(angle)))
     return general
 
 
-def pose_error_tcf(pose: FloatArray, setpoint: FloatArray) -> FloatArray:
+def pose_error_tcf(pose: F64, setpoint: F64) -> F64:
     """Set-point minus pose as a TCF 6-vector: translation and rotation vector.
 
     Both are 4x4 base-frame poses of the tool; the error is expressed in the
@@ -280,15 +278,15 @@ class ImpedanceController:
         # per axis as floats for the output (the array form's elementwise operations)
         self._axes = list(zip(self._k.tolist(), self._b.tolist(), (-self._lim).tolist(),
                               self._lim.tolist(), strict=True))
-        self._start: FloatArray | None = None
+        self._start: F64 | None = None
         self.setpoint = np.eye(4)
 
-    def start(self, pose: FloatArray) -> None:
+    def start(self, pose: F64) -> None:
         """Anchor the line at the current tool pose (4x4, base frame)."""
         self._start = pose.copy()
         self.setpoint = pose.copy()
 
-    def setpoint_at(self, elapsed_s: float) -> FloatArray:
+    def setpoint_at(self, elapsed_s: float) -> F64:
         """The set-point ``elapsed_s`` after :meth:`start` (direction in the start TCF)."""
         if self._start is None:
             raise RuntimeError("ImpedanceController.start() was not called")
@@ -297,7 +295,7 @@ class ImpedanceController:
         sp[:3, 3] += self._start[:3, :3] @ (self._dir * travel)
         return sp
 
-    def update(self, pose: FloatArray, twist_tcf: FloatArray, elapsed_s: float) -> FloatArray:
+    def update(self, pose: F64, twist_tcf: F64, elapsed_s: float) -> F64:
         """Commanded wrench (TCF) for the tool pose and its twist in TCF."""
         self.setpoint = self.setpoint_at(elapsed_s)
         e = pose_error_tcf(pose, self.setpoint)

@@ -12,8 +12,6 @@ from pydantic import Field, model_validator
 from drivers.base.types import F64
 from drivers.config import StrictModel
 
-FloatArray = F64  # the project's alias (drivers.base.types)
-
 
 class ContactDetectorConfig(StrictModel):
     """Hysteresis and debounce on the filtered contact force.
@@ -61,7 +59,7 @@ class ContactDetector:
     _pending_since_ns: int | None = None
     _state_since_ns: int | None = None
 
-    def signal(self, wrench: FloatArray) -> float:
+    def signal(self, wrench: F64) -> float:
         """The scalar the thresholds apply to."""
         if self.config.signal == "fz":
             return float(-wrench[2])
@@ -70,7 +68,7 @@ class ContactDetector:
             return math.sqrt(f.dot(f))
         return float(np.linalg.norm(wrench[:3]))
 
-    def update(self, time_ns: int, wrench: FloatArray) -> ContactEvent | None:
+    def update(self, time_ns: int, wrench: F64) -> ContactEvent | None:
         """Feed one filtered wrench; return the event this sample confirms, if any."""
         if self._state_since_ns is None:
             self._state_since_ns = time_ns

@@ -15,8 +15,6 @@ from pydantic import Field
 from drivers.base.types import F64
 from drivers.config import StrictModel
 
-FloatArray = F64  # the project's alias (drivers.base.types)
-
 
 class MotionFilterConfig(StrictModel):
     """Constant-acceleration model of the tool motion."""
@@ -69,11 +67,11 @@ class MotionFilter:
         # covariance repeats bit for bit, its later values (and the gains) repeat too
         self._watch: dict[bytes, int] | None = {}  # covariance bytes: cycle seen
         self._watch_cycles = _GAIN_WATCH_CYCLES
-        self._history: list[tuple[FloatArray, FloatArray]] = []  # (gain, covariance)
-        self._cycle: list[tuple[FloatArray, FloatArray]] = []  # once found: its repeats
+        self._history: list[tuple[F64, F64]] = []  # (gain, covariance)
+        self._cycle: list[tuple[F64, F64]] = []  # once found: its repeats
         self._at = 0  # the next cycle's place in it
 
-    def update(self, pose: FloatArray) -> None:
+    def update(self, pose: F64) -> None:
         """One cycle with the measured 4x4 tool pose (base frame)."""
         r = pose[:3, :3]
         z = self._z
@@ -102,7 +100,7 @@ class MotionFilter:
         self._x = x
         self._p = p
 
-    def _gain(self) -> tuple[FloatArray, FloatArray]:
+    def _gain(self) -> tuple[F64, F64]:
         """The gain of this cycle and the covariance after its update, computed; once
         the covariance equals one of an earlier cycle bit for bit, the values from that
         cycle on are kept to be repeated (:attr:`gain_period`)."""
@@ -134,21 +132,21 @@ class MotionFilter:
         return len(self._cycle)
 
     @property
-    def twist_base(self) -> FloatArray:
+    def twist_base(self) -> F64:
         """[vx, vy, vz, wx, wy, wz] in the base frame."""
         return self._x[:, 1].copy()
 
     @property
-    def accel_base(self) -> FloatArray:
+    def accel_base(self) -> F64:
         """Linear and angular acceleration in the base frame."""
         return self._x[:, 2].copy()
 
     @property
-    def accel_linear_view(self) -> FloatArray:
+    def accel_linear_view(self) -> F64:
         """The linear part of :attr:`accel_base`, a view of the state (do not modify)."""
         return self._x[:3, 2]
 
-    def twist_tcf(self, pose: FloatArray) -> FloatArray:
+    def twist_tcf(self, pose: F64) -> F64:
         """The twist expressed in the tool frame of ``pose``."""
         r = pose[:3, :3]
         v = self._x[:, 1]

@@ -12,13 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import Field
 
-from drivers.base.types import F64, Vec3
-from drivers.config import StrictModel
+from drivers.base.types import F64
+from drivers.config import StrictModel, Vec3
 
-FloatArray = F64  # the project's alias (drivers.base.types)
-
-
-GRAVITY_BASE_MPS2: FloatArray = np.array([0.0, 0.0, -9.81])
+GRAVITY_BASE_MPS2: F64 = np.array([0.0, 0.0, -9.81])
 """Gravity in the robot base frame (base Z up). In the paper's TCF it is along -X."""
 
 
@@ -37,16 +34,16 @@ class ToolLoad(StrictModel):
         9.81, ge=0, description="The gravity the tool's weight is taken with, along the base "
         "frame's -Z [m/s^2]: 0 in orbit (a scene with physics.gravity = 0).")
 
-    def gravity_base(self) -> FloatArray:
+    def gravity_base(self) -> F64:
         """Gravity in the robot base frame [m/s^2]."""
         return np.array([0.0, 0.0, -self.gravity_mps2])
 
     def wrench(
         self,
-        r_base_sensor: FloatArray,
-        accel_base: FloatArray | None = None,
-        gravity: FloatArray | None = None,
-    ) -> FloatArray:
+        r_base_sensor: F64,
+        accel_base: F64 | None = None,
+        gravity: F64 | None = None,
+    ) -> F64:
         """Wrench the tool's weight (and inertia, given ``accel_base``) adds to the reading
         (``gravity``: :attr:`gravity_mps2` along -Z unless given)."""
         if gravity is None:
@@ -56,7 +53,7 @@ class ToolLoad(StrictModel):
         return np.concatenate([f, np.cross(np.asarray(self.com_m), f)])
 
 
-def skew(v: FloatArray) -> FloatArray:
+def skew(v: F64) -> F64:
     """Cross-product matrix: ``skew(a) @ b == a x b``."""
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
@@ -66,12 +63,12 @@ class ToolLoadFit:
     """Result of :func:`identify_tool_load`."""
 
     load: ToolLoad
-    bias: FloatArray
-    residual_rms: FloatArray
+    bias: F64
+    residual_rms: F64
 
 
 def identify_tool_load(
-    rotations: FloatArray, wrenches: FloatArray, gravity: FloatArray = GRAVITY_BASE_MPS2
+    rotations: F64, wrenches: F64, gravity: F64 = GRAVITY_BASE_MPS2
 ) -> ToolLoadFit:
     """Least-squares tool mass, centre of mass and sensor bias from static poses.
 

@@ -19,10 +19,8 @@ import math
 import numpy as np
 from pydantic import Field, model_validator
 
-from drivers.base.types import F64, Vec6
-from drivers.config import StrictModel
-
-FloatArray = F64  # the project's alias (drivers.base.types)
+from drivers.base.types import F64
+from drivers.config import StrictModel, Vec6
 
 
 class WrenchFilterConfig(StrictModel):
@@ -84,7 +82,7 @@ class WrenchFilter:
         self._p_bb = [100.0] * 6
         self.tared = False
 
-    def tare(self, samples: FloatArray) -> None:
+    def tare(self, samples: F64) -> None:
         """Estimate the bias from samples (N, 6) taken in free space (wrench = 0).
 
         A bias-only Kalman filter (``z = b + noise``, prior ``b = 0`` with
@@ -106,7 +104,7 @@ class WrenchFilter:
         self._p_bb = p_b.tolist()
         self.tared = True
 
-    def update(self, samples: FloatArray, dt_s: float) -> None:
+    def update(self, samples: F64, dt_s: float) -> None:
         """Predict over ``dt_s`` and update with the mean of this cycle's samples.
 
         With no samples the filter only predicts (its covariance grows).
@@ -152,17 +150,17 @@ class WrenchFilter:
             p_bb[k] = bb - k_b * k_b * s
 
     @property
-    def wrench(self) -> FloatArray:
+    def wrench(self) -> F64:
         """Filtered wrench (bias removed), TCF."""
         return np.array(self._x_f)
 
     @property
-    def bias(self) -> FloatArray:
+    def bias(self) -> F64:
         """Estimated sensor bias, TCF."""
         return np.array(self._x_b)
 
     @property
-    def wrench_std(self) -> FloatArray:
+    def wrench_std(self) -> F64:
         """1-sigma uncertainty of :attr:`wrench`."""
         return np.array([math.sqrt(v) for v in self._p_ff])
 

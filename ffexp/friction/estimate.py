@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from drivers.base.types import F64 as FloatArray
+from drivers.base.types import F64
 from ffexp.errors import InputError
 from ffexp.friction.fit import (
     G_MPS2,
@@ -58,7 +58,7 @@ class Scale:
                 raise InputError(f"{name} must be a positive number, not {value}")
 
 
-def load_table_points(path: Path) -> tuple[FloatArray, FloatArray]:
+def load_table_points(path: Path) -> tuple[F64, F64]:
     """Read ``{"image_px": [[u, v] x4+], "table_m": [[x, y] x4+]}`` from JSON.
 
     Raises:
@@ -89,9 +89,9 @@ class FrictionResult:
 
     video: str
     track: Track
-    pos_m: FloatArray  # (N, 2), NaN where invalid
-    s_m: FloatArray  # (N,) along the motion direction, NaN where invalid
-    direction: FloatArray  # unit vector in table metres
+    pos_m: F64  # (N, 2), NaN where invalid
+    s_m: F64  # (N,) along the motion direction, NaN where invalid
+    direction: F64  # unit vector in table metres
     interval: SlidingInterval  # indices into the valid samples
     window_idx: npt.NDArray[np.intp]  # indices into the track of the fitted frames
     estimate: FrictionEstimate
@@ -189,7 +189,7 @@ def estimate_video(
     Raises:
         InputError: anything wrong with the inputs, naming the file.
     """
-    table: tuple[FloatArray, FloatArray] | None = None
+    table: tuple[F64, F64] | None = None
     if scale.table_points is not None:
         table = load_table_points(scale.table_points)
     # stop early only when the window is automatic at the end

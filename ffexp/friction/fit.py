@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import stats
 
-from drivers.base.types import F64 as FloatArray
+from drivers.base.types import F64
 
 BoolArray = npt.NDArray[np.bool_]
 
@@ -71,10 +71,10 @@ class QuadraticFit:
     v_centre_mps: float
     decel_mps2: float
     #: Covariance of ``(x_centre_m, v_centre_mps, decel_mps2)``, already inflated.
-    cov: FloatArray
+    cov: F64
     #: ``(XᵀX)⁻¹`` of the design: ``cov = cov_unit σ² inflation``.
-    cov_unit: FloatArray
-    residuals_m: FloatArray
+    cov_unit: F64
+    residuals_m: F64
     residual_std_m: float
     #: Lag-1 autocorrelation of the residuals (0 when not measured).
     rho1: float
@@ -101,24 +101,24 @@ class QuadraticFit:
         """Fitted speed at the first sample of the window (m/s)."""
         return self.v_centre_mps + self.decel_mps2 * (self.t_centre_s - self.t_start_s)
 
-    def position_m(self, t_s: FloatArray) -> FloatArray:
+    def position_m(self, t_s: F64) -> F64:
         """Fitted position at times ``t_s``."""
         tau = np.asarray(t_s, dtype=np.float64) - self.t_centre_s
         return self.x_centre_m + self.v_centre_mps * tau - 0.5 * self.decel_mps2 * tau**2
 
-    def velocity_mps(self, t_s: FloatArray) -> FloatArray:
+    def velocity_mps(self, t_s: F64) -> F64:
         """Fitted velocity at times ``t_s``."""
         tau = np.asarray(t_s, dtype=np.float64) - self.t_centre_s
         return self.v_centre_mps - self.decel_mps2 * tau
 
-    def position_std_m(self, t_s: FloatArray) -> FloatArray:
+    def position_std_m(self, t_s: F64) -> F64:
         """Standard error of the fitted position (the curve, not a new sample)."""
         tau = np.asarray(t_s, dtype=np.float64) - self.t_centre_s
         jac = np.stack([np.ones_like(tau), tau, -0.5 * tau**2], axis=-1)
         var = np.einsum("...i,ij,...j->...", jac, self.cov, jac)
         return np.asarray(np.sqrt(np.maximum(var, 0.0)), np.float64)
 
-    def velocity_std_m(self, t_s: FloatArray) -> FloatArray:
+    def velocity_std_m(self, t_s: F64) -> F64:
         """Standard error of the fitted velocity."""
         tau = np.asarray(t_s, dtype=np.float64) - self.t_centre_s
         jac = np.stack([np.zeros_like(tau), np.ones_like(tau), -tau], axis=-1)
@@ -126,7 +126,7 @@ class QuadraticFit:
         return np.asarray(np.sqrt(np.maximum(var, 0.0)), np.float64)
 
 
-def lag1_autocorrelation(residuals: FloatArray) -> float:
+def lag1_autocorrelation(residuals: F64) -> float:
     """Lag-1 autocorrelation of a residual series (0 for fewer than 3 samples)."""
     r = np.asarray(residuals, dtype=np.float64)
     if r.size < 3:
@@ -139,7 +139,7 @@ def lag1_autocorrelation(residuals: FloatArray) -> float:
 
 
 def fit_quadratic(
-    t_s: FloatArray, x_m: FloatArray, *, min_frames_for_rho: int = 20
+    t_s: F64, x_m: F64, *, min_frames_for_rho: int = 20
 ) -> QuadraticFit:
     """Fit ``x0 + v0 τ - a τ²/2`` (τ centred) by least squares.
 
@@ -208,7 +208,7 @@ class SlidingInterval:
     noise_m: float
 
 
-def project_on_motion(pos_m: FloatArray) -> tuple[FloatArray, FloatArray]:
+def project_on_motion(pos_m: F64) -> tuple[F64, F64]:
     """Project a 2-D track on its principal direction of motion.
 
     Args:
@@ -231,7 +231,7 @@ def project_on_motion(pos_m: FloatArray) -> tuple[FloatArray, FloatArray]:
     return s, direction
 
 
-def robust_noise(s_m: FloatArray) -> float:
+def robust_noise(s_m: F64) -> float:
     """Position noise of a smooth track from its second differences (MAD).
 
     A quadratic has a constant second difference, so its MAD keeps only the
@@ -246,8 +246,8 @@ def robust_noise(s_m: FloatArray) -> float:
 
 
 def find_sliding_interval(
-    t_s: FloatArray,
-    s_m: FloatArray,
+    t_s: F64,
+    s_m: F64,
     *,
     left_frame: bool = False,
     k_onset: float = 6.0,
@@ -346,7 +346,7 @@ def find_sliding_interval(
 
 
 def trim_at_fitted_stop(
-    t_s: FloatArray, s_m: FloatArray, interval: SlidingInterval, *, max_iter: int = 5
+    t_s: F64, s_m: F64, interval: SlidingInterval, *, max_iter: int = 5
 ) -> SlidingInterval:
     """Cut the window at the stop predicted by its own fit.
 
@@ -404,8 +404,8 @@ class FrictionEstimate:
 
 
 def estimate_friction(
-    t_s: FloatArray,
-    x_m: FloatArray,
+    t_s: F64,
+    x_m: F64,
     *,
     g_mps2: float = G_MPS2,
     confidence: float = 0.95,

@@ -6,19 +6,19 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from drivers.base.types import F64 as FloatArray
+from drivers.base.types import F64
 from drivers.vision.calibration import calibration_from_points
 
 
-def homography_from_points(image_px: FloatArray, table_m: FloatArray) -> FloatArray:
+def homography_from_points(image_px: F64, table_m: F64) -> F64:
     """Homography mapping image pixels to table metres from four (or more) points
     (the camera calibration's fit, :func:`drivers.vision.calibration.calibration_from_points`)."""
     return calibration_from_points(image_px, table_m)
 
 
 def pixels_to_metres(
-    centre_px: FloatArray, *, px_per_m: float | None = None, homography: FloatArray | None = None
-) -> FloatArray:
+    centre_px: F64, *, px_per_m: float | None = None, homography: F64 | None = None
+) -> F64:
     """Convert (N, 2) pixel positions to metres by a scale or a homography."""
     pts = np.asarray(centre_px, np.float64)
     if homography is not None:

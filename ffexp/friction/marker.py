@@ -9,7 +9,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from drivers.base.types import F64 as FloatArray
+from drivers.base.types import F64
 from drivers.vision import marker as vision_marker
 from drivers.vision.marker import diagonal_centre
 from ffexp.errors import InputError
@@ -33,13 +33,13 @@ class MarkerTracker:
         self.detector = vision_marker.detector(dictionary)
         self.marker_id = marker_id
         self.w, self.h = size
-        self.last: FloatArray | None = None
+        self.last: F64 | None = None
         self.side_px = 0.0
         self.sides: list[float] = []
-        self.velocity: FloatArray = np.zeros(2)
+        self.velocity: F64 = np.zeros(2)
         self.misses = 0
 
-    def _detect(self, frame: Frame, u0: int, v0: int) -> FloatArray | None:
+    def _detect(self, frame: Frame, u0: int, v0: int) -> F64 | None:
         found = vision_marker.find_marker(self.detector, to_grey(frame), self.marker_id)
         if found is None:
             return None
@@ -49,8 +49,8 @@ class MarkerTracker:
         self.sides.append(float(sides.mean()))
         return diagonal_centre(quad)
 
-    def measure(self, frame: Frame) -> FloatArray | None:
-        c: FloatArray | None = None
+    def measure(self, frame: Frame) -> F64 | None:
+        c: F64 | None = None
         if self.last is not None and self.sides:
             side = float(np.median(self.sides[-20:]))
             guess = self.last + self.velocity

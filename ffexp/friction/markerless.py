@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from drivers.base.types import F64 as FloatArray
+from drivers.base.types import F64
 from ffexp.errors import InputError
 from ffexp.friction.video import (
     Frame,
@@ -43,7 +43,7 @@ class _Target:
     bg: GreyF  # empty-table background, full frame
     polarity: float  # +1 target brighter than the table, -1 darker
     box: tuple[int, int, int, int]  # u0, v0, u1, v1 (exclusive) of the window at rest
-    centre0: FloatArray  # centroid at rest (px)
+    centre0: F64  # centroid at rest (px)
     mass0: float  # sum of weights at rest
     size_px: float
 
@@ -103,7 +103,7 @@ class BackgroundTracker:
         total: int,
         still_stop_s: float,
         fps: float,
-    ) -> tuple[list[FloatArray | None], TrackEnd, float, int, float]:
+    ) -> tuple[list[F64 | None], TrackEnd, float, int, float]:
         """Track; returns per-frame centres (None = invalid), end, size, frames read, noise."""
         # 1. still frames for the background model
         bg_frames: list[Grey8] = []
@@ -172,7 +172,7 @@ class BackgroundTracker:
         # 3. segment the target in the background model
         target = self._segment(bg0, changed, noise, path)
         first_index = n_read - len(buffer)
-        centres: list[FloatArray | None] = [None] * first_index
+        centres: list[F64 | None] = [None] * first_index
         state = _Follow(target, self.margin, self.w, self.h)
         end: TrackEnd = "end_of_video"
         still_frames = 0
@@ -339,14 +339,14 @@ class _Follow:
         self.ring_pinv = np.linalg.pinv(design)
         self.grid_x = gx[a:-a, a:-a].astype(np.float32)
         self.grid_y = gy[a:-a, a:-a].astype(np.float32)
-        self.last: FloatArray = target.centre0.copy()
-        self.velocity: FloatArray = np.zeros(2)
+        self.last: F64 = target.centre0.copy()
+        self.velocity: F64 = np.zeros(2)
         self.why: TrackEnd = "end_of_video"
         self.displacement_px = 0.0
         self.last_step_px = 0.0
         self._gain = np.empty((bh, bw), np.float32)
 
-    def _at(self, frame: Frame, centre: FloatArray) -> FloatArray | None:
+    def _at(self, frame: Frame, centre: F64) -> F64 | None:
         t = self.t
         a = self.ANNULUS_PX
         off = np.rint(centre - t.centre0).astype(int)
@@ -375,9 +375,9 @@ class _Follow:
             return None
         return np.array([u0 + mom["m10"] / m00, v0 + mom["m01"] / m00])
 
-    def measure(self, frame: Frame) -> FloatArray | None:
+    def measure(self, frame: Frame) -> F64 | None:
         guess = self.last + self.velocity
-        c: FloatArray | None = None
+        c: F64 | None = None
         for _ in range(4):
             c = self._at(frame, guess)
             if c is None:

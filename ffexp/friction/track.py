@@ -27,7 +27,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from drivers.base.types import F64 as FloatArray
+from drivers.base.types import F64
 from ffexp.errors import InputError
 from ffexp.friction.homography import homography_from_points, pixels_to_metres
 from ffexp.friction.marker import MarkerTracker, aruco_dictionary, diagonal_centre
@@ -43,7 +43,7 @@ from ffexp.friction.video import (
 )
 
 __all__ = [
-    "FloatArray",
+    "F64",
     "Frame",
     "Grey8",
     "GreyF",
@@ -67,8 +67,8 @@ class Track:
     video: str
     fps: float
     frame_size: tuple[int, int]
-    t_s: FloatArray
-    centre_px: FloatArray
+    t_s: F64
+    centre_px: F64
     valid: npt.NDArray[np.bool_]
     #: How tracking ended.
     end: TrackEnd

@@ -26,8 +26,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from drivers.base.types import F64
+from drivers.config import Vec3
 from drivers.description import LWR4, Scene, tool_tip_offset
-from drivers.description.arm import ArmDescription, Vec3, rpy_matrix
+from drivers.description.arm import ArmDescription, rpy_matrix
 
 __all__ = ["flange_in_last_link", "flange_to_tcp", "link_frames", "link_rows",
            "link_transforms", "translation"]

@@ -140,6 +140,10 @@ def emulate(
         sc = validate(Scene, apply_overrides({}, overrides), "<paper scene>")
     else:
         sc = load_scene(scene, overrides)
+        if entry.overrides_from is not None and sc.arm.model != robot:
+            # a scene of another arm (the zero-g scene's LWR4+): this robot's arm in its
+            # place, as the in-process simulated robot does
+            sc = load_scene(scene, [*entry.scene_overrides(), *overrides])
     settings = EmulatedRigSettings(
         scene=sc,
         remote=remote_addr,

@@ -1,6 +1,6 @@
 """One paper experiment in lockstep, against bare physics and the bare world, in the same run.
 
-    python benchmarks/bench_runner.py [--protocol P] [--seconds S] [--repeats R]
+    python benchmarks/bench_runner.py [--protocol P] [--seconds S] [--repeats R] [--zero-g P6]
 
 Runs the protocol (default Method I case I) for ``S`` seconds of simulated
 time through ``ffexp.experiment.run_file`` on the built-in sim rig: the
@@ -14,6 +14,9 @@ each measured in the same repeat:
 * the bare world: ``SimWorld.step`` with a constant Cartesian command, its
   whole state read and the F/T read, for the same simulated time (no KRC,
   no loop).
+
+Then the same ratio for a 6-DOF protocol on the zero-g scene (``--zero-g``, default
+protocols/sixdof_method1.toml: RK4 on a free target), beside the first's.
 
 Prints medians: wall time and real-time factor of each, the ratios, and where
 the run's time goes (driver = the KRC and the world, of which physics; sensor
@@ -166,11 +169,24 @@ def bare_world_once(ppath: Path, seconds: float) -> float:
     return time.perf_counter() - t0
 
 
+def zero_g_ratio(ppath: Path, seconds: float, repeats: int) -> float:
+    """The median of a 6-DOF protocol's bare physics over its whole run (the same measure
+    as the first protocol's speed ratio)."""
+    ratios = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeats):
+            wall, timings, _ = run_once(ppath, seconds, Path(tmp) / f"z{i}")
+            ratios.append(timings["physics"] / wall)
+    return statistics.median(ratios)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--protocol", type=Path, default=ROOT / "protocols/method1_case1.toml")
     ap.add_argument("--seconds", type=float, default=10.0, help="simulated time per run")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--zero-g", type=Path, default=ROOT / "protocols/sixdof_method1.toml",
+                    help="a 6-DOF protocol on the zero-g scene: its ratio beside the first's")
     args = ap.parse_args()
     walls, unrec, bares, parts = [], [], [], []
     sim_s = args.seconds
@@ -194,6 +210,7 @@ def main() -> None:
     for label, seconds in rows:
         print(f"{label:<48} {seconds:7.2f} s wall   real-time factor {sim_s / seconds:6.1f}x")
     print(f"ratio whole run / its bare physics (speed): {physics / wall:.2f}")
+    planar_ratio = physics / wall
     print(f"ratio whole run / loop without recording:   {rows[2][1] / wall:.2f}")
     print(f"ratio whole run / bare world:               {rows[3][1] / wall:.2f}")
     print("where the whole run's time goes:")
@@ -209,6 +226,10 @@ def main() -> None:
         timings = {}
         run_file(args.protocol, [f"run.timeout_s={args.seconds}", "run.stop_hold_s=0"],
                  out_dir=Path(tmp), timings=timings)
+    zero_g = zero_g_ratio(args.zero_g, args.seconds, args.repeats)
+    print(f"{args.zero_g.name} (zero-g, RK4): ratio whole run / its bare physics "
+          f"{zero_g:.2f} against {planar_ratio:.2f} for {args.protocol.name} "
+          f"({zero_g / planar_ratio:.2f}x)")
     cycles = max(1, round(sim_s / 0.005))
     print(f"parts of the step and the recording (one instrumented run, thread CPU time, "
           f"us per cycle of {cycles}; calls per cycle):")

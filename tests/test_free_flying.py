@@ -143,3 +143,27 @@ def test_the_controllers_see_the_arms_base_frame() -> None:
 def test_a_floating_base_needs_orbit(overrides: list[str], words: str) -> None:
     with pytest.raises(ConfigError, match=words):
         load_scene(ROOT / "data" / "scenes" / "paper.toml", overrides)
+
+
+def test_a_free_flying_run_records_the_chaser_in_3d(tmp_path: Path) -> None:
+    """The recording carries the base's pose and twist, /tf has the chaser and the world in
+    the arm's base frame, and the 3-D scene draws the chaser's body and no air bed."""
+    from typer.testing import CliRunner
+
+    from ffexp.cli import app
+    from ffexp.recording import load
+
+    out = tmp_path / "runs"
+    result = CliRunner().invoke(app, [
+        "run", str(ROOT / "protocols" / "sixdof_method1.toml"), "--out", str(out),
+        "--set", "run.timeout_s=1.0",
+        "--set", f'scene.file="{FREE_FLYING}"'])
+    assert result.exit_code == 4, result.output
+    rec = load(next(out.rglob("*.mcap")))
+    chaser = rec.topic("/sim/body/chaser")
+    assert len(chaser) > 100 and float(chaser["mass_kg"][0]) == pytest.approx(150.0)
+    assert chaser["twist"].shape[1] == 6
+    frames = {(m["parent_frame_id"], m["child_frame_id"]) for m in rec.json["/tf"].messages}
+    assert {("base", "chaser"), ("base", "world"), ("base", "target")} <= frames
+    ids = {e["id"] for m in rec.json["/scene/rig"].messages for e in m["entities"]}
+    assert "chaser" in ids and "target" in ids and "bed" not in ids

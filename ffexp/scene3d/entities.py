@@ -53,6 +53,8 @@ _BLUE_GLASS = {"r": 0.3, "g": 0.5, "b": 0.9, "a": 0.45}
 _ALU = {"r": 0.75, "g": 0.75, "b": 0.8, "a": 1.0}
 _GLASS = {"r": 0.8, "g": 0.9, "b": 1.0, "a": 0.3}
 _GHOST = {"r": 0.2, "g": 0.9, "b": 0.3, "a": 0.3}
+_GOLD = {"r": 0.85, "g": 0.75, "b": 0.3, "a": 1.0}
+_GREEN = {"r": 0.4, "g": 0.7, "b": 0.4, "a": 1.0}
 
 #: Rotation taking a primitive's z axis to +x (a funnel's axis in the target).
 _Z_TO_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
@@ -131,6 +133,26 @@ def target_funnel_inner_radius(scene: Scene) -> float:
     return max(f.opening - f.depth * math.tan(f.half_angle), 0.0)
 
 
+def _objects(scene: Scene, layout: Layout, stamp: dict[str, int]) -> list[dict[str, Any]]:
+    """The scene's ``[[objects]]``: a free one on its own /tf frame (the truth's, by its
+    name), a fixed one where the layout put it."""
+    out = []
+    for obj in scene.objects:
+        a, b, c = obj.size
+        free = obj.support == "free"
+        at = (0.0, 0.0, 0.0) if free else tuple(layout.objects[obj.name])
+        frame = obj.name if free else "base"
+        if obj.shape == "box":
+            prims = {"cubes": [{"pose": _pose(at), "size": _vec(a, b, c), "color": _GREEN}]}
+        elif obj.shape == "sphere":
+            prims = {"spheres": [{"pose": _pose(at), "size": _vec(a, a, a), "color": _GREEN}]}
+        else:
+            prims = {"cylinders": [_cylinder(-c / 2, c / 2, a / 2, a / 2, _GREEN,
+                                             origin=np.asarray(at))]}
+        out.append(_entity(stamp, frame, obj.name, **prims))
+    return out
+
+
 def scene_update(scene: Scene, layout: Layout, time_ns: int, target_frame: str,
                  base: F64, tracked_frame: str = "") -> dict[str, Any]:
     """The whole rig as one SceneUpdate message at log time ``time_ns``.
@@ -143,11 +165,16 @@ def scene_update(scene: Scene, layout: Layout, time_ns: int, target_frame: str,
     sec, nsec = divmod(time_ns, NS_PER_S)
     stamp = {"sec": sec, "nsec": nsec}
     entities = []
-    top = layout.glass_z
-    bed = {"pose": _pose((layout.target_pos[0], layout.target_pos[1],
-                          top - _BED_THICKNESS_M / 2.0)),
-           "size": _vec(BED_SIZE_M, BED_SIZE_M, _BED_THICKNESS_M), "color": _GLASS}
-    entities.append(_entity(stamp, "base", "bed", cubes=[bed]))
+    if scene.target.support == "air_bed":
+        top = layout.glass_z
+        bed = {"pose": _pose((layout.target_pos[0], layout.target_pos[1],
+                              top - _BED_THICKNESS_M / 2.0)),
+               "size": _vec(BED_SIZE_M, BED_SIZE_M, _BED_THICKNESS_M), "color": _GLASS}
+        entities.append(_entity(stamp, "base", "bed", cubes=[bed]))
+    if scene.base.floating:  # the chaser's body, on its own /tf frame (the truth's)
+        entities.append(_entity(stamp, "chaser", "chaser", cubes=[{
+            "pose": _pose((0.0, 0.0, 0.0)), "size": _vec(*scene.base.size), "color": _GOLD}]))
+    entities += _objects(scene, layout, stamp)
     base_pos = base[:3, 3]
     entities.append(_entity(stamp, "base", "base", cylinders=[
         _cylinder(0.0, _BASE_HEIGHT_M, LINK_RADIUS_M, LINK_RADIUS_M, _GREY, origin=base_pos)]))

@@ -72,9 +72,8 @@ class SceneWriter:
             self.target_frame = TRACKED_FRAME
         else:
             self.target_frame = NOMINAL_FRAME
-            c, s = np.cos(layout.target_yaw), np.sin(layout.target_yaw)
             self._nominal = translation(*layout.target_pos)
-            self._nominal[:2, :2] = ((c, -s), (s, c))
+            self._nominal[:3, :3] = layout.target_rot
         return layout
 
     def cycle(self, log_ns: int, state: RobotState, target: TargetObservation | None,

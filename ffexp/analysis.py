@@ -275,8 +275,13 @@ def _contact_impulse(rec: Recording, t0_ns: int) -> float | None:
             return None
         frame = st["tcp_pose"]
     rot = frame.reshape(-1, 4, 4)[:, :3, :3]
+    # contact in APPROACH and ALIGN only: the safe stop's jerk is no contact
+    ctl = rec.topics.get("/control/terms")
+    touching = est["in_contact"].astype(bool)
+    if ctl is not None and np.array_equal(ctl.log_time_ns, est.log_time_ns):
+        touching &= (ctl["phase"] == Phase.APPROACH) | (ctl["phase"] == Phase.ALIGN)
     return impulse.contact_impulse_ns((est.log_time_ns - t0_ns) / NS, est["wrench"], rot,
-                                      est["in_contact"])
+                                      touching)
 
 
 def final_verdict(rec: Recording) -> dict[str, Any]:

@@ -10,6 +10,7 @@ changed for it.
 from __future__ import annotations
 
 import json
+import tomllib
 import math
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -225,13 +226,15 @@ def test_there_are_shipped_run_protocols() -> None:
 
 
 @pytest.mark.parametrize("path", RUN_PROTOCOLS, ids=lambda p: p.name)
-def test_shipped_protocols_are_funnel_alignments_and_dump_as_before(path: Path) -> None:
-    """No shipped protocol names a scenario: each is the funnel alignment, and its dump
-    (the recording's ``run.protocol_json``, the sweeps' plan digest) has no ``task``."""
+def test_shipped_protocols_dump_as_before_unless_they_name_a_scenario(path: Path) -> None:
+    """A shipped protocol without a ``[task]`` table is the funnel alignment, and its dump
+    (the recording's ``run.protocol_json``, the sweeps' plan digest) has no ``task``; the
+    6-DOF ones name theirs (docking6) and their dump carries it."""
     p = load_run_protocol(path)
-    assert p.scenario == "funnel_alignment"
-    assert "task" not in json.loads(p.model_dump_json())
-    assert isinstance(scenarios.build(p), scenarios.REGISTRY["funnel_alignment"])
+    named = tomllib.loads(path.read_text()).get("task", {}).get("scenario")
+    assert p.scenario == (named or "funnel_alignment")
+    assert ("task" in json.loads(p.model_dump_json())) == (named is not None)
+    assert isinstance(scenarios.build(p), scenarios.REGISTRY[p.scenario])
 
 
 def test_an_unknown_scenario_is_one_error_line_and_exit_2() -> None:

@@ -10,8 +10,8 @@ changed for it.
 from __future__ import annotations
 
 import json
-import tomllib
 import math
+import tomllib
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Literal

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from ffexp import outcome
 from ffexp.errors import ConfigError
 from ffexp.sweeps import limits
 from ffexp.sweeps.engine import Runner
@@ -85,16 +86,33 @@ class LimitSearch:
         return self.result
 
     def aligns(self, row: dict[str, Any]) -> bool:
-        """The outcome the search bisects: aligned (without error, and with at most
-        ``max_breaks`` contact breaks when that is set)."""
-        if row.get("error") or not row.get("aligned"):
+        """The outcome the search bisects: the run's outcome is "aligned"
+        (:mod:`ffexp.outcome`: a seat kept, the contact not breaking after the first
+        contact's transient; without error, and with at most ``max_breaks`` contact
+        breaks when that is set). Rows without an outcome: their aligned flag."""
+        if row.get("error"):
+            return False
+        if not (row["outcome"] == outcome.ALIGNED if row.get("outcome") else row.get("aligned")):
             return False
         return self.max_breaks is None or int(row.get("contact_breaks") or 0) <= self.max_breaks
 
     def limits_rows(self) -> list[dict[str, Any]]:
+        """The limits found, each with ``beyond``: the outcome on its side that does not
+        align (lower limit: below it; upper: above it), the most common over seeds."""
         assert self.result is not None
-        return [{"search": self.name, **row}
-                for row in limits.describe(self.result, [k.text for k in self.keys])]
+        names = [k.text for k in self.keys]
+        out = []
+        for row in limits.describe(self.result, names):
+            far = "from" if row["lo_fraction"] <= row["hi_fraction"] else "to"
+            at = tuple(row[f"{n} {far}"] for n in names)
+            out.append({"search": self.name, **row, "beyond": self.outcome_at(at)})
+        return out
+
+    def outcome_at(self, coords: Sequence[float]) -> str | None:
+        """The most common outcome of the runs at a point (None: none ran there)."""
+        said = [str(r.get("outcome") or ("error" if r.get("error") else "?")) for r in self.rows
+                if all(r.get(k.text) == c for k, c in zip(self.keys, coords, strict=True))]
+        return max(sorted(set(said)), key=said.count) if said else None
 
     def points(self) -> list[tuple[limits.Coords, float]]:
         assert self.result is not None

@@ -1,0 +1,189 @@
+"""A run's outcome named by what happened, in the paper's words: the one rule (pure).
+
+The campaign table, the report, ``ffexp reproduce``'s claims, ``ffexp limits``
+and ``ffexp analyze --json`` (``outcome``) all name a run by :func:`classify`.
+Its input is the run's contact history (when contact was made and lost, from
+the estimator's contact flag) and how it ended; no I/O.
+
+The rule, in order:
+
+1. A run that did not end normally is shown as that and not scored against the
+   paper: ``incomplete`` (the recording was cut), ``stopped`` (a stop request,
+   Ctrl-C or SIGTERM), ``aborted`` (a safety limit or a device fault).
+2. ``no contact``: the tool never touched.
+3. The **first contact's transient** is its bounce series: the first break
+   (the impact's rebound) and each break after it whose flight (out of contact,
+   from the break to the re-contact) is shorter than the one before and, from
+   the third break on, whose interval from the break before is shorter too, as
+   a rebound losing energy at each impact under a steady push does (the flight
+   of a rebound at speed v under a push F is 2 m v / F). It ends at the
+   re-contact that closes the series; its length is measured per run, not chosen.
+4. ``contact kept breaking``: at least :data:`KEPT_BREAKING` breaks after the
+   transient (before the seat when the seat was kept to the end): the breaks
+   recur, they are not the impact's rebound.
+5. ``aligned``: seated and the seat kept to the end (no contact lost after it).
+6. ``pushed away``: the run ends out of contact after a last flight longer than
+   all its earlier flights together: the chase is not closing.
+7. ``held contact, did not slide``: it pressed without seating (a jam); the note
+   gives the final lateral and yaw errors when they are known.
+
+A seat that did not last is said in the note (``seated at 8.22 s, not kept``),
+so an "aligned" verdict beside another outcome is never left unexplained.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+ALIGNED = "aligned"
+KEPT_BREAKING_LABEL = "contact kept breaking"
+HELD = "held contact, did not slide"
+PUSHED_AWAY = "pushed away"
+NO_CONTACT = "no contact"
+#: The outcomes a run is scored by against the paper's (a protocol's ``[paper] outcome``).
+OUTCOMES: tuple[str, ...] = (ALIGNED, KEPT_BREAKING_LABEL, HELD, PUSHED_AWAY)
+INCOMPLETE = "incomplete"
+STOPPED = "stopped"
+ABORTED = "aborted"
+#: Runs shown as what they are and never scored against the paper.
+NOT_SCORED: tuple[str, ...] = (INCOMPLETE, STOPPED, ABORTED)
+#: The paper's earlier wording, read as the outcome it names.
+ALIASES: dict[str, str] = {"did not slide": HELD}
+#: From this many breaks after the first contact's transient the contact "kept breaking"
+#: (one later break is an event; two are a recurrence).
+KEPT_BREAKING = 2
+#: Stop reasons (``StopReason.value``) that mean "stopped", not "aborted".
+STOP_REASONS = ("stop_requested",)
+
+
+@dataclass(frozen=True)
+class RunFacts:
+    """What the rule reads of a run (times in seconds since its first cycle)."""
+
+    made_s: Sequence[float]
+    """When contact was made: the first contact, then each re-contact."""
+    lost_s: Sequence[float]
+    """When contact was lost, after the first contact."""
+    end_s: float
+    in_contact_at_end: bool
+    seated_s: float | None = None
+    """When the goal was first held (a DONE aligned, or the ``aligned`` event)."""
+    complete: bool = True
+    stop_reason: str | None = None
+    """``StopReason.value`` of an ABORT (None: DONE, or not recorded)."""
+    abort_message: str | None = None
+    lateral_error_m: float | None = None
+    yaw_error_deg: float | None = None
+
+
+@dataclass(frozen=True)
+class Transient:
+    """The first contact's bounce series: its end and how many breaks it holds."""
+
+    end_s: float | None
+    """The re-contact closing it (the first contact itself when it holds none; None
+    without contact, or when the series' last break was never followed by contact)."""
+    breaks: int
+
+
+@dataclass(frozen=True)
+class Outcome:
+    label: str
+    note: str = ""
+    transient: Transient = Transient(None, 0)
+    breaks_after_transient: int = 0
+
+    @property
+    def scored(self) -> bool:
+        """Whether the run is compared with the paper's outcome."""
+        return self.label not in NOT_SCORED
+
+    def text(self) -> str:
+        return f"{self.label} ({self.note})" if self.note else self.label
+
+
+def normalize(paper_outcome: str) -> str:
+    """A protocol's ``[paper] outcome`` as one of :data:`OUTCOMES` (older wording read)."""
+    return ALIASES.get(paper_outcome, paper_outcome)
+
+
+def agreement(paper_outcome: str | None, ours: Outcome) -> str | None:
+    """``yes``/``NO`` against the paper's outcome; ``not scored`` for a run that did not
+    end normally; None when the paper gives none."""
+    if paper_outcome is None:
+        return None
+    if not ours.scored:
+        return "not scored"
+    return "yes" if normalize(paper_outcome) == ours.label else "NO"
+
+
+def transient(made_s: Sequence[float], lost_s: Sequence[float]) -> Transient:
+    """The first contact's bounce series (module docstring, rule 3)."""
+    if not made_s:
+        return Transient(None, 0)
+    first = made_s[0]
+    lost = [t for t in lost_s if t > first]
+    # each break's re-contact (the first contact made after it), None if never
+    again: list[float | None] = []
+    for t in lost:
+        nxt = next((m for m in made_s if m > t), None)
+        again.append(nxt)
+    if not lost:
+        return Transient(first, 0)
+    n = 1
+    while n < len(lost):
+        prev_back, back = again[n - 1], again[n]
+        if prev_back is None or back is None:
+            break
+        flight_prev, flight = prev_back - lost[n - 1], back - lost[n]
+        shorter = flight < flight_prev
+        if n >= 2:  # the intervals between breaks shrink too (the first has none before)
+            shorter = shorter and lost[n] - lost[n - 1] < lost[n - 1] - lost[n - 2]
+        if not shorter:
+            break
+        n += 1
+    return Transient(again[n - 1], n)
+
+
+def classify(f: RunFacts) -> Outcome:
+    """The run's outcome (module docstring)."""
+    seat = f"seated at {f.seated_s:.2f} s" if f.seated_s is not None else ""
+    if not f.complete:
+        return Outcome(INCOMPLETE, _join(seat, "the recording ends early"))
+    if f.stop_reason is not None:
+        label = STOPPED if f.stop_reason in STOP_REASONS else ABORTED
+        return Outcome(label, _join(f.abort_message or f.stop_reason, seat))
+    if not f.made_s:
+        return Outcome(NO_CONTACT)
+    tr = transient(f.made_s, f.lost_s)
+    first = f.made_s[0]
+    lost = [t for t in f.lost_s if t > first]
+    kept_seat = f.seated_s is not None and not any(t > f.seated_s for t in lost)
+    after = lost[tr.breaks:]
+    if kept_seat:
+        after = [t for t in after if f.seated_s is not None and t <= f.seated_s]
+    n_after = len(after)
+    if n_after >= KEPT_BREAKING:
+        note = f"{n_after} breaks after the first contact's transient"
+        if f.seated_s is not None:
+            note = _join(note, seat + (", kept" if kept_seat else ", not kept"))
+        return Outcome(KEPT_BREAKING_LABEL, note, tr, n_after)
+    if kept_seat:
+        return Outcome(ALIGNED, "", tr, n_after)
+    not_kept = f"{seat}, not kept" if seat else ""
+    if not f.in_contact_at_end and lost:
+        flights = [m - t for t, m in zip(lost, f.made_s[1:], strict=False) if m > t]
+        last = f.end_s - lost[-1]
+        if last > sum(flights):
+            return Outcome(PUSHED_AWAY, _join(f"out of contact for the last {last:.1f} s",
+                                              not_kept), tr, n_after)
+    errors = ""
+    if f.lateral_error_m is not None and f.yaw_error_deg is not None:
+        errors = (f"final lateral {f.lateral_error_m * 1000:+.1f} mm, "
+                  f"yaw {f.yaw_error_deg:+.1f} deg")
+    return Outcome(HELD, _join(errors, not_kept), tr, n_after)
+
+
+def _join(*parts: str) -> str:
+    return "; ".join(p for p in parts if p)

@@ -25,6 +25,7 @@ from ffexp import controllers
 from ffexp.contracts import Phase, StopReason
 from ffexp.errors import InputError
 from ffexp.linkcheck import check_link
+from ffexp.outcome import ALIGNED as ALIGNED_OUTCOME
 from ffexp.outcome import Outcome, RunFacts, agreement, classify
 from ffexp.recording import Recording
 
@@ -333,7 +334,7 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("breaks", "contact_breaks", 1),
     ("breaks ALIGN", "breaks_align", 3),
     ("verdict", "verdict", 0),
-    ("outcome", "outcome", 1),
+    ("outcome", "outcome", 0),
     ("judge", "verdict_source", 2),
     ("mean f_z [N]", "mean_fz_align_n", 4),
     ("peak |f_z| ALIGN [N]", "peak_abs_fz_n", 7),
@@ -362,10 +363,11 @@ def run_name(rec: Recording) -> str:
 
 def end_label(m: RunMetrics) -> str:
     """How the run ended, in one word or reason: the abort reason, aligned, or timeout
-    (a run that went on after its seat and was then aborted ends with the abort)."""
+    (a run that went on after its seat and was then aborted ends with the abort; one
+    whose seat did not last to its end, with its timeout)."""
     if m.aborted is not None:
         return m.aborted
-    if m.aligned:
+    if m.aligned and m.outcome in ("", ALIGNED_OUTCOME):
         return "aligned"
     return "timeout" if m.complete else "cut"
 

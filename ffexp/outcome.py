@@ -27,8 +27,9 @@ The rule, in order:
 7. ``held contact, did not slide``: it pressed without seating (a jam); the note
    gives the final lateral and yaw errors when they are known.
 
-A seat that did not last is said in the note (``seated at 8.22 s, not kept``),
-so an "aligned" verdict beside another outcome is never left unexplained.
+A seat that did not last is said in the note
+(``seat at 8.22 s not kept``), so an "aligned" verdict beside another outcome
+is never left unexplained.
 """
 
 from __future__ import annotations
@@ -148,7 +149,7 @@ def transient(made_s: Sequence[float], lost_s: Sequence[float]) -> Transient:
 
 def classify(f: RunFacts) -> Outcome:
     """The run's outcome (module docstring)."""
-    seat = f"seated at {f.seated_s:.2f} s" if f.seated_s is not None else ""
+    seat = f"seat at {f.seated_s:.2f} s" if f.seated_s is not None else ""
     if not f.complete:
         return Outcome(INCOMPLETE, _join(seat, "the recording ends early"))
     if f.stop_reason is not None:
@@ -165,13 +166,13 @@ def classify(f: RunFacts) -> Outcome:
         after = [t for t in after if f.seated_s is not None and t <= f.seated_s]
     n_after = len(after)
     if n_after >= KEPT_BREAKING:
-        note = f"{n_after} breaks after the first contact's transient"
+        note = f"{n_after} breaks after the first rebound ended at {tr.end_s:.2f} s"
         if f.seated_s is not None:
-            note = _join(note, seat + (", kept" if kept_seat else ", not kept"))
+            note = _join(note, seat + (" kept" if kept_seat else " not kept"))
         return Outcome(KEPT_BREAKING_LABEL, note, tr, n_after)
     if kept_seat:
         return Outcome(ALIGNED, "", tr, n_after)
-    not_kept = f"{seat}, not kept" if seat else ""
+    not_kept = f"{seat} not kept" if seat else ""
     if not f.in_contact_at_end and lost:
         flights = [m - t for t, m in zip(lost, f.made_s[1:], strict=False) if m > t]
         last = f.end_s - lost[-1]
@@ -180,8 +181,8 @@ def classify(f: RunFacts) -> Outcome:
                                               not_kept), tr, n_after)
     errors = ""
     if f.lateral_error_m is not None and f.yaw_error_deg is not None:
-        errors = (f"final lateral {f.lateral_error_m * 1000:+.1f} mm, "
-                  f"yaw {f.yaw_error_deg:+.1f} deg")
+        errors = (f"lateral {f.lateral_error_m * 1000:+.1f} mm, "
+                  f"yaw {f.yaw_error_deg:+.1f} deg at the end")
     return Outcome(HELD, _join(errors, not_kept), tr, n_after)
 
 

@@ -34,7 +34,7 @@ def test_a_decaying_rebound_is_the_first_contacts_transient_and_a_jam_is_held() 
     assert tr.breaks == 3 and tr.end_s == pytest.approx(4.94)
     got = oc.classify(facts(*JAM, lateral_error_m=-0.004, yaw_error_deg=-6.5))
     assert got.label == oc.HELD and got.scored
-    assert got.note == "final lateral -4.0 mm, yaw -6.5 deg"
+    assert got.note == "lateral -4.0 mm, yaw -6.5 deg at the end"
 
 
 def test_a_flight_that_does_not_shrink_ends_the_transient() -> None:
@@ -57,7 +57,7 @@ def test_a_bounce_that_recurs_keeps_breaking_even_with_a_momentary_seat() -> Non
     got = oc.classify(facts(made, lost, 40.0, seated_s=8.22))
     assert got.label == oc.KEPT_BREAKING_LABEL
     assert got.transient == oc.Transient(4.495, 2) and got.breaks_after_transient == 4
-    assert "seated at 8.22 s, not kept" in got.note
+    assert "seat at 8.22 s not kept" in got.note
 
 
 def test_a_kept_seat_is_aligned_whatever_rebounds_came_before_it() -> None:
@@ -65,13 +65,13 @@ def test_a_kept_seat_is_aligned_whatever_rebounds_came_before_it() -> None:
     assert got.label == oc.ALIGNED and got.note == ""
     # the seat not kept, no recurring breaks: held, and the note says so
     got = oc.classify(facts([3.66, 4.36, 8.0], [3.785, 7.5], seated_s=7.0))
-    assert got.label == oc.HELD and got.note == "seated at 7.00 s, not kept"
+    assert got.label == oc.HELD and got.note == "seat at 7.00 s not kept"
 
 
 def test_breaks_before_a_kept_seat_can_still_be_a_recurrence() -> None:
     made, lost = [3.66, 4.36, 6.3, 8.0], [3.785, 5.5, 7.5]  # the second flight is longer
     got = oc.classify(facts(made, lost, 9.0, seated_s=8.5))
-    assert got.label == oc.KEPT_BREAKING_LABEL and "seated at 8.50 s, kept" in got.note
+    assert got.label == oc.KEPT_BREAKING_LABEL and "seat at 8.50 s kept" in got.note
 
 
 def test_pushed_away_needs_a_last_flight_longer_than_all_earlier_ones() -> None:
@@ -91,7 +91,7 @@ def test_a_run_that_did_not_end_normally_is_shown_as_such_and_not_scored(
     kw: dict[str, object], label: str
 ) -> None:
     got = oc.classify(facts(*JAM, seated_s=4.0, **kw))
-    assert got.label == label and not got.scored and "seated at 4.00 s" in got.note
+    assert got.label == label and not got.scored and "seat at 4.00 s" in got.note
     assert oc.agreement("aligned", got) == "not scored"
 
 

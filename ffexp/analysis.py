@@ -90,6 +90,8 @@ class RunMetrics:
     transient_end_s: float | None = None
     """End of the first contact's transient (its bounce series; :mod:`ffexp.outcome`)."""
     breaks_after_transient: int = 0
+    ended_aligned: bool = False
+    """The run ended DONE on its seat (not a seat noted on the way to a timeout)."""
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), allow_nan=False, default=_json_default)
@@ -153,6 +155,7 @@ def metrics(rec: Recording) -> RunMetrics:
     aborted: str | None = None
     stop_reason: str | None = None
     aligned_at: float | None = None
+    ended_aligned = False
     if phases is not None:
         for t_ns, msg in zip(phases.log_time_ns.tolist(), phases.messages, strict=True):
             phase = _phase_of(msg)
@@ -161,6 +164,7 @@ def metrics(rec: Recording) -> RunMetrics:
                 stop_reason = str(msg.get("stop_reason") or "aborted")
             if phase == Phase.DONE and _ended_aligned(msg):
                 aligned_at = (t_ns - t0_ns) / NS
+                ended_aligned = True
     events = rec.json.get("/events")
     if aligned_at is None and events is not None:  # a run that went on after its seat
         for t_ns, msg in zip(events.log_time_ns.tolist(), events.messages, strict=True):
@@ -264,6 +268,7 @@ def metrics(rec: Recording) -> RunMetrics:
         outcome_note=said.note,
         transient_end_s=said.transient.end_s,
         breaks_after_transient=said.breaks_after_transient,
+        ended_aligned=ended_aligned,
     )
 
 
@@ -367,7 +372,7 @@ def end_label(m: RunMetrics) -> str:
     whose seat did not last to its end, with its timeout)."""
     if m.aborted is not None:
         return m.aborted
-    if m.aligned and m.outcome in ("", ALIGNED_OUTCOME):
+    if m.ended_aligned or (m.aligned and m.outcome in ("", ALIGNED_OUTCOME)):
         return "aligned"
     return "timeout" if m.complete else "cut"
 

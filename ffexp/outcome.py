@@ -18,10 +18,12 @@ The rule, in order:
    a rebound losing energy at each impact under a steady push does (the flight
    of a rebound at speed v under a push F is 2 m v / F). It ends at the
    re-contact that closes the series; its length is measured per run, not chosen.
-4. ``contact kept breaking``: at least :data:`KEPT_BREAKING` breaks after the
-   transient (before the seat when the seat was kept to the end): the breaks
-   recur, they are not the impact's rebound.
-5. ``aligned``: seated and the seat kept to the end (no contact lost after it).
+4. ``aligned``: seated and the seat kept to the end (no contact lost after it);
+   breaks that recurred before the seat are said in the note
+   (:attr:`Outcome.kept_breaking` is true for such a run: ``ffexp limits``'
+   upper limit is where the contact keeps breaking, as the paper's is).
+5. ``contact kept breaking``: at least :data:`KEPT_BREAKING` breaks after the
+   transient: the breaks recur, they are not the impact's rebound.
 6. ``pushed away``: the run ends out of contact after a last flight longer than
    all its earlier flights together: the chase is not closing.
 7. ``held contact, did not slide``: it pressed without seating (a jam); the note
@@ -96,12 +98,26 @@ class Outcome:
     breaks_after_transient: int = 0
 
     @property
+    def kept_breaking(self) -> bool:
+        """The contact broke again and again after the first rebound, whatever the end
+        (an aligned run's breaks before its seat included)."""
+        return kept_breaking(self.label, self.breaks_after_transient)
+
+    @property
     def scored(self) -> bool:
         """Whether the run is compared with the paper's outcome."""
         return self.label not in NOT_SCORED
 
     def text(self) -> str:
         return f"{self.label} ({self.note})" if self.note else self.label
+
+
+def kept_breaking(label: str, breaks_after_transient: int) -> bool:
+    """Whether a run's contact kept breaking, from its outcome and its breaks after the
+    first rebound: "contact kept breaking", or an aligned run whose breaks recurred
+    before its seat (:attr:`Outcome.kept_breaking`)."""
+    return label == KEPT_BREAKING_LABEL or (
+        label == ALIGNED and breaks_after_transient >= KEPT_BREAKING)
 
 
 def normalize(paper_outcome: str) -> str:
@@ -165,14 +181,12 @@ def classify(f: RunFacts) -> Outcome:
     if kept_seat:
         after = [t for t in after if f.seated_s is not None and t <= f.seated_s]
     n_after = len(after)
-    if n_after >= KEPT_BREAKING:
-        note = f"{n_after} breaks after the first rebound ended at {tr.end_s:.2f} s"
-        if f.seated_s is not None:
-            note = _join(note, seat + (" kept" if kept_seat else " not kept"))
-        return Outcome(KEPT_BREAKING_LABEL, note, tr, n_after)
-    if kept_seat:
-        return Outcome(ALIGNED, "", tr, n_after)
+    breaking = f"{n_after} breaks after the first rebound ended at {tr.end_s:.2f} s"
+    if kept_seat:  # how the run ended decides first; breaks on the way are said
+        return Outcome(ALIGNED, breaking if n_after >= KEPT_BREAKING else "", tr, n_after)
     not_kept = f"{seat} not kept" if seat else ""
+    if n_after >= KEPT_BREAKING:
+        return Outcome(KEPT_BREAKING_LABEL, _join(breaking, not_kept), tr, n_after)
     if not f.in_contact_at_end and lost:
         flights = [m - t for t, m in zip(lost, f.made_s[1:], strict=False) if m > t]
         last = f.end_s - lost[-1]

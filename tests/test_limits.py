@@ -153,11 +153,16 @@ def test_a_run_aligns_by_its_outcome_and_each_limit_names_the_outcome_beyond_it(
     s = LimitSearch(Target(P1), [parse_key("align.k_ri[3]")], [(0.0, 4.0)], [1], [1.0])
     assert s.aligns({"aligned": True, "outcome": "contact kept breaking"}) is False
     assert s.aligns({"aligned": True, "outcome": "aligned"}) is True
+    broke_then_seated = {"aligned": True, "outcome": "aligned", "breaks_after_transient": 3}
+    assert s.aligns(broke_then_seated) is False
     said = {0.0: "held contact, did not slide", 1.0: "aligned", 2.0: "aligned",
-            3.0: "aligned", 4.0: "contact kept breaking"}
-    s.rows = [{"align.k_ri[3]": k, "outcome": o, "aligned": True} for k, o in said.items()]
+            3.0: "aligned", 4.0: "aligned"}  # at 4: seated after its contact kept breaking
+    s.rows = [{"align.k_ri[3]": k, "outcome": o, "aligned": True,
+               "breaks_after_transient": 3 if k == 4.0 else 0} for k, o in said.items()]
     s.result = limits.search(
-        lambda pts: [float(s.aligns({"outcome": said[p[0]]})) for p in pts],
+        lambda pts: [float(s.aligns(next(r for r in s.rows if r["align.k_ri[3]"] == p[0])))
+                     for p in pts],
         s.segments(), coarse=5, resolution=[1.0])
     found = {r["kind"]: r["beyond"] for r in s.limits_rows()}
-    assert found == {"lower": "held contact, did not slide", "upper": "contact kept breaking"}
+    assert found == {"lower": "held contact, did not slide",
+                     "upper": "contact kept breaking, then aligned"}

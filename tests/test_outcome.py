@@ -68,10 +68,14 @@ def test_a_kept_seat_is_aligned_whatever_rebounds_came_before_it() -> None:
     assert got.label == oc.HELD and got.note == "seat at 7.00 s not kept"
 
 
-def test_breaks_before_a_kept_seat_can_still_be_a_recurrence() -> None:
+def test_a_kept_seat_after_recurring_breaks_is_aligned_and_says_the_breaks() -> None:
+    """How the run ended decides (the seat kept); the breaks on the way are its note and
+    make it count as breaking for the gain limits."""
     made, lost = [3.66, 4.36, 6.3, 8.0], [3.785, 5.5, 7.5]  # the second flight is longer
     got = oc.classify(facts(made, lost, 9.0, seated_s=8.5))
-    assert got.label == oc.KEPT_BREAKING_LABEL and "seat at 8.50 s kept" in got.note
+    assert got.label == oc.ALIGNED and got.kept_breaking
+    assert got.note == "2 breaks after the first rebound ended at 4.36 s"
+    assert not oc.classify(facts(*JAM, end=7.0, seated_s=6.9)).kept_breaking
 
 
 def test_pushed_away_needs_a_last_flight_longer_than_all_earlier_ones() -> None:

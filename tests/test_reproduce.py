@@ -342,6 +342,12 @@ def test_claims_read_the_outcome_rule_when_the_row_has_one() -> None:
     assert claims.ordering(named, S) is True
     seated_iii = {**named, "III": {**named["III"], "aligned": True}}
     assert claims.iii_breaks(seated_iii, S) is True  # the aligned flag is not the outcome
+    kept_seat = {**named, "III": {**named["III"], "outcome": "aligned",
+                                  "breaks_after_transient": 5}}
+    assert claims.iii_breaks(kept_seat, S) is True  # broke again and again, then seated
+    clean = {**named, "III": {**named["III"], "outcome": "aligned",
+                              "breaks_after_transient": 1}}
+    assert claims.iii_breaks(clean, S) is False
     pushed = {**named, "II-0.8": {**named["II-0.8"], "outcome": "pushed away"}}
     assert claims.ii_low_fails(pushed, S) is False
     aborted = {**named, "III": {**named["III"], "outcome": "aborted"}}

@@ -53,7 +53,7 @@ def _aligned(row: Row) -> bool:
 
 def _kept_breaking(row: Row, s: Settings) -> bool:
     if row.get("outcome"):
-        return bool(row["outcome"] == oc.KEPT_BREAKING_LABEL)
+        return oc.kept_breaking(str(row["outcome"]), int(row.get("breaks_after_transient") or 0))
     return _breaks(row) >= s.iii_min_breaks
 
 
@@ -96,8 +96,8 @@ def ii_high_aligns(runs: Runs, s: Settings) -> bool | None:
 
 
 def iii_breaks(runs: Runs, s: Settings) -> bool | None:
-    """Method III's outcome is "contact kept breaking" (breaks after the first contact's
-    transient, :mod:`ffexp.outcome`)."""
+    """Method III's contact kept breaking (at least two breaks after the first contact's
+    transient, :func:`ffexp.outcome.kept_breaking`, a seat at the end or not)."""
     if not _usable(runs, "III"):
         return None
     return _kept_breaking(runs["III"], s)

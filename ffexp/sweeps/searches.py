@@ -86,13 +86,12 @@ class LimitSearch:
         return self.result
 
     def aligns(self, row: dict[str, Any]) -> bool:
-        """The outcome the search bisects: the run's outcome is "aligned"
-        (:mod:`ffexp.outcome`: a seat kept, the contact not breaking after the first
-        contact's transient; without error, and with at most ``max_breaks`` contact
-        breaks when that is set). Rows without an outcome: their aligned flag."""
-        if row.get("error"):
-            return False
-        if not (row["outcome"] == outcome.ALIGNED if row.get("outcome") else row.get("aligned")):
+        """The outcome the search bisects: the run's outcome (:mod:`ffexp.outcome`) is
+        "aligned" and its contact did not keep breaking on the way (the paper's limits:
+        no sliding below, contact breaking above); without error, and with at most
+        ``max_breaks`` contact breaks when that is set. Rows without an outcome: their
+        aligned flag."""
+        if row.get("error") or limit_outcome(row) != outcome.ALIGNED:
             return False
         return self.max_breaks is None or int(row.get("contact_breaks") or 0) <= self.max_breaks
 
@@ -110,10 +109,24 @@ class LimitSearch:
 
     def outcome_at(self, coords: Sequence[float]) -> str | None:
         """The most common outcome of the runs at a point (None: none ran there)."""
-        said = [str(r.get("outcome") or ("error" if r.get("error") else "?")) for r in self.rows
+        said = [limit_outcome(r) for r in self.rows
                 if all(r.get(k.text) == c for k, c in zip(self.keys, coords, strict=True))]
         return max(sorted(set(said)), key=said.count) if said else None
 
     def points(self) -> list[tuple[limits.Coords, float]]:
         assert self.result is not None
         return sorted(self.result.evaluated.items())
+
+
+def limit_outcome(row: dict[str, Any]) -> str:
+    """A row's outcome as the limits read it: an aligned run whose contact kept breaking
+    before its seat is "contact kept breaking, then aligned"; an error is "error"."""
+    if row.get("error"):
+        return "error"
+    said = row.get("outcome")
+    if not said:
+        return outcome.ALIGNED if row.get("aligned") else "not aligned"
+    if said == outcome.ALIGNED and outcome.kept_breaking(
+            said, int(row.get("breaks_after_transient") or 0)):
+        return f"{outcome.KEPT_BREAKING_LABEL}, then aligned"
+    return str(said)

@@ -11,13 +11,15 @@ The rule, in order:
    paper: ``incomplete`` (the recording was cut), ``stopped`` (a stop request,
    Ctrl-C or SIGTERM), ``aborted`` (a safety limit or a device fault).
 2. ``no contact``: the tool never touched.
-3. The **first contact's transient** is its bounce series: the first break
-   (the impact's rebound) and each break after it whose flight (out of contact,
-   from the break to the re-contact) is shorter than the one before and, from
-   the third break on, whose interval from the break before is shorter too, as
-   a rebound losing energy at each impact under a steady push does (the flight
-   of a rebound at speed v under a push F is 2 m v / F). It ends at the
-   re-contact that closes the series; its length is measured per run, not chosen.
+3. The **first contact's transient** is measured per run, not chosen: it ends
+   where the contact settles, at the first re-contact whose hold outlasts the
+   time since the first touch (the last hold counts to the run's end). Where no
+   hold does, it is the first contact's bounce series: the first break (the
+   impact's rebound) and each break after it whose flight (out of contact) is
+   shorter than the one before and, from the third break on, whose interval
+   from the break before is shorter too, as a rebound losing energy at each
+   impact under a steady push does (the flight of a rebound at speed v under a
+   push F is 2 m v / F).
 4. ``aligned``: seated and the seat kept to the end (no contact lost after it);
    breaks that recurred before the seat are said in the note
    (:attr:`Outcome.kept_breaking` is true for such a run: ``ffexp limits``'
@@ -135,8 +137,28 @@ def agreement(paper_outcome: str | None, ours: Outcome) -> str | None:
     return "yes" if normalize(paper_outcome) == ours.label else "NO"
 
 
-def transient(made_s: Sequence[float], lost_s: Sequence[float]) -> Transient:
-    """The first contact's bounce series (module docstring, rule 3)."""
+def transient(made_s: Sequence[float], lost_s: Sequence[float], end_s: float | None = None
+              ) -> Transient:
+    """The first contact's transient (module docstring, rule 3): up to the first hold
+    that outlasts the time since the first touch (to ``end_s`` for the last one), else
+    the bounce series."""
+    if not made_s:
+        return Transient(None, 0)
+    first = made_s[0]
+    lost = [t for t in lost_s if t > first]
+    for n, t in enumerate(lost):  # the hold that starts at the re-contact after break n
+        back = next((m for m in made_s if m > t), None)
+        if back is None:
+            break
+        ends = next((x for x in lost if x > back), end_s)
+        if ends is not None and ends - back > back - first:
+            return Transient(back, n + 1)
+    return bounce_series(made_s, lost_s)
+
+
+def bounce_series(made_s: Sequence[float], lost_s: Sequence[float]) -> Transient:
+    """The first contact's bounce series: the first break and each following one whose
+    flight is shorter than the one before (from the third, its interval too)."""
     if not made_s:
         return Transient(None, 0)
     first = made_s[0]
@@ -173,7 +195,7 @@ def classify(f: RunFacts) -> Outcome:
         return Outcome(label, _join(f.abort_message or f.stop_reason, seat))
     if not f.made_s:
         return Outcome(NO_CONTACT)
-    tr = transient(f.made_s, f.lost_s)
+    tr = transient(f.made_s, f.lost_s, f.end_s)
     first = f.made_s[0]
     lost = [t for t in f.lost_s if t > first]
     kept_seat = f.seated_s is not None and not any(t > f.seated_s for t in lost)
@@ -181,7 +203,7 @@ def classify(f: RunFacts) -> Outcome:
     if kept_seat:
         after = [t for t in after if f.seated_s is not None and t <= f.seated_s]
     n_after = len(after)
-    breaking = f"{n_after} breaks after the first rebound ended at {tr.end_s:.2f} s"
+    breaking = f"{n_after} breaks after the transient ended at {tr.end_s:.2f} s"
     if kept_seat:  # how the run ended decides first; breaks on the way are said
         return Outcome(ALIGNED, breaking if n_after >= KEPT_BREAKING else "", tr, n_after)
     not_kept = f"{seat} not kept" if seat else ""

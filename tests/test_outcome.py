@@ -25,24 +25,34 @@ def facts(made: list[float], lost: list[float], end: float = 30.0, *,
                        **kw)  # type: ignore[arg-type]
 
 
-# a decaying rebound: flights 0.575, 0.13, 0.04 s; intervals 0.705, 0.41 s
+# a decaying rebound: flights 0.575, 0.13, 0.04 s; intervals 0.705, 0.41 s; then held
 JAM = ([3.66, 4.36, 4.62, 4.94], [3.785, 4.49, 4.9])
 
 
 def test_a_decaying_rebound_is_the_first_contacts_transient_and_a_jam_is_held() -> None:
-    tr = oc.transient(*JAM)
+    assert oc.bounce_series(*JAM) == oc.Transient(4.94, 3)
+    tr = oc.transient(*JAM, 30.0)
     assert tr.breaks == 3 and tr.end_s == pytest.approx(4.94)
     got = oc.classify(facts(*JAM, lateral_error_m=-0.004, yaw_error_deg=-6.5))
     assert got.label == oc.HELD and got.scored
     assert got.note == "lateral -4.0 mm, yaw -6.5 deg at the end"
 
 
-def test_a_flight_that_does_not_shrink_ends_the_transient() -> None:
-    """The third flight (0.2 s) is longer than the second (0.13 s): the series ends
-    at the second re-contact, and two breaks follow it."""
+def test_the_transient_ends_where_a_hold_outlasts_the_time_since_the_first_touch() -> None:
+    """Holds of 0.13, 0.38 and 1.3 s after 0.7, 0.96 and 1.54 s: none settles; the one
+    from 7.0 s to the end (23 s after 3.34 s) does, and every break is the transient's."""
     made, lost = [3.66, 4.36, 4.62, 5.2, 7.0], [3.785, 4.49, 5.0, 6.5]
-    assert oc.transient(made, lost) == oc.Transient(4.62, 2)
-    got = oc.classify(facts(made, lost))
+    assert oc.transient(made, lost, 30.0) == oc.Transient(7.0, 4)
+    assert oc.classify(facts(made, lost)).label == oc.HELD
+
+
+def test_where_no_hold_settles_a_flight_that_does_not_shrink_ends_the_transient() -> None:
+    """The run ends 0.5 s into its last hold: no hold settles, so the bounce series
+    decides; the third flight (0.2 s) is longer than the second (0.13 s), the series
+    ends at the second re-contact, and two breaks follow it."""
+    made, lost = [3.66, 4.36, 4.62, 5.2, 7.0], [3.785, 4.49, 5.0, 6.5]
+    assert oc.transient(made, lost, 7.5) == oc.Transient(4.62, 2)
+    got = oc.classify(facts(made, lost, 7.5))
     assert got.label == oc.KEPT_BREAKING_LABEL and got.breaks_after_transient == 2
 
 
@@ -74,7 +84,7 @@ def test_a_kept_seat_after_recurring_breaks_is_aligned_and_says_the_breaks() -> 
     made, lost = [3.66, 4.36, 6.3, 8.0], [3.785, 5.5, 7.5]  # the second flight is longer
     got = oc.classify(facts(made, lost, 9.0, seated_s=8.5))
     assert got.label == oc.ALIGNED and got.kept_breaking
-    assert got.note == "2 breaks after the first rebound ended at 4.36 s"
+    assert got.note == "2 breaks after the transient ended at 4.36 s"
     assert not oc.classify(facts(*JAM, end=7.0, seated_s=6.9)).kept_breaking
 
 

@@ -88,7 +88,7 @@ class RunMetrics:
     outcome_note: str = ""
     """Beside the outcome: a seat that was not kept, the final errors of a jam, an abort."""
     transient_end_s: float | None = None
-    """End of the first contact's transient (its bounce series; :mod:`ffexp.outcome`)."""
+    """End of the first contact's transient (where the contact settled; :mod:`ffexp.outcome`)."""
     breaks_after_transient: int = 0
     ended_aligned: bool = False
     """The run ended DONE on its seat (not a seat noted on the way to a timeout)."""
@@ -414,7 +414,7 @@ PAPER_COLUMNS: tuple[tuple[str, str, int], ...] = (
 
 def outcome(m: RunMetrics) -> Outcome:
     """The run's outcome as :func:`metrics` named it (:mod:`ffexp.outcome`)."""
-    return Outcome(m.outcome, m.outcome_note)
+    return Outcome(m.outcome, m.outcome_note, breaks_after_transient=m.breaks_after_transient)
 
 
 def paper_row(rec: Recording, m: RunMetrics | None = None) -> dict[str, Any] | None:

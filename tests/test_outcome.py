@@ -7,12 +7,15 @@ contact's rebound, and a run whose contact keeps breaking.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
+from typer.testing import CliRunner
 
 from ffexp import outcome as oc
 from ffexp.analysis import metrics, paper_row
+from ffexp.cli import app
 from ffexp.experiment import run_file
 from ffexp.recording import load
 
@@ -133,6 +136,12 @@ def test_a_simulated_jam_whose_breaks_all_fall_in_the_rebound_is_held(tmp_path: 
     assert m.outcome == oc.HELD and "yaw" in m.outcome_note
     row = paper_row(rec, m)
     assert row is not None and row["outcome"].startswith(oc.HELD) and row["agree"] == "NO"
+    assert row["end"] == "timeout"
+    # the same name from the command line
+    res = CliRunner().invoke(app, ["analyze", str(rec.path), "--json"])
+    assert res.exit_code == 0, res.stderr
+    said = json.loads(res.stdout.splitlines()[0])
+    assert (said["outcome"], said["outcome_note"]) == (m.outcome, m.outcome_note)
 
 
 def test_a_simulated_run_whose_contact_keeps_breaking_says_so(tmp_path: Path) -> None:

@@ -203,7 +203,8 @@ def classify(f: RunFacts) -> Outcome:
     if kept_seat:
         after = [t for t in after if f.seated_s is not None and t <= f.seated_s]
     n_after = len(after)
-    breaking = f"{n_after} breaks after the transient ended at {tr.end_s:.2f} s"
+    breaking = (f"{n_after} breaks after the transient ended at {tr.end_s:.2f} s"
+                if tr.end_s is not None else f"{n_after} breaks after the first")
     if kept_seat:  # how the run ended decides first; breaks on the way are said
         return Outcome(ALIGNED, breaking if n_after >= KEPT_BREAKING else "", tr, n_after)
     not_kept = f"{seat} not kept" if seat else ""

@@ -91,6 +91,13 @@ def test_a_kept_seat_after_recurring_breaks_is_aligned_and_says_the_breaks() -> 
     assert not oc.classify(facts(*JAM, end=7.0, seated_s=6.9)).kept_breaking
 
 
+def test_a_first_break_never_followed_by_contact() -> None:
+    """The transient has no end (no re-contact): the run is named all the same."""
+    assert oc.transient([3.66], [3.8], 4.2) == oc.Transient(None, 1)
+    got = oc.classify(facts([3.66], [3.8], 4.2, in_contact=False))
+    assert got.label == oc.PUSHED_AWAY and got.note == "out of contact for the last 0.4 s"
+
+
 def test_pushed_away_needs_a_last_flight_longer_than_all_earlier_ones() -> None:
     assert oc.classify(facts([3.66, 4.36], [3.785, 6.0], 30.0, in_contact=False)
                        ).label == oc.PUSHED_AWAY

@@ -26,6 +26,8 @@ from ffexp import controllers, impulse
 from ffexp.contracts import Phase, StopReason
 from ffexp.errors import InputError
 from ffexp.linkcheck import check_link
+from ffexp.outcome import ALIGNED as ALIGNED_OUTCOME
+from ffexp.outcome import Outcome, RunFacts, agreement, classify
 from ffexp.recording import Recording
 
 ALIGN = Phase.ALIGN
@@ -89,6 +91,17 @@ class RunMetrics:
     end is not recorded (``complete`` false)."""
     trial_validity: str = ""
     """The same in words: valid, invalid: REASONS, or unknown: the run ended abnormally."""
+    outcome: str = ""
+    """What happened, by :func:`ffexp.outcome.classify`: aligned, contact kept breaking,
+    held contact, did not slide, pushed away, no contact; or (not scored) incomplete,
+    stopped, aborted."""
+    outcome_note: str = ""
+    """Beside the outcome: a seat that was not kept, the final errors of a jam, an abort."""
+    transient_end_s: float | None = None
+    """End of the first contact's transient (where the contact settled; :mod:`ffexp.outcome`)."""
+    breaks_after_transient: int = 0
+    ended_aligned: bool = False
+    """The run ended DONE on its seat (not a seat noted on the way to a timeout)."""
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), allow_nan=False, default=_json_default)
@@ -150,14 +163,18 @@ def metrics(rec: Recording) -> RunMetrics:
     t0_ns = int(rec.topic("/estimator/state").log_time_ns[0])
     phases = rec.json.get("/runner/phase")
     aborted: str | None = None
+    stop_reason: str | None = None
     aligned_at: float | None = None
+    ended_aligned = False
     if phases is not None:
         for t_ns, msg in zip(phases.log_time_ns.tolist(), phases.messages, strict=True):
             phase = _phase_of(msg)
             if phase == Phase.ABORT:
                 aborted = str(msg.get("reason", "aborted"))
+                stop_reason = str(msg.get("stop_reason") or "aborted")
             if phase == Phase.DONE and _ended_aligned(msg):
                 aligned_at = (t_ns - t0_ns) / NS
+                ended_aligned = True
     events = rec.json.get("/events")
     if aligned_at is None and events is not None:  # a run that went on after its seat
         for t_ns, msg in zip(events.log_time_ns.tolist(), events.messages, strict=True):
@@ -222,6 +239,16 @@ def metrics(rec: Recording) -> RunMetrics:
     if replayed.startswith("unknown"):  # an open-loop replay whose commands diverged
         v = {**v, "label": "unknown", "source": "replay (open loop, diverged)"}
     trial = check_link(rec)
+    # the run's own contact history: up to its end (DONE or ABORT), not the safe stop's
+    ended = np.flatnonzero((s.phase == Phase.DONE) | (s.phase == Phase.ABORT))
+    last = int(ended[0]) if ended.size else len(s.t_s) - 1
+    said = classify(RunFacts(
+        made_s=([float(s.t_s[0])] if contact.size and contact[0] else [])
+        + [float(s.t_s[i]) for i in made if i <= last],
+        lost_s=[float(s.t_s[i]) for i in lost if i <= last], end_s=float(s.t_s[last]),
+        in_contact_at_end=bool(contact.size and contact[last]), seated_s=aligned_at,
+        complete=rec.complete, stop_reason=stop_reason, abort_message=aborted,
+        lateral_error_m=lat, yaw_error_deg=yaw))
     return RunMetrics(
         protocol=str(info.get("protocol", rec.path.stem)),
         method=str(info.get("method", "")),
@@ -259,6 +286,11 @@ def metrics(rec: Recording) -> RunMetrics:
         verdict_evidence={k: float(x) for k, x in (v.get("evidence") or {}).items()} if v else {},
         trial_valid=trial.trial_valid,
         trial_validity=trial.validity,
+        outcome=said.label,
+        outcome_note=said.note,
+        transient_end_s=said.transient.end_s,
+        breaks_after_transient=said.breaks_after_transient,
+        ended_aligned=ended_aligned,
     )
 
 
@@ -356,6 +388,7 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("breaks", "contact_breaks", 1),
     ("breaks ALIGN", "breaks_align", 3),
     ("verdict", "verdict", 0),
+    ("outcome", "outcome", 0),
     ("judge", "verdict_source", 2),
     ("mean f_z [N]", "mean_fz_align_n", 4),
     ("peak |f_z| ALIGN [N]", "peak_abs_fz_n", 7),
@@ -369,7 +402,7 @@ COMPARE_COLUMNS: tuple[tuple[str, str, int], ...] = (
 #: Keys of a comparison row as data (``compare --csv/--json``), in column order.
 COMPARE_KEYS: tuple[str, ...] = (
     "file", "run", "complete", "protocol", "method", "overrides", "f_ref_n", "k_xp", "k_yp",
-    "aligned", "verdict", "verdict_source", "verdict_truth", "first_contact_s",
+    "aligned", "verdict", "verdict_source", "verdict_truth", "outcome", "first_contact_s",
     "alignment_time_s", "contact_breaks", "breaks_align", "mean_fz_align_n", "peak_abs_fz_n",
     "peak_abs_fz_run_n", "fz_tracking_rmse_n", "target_speed_after_contact_mps",
     "target_max_speed_mps", "target_displacement_m", "final_lateral_error_m",
@@ -386,10 +419,11 @@ def run_name(rec: Recording) -> str:
 
 def end_label(m: RunMetrics) -> str:
     """How the run ended, in one word or reason: the abort reason, aligned, or timeout
-    (a run that went on after its seat and was then aborted ends with the abort)."""
+    (a run that went on after its seat and was then aborted ends with the abort; one
+    whose seat did not last to its end, with its timeout)."""
     if m.aborted is not None:
         return m.aborted
-    if m.aligned:
+    if m.ended_aligned or (m.aligned and m.outcome in ("", ALIGNED_OUTCOME)):
         return "aligned"
     return "timeout" if m.complete else "cut"
 
@@ -413,6 +447,7 @@ def compare_row(rec: Recording, m: RunMetrics | None = None) -> dict[str, Any]:
         run=run_name(rec),
         overrides=" ".join(str(o) for o in overrides),
         end=end_label(m),
+        outcome=outcome(m).text(),
         source_revision=info.get("source_revision"),
     )
     return {key: values.get(key) for key in COMPARE_KEYS}
@@ -428,24 +463,9 @@ PAPER_COLUMNS: tuple[tuple[str, str, int], ...] = (
     ("breaks", "breaks", 0), ("breaks ALIGN", "breaks_align", 2), ("ours end", "end", 2),
 )
 
-#: From this many breaks after the first contact a run "kept breaking" (the paper's
-#: Method III: contact "multiple", "the end-effector kept losing contact").
-KEPT_BREAKING = 3
-
-
-def outcome(m: RunMetrics) -> str:
-    """The run's outcome in the paper's words (:data:`~ffexp.contracts.PAPER_OUTCOMES`):
-    contact kept breaking (at least
-    :data:`KEPT_BREAKING` breaks after the first contact, whatever else happened),
-    aligned, or did not slide (no alignment: the tool stuck on the funnel wall or
-    never seated); an aborted run is its abort reason."""
-    if m.contact_breaks >= KEPT_BREAKING:
-        return "contact kept breaking"
-    if m.aligned:
-        return "aligned"
-    if m.aborted is not None:
-        return m.aborted
-    return "did not slide"
+def outcome(m: RunMetrics) -> Outcome:
+    """The run's outcome as :func:`metrics` named it (:mod:`ffexp.outcome`)."""
+    return Outcome(m.outcome, m.outcome_note, breaks_after_transient=m.breaks_after_transient)
 
 
 def paper_row(rec: Recording, m: RunMetrics | None = None) -> dict[str, Any] | None:
@@ -466,8 +486,8 @@ def paper_row(rec: Recording, m: RunMetrics | None = None) -> dict[str, Any] | N
     return {
         "run": run_name(rec),
         "paper_outcome": theirs,
-        "outcome": ours,
-        "agree": None if theirs is None else ("yes" if theirs == ours else "NO"),
+        "outcome": ours.text(),
+        "agree": agreement(None if theirs is None else str(theirs), ours),
         "f_ref_n": f_ref[2] if force and f_ref else None,
         "k_xp": k_ri[3] if k_ri else None,
         "k_yp": k_ri[1] if k_ri else None,

@@ -80,11 +80,6 @@ class Progress:
     breaks: int
 
 
-#: How the paper reports a run's outcome, in its words (a protocol's ``[paper] outcome``;
-#: :func:`ffexp.analysis.outcome` names ours the same way).
-PAPER_OUTCOMES: tuple[str, ...] = ("aligned", "contact kept breaking", "did not slide")
-
-
 @dataclass
 class RunOutcome:
     """How a run ended (the numbers come from the recording: ffexp.analysis)."""

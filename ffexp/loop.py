@@ -98,7 +98,8 @@ class Cycle:
             if change.old == Phase.CONNECT:  # the first approach: the tare pose is home
                 self.hold_pose = s.tcp_pose_m.copy()
                 self.safety.set_origin(s.tcp_pose_m)
-            self.approach.start(self.t_ns, s.tcp_pose_m)
+            if change.old == Phase.CONNECT or not self.controller.continues_approach:
+                self.approach.start(self.t_ns, s.tcp_pose_m)  # a new line from here
         elif phase == Phase.ALIGN:
             self.controller.enter(self.t_ns, s, self.estimator.out)
             self.paused, self.resume_ns = 0, -1

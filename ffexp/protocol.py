@@ -15,12 +15,12 @@ from pydantic_core import PydanticCustomError
 
 from drivers.config import StrictModel, Vec6, load_model
 from ffexp import scenarios
-from ffexp.contracts import PAPER_OUTCOMES
 from ffexp.controllers import REGISTRY, AlignConfig
 from ffexp.controllers.force import ForceRiConfig
 from ffexp.controllers.laws import ImpedanceConfig
 from ffexp.errors import ConfigError
 from ffexp.estimation import Estimation
+from ffexp.outcome import ALIASES, OUTCOMES
 from ffexp.safety import Limits
 from ffexp.scenarios import TaskConfig
 from ffexp.scenarios.funnel import Alignment, FunnelTask
@@ -107,15 +107,15 @@ class RunProtocol(StrictModel):
     paper: dict[str, float | str] = Field(
         default_factory=dict,
         description="The paper's reported values for this run (Table res_par), for comparison; "
-                    f"outcome: one of {', '.join(PAPER_OUTCOMES)}.",
+                    f"outcome: one of {', '.join(OUTCOMES)} (ffexp.outcome).",
     )
 
     @field_validator("paper")
     @classmethod
     def _paper_outcome(cls, paper: dict[str, float | str]) -> dict[str, float | str]:
         outcome = paper.get("outcome")
-        if outcome is not None and outcome not in PAPER_OUTCOMES:
-            raise ValueError(f"outcome {outcome!r} is not one of {', '.join(PAPER_OUTCOMES)}")
+        if outcome is not None and outcome not in OUTCOMES and outcome not in ALIASES:
+            raise ValueError(f"outcome {outcome!r} is not one of {', '.join(OUTCOMES)}")
         return paper
 
     @model_validator(mode="after")

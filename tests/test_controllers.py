@@ -153,3 +153,32 @@ def test_admittance_protocol_runs_through_the_registry() -> None:
     assert controllers.controller_class(p.method) is Admittance
     assert controllers.tracks_force_reference(p.method)
     assert not controllers.tracks_force_reference("impedance")
+
+
+@pytest.mark.parametrize(("protocol", "one_line"), [
+    ("method3_impedance.toml", True), ("method1_case1.toml", False)])
+def test_a_break_restarts_the_approach_line_only_where_the_control_mode_switches(
+    tmp_path: Path, protocol: str, one_line: bool
+) -> None:
+    """The paper (sec. V): "for method (iii) there was no switching of control mode", so
+    Method III's set-point follows one line from its anchor through every break; the
+    force-control methods start a new line from where the tool is when contact is lost."""
+    from ffexp.experiment import run_file
+    from ffexp.recording import load
+
+    root = Path(__file__).resolve().parents[1]
+    proto = load_model(RunProtocol, root / "protocols" / protocol)
+    rec = load(run_file(root / "protocols" / protocol, ["run.timeout_s=5"],
+                        out_dir=tmp_path).path)
+    terms = rec.topic("/control/terms")
+    t = (terms.log_time_ns - terms.log_time_ns[0]) / 1e9
+    phase, sp = terms["phase"], terms["setpoint"].reshape(-1, 4, 4)
+    first = int(np.flatnonzero(phase == 1)[0])
+    back = [i for i in range(first + 1, len(phase)) if phase[i] == 1 and phase[i - 1] == 2]
+    assert back, "the run must lose contact once for the question to be asked"
+    i = back[0] + 1
+    # along the approach direction (TCF Z of the anchor): where the one line would be
+    z = sp[first, :3, 2]
+    travel = float(z @ (sp[i, :3, 3] - sp[first, :3, 3]))
+    line = proto.approach.speed_mps * (t[i] - t[first] + 0.005)
+    assert bool(abs(travel - line) < 1e-3) is one_line

@@ -139,3 +139,30 @@ def test_max_breaks_makes_breaking_runs_count_as_not_aligning() -> None:
     res = cli.invoke(app, ["limits", str(P1), "--key", "align.k_ri[3]", "--range", "0:1",
                            "--max-breaks", "-1"])
     assert res.exit_code == 2 and "--max-breaks" in res.stderr
+
+
+def test_a_run_aligns_by_its_outcome_and_each_limit_names_the_outcome_beyond_it() -> None:
+    """The outcome rule decides, not the aligned flag (a momentary seat in a run whose
+    contact keeps breaking does not align), and a lower limit carries the outcome below
+    it, an upper one the outcome above it."""
+    from ffexp.sweeps import limits
+    from ffexp.sweeps.keys import parse_key
+    from ffexp.sweeps.plan import Target
+    from ffexp.sweeps.searches import LimitSearch
+
+    s = LimitSearch(Target(P1), [parse_key("align.k_ri[3]")], [(0.0, 4.0)], [1], [1.0])
+    assert s.aligns({"aligned": True, "outcome": "contact kept breaking"}) is False
+    assert s.aligns({"aligned": True, "outcome": "aligned"}) is True
+    broke_then_seated = {"aligned": True, "outcome": "aligned", "breaks_after_transient": 3}
+    assert s.aligns(broke_then_seated) is False
+    said = {0.0: "held contact, did not slide", 1.0: "aligned", 2.0: "aligned",
+            3.0: "aligned", 4.0: "aligned"}  # at 4: seated after its contact kept breaking
+    s.rows = [{"align.k_ri[3]": k, "outcome": o, "aligned": True,
+               "breaks_after_transient": 3 if k == 4.0 else 0} for k, o in said.items()]
+    s.result = limits.search(
+        lambda pts: [float(s.aligns(next(r for r in s.rows if r["align.k_ri[3]"] == p[0])))
+                     for p in pts],
+        s.segments(), coarse=5, resolution=[1.0])
+    found = {r["kind"]: r["beyond"] for r in s.limits_rows()}
+    assert found == {"lower": "held contact, did not slide",
+                     "upper": "contact kept breaking, then aligned"}

@@ -331,3 +331,24 @@ def test_runs_stopped_by_sigterm_are_stopped_not_failed(tmp_path: Path) -> None:
                      final), final
     assert "stopped; finished runs are kept" in text
     assert not list((out / "runs").glob("*/row.json"))  # no stopped run counts as done
+
+
+def test_claims_read_the_outcome_rule_when_the_row_has_one() -> None:
+    """A row with an ``outcome`` is judged by it: a seat is not enough for III to fail its
+    claim, a jam is what II at 0.8 N must be, and an aborted run judges nothing."""
+    named = {role: {**r, "outcome": name} for (role, r), name in zip(
+        paper_like().items(), ("aligned", "aligned", "held contact, did not slide",
+                               "aligned", "contact kept breaking"), strict=True)}
+    assert claims.ordering(named, S) is True
+    seated_iii = {**named, "III": {**named["III"], "aligned": True}}
+    assert claims.iii_breaks(seated_iii, S) is True  # the aligned flag is not the outcome
+    kept_seat = {**named, "III": {**named["III"], "outcome": "aligned",
+                                  "breaks_after_transient": 5}}
+    assert claims.iii_breaks(kept_seat, S) is True  # broke again and again, then seated
+    clean = {**named, "III": {**named["III"], "outcome": "aligned",
+                              "breaks_after_transient": 1}}
+    assert claims.iii_breaks(clean, S) is False
+    pushed = {**named, "II-0.8": {**named["II-0.8"], "outcome": "pushed away"}}
+    assert claims.ii_low_fails(pushed, S) is False
+    aborted = {**named, "III": {**named["III"], "outcome": "aborted"}}
+    assert claims.iii_breaks(aborted, S) is None and claims.ordering(aborted, S) is None

@@ -52,6 +52,8 @@ class ArmDescription:
         drive_coulomb_nm: each drive's identified Coulomb friction [N m] (None: not published).
         drive_viscous_nmsprad: each drive's identified viscous friction [N m s/rad] (None:
             not published).
+        link_coulomb_nm, link_viscous_nmsprad: friction identified after the joint torque
+            sensors (what a torque loop does not reduce) [N m], [N m s/rad] (None: none).
     """
 
     name: str
@@ -68,12 +70,15 @@ class ArmDescription:
     rotor_inertias_kgm2: tuple[float, ...] | None = None
     drive_coulomb_nm: tuple[float, ...] | None = None
     drive_viscous_nmsprad: tuple[float, ...] | None = None
+    link_coulomb_nm: tuple[float, ...] | None = None
+    link_viscous_nmsprad: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.joint_origins_m)
         for name in ("joint_axes", "position_limits_deg", "velocity_limits_degps",
                      "link_masses_kg", "link_coms_m", "link_inertias_kgm2", "joint_rpy_rad",
-                     "rotor_inertias_kgm2", "drive_coulomb_nm", "drive_viscous_nmsprad"):
+                     "rotor_inertias_kgm2", "drive_coulomb_nm", "drive_viscous_nmsprad",
+                     "link_coulomb_nm", "link_viscous_nmsprad"):
             values = getattr(self, name)
             if values is not None and len(values) != n:
                 raise ValueError(f"{self.name}: {name} has {len(values)} entries for {n} joints")

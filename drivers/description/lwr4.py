@@ -22,7 +22,8 @@ from __future__ import annotations
 
 from drivers.description.arm import ArmDescription
 
-__all__ = ["JUBIEN_COULOMB", "JUBIEN_ROTOR", "JUBIEN_VISCOUS", "LWR4"]
+__all__ = ["FLOBAROID_LINK_COULOMB", "FLOBAROID_LINK_VISCOUS", "JUBIEN_COULOMB", "JUBIEN_ROTOR",
+           "JUBIEN_VISCOUS", "LWR4"]
 
 #: Jubien 2014 identified drive-side joint friction of the LWR4+ (fact sheet
 #: section 1(d), ISIR-SYROCO/kukaKDL kukakdl_const.hpp): Coulomb [N m].
@@ -32,6 +33,13 @@ JUBIEN_VISCOUS = (14.4, 15.3, 6.55, 11.0, 4.29, 2.26, 1.6)
 #: Jubien 2014 reflected rotor inertias [kg m^2] for A3..A7; A1/A2 are not
 #: separable from the grouped parameters and are taken equal to A3 (assumption).
 JUBIEN_ROTOR = (2.01, 2.01, 2.01, 1.92, 0.776, 0.391, 0.399)
+#: Joint friction after the torque sensors (link side) of an LWR4+: the joint-torque-sensor
+#: residual after SDP inertial identification in kjyv/FloBaRoID documentation/TUTORIAL
+#: (its provenance is uncertain: an older version called the example simulated):
+#: Coulomb [N m] ...
+FLOBAROID_LINK_COULOMB = (0.611, 0.363, 0.304, 0.473, 0.595, 0.160, 0.038)
+#: ... and viscous [N m s/rad], same source.
+FLOBAROID_LINK_VISCOUS = (1.069, 0.958, 0.223, 0.689, 0.065, 0.252, 0.076)
 
 #: The LWR4+ (sources: the module's docstring).
 LWR4 = ArmDescription(
@@ -67,4 +75,6 @@ LWR4 = ArmDescription(
     rotor_inertias_kgm2=JUBIEN_ROTOR,
     drive_coulomb_nm=JUBIEN_COULOMB,
     drive_viscous_nmsprad=JUBIEN_VISCOUS,
+    link_coulomb_nm=FLOBAROID_LINK_COULOMB,
+    link_viscous_nmsprad=FLOBAROID_LINK_VISCOUS,
 )

@@ -128,13 +128,28 @@ class ArmSettings(StrictModel):
     """Joint speed [rad/s] over which friction falls from static to Coulomb (assumption)."""
     armature_scale: Annotated[float, Field(ge=0.0, le=1.0)] = 0.05
     """Fraction of Jubien's reflected rotor inertia seen link-side (assumption)."""
+    torque_loop_r: Annotated[float, Field(ge=0.0, le=1.0)] | None = None
+    """The joint torque loop's factor r = B_theta / B = 1 / (1 + K_T): with the DLR
+    torque feedback the motor's friction and its rotor inertia both reach the link
+    scaled by r (the flexible-joint form of Albu-Schaeffer, Ott, Hirzinger, IJRR 2007;
+    the LWR4+'s K_T is not published, so r is the one unknown). When set, each joint's
+    Coulomb and viscous friction are ``link_* + r *`` the model's drive-side values
+    (Jubien, Gautier, Janot 2014 for the LWR4+) and its rotor inertia ``r *`` the
+    published one, replacing ``friction_scale`` and ``armature_scale``. None: those two."""
+    link_coulomb: PerJoint | None = None
+    """Joint Coulomb friction after the torque sensor [N m] (output bearings: the torque
+    loop does not reduce it), added with ``torque_loop_r``; None: the model's published
+    values (the LWR4+: FloBaRoID's, :mod:`drivers.description.lwr4`; none: zero)."""
+    link_viscous: PerJoint | None = None
+    """As ``link_coulomb``, viscous [N m s/rad]."""
     torque_limits: PerJoint = (176.0, 176.0, 100.0, 100.0, 100.0, 38.0, 38.0)
     """[N m], CentroEPiaggio URDF effort limits (fact sheet sec. 1)."""
 
     @model_validator(mode="after")
     def _check_joints(self) -> ArmSettings:
         n = self.description.joints
-        for name in ("q_init", "coulomb", "viscous", "torque_limits"):
+        for name in ("q_init", "coulomb", "viscous", "link_coulomb", "link_viscous",
+                     "torque_limits"):
             values = getattr(self, name)
             if values is not None and len(values) != n:
                 raise ValueError(f"arm.{name} has {len(values)} values; the "
@@ -148,19 +163,34 @@ class ArmSettings(StrictModel):
         return ARMS[self.model]
 
     def coulomb_friction(self) -> list[float]:
-        """Explicit ``coulomb``, else ``friction_scale`` of the model's published drive
-        friction (zero where none is published)."""
+        """Explicit ``coulomb``; else with ``torque_loop_r`` ``link_coulomb + r *`` the
+        model's published drive friction; else ``friction_scale`` of it (zero where none
+        is published)."""
         if self.coulomb is not None:
             return list(self.coulomb)
-        return [self.friction_scale * v for v in self.description.drive_coulomb_nm or
-                (0.0,) * self.description.joints]
+        return self._scaled(self.description.drive_coulomb_nm,
+                            self.link_coulomb or self.description.link_coulomb_nm)
 
     def viscous_friction(self) -> list[float]:
         """As :meth:`coulomb_friction`, viscous."""
         if self.viscous is not None:
             return list(self.viscous)
-        return [self.friction_scale * v for v in self.description.drive_viscous_nmsprad or
-                (0.0,) * self.description.joints]
+        return self._scaled(self.description.drive_viscous_nmsprad,
+                            self.link_viscous or self.description.link_viscous_nmsprad)
+
+    def rotor_fraction(self) -> float:
+        """The fraction of the published rotor inertia the link sees: ``torque_loop_r``
+        when set, else ``armature_scale``."""
+        return self.armature_scale if self.torque_loop_r is None else self.torque_loop_r
+
+    def _scaled(self, drive: tuple[float, ...] | None, link: tuple[float, ...] | None
+                ) -> list[float]:
+        n = self.description.joints
+        drive_side = drive or (0.0,) * n
+        if self.torque_loop_r is None:
+            return [self.friction_scale * v for v in drive_side]
+        after = link or (0.0,) * n
+        return [a + self.torque_loop_r * v for a, v in zip(after, drive_side, strict=True)]
 
 
 class FunnelGeometry(StrictModel):

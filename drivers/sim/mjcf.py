@@ -130,7 +130,7 @@ def arm_xml(scene: Scene) -> str:
             f'<joint name="{ARM_JOINTS[i]}" axis="{_vec(lwr.joint_axes[i])}" '
             f'range="{_f(-lim)} {_f(lim)}" '
             f'frictionloss="{_f(coul[i])}" damping="{_f(visc[i])}" '
-            f'armature="{_f(rotors[i] * arm.armature_scale)}" '
+            f'armature="{_f(rotors[i] * arm.rotor_fraction())}" '
             f'actuatorfrcrange="{_f(-tl)} {_f(tl)}" actuatorgravcomp="true" '
             # stiff friction constraint: creep below breakaway ~20 um/s instead of ~2 mm/s
             f'solreffriction="{_f(max(0.002, 2 * scene.physics.timestep))} 1" '

@@ -49,6 +49,7 @@ FITTABLE: dict[str, Fittable] = {
     "arm.friction_scale": Fittable("smooth", 0.0, 0.005),
     "arm.static_ratio": Fittable("smooth", 1.0, 5.0),
     "arm.armature_scale": Fittable("smooth", 0.0, 1.0),
+    "arm.torque_loop_r": Fittable("smooth", 0.0, 1.0),
     "contact.restitution": Fittable("contact", 0.001, 0.99),
     "contact.stiffness": Fittable("contact", 2.0e3, 2.0e5, unit="N/m"),
     "contact.impedance": Fittable("contact", 0.05, 0.95),
@@ -120,6 +121,9 @@ def parse_fit(texts: Sequence[str], scene: Mapping[str, Any], where: str = "--fi
             if lo < spec.lo or hi > spec.hi:
                 raise ConfigError(where, text, f"bounds outside {key}'s limits "
                                   f"[{spec.lo:g}, {spec.hi:g}]")
+        if flat.get(key) is None:  # an optional key the base scene leaves unset
+            raise ConfigError(where, text, f"the base scene does not set {key}; give it a "
+                              "start value in the scene file")
         start = float(flat[key])
         if not lo <= start <= hi:
             raise ConfigError(where, text, f"bounds [{lo:g}, {hi:g}] exclude the start value "

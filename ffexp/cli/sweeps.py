@@ -193,11 +193,14 @@ def limits(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>-limits."),
     as_json: bool = typer.Option(False, "--json", help="Print the limits as JSON lines."),
 ) -> None:
-    """The limits of a gain (or f_ref) between "aligns" and "does not".
+    """The limits of a gain (or f_ref) between "aligns" and "does not", by the outcome rule.
 
-    A coarse grid over LO:HI, then bisection in every bracket where the outcome
-    changes, to the resolution, each point run with every seed. Prints each
-    limit with its bracket (lower: aligns above it; upper: aligns below it) and
+    A point aligns when its runs' outcome (ffexp.outcome: the seat kept, the
+    contact not breaking after the first contact's transient) is "aligned". A
+    coarse grid over LO:HI, then bisection in every bracket where that changes,
+    to the resolution, each point run with every seed. Prints each limit with
+    its bracket (lower: aligns above it; upper: aligns below it), the outcome
+    on its other side (held contact, did not slide; contact kept breaking) and
     plots the outcome against the key (OUT/figures/limits.png). With --key
     twice: the boundary in the plane, by bisection along rays from the centre.
     Runs are cached by id in OUT: the same call twice gives the same answer.
@@ -275,8 +278,10 @@ def _print_limits(
         where = ", ".join(f"{n} {row[n]:.4g} (bracket {row[n + ' from']:.4g} .. "
                           f"{row[n + ' to']:.4g})" for n in names)
         kind = row["kind"] if len(names) == 1 else f"ray {row['ray']}"
+        side = {"lower": "below", "upper": "above"}.get(row["kind"], "beyond")
+        beyond = f"; {side} it: {row['beyond']}" if row.get("beyond") else ""
         con.print(f"{kind} limit: {where}; aligned fraction {row['lo_fraction']:.2g} -> "
-                  f"{row['hi_fraction']:.2g}")
+                  f"{row['hi_fraction']:.2g}{beyond}")
     con.print(f"resolution: {res}")
 
 

@@ -66,6 +66,9 @@ class Controller(abc.ABC):
     """How tables and figures name the method."""
     tracks_force_reference: ClassVar[bool] = False
     """Whether f_z tracking of ``f_ref`` is a meaningful metric of this method."""
+    continues_approach: ClassVar[bool] = False
+    """The method is the approach's law carried on (no switch of control mode at contact),
+    so a contact break does not restart the approach line: it goes on from its anchor."""
     topic: ClassVar[CdrTopic | None] = None
     """A topic of the method's own terms, written every cycle in ALIGN."""
 

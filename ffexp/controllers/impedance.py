@@ -27,6 +27,8 @@ class Impedance(Controller):
     name = "impedance"
     config_model = ImpedanceAlignConfig
     label = "Method III (impedance control)"
+    continues_approach = True  # the paper, sec. V: "for method (iii) there was no
+    # switching of control mode"; its set-point follows one straight line
 
     def enter(self, t_ns: int, state: RobotState, est: Estimate) -> None:
         """Nothing to reset: the line keeps its anchor."""

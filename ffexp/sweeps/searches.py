@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from ffexp import outcome
 from ffexp.errors import ConfigError
 from ffexp.sweeps import limits
 from ffexp.sweeps.engine import Runner
@@ -85,17 +86,47 @@ class LimitSearch:
         return self.result
 
     def aligns(self, row: dict[str, Any]) -> bool:
-        """The outcome the search bisects: aligned (without error, and with at most
-        ``max_breaks`` contact breaks when that is set)."""
-        if row.get("error") or not row.get("aligned"):
+        """The outcome the search bisects: the run's outcome (:mod:`ffexp.outcome`) is
+        "aligned" and its contact did not keep breaking on the way (the paper's limits:
+        no sliding below, contact breaking above); without error, and with at most
+        ``max_breaks`` contact breaks when that is set. Rows without an outcome: their
+        aligned flag."""
+        if row.get("error") or limit_outcome(row) != outcome.ALIGNED:
             return False
         return self.max_breaks is None or int(row.get("contact_breaks") or 0) <= self.max_breaks
 
     def limits_rows(self) -> list[dict[str, Any]]:
+        """The limits found, each with ``beyond``: the outcome on its side that does not
+        align (lower limit: below it; upper: above it), the most common over seeds."""
         assert self.result is not None
-        return [{"search": self.name, **row}
-                for row in limits.describe(self.result, [k.text for k in self.keys])]
+        names = [k.text for k in self.keys]
+        out = []
+        for row in limits.describe(self.result, names):
+            far = "from" if row["lo_fraction"] <= row["hi_fraction"] else "to"
+            at = tuple(row[f"{n} {far}"] for n in names)
+            out.append({"search": self.name, **row, "beyond": self.outcome_at(at)})
+        return out
+
+    def outcome_at(self, coords: Sequence[float]) -> str | None:
+        """The most common outcome of the runs at a point (None: none ran there)."""
+        said = [limit_outcome(r) for r in self.rows
+                if all(r.get(k.text) == c for k, c in zip(self.keys, coords, strict=True))]
+        return max(sorted(set(said)), key=said.count) if said else None
 
     def points(self) -> list[tuple[limits.Coords, float]]:
         assert self.result is not None
         return sorted(self.result.evaluated.items())
+
+
+def limit_outcome(row: dict[str, Any]) -> str:
+    """A row's outcome as the limits read it: an aligned run whose contact kept breaking
+    before its seat is "contact kept breaking, then aligned"; an error is "error"."""
+    if row.get("error"):
+        return "error"
+    said = row.get("outcome")
+    if not said:
+        return outcome.ALIGNED if row.get("aligned") else "not aligned"
+    if said == outcome.ALIGNED and outcome.kept_breaking(
+            said, int(row.get("breaks_after_transient") or 0)):
+        return f"{outcome.KEPT_BREAKING_LABEL}, then aligned"
+    return str(said)

@@ -21,6 +21,7 @@ TAIL = ("error", "wall_s", "path")
 #: Text columns (an all-missing column of any other name is numeric: NaN).
 TEXT_COLUMNS = frozenset({
     "run_id", "target", "protocol", "method", "break_times_s", "aborted", "warnings", "error",
+    "outcome", "outcome_note",
     "path",
 })
 CSV_NAME = "results.csv"

@@ -22,7 +22,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from drivers.config import (
     Floats2,
@@ -102,8 +102,16 @@ class ArmSettings(StrictModel):
     """The arm (the LWR4+ unless ``model`` says otherwise): where it stands, its start pose,
     friction and torque limits. Every per-joint field has one value per joint of the model."""
 
-    model: Literal["lwr4", "ur5e"] = "lwr4"
-    """The arm model (:data:`ARMS`): ``lwr4`` (KUKA LWR4+, the paper's) or ``ur5e``."""
+    model: Annotated[str, Field(json_schema_extra={"enum": list(ARMS)})] = "lwr4"
+    """The arm model, a name of the registry :data:`ARMS`: ``lwr4`` (KUKA LWR4+, the
+    paper's) or ``ur5e``; a new arm is one description module and one entry there."""
+
+    @field_validator("model")
+    @classmethod
+    def _known_model(cls, value: str) -> str:
+        if value not in ARMS:
+            raise ValueError(f"unknown arm {value!r}; known: {', '.join(ARMS)}")
+        return value
     base_pos: Floats3 = (0.0, 0.0, 0.0)
     q_init: PerJoint = (0.0, -0.3533, 0.0, 1.714, 0.0, 0.4965, 0.0)
     """Initial joint angles [rad]; the paper pose: flange horizontal along

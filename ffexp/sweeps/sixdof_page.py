@@ -52,6 +52,7 @@ def _rows(study: Path, question: str) -> list[dict[str, Any]]:
                 continue
             m = metrics(load(mcap))
             out.append({"method": method, "value": row.get(key), "aligned": m.aligned,
+                        "outcome": m.outcome,
                         "aligned_s": m.alignment_time_s, "contact_s": m.first_contact_s,
                         "breaks": m.contact_breaks, "momentum": m.target_momentum_ns,
                         "impulse": m.contact_impulse_ns, "end": m.aborted or (
@@ -82,10 +83,10 @@ def _text(v: Any) -> str:
 
 def table(rows: list[dict[str, Any]], base: bool) -> str:
     """One markdown table of a question's runs."""
-    head = ["method", "value", "end", "aligned [s]", "contact [s]", "breaks",
+    head = ["method", "value", "outcome", "end", "aligned [s]", "contact [s]", "breaks",
             "momentum [N s]", "impulse [N s]"]
-    keys = ["method", "value", "end", "aligned_s", "contact_s", "breaks", "momentum",
-            "impulse"]
+    keys = ["method", "value", "outcome", "end", "aligned_s", "contact_s", "breaks",
+            "momentum", "impulse"]
     if base:
         head += ["base moved [m]", "base turned [deg]"]
         keys += ["base_m", "base_deg"]
@@ -132,7 +133,10 @@ def figure(rows: list[dict[str, Any]], question: str, path: Path) -> None:
     ax.set_xlabel(xlabel)
     ax.set_ylabel("target momentum change [N s]")
     if question == "mass":
+        masses = sorted({float(r["value"]) for r in rows})
         ax.set_xscale("log")
+        ax.set_xticks(masses, [f"{m:g}" for m in masses])
+        ax.minorticks_off()
     ax.legend()
     if base:
         axes[0][1].set_title("largest rotation of the base")

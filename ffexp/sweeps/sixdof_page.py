@@ -45,11 +45,19 @@ def _rows(study: Path, question: str) -> list[dict[str, Any]]:
         sweep = study / f"{question}-{method}"
         if not sweep.is_dir():
             continue
-        for row_file in sorted(sweep.glob("runs/*/row.json")):
-            row = json.loads(row_file.read_text())
-            mcap = row_file.parent / "run.mcap"
-            if not mcap.exists():
+        import csv
+
+        results = sweep / "results.csv"
+        if not results.exists():
+            continue
+        with results.open(newline="") as fh:  # the sweep's own runs, its latest plan
+            paths = [r["path"] for r in csv.DictReader(fh) if r.get("path")]
+        for rel in paths:
+            mcap = sweep / rel
+            row_file = mcap.parent / "row.json"
+            if not mcap.exists() or not row_file.exists():
                 continue
+            row = json.loads(row_file.read_text())
             m = metrics(load(mcap))
             out.append({"method": method, "value": row.get(key), "aligned": m.aligned,
                         "outcome": m.outcome,

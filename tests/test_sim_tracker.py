@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from typer.testing import CliRunner
 
+from drivers.description.scene import Scene
 from drivers.sim.tracker import SimTracker
 from drivers.vision import load_calibration
 from ffexp.cli import app
@@ -21,6 +22,8 @@ class StandIn:
 
     def __init__(self) -> None:
         self.t_ns = 0
+        self.scene = Scene()  # the air bed: the camera's noise is planar
+        self.chaser = None  # a fixed base: the world's frame is the arm's
 
     def target_frames(self) -> tuple[np.ndarray, np.ndarray]:
         target = np.eye(4)

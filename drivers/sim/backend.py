@@ -50,9 +50,11 @@ class SimTrackerConfig(DeviceConfig):
     latency_s: NonNeg = 0.03
     """From exposure to the pose being available."""
     position_noise_m: NonNeg = 0.0003
-    """Standard deviation of each frame's position error, per horizontal axis [m]."""
+    """Standard deviation of each frame's position error, per horizontal axis (per axis
+    for a target in free flight) [m]."""
     yaw_noise_deg: NonNeg = 0.1
-    """Standard deviation of each frame's yaw error [deg]."""
+    """Standard deviation of each frame's yaw error (of its turn about each axis for a
+    target in free flight) [deg]."""
     dropout: Annotated[float, Field(ge=0.0, le=1.0)] = 0.0
     """Fraction of frames without a pose (marker not found)."""
 

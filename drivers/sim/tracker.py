@@ -2,7 +2,10 @@
 
 Frames are taken at ``rate_hz`` on the simulator's clock; each carries the
 target's pose at its exposure with Gaussian noise on the horizontal position
-and the yaw (the bed plane: a camera above it sees nothing else), and becomes
+and the yaw (the bed plane: a camera above it sees nothing else), or, for a
+target in free flight, on all three positions and as a small turn about each
+axis (a marker seen in six degrees of freedom), in the arm's base frame (which
+moves on a floating base); it becomes
 available ``latency_s`` later; a fraction ``dropout`` of frames has no pose
 (``valid`` false, the previous pose kept). The tracker is driven by the
 control loop's :meth:`SimTracker.latest` (the simulator steps in lockstep),
@@ -21,7 +24,7 @@ from drivers.base.interfaces import TargetTracker
 from drivers.base.types import F64, NS_PER_S, TargetObservation
 from drivers.sim.world import SimWorld
 
-__all__ = ["SimTracker", "noisy_planar"]
+__all__ = ["SimTracker", "noisy_planar", "noisy_pose6"]
 
 
 def noisy_planar(pose: F64, dx_m: float, dy_m: float, dyaw_rad: float) -> F64:
@@ -33,6 +36,17 @@ def noisy_planar(pose: F64, dx_m: float, dy_m: float, dyaw_rad: float) -> F64:
     out[:3, :3] = turn @ pose[:3, :3]
     out[0, 3] += dx_m
     out[1, 3] += dy_m
+    return out
+
+
+def noisy_pose6(pose: F64, dp_m: F64, drot_rad: F64) -> F64:
+    """``pose`` moved by ``dp_m`` and turned by the rotation vector ``drot_rad`` (both in
+    the pose's parent frame, the turn about its origin; a new 4x4)."""
+    from scipy.spatial.transform import Rotation
+
+    out = pose.copy()
+    out[:3, :3] = Rotation.from_rotvec(drot_rad).as_matrix() @ pose[:3, :3]
+    out[:3, 3] += dp_m
     return out
 
 
@@ -66,6 +80,15 @@ class SimTracker(TargetTracker):
         self._frames = 0
         self._mouth_in_target = np.eye(4)
         self._running = False
+        self._free = world.scene.target.support == "free"
+
+    def _target(self) -> F64:
+        """The target's pose in the arm's base frame (the world's, on a fixed base)."""
+        target, _ = self.world.target_frames()
+        chaser = self.world.chaser
+        if chaser is None:
+            return target
+        return chaser.in_base(target[:3, 3], target[:3, :3].reshape(9))
 
     def start(self) -> None:
         target, mouth = self.world.target_frames()
@@ -86,7 +109,12 @@ class SimTracker(TargetTracker):
             pose = prev.pose_m if prev is not None else np.eye(4)
             mouth = prev.mouth_m if prev is not None else np.eye(4)
             return TargetObservation(now_ns, pose, mouth, False, self.source, self._frames)
-        target, _ = self.world.target_frames()
+        target = self._target()
+        if self._free:
+            pose = noisy_pose6(target, self.rng.normal(0.0, self.position_noise_m, 3),
+                               self.rng.normal(0.0, self.yaw_noise_rad, 3))
+            return TargetObservation(now_ns, pose, pose @ self._mouth_in_target, True,
+                                     self.source, self._frames)
         dx, dy = self.rng.normal(0.0, self.position_noise_m, 2) if self.position_noise_m else (0, 0)
         dyaw = float(self.rng.normal(0.0, self.yaw_noise_rad)) if self.yaw_noise_rad else 0.0
         pose = noisy_planar(target, float(dx), float(dy), dyaw)

@@ -221,3 +221,21 @@ def test_resimulate_bad_input_writes_nothing(recs: dict[str, Path], tmp_path: Pa
                                  str(recs["glide"])])
     assert result.exit_code == 2 and "is the recording itself" in result.stderr
     assert not out.exists()
+
+
+def test_torque_loop_r_is_fitted_from_a_scene_that_sets_it() -> None:
+    """``arm.torque_loop_r`` is fittable; a base scene that leaves it unset is one clear
+    error (no start value), one that sets it starts there."""
+    from drivers.config import load_model
+    from drivers.description.scene import Scene
+    from ffexp.calibrate.params import parse_fit
+    from ffexp.errors import ConfigError
+
+    assert "arm.torque_loop_r" in FITTABLE
+    unset = base_scene(Path(SCENE), [])
+    with pytest.raises(ConfigError, match=r"does not set arm\.torque_loop_r"):
+        parse_fit(["arm.torque_loop_r"], unset)
+    set_ = base_scene(Path(SCENE), ["arm.torque_loop_r=0.002"])
+    (p,) = parse_fit(["arm.torque_loop_r=0:0.01"], set_)
+    assert (p.lo, p.hi, p.start) == (0.0, 0.01, 0.002)
+    assert load_model(Scene, Path(SCENE)).arm.torque_loop_r is None

@@ -138,8 +138,9 @@ def _fill_dynamics(s: LazyArmState, w: SimWorld) -> None:
 
 def _fill_truth(s: LazyArmState, w: SimWorld) -> None:
     tcp_twist = s.jacobian @ w._qvel_arm
-    sites = {"funnel_mouth": pose(w._mouth_xpos, w._mouth_xmat),
-             "tcp": w.tcp_pose if w.chaser is None else pose(w._tcp_xpos, w._tcp_xmat)}
+    sites = {"funnel_mouth": pose(w._mouth_xpos, w._mouth_xmat)}
+    if w.chaser is not None:  # the TCP in the world (the state's is in the moving base's)
+        sites["tcp"] = pose(w._tcp_xpos, w._tcp_xmat)
     for name in w._object_sites:
         site = w.data.site(name)
         sites[name] = pose(site.xpos, site.xmat)

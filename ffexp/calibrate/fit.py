@@ -29,10 +29,22 @@ is zero) is an unidentifiable set: :class:`~ffexp.errors.InputError`, unless
 kept (``keep_unidentified``), when it stays at its start value and is
 reported with its bounds as its interval.
 
-Intervals: ``s^2 (J^T J)^-1`` at the result (``s^2`` the residual variance,
-inflated by ``(1 + rho) / (1 - rho)`` for the residuals' lag-one correlation
-``rho``), 95 % (1.96 sigma), never narrower than the black-box optimiser's
-last step; for contact parameters they are local only.
+Windows: a smooth key is fitted to what comes before each recording's first
+contact when those data inform it (its 95 % half-width from them alone is
+within a tenth of its bounds); else, e.g. bed friction when the target rests
+until the arm pushes it, to the whole recordings, where the push and the
+glide after it inform it. Contact keys are fitted to the whole recordings.
+
+Intervals: ``s^2 (J^T J)^-1`` at the result, on the data each key was fitted
+to (``s^2`` the residuals' variance, misfit included, inflated by
+``(1 + rho) / (1 - rho)`` for their lag-one correlation ``rho``), 95 %
+(1.96 sigma), never narrower than the black-box optimiser's last step; for
+contact parameters they are local only, and never narrower than the
+finite-difference step on the key's data (contact events make the whole
+recordings' residuals rough below it). The fit is *not consistent with the
+data* when the Gauss-Newton step from the result towards the minimum of those
+data is longer than a key's interval: the data put the value elsewhere than
+the interval says.
 """
 
 from __future__ import annotations
@@ -45,6 +57,7 @@ from typing import Any
 import numpy as np
 
 from ffexp.calibrate.inputs import ReplayInput, override
+from ffexp.calibrate.linear import gauss_newton_step, half_widths
 from ffexp.calibrate.params import Param
 from ffexp.calibrate.pool import Rollouts
 from ffexp.calibrate.residuals import (
@@ -61,6 +74,9 @@ from ffexp.errors import InputError
 TIMING_ROUNDS = 4
 #: Forward-difference step in unit coordinates (bounds mapped to [0, 1]).
 FD_STEP = 1e-3
+#: ... on the whole recordings: contact events shift with a key, so the residuals are rough
+#: on a small scale; a step this long sees the trend rather than one break's jump.
+FD_STEP_CONTACT = 1e-2
 #: Least squares: most residual evaluations of the smooth stage.
 LSQ_MAX_NFEV = 25
 #: CMA-ES: most generations; converged when its step is below this in unit coordinates.
@@ -74,6 +90,10 @@ IDENT_WIDTH = 0.1
 IDENT_CORR = 0.98
 #: A discrete delay is identified when every other value costs this many times more.
 DISCRETE_MARGIN = 1.5
+#: A smooth key is fitted before contact when those data alone give it a 95 % half-width
+#: within this fraction of its bounds (else on the whole recordings).
+FREE_WIDTH = IDENT_WIDTH
+
 
 Progress = Callable[[str, int, int | None, str], None]
 """``(stage, done, total or None, status)``."""
@@ -112,7 +132,8 @@ class StageResult:
 
 @dataclass
 class FitResult:
-    """Everything a calibration found (JSON data through :func:`result_dict`)."""
+    """Everything a calibration found (JSON data through
+    :func:`ffexp.calibrate.report.result_dict`)."""
 
     values: dict[str, float]
     estimates: list[Estimate]
@@ -135,6 +156,12 @@ class FitResult:
     """The start scene (JSON data), which the calibrated scene changes."""
     inputs: dict[str, list[ReplayInput]] = field(default_factory=dict)
     """``"fit"``/``"holdout"``: the recordings."""
+    consistent: bool = True
+    """False: the data put a fitted value outside its interval (the model cannot explain
+    them at the result); the reasons are in :attr:`inconsistent`."""
+    inconsistent: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    """One line per recording whose F/T residual exceeds twice its noise floor."""
 
 
 class Calibration:
@@ -165,6 +192,9 @@ class Calibration:
         self.best_traces: list[Trace] | None = None
         self.step_floor: dict[str, float] = {}
         """A black-box optimiser's last step per key: no interval is narrower."""
+        self.before_contact: dict[str, bool] = {}
+        """Per smooth key: fitted to the data before contact (else the whole recordings)."""
+        self.inconsistent: list[str] = []
 
     # -- helpers ---------------------------------------------------------------
     def shift_of(self, delay_s: float | None) -> int:
@@ -211,8 +241,9 @@ class Calibration:
         """Forward differences of the scaled residuals in unit coordinates."""
         u0 = np.array([p.to_unit(values[p.key]) for p in params])
         cands, steps = [], []
+        fd = FD_STEP if free else FD_STEP_CONTACT
         for i, p in enumerate(params):
-            h = FD_STEP if u0[i] + FD_STEP <= 1.0 else -FD_STEP
+            h = fd if u0[i] + fd <= 1.0 else -fd
             u = u0.copy()
             u[i] += h
             vals = dict(values)
@@ -223,6 +254,29 @@ class Calibration:
         cols = [(self.residual(tr, which, free=free) - r0) / h
                 for tr, h in zip(rows, steps, strict=True)]
         return np.column_stack(cols) if cols else np.zeros((len(r0), 0))
+
+    def jacobians(self, params: Sequence[Param], values: dict[str, float], by_window: bool = False,
+                  ) -> dict[bool, tuple[np.ndarray, np.ndarray]]:
+        """``{free: (J, r0)}`` before contact (``True``) and on the whole recordings
+        (``False``), from one set of rollouts; ``by_window``: each key's step is the one of
+        the data it is fitted to."""
+        base = self.traces([values])[0]
+        u0 = np.array([p.to_unit(values[p.key]) for p in params])
+        cands, steps = [], []
+        for i, p in enumerate(params):
+            fd = FD_STEP if not by_window or self.before_contact.get(p.key, False) \
+                else FD_STEP_CONTACT
+            h = fd if u0[i] + fd <= 1.0 else -fd
+            cands.append({**values, p.key: p.from_unit(float(u0[i] + h))})
+            steps.append(h)
+        rows = self.traces(cands)
+        out = {}
+        for free in (True, False):
+            r0 = self.residual(base, free=free)
+            cols = [(self.residual(tr, free=free) - r0) / h
+                    for tr, h in zip(rows, steps, strict=True)]
+            out[free] = (np.column_stack(cols) if cols else np.zeros((len(r0), 0)), r0)
+        return out
 
     # -- stages ----------------------------------------------------------------
     def run(self) -> None:
@@ -348,11 +402,17 @@ class Calibration:
 
     def _check_excited(self, params: list[Param]) -> None:
         self.progress("check", 0, (len(params) + 1) * len(self.inputs), "excitation")
-        r0 = self.residual(self.traces([self.values])[0])
-        jac = self.jacobian(params, self.values, r0)
+        jacs = self.jacobians(params, self.values)
+        jac = jacs[False][0]
         for p, col in zip(params, jac.T, strict=True):
             if not np.any(np.abs(col) > 1e-12):
                 self.unexcited.add(p.key)
+        # which data inform each smooth key: before contact if those alone pin it down
+        jf, rf = jacs[True]
+        for i, p in enumerate(params):
+            if p.stage == "smooth":
+                h = half_widths(jf[:, [i]], rf)[0][0] if rf.size else math.inf
+                self.before_contact[p.key] = bool(h <= FREE_WIDTH)
         if self.unexcited and not self.keep:
             names = ", ".join(sorted(self.unexcited))
             raise InputError(f"unidentifiable: no recording excites {names} (its replay does "
@@ -360,26 +420,36 @@ class Calibration:
                              "from --fit, or --keep-unidentified")
 
     def _smooth(self) -> float | None:
-        """The smooth stage; its final cost (``None``: nothing to fit)."""
-        from scipy.optimize import least_squares
-
+        """The smooth stage: the keys the data before contact inform, fitted to those data,
+        then the others to the whole recordings; its final cost (``None``: nothing to fit)."""
         ps = [p for p in self.params if p.stage == "smooth" and p.key not in self.unexcited]
         if not ps:
             return None
+        total = 0.0
+        for free in (True, False):
+            group = [p for p in ps if self.before_contact.get(p.key, True) == free]
+            if group:
+                total += self._least_squares(group, free)
+        return total
+
+    def _least_squares(self, ps: list[Param], free: bool) -> float:
+        """Least squares of ``ps`` on the data before contact (``free``) or all of them."""
+        from scipy.optimize import least_squares
+
         cache: dict[bytes, np.ndarray] = {}
         evals = [0]
 
         def fun(u: np.ndarray) -> np.ndarray:
             key = u.tobytes()
             if key not in cache:
-                cache[key] = self.residual(self.traces([self._with(ps, u)])[0], free=True)
+                cache[key] = self.residual(self.traces([self._with(ps, u)])[0], free=free)
                 evals[0] += 1
                 cost = float(cache[key] @ cache[key])
                 self.progress("smooth", evals[0], LSQ_MAX_NFEV, f"cost {cost:.4g}")
             return cache[key]
 
         def jac(u: np.ndarray) -> np.ndarray:
-            return self.jacobian(ps, self._with(ps, u), fun(u), free=True)
+            return self.jacobian(ps, self._with(ps, u), fun(u), free=free)
 
         u0 = np.array([p.to_unit(self.values[p.key]) for p in ps])
         r0 = fun(u0)
@@ -391,7 +461,8 @@ class Calibration:
         ok = bool(res.status > 0)
         delay = self.values.get("fri.command_delay_cycles")
         self.stages.append(StageResult(
-            f"smooth, delay {'-' if delay is None else f'{delay:g}'}",
+            f"smooth{'' if free else ' (whole runs)'}, delay "
+            f"{'-' if delay is None else f'{delay:g}'}",
             "least squares (scipy trf, finite-difference Jacobian)",
             [p.key for p in ps], ok, evals[0], float(r0 @ r0), float(2 * res.cost),
             str(res.message)))
@@ -449,7 +520,9 @@ class Calibration:
 
     # -- result ----------------------------------------------------------------
     def intervals(self) -> tuple[list[Estimate], float, list[list[float]], list[str]]:
-        """Each parameter's value, 95 % interval and identifiability at the result."""
+        """Each parameter's value, 95 % interval and identifiability at the result, from the
+        data it was fitted to; :attr:`inconsistent` names the keys those data put outside their
+        interval."""
         cont = [p for p in self.params if p.stage in ("smooth", "contact")]
         fitted = [p for p in cont if p.key not in self.unexcited]
         est: list[Estimate] = []
@@ -458,30 +531,40 @@ class Calibration:
         maxcorr: dict[str, float] = {}
         if fitted:
             self.progress("intervals", 0, (len(fitted) + 1) * len(self.inputs), "")
-            r = self.residual(self.traces([self.values])[0])
-            jac = self.jacobian(fitted, self.values, r)
+            jacs = self.jacobians(fitted, self.values, by_window=True)
             scale = np.array([p.hi - p.lo for p in fitted])
-            jp = jac / scale  # physical units
-            dof = max(len(r) - len(fitted), 1)
-            # successive residuals are correlated: fewer independent values than residuals
-            rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if len(r) > 3 else 0.0
-            rho = min(max(rho if math.isfinite(rho) else 0.0, 0.0), 0.999)
-            s2 = float(r @ r) / dof * (1 + rho) / (1 - rho)
+            jp = jacs[False][0] / scale  # physical units, whole recordings
             jtj = jp.T @ jp
             norms = np.sqrt(np.diag(jtj))
             safe = np.where(norms > 0, norms, 1.0)
-            normed = jtj / np.outer(safe, safe)
-            sv = np.linalg.svd(normed, compute_uv=False)
+            sv = np.linalg.svd(jtj / np.outer(safe, safe), compute_uv=False)
             cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
-            cov = s2 * np.linalg.pinv(jtj)
-            sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-            denom = np.where(sd > 0, sd, 1.0)
-            corr = cov / np.outer(denom, denom)
-            for i, p in enumerate(fitted):
-                half[p.key] = (max(1.96 * float(sd[i]), self.step_floor.get(p.key, 0.0))
-                               if norms[i] > 0 else math.inf)
-                others = [abs(corr[i, j]) for j in range(len(fitted)) if j != i]
-                maxcorr[p.key] = max(others, default=0.0)
+            corr = np.zeros((len(fitted), len(fitted)))
+            for free in (True, False):
+                idx = [i for i, p in enumerate(fitted)
+                       if self.before_contact.get(p.key, False) == free]
+                if not idx:
+                    continue
+                jw, rw = jacs[free][0][:, idx] / scale[idx], jacs[free][1]
+                hw, cov = half_widths(jw, rw)
+                step = gauss_newton_step(jw, rw)
+                sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+                denom = np.where(sd > 0, sd, 1.0)
+                sub = cov / np.outer(denom, denom)
+                for a, i in enumerate(idx):
+                    p = fitted[i]
+                    # never finer than the method resolves: its difference step or last step
+                    fd = (FD_STEP if free else FD_STEP_CONTACT) * (p.hi - p.lo)
+                    h = max(float(hw[a]), self.step_floor.get(p.key, 0.0), fd)
+                    half[p.key] = h
+                    corr[i, idx] = sub[a]
+                    maxcorr[p.key] = max((abs(sub[a, b]) for b in range(len(idx)) if b != a),
+                                         default=0.0)
+                    far = abs(float(step[a]))
+                    if math.isfinite(h) and far > h:
+                        self.inconsistent.append(
+                            f"{p.key}: the data put it {far:.3g} from {self.values[p.key]:.6g}, "
+                            f"beyond its 95 % half-width {h:.3g}")
         for p in self.params:
             v = self.values[p.key]
             method = {"timing": "exhaustive", "sensor": "exhaustive shift",
@@ -508,19 +591,3 @@ class Calibration:
                                 note))
         return est, cond, corr.tolist(), [p.key for p in fitted]
 
-
-def result_dict(res: FitResult) -> dict[str, Any]:
-    """The JSON form of a result (without traces)."""
-    def comps(cs: list[Comparison]) -> list[dict[str, Any]]:
-        return [{"rms": c.rms, "bias": c.bias.tolist(), "noise_floor_n": c.noise_floor_n,
-                 "cost": c.cost} for c in cs]
-
-    return {
-        "values": res.values, "converged": res.converged, "ft_shift_samples": res.ft_shift,
-        "condition": res.condition, "correlation": res.correlation,
-        "correlation_keys": res.corr_keys,
-        "estimates": [vars(e) for e in res.estimates], "stages": [vars(s) for s in res.stages],
-        "start": {k: comps(v) for k, v in res.start.items()},
-        "final": {k: comps(v) for k, v in res.final.items()},
-        "rollouts": res.rollouts, "elapsed_s": res.elapsed_s, "start_shift": res.start_shift,
-    }

@@ -21,14 +21,33 @@ from typing import Any
 
 import numpy as np
 
-from ffexp.calibrate.fit import FitResult, result_dict
+from ffexp.calibrate.fit import FitResult
 from ffexp.calibrate.inputs import ReplayInput
-from ffexp.calibrate.residuals import SIGNALS, UNITS, ft_on_recorded, outcomes
+from ffexp.calibrate.residuals import SIGNALS, UNITS, Comparison, ft_on_recorded, outcomes
 from ffexp.calibrate.resim import Trace
 
 
 def _g(v: float) -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.4g}"
+
+
+def result_dict(res: FitResult) -> dict[str, Any]:
+    """The JSON form of a result (without traces)."""
+    def comps(cs: list[Comparison]) -> list[dict[str, Any]]:
+        return [{"rms": c.rms, "bias": c.bias.tolist(), "noise_floor_n": c.noise_floor_n,
+                 "cost": c.cost} for c in cs]
+
+    return {
+        "values": res.values, "converged": res.converged, "ft_shift_samples": res.ft_shift,
+        "condition": res.condition, "correlation": res.correlation,
+        "correlation_keys": res.corr_keys,
+        "estimates": [vars(e) for e in res.estimates], "stages": [vars(s) for s in res.stages],
+        "start": {k: comps(v) for k, v in res.start.items()},
+        "final": {k: comps(v) for k, v in res.final.items()},
+        "rollouts": res.rollouts, "elapsed_s": res.elapsed_s, "start_shift": res.start_shift,
+        "consistent": res.consistent, "inconsistent": res.inconsistent,
+        "warnings": res.warnings,
+    }
 
 
 def parameter_rows(res: FitResult) -> list[dict[str, Any]]:

@@ -72,6 +72,9 @@ def calibrate(
                                            "parameter no recording excites at its start "
                                            "value (reported as not identified) instead of "
                                            "stopping."),
+    force: bool = typer.Option(False, "--force", help="Write the scene even when the fit is "
+                               "not consistent with the data (the data put a value outside "
+                               "its interval)."),
 ) -> None:
     """Fit scene keys to recordings by replaying them into the simulator, in stages:
     the loop's delay (every whole cycle), the smooth parameters (least squares), the
@@ -79,7 +82,8 @@ def calibrate(
     interval and whether the data identify it, residuals per signal, held-out
     validation, figures and an HTML page; writes the scene with its provenance.
 
-    Exit 0, 1 when the fit did not converge (no scene written), 2 on bad input.
+    Exit 0, 1 when the fit did not converge or is not consistent with the data (no scene
+    written; --force writes one that is not consistent), 2 on bad input.
     """
     from ffexp.calibrate.report import parameter_rows, residual_rows, write_report
     from ffexp.calibrate.run import calibrate as run
@@ -117,14 +121,19 @@ def calibrate(
         "fitted to: " + ", ".join(str(p) for p in recordings),
         *(["held out: " + ", ".join(str(p) for p in holdout)] if holdout else []),
         f"{res.rollouts} rollouts in {res.elapsed_s:.1f} s; converged: "
-        f"{'yes' if res.converged else 'no'}",
+        f"{'yes' if res.converged else 'no'}; consistent with the data: "
+        f"{'yes' if res.consistent else 'NO (' + '; '.join(res.inconsistent) + ')'}",
+        *(f"warning: {w}" for w in res.warnings),
         *(f"{e.key} = {e.value:.6g}, 95 % [{e.ci_lo:.6g}, {e.ci_hi:.6g}], "
           f"{'identified' if e.identified else 'NOT identified'} ({e.stage}: {e.method})"
           for e in res.estimates),
         *(f"residual rms {r['recording']} ({r['set']}): force {r['force']} N, tcp {r['tcp']} m"
           for r in rrows),
     ]
-    written = write_report(report_dir, res, res.inputs, header, out if res.converged else None)
+    for w in res.warnings:
+        typer.echo(f"warning: {w}", err=True)
+    writes = res.converged and (res.consistent or force)
+    written = write_report(report_dir, res, res.inputs, header, out if writes else None)
     for path in written:
         if path.suffix == ".html":
             typer.echo(f"report: {path}")
@@ -132,6 +141,9 @@ def calibrate(
         bad = [s.name for s in res.stages if s.kept and not s.converged]
         raise fail(f"the fit did not converge ({', '.join(bad)}); no scene written "
                    f"(report: {report_dir})", EXIT_FAILURE)
+    if not res.consistent and not force:
+        raise fail(f"the fit is not consistent with the data ({'; '.join(res.inconsistent)}); "
+                   f"no scene written (--force writes it; report: {report_dir})", EXIT_FAILURE)
     data = copy.deepcopy(res.base_scene)
     notes = {}
     by = {p.key: p for p in params}

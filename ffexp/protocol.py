@@ -7,6 +7,7 @@ approach impedance Z 500 N/m, damping 1; PI gains k_zp 1, k_zi 0.07).
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from drivers.base.types import Vec6
-from drivers.config import StrictModel, load_model
+from drivers.config import StrictModel, apply_overrides, read_toml, validate
 from ffexp import scenarios
 from ffexp.contracts import PAPER_OUTCOMES
 from ffexp.controllers import REGISTRY, AlignConfig
@@ -169,11 +170,45 @@ class CampaignProtocol(StrictModel):
     runs: list[CampaignEntry] = Field(min_length=1)
 
 
+#: Keys under ``[scene]`` that are the protocol's own; any other ``scene.KEY`` is a scene key.
+SCENE_FIELDS = ("file", "set")
+
+
+def split_scene_overrides(overrides: Iterable[str]) -> tuple[list[str], list[str]]:
+    """``--set`` overrides as (the protocol's, the scene's): ``scene.target.lateral=0.012``
+    is the scene's ``target.lateral=0.012`` (an entry of ``[scene] set``); ``scene.file``
+    and ``scene.set`` stay the protocol's."""
+    own: list[str] = []
+    scene: list[str] = []
+    for text in overrides:
+        key = text.partition("=")[0].strip()
+        parts = key.split(".")
+        if len(parts) >= 2 and parts[0] == "scene" and parts[1] not in SCENE_FIELDS:
+            scene.append(text.strip()[len("scene."):])
+        else:
+            own.append(text)
+    return own, scene
+
+
+def with_scene_overrides(data: dict[str, Any], scene: Sequence[str]) -> dict[str, Any]:
+    """``data`` (a run protocol's TOML) with ``scene`` appended to its ``[scene] set``."""
+    if not scene:
+        return data
+    table = data.get("scene")
+    table = dict(table) if isinstance(table, dict) else {}
+    before = table.get("set", [])
+    table["set"] = [*(before if isinstance(before, list) else [before]), *scene]
+    return {**data, "scene": table}
+
+
 def load_run_protocol(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> RunProtocol:
     """Read a run protocol with ``--set`` overrides (one-line errors naming the field as
-    written in the file: ``align.k_ri``, not pydantic's ``align.force.k_ri``)."""
+    written in the file: ``align.k_ri``, not pydantic's ``align.force.k_ri``); a scene
+    key is overridden as ``scene.target.lateral=0.012`` (:func:`split_scene_overrides`)."""
+    own, scene = split_scene_overrides(overrides)
     try:
-        return load_model(RunProtocol, path, overrides)
+        data = with_scene_overrides(apply_overrides(read_toml(path), own), scene)
+        return validate(RunProtocol, data, str(path))
     except ConfigError as exc:
         parts = exc.field.split(".")
         if len(parts) >= 2 and parts[0] == "align" and parts[1] in REGISTRY:

@@ -17,11 +17,13 @@ from ffexp.cli._common import (
     EXIT_ABORTED,
     EXIT_OK,
     EXIT_TIMED_OUT,
+    SCENE_SET_HELP,
     SET_HELP,
     StopFlag,
     check_cpus,
     cli_errors,
     stop_signals,
+    with_scene_sets,
 )
 from ffexp.cli.live import live_view, serve_after_run
 from ffexp.cli.progress import Steps
@@ -133,6 +135,7 @@ def run(
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
     driver: str = typer.Option("sim", "--driver", help=DRIVER_HELP),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
+    scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(Path("runs"), "--out", help="Directory for the MCAP recording."),
     fri_port: int | None = typer.Option(
@@ -155,6 +158,7 @@ def run(
     Exit code: 0 aligned, 4 timed out without aligning, 3 aborted, 2 bad input,
     1 a device or simulation failure, 128+N on signal N.
     """
+    set_ = with_scene_sets(set_, scene_set)
     _check_out(out)
     check_cpus("--cpu", cpu)
     choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft, tracker, camera)
@@ -214,7 +218,10 @@ def campaign(
     campaign_file: Path = typer.Argument(..., help="Campaign TOML (protocols/paper.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
     driver: str = typer.Option("sim", "--driver", help=DRIVER_HELP),
-    set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol."),
+    set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol, e.g. "
+                                   "--set run.timeout_s=10 (repeatable)."),
+    scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP
+                                        + " In every run."),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(
         Path("runs"), "--out",
@@ -232,6 +239,7 @@ def campaign(
     `ffexp report` reads. Exit code: 0 when every run ran to its end (aligned
     or not), 2 bad input, 128+N on signal N.
     """
+    set_ = with_scene_sets(set_, scene_set)
     with Steps() as early, early.step("starting"):  # the imports take a second or two
         from ffexp.campaign import check_campaign, run_campaign
     _check_out(out)

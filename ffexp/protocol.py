@@ -91,7 +91,7 @@ class RunProtocol(StrictModel):
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
     description: str = ""
-    seed: int = 0
+    seed: int = Field(0, ge=0, description="The run's random seed (non-negative).")
     scene: SceneRef = SceneRef()
     run: RunSettings = RunSettings()
     approach: ImpedanceConfig = ImpedanceConfig()

@@ -304,7 +304,9 @@ class EmulatedRig:
                 self._last_status = now
                 on_status(emu.status())
 
-        ur.run(max_cycles=self.settings.max_cycles, on_cycle=on_cycle)
+        # --duration also bounds the wall time: without a client the world never steps
+        wall = self.settings.duration_s if self.settings.duration_s > 0 else None
+        ur.run(max_cycles=self.settings.max_cycles, on_cycle=on_cycle, max_wall_s=wall)
 
     def summary(self) -> str:
         """The KRC's counters in one line, with its last state and quality."""

@@ -34,11 +34,14 @@ def resimulate(
     """Replay a recording's applied commands, open loop, into the simulated rig from the
     recorded start; write what the simulator measured on the same topics and times.
 
-    `ffexp diff RUN.mcap SIM.mcap --atol 0.1` then shows where they part. Exit 0, or 2 on
-    bad input (nothing written).
+    `ffexp diff RUN.mcap SIM.mcap --atol 0.1` then shows where they part. Never overwrites
+    --out. Exit 0, or 2 on bad input (nothing written).
     """
     from ffexp.calibrate.simfile import resimulate as run
+    from ffexp.errors import ConfigError
 
+    if out.exists():
+        raise ConfigError("--out", str(out), "exists; a recording is never overwritten")
     with Steps() as steps, steps.step(f"replaying {recording.name} into the simulator"):
         r = run(recording, out, scene, scene_set)
     c = r.comparison

@@ -79,7 +79,8 @@ def emulate(
         1000.0, "--timeout-ms", help="Lockstep: wait this long for a command before a miss."
     ),
     duration: float = typer.Option(
-        0.0, "--duration", help="Stop after this much simulated time (s) (0: until Ctrl-C)."
+        0.0, "--duration", help="Stop after this much simulated time (s), or as much wall "
+        "time for a robot no client drives (0: until Ctrl-C)."
     ),
     rt: bool = typer.Option(
         False, "--rt", help="Real-time: SCHED_FIFO where the OS allows it (said when not), "
@@ -122,6 +123,12 @@ def emulate(
     entry = ROBOTS[robot]
     if remote is None and entry.link == "fri":
         raise ConfigError("--remote", "", "the remote driver's IP:PORT is required")
+    if remote is not None and entry.link != "fri":
+        raise ConfigError("--remote", remote, f"the {robot} emulator sends to no remote "
+                          "driver: its client connects to it (--listen)")
+    if listen is not None and entry.listen is None:
+        raise ConfigError("--listen", listen, f"the {robot} emulator listens nowhere: it "
+                          "sends to its remote driver (--remote)")
     remote_addr = None if remote is None else parse_host_port("--remote", remote)
     faults = FaultSettings(
         loss=_pct("--loss", loss),

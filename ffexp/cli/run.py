@@ -38,7 +38,8 @@ if TYPE_CHECKING:
 
 RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardware number."
 RIG_SET_HELP = "Override a rig field, e.g. --rig-set robot.port=49939 (repeatable)."
-DRIVER_HELP = f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
+DRIVER_HELP = (f"Without --rig: the built-in rig of {', '.join(DRIVERS)} (default: sim; "
+               "not with --rig).")
 WIDE_HELP = "Show every table column (default: as many as fit the terminal)."
 TRACKER_HELP = ("Rig tracker.type: the target tracker that judges alignment "
                 f"({', '.join(TRACKERS)}).")
@@ -96,11 +97,18 @@ def _one(
 
 
 def rig_choice(
-    rig: Path | None, driver: str, rig_set: list[str], robot_ip: str = "",
+    rig: Path | None, driver: str | None, rig_set: list[str], robot_ip: str = "",
     fri_port: int | None = None, ft: str = "", netft: str = "", tracker: str = "",
     camera: str = "",
 ) -> RigChoice:
-    """The rig of a command line: the device flags become overrides of rig fields."""
+    """The rig of a command line: the device flags become overrides of rig fields;
+    ``--rig`` with ``--driver`` is a :class:`~ffexp.errors.ConfigError` (one names the
+    devices)."""
+    if rig is not None and driver is not None:
+        from ffexp.errors import ConfigError
+
+        raise ConfigError("--driver", driver, f"--rig {rig} already names the devices; give "
+                          "--rig or --driver, not both")
     overrides = list(rig_set)
     if tracker:
         overrides.append(f"tracker.type={tracker!r}")
@@ -119,7 +127,8 @@ def rig_choice(
         overrides.append(f"ft.host={host!r}")
         if port:
             overrides.append(f"ft.port={port}")
-    return RigChoice(path=rig, overrides=tuple(overrides), driver=None if rig else driver)
+    return RigChoice(path=rig, overrides=tuple(overrides),
+                     driver=None if rig else (driver or "sim"))
 
 
 def _check_out(out: Path) -> None:
@@ -133,7 +142,7 @@ def _check_out(out: Path) -> None:
 def run(
     protocol: Path = typer.Argument(..., help="Run protocol TOML (protocols/method*.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
-    driver: str = typer.Option("sim", "--driver", help=DRIVER_HELP),
+    driver: str | None = typer.Option(None, "--driver", help=DRIVER_HELP, show_default=False),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
     scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
@@ -217,7 +226,7 @@ def _print_runs(recs: Sequence[Recording], wide: bool) -> None:
 def campaign(
     campaign_file: Path = typer.Argument(..., help="Campaign TOML (protocols/paper.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
-    driver: str = typer.Option("sim", "--driver", help=DRIVER_HELP),
+    driver: str | None = typer.Option(None, "--driver", help=DRIVER_HELP, show_default=False),
     set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol, e.g. "
                                    "--set run.timeout_s=10 (repeatable)."),
     scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP

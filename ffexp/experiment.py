@@ -25,7 +25,8 @@ from drivers.factory import Devices, open_devices
 from drivers.rig import Rig, load_rig, validate_rig
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
-from ffexp.errors import ConfigError, InputError
+from ffexp.errors import ConfigError, FfexpError, InputError
+from ffexp.filekind import wrong_kind
 from ffexp.live.address import LiveOptions
 from ffexp.naming import overrides_id, reserve, run_stem
 from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, scene_path
@@ -44,10 +45,23 @@ __all__ = [
 ]
 
 
+def named_kind(exc: ConfigError, path: Path, expected: str) -> ConfigError:
+    """``exc``, or the error naming the fault when ``path`` is another kind of ffexp file
+    than ``expected`` (a run protocol given as a rig)."""
+    try:
+        what = wrong_kind(read_toml(path), expected)
+    except ConfigError:
+        return exc
+    return exc if what is None else ConfigError(str(path), "", what)
+
+
 def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
     """The rig and the name its errors use (the file, or ``<built-in DRIVER rig>``)."""
     if choice.path is not None:
-        return load_rig(choice.path, choice.overrides), str(choice.path)
+        try:
+            return load_rig(choice.path, choice.overrides), str(choice.path)
+        except ConfigError as exc:
+            raise named_kind(exc, choice.path, "rig") from None
     driver = choice.driver or "sim"
     robot = registry.robot_for_driver(driver)
     if robot is None:
@@ -166,42 +180,50 @@ def run_file(
                 raise InputError(
                     f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None
             source_rev = revision()
-            with Recorder(path) as rec:
-                rec.metadata(
-                    "run",
-                    {
-                        "protocol": protocol.name,
-                        "method": protocol.method,
-                        "protocol_file": str(protocol_path),
-                        "protocol_json": protocol.model_dump_json(),
-                        "overrides": json.dumps(list(overrides)),
-                        "overrides_id": overrides_id(all_overrides),
-                        "run_name": path.stem,
-                        "source_revision": source_rev,
-                        "seed": str(protocol.seed),
-                        "start_utc": start.isoformat(),
-                        "versions": _versions(source_rev),
-                        "host": platform.node(),
-                        "rig": rig_source,
-                        "rig_json": rig_model.model_dump_json(),
-                        **devices.metadata,
-                    },
-                )
-                rec.attach(protocol_path.name, protocol_path.read_bytes(), "application/toml",
-                           start_ns)
-                for name, data in devices.attachments:
-                    rec.attach(name, data, "application/toml", start_ns)
-                if server is not None:
-                    rec.taps.append(server.tap)
-                log = RunLog(rec, start_ns, protocol.run.tf_period_s)
-                writer = _scene_writer(rec, protocol_path, protocol, devices, notice)
-                if writer is not None:
-                    log.sinks.append(writer)
-                outcome = loop.run(
-                    protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
-                    progress=progress,
-                    stop_requested=stop_requested, timings=timings,
-                )
+            log: RunLog | None = None
+            try:
+                with Recorder(path) as rec:
+                    rec.metadata(
+                        "run",
+                        {
+                            "protocol": protocol.name,
+                            "method": protocol.method,
+                            "protocol_file": str(protocol_path),
+                            "protocol_json": protocol.model_dump_json(),
+                            "overrides": json.dumps(list(overrides)),
+                            "overrides_id": overrides_id(all_overrides),
+                            "run_name": path.stem,
+                            "source_revision": source_rev,
+                            "seed": str(protocol.seed),
+                            "start_utc": start.isoformat(),
+                            "versions": _versions(source_rev),
+                            "host": platform.node(),
+                            "rig": rig_source,
+                            "rig_json": rig_model.model_dump_json(),
+                            **devices.metadata,
+                        },
+                    )
+                    rec.attach(protocol_path.name, protocol_path.read_bytes(),
+                               "application/toml", start_ns)
+                    for name, data in devices.attachments:
+                        rec.attach(name, data, "application/toml", start_ns)
+                    if server is not None:
+                        rec.taps.append(server.tap)
+                    log = RunLog(rec, start_ns, protocol.run.tf_period_s)
+                    writer = _scene_writer(rec, protocol_path, protocol, devices, notice)
+                    if writer is not None:
+                        log.sinks.append(writer)
+                    outcome = loop.run(
+                        protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
+                        progress=progress,
+                        stop_requested=stop_requested, timings=timings,
+                    )
+            except FfexpError as exc:
+                # refused before the robot sent anything (an address the link
+                # rejects): bad input leaves no recording behind
+                if exc.exit_code == 2 and (log is None or log.cycles == 0):
+                    path.unlink(missing_ok=True)
+                raise
         finally:
             devices.close()  # the loop closes them too; this covers failures before it runs
     finally:
@@ -241,10 +263,16 @@ def _scene_writer(rec: Recorder, protocol_path: Path, protocol: RunProtocol, dev
 
 def load_campaign(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> CampaignProtocol:
     """A campaign file; each entry's protocol path is relative to the campaign file."""
-    campaign = load_model(CampaignProtocol, path, overrides)
+    try:
+        campaign = load_model(CampaignProtocol, path, overrides)
+    except ConfigError as exc:
+        raise named_kind(exc, path, "campaign") from None
     for i, entry in enumerate(campaign.runs):
         p = path.parent / entry.protocol
         if not p.is_file():
             raise ConfigError(str(path), f"runs.{i}.protocol", f"{p}: file not found")
+        if p.resolve() == path.resolve():
+            raise ConfigError(str(path), f"runs.{i}.protocol", f"{entry.protocol} is this "
+                              "campaign itself; a campaign lists run protocols")
         read_toml(p)
     return campaign

@@ -23,6 +23,7 @@ from ffexp.controllers.force import ForceRiConfig
 from ffexp.controllers.laws import ImpedanceConfig
 from ffexp.errors import ConfigError
 from ffexp.estimation import Estimation
+from ffexp.filekind import wrong_kind
 from ffexp.safety import Limits
 from ffexp.scenarios import TaskConfig
 from ffexp.scenarios.funnel import Alignment, FunnelTask
@@ -206,10 +207,14 @@ def load_run_protocol(path: Path, overrides: list[str] | tuple[str, ...] = ()) -
     written in the file: ``align.k_ri``, not pydantic's ``align.force.k_ri``); a scene
     key is overridden as ``scene.target.lateral=0.012`` (:func:`split_scene_overrides`)."""
     own, scene = split_scene_overrides(overrides)
+    raw = read_toml(path)
     try:
-        data = with_scene_overrides(apply_overrides(read_toml(path), own), scene)
+        data = with_scene_overrides(apply_overrides(raw, own), scene)
         return validate(RunProtocol, data, str(path))
     except ConfigError as exc:
+        what = wrong_kind(raw, "run protocol")
+        if what is not None:
+            raise ConfigError(str(path), "", what) from None
         parts = exc.field.split(".")
         if len(parts) >= 2 and parts[0] == "align" and parts[1] in REGISTRY:
             del parts[1]

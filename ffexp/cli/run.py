@@ -120,8 +120,8 @@ def rig_choice(
         overrides.append(f"robot.robot_ip={robot_ip!r}")
     if fri_port is not None:
         overrides.append(f"robot.port={fri_port}")
-    if ft:
-        overrides.append(f"ft.type={ft!r}")
+    if ft:  # another sensor: the table's other keys were the previous sensor's settings
+        overrides.append(f"ft={{type = {ft!r}}}")
     if netft:
         host, _, port = netft.rpartition(":") if ":" in netft else (netft, "", "")
         overrides.append(f"ft.host={host!r}")

@@ -240,13 +240,17 @@ def campaign(
     draw: bool = typer.Option(
         True, "--figures/--no-figures", help="Draw the figures (PNG and SVG) at the end."
     ),
+    resume: Path | None = typer.Option(
+        None, "--resume", help="Continue the campaign in this directory (stopped by Ctrl-C): "
+        "its finished runs are kept, only the missing ones run."),
 ) -> None:
     """Run several protocols and compare them with the paper's Table (res_par).
 
     Everything goes into one campaign directory OUT/<campaign>-<time>/: the
     recordings, the figures (PNG and SVG) and campaign.json, which
-    `ffexp report` reads. Exit code: 0 when every run ran to its end (aligned
-    or not), 2 bad input, 128+N on signal N.
+    `ffexp report` reads. After Ctrl-C, --resume DIR runs only what is missing.
+    Exit code: 0 when every run ran to its end (aligned or not), 2 bad input, 128+N on
+    signal N.
     """
     set_ = with_scene_sets(set_, scene_set)
     with Steps() as early, early.step("starting"):  # the imports take a second or two
@@ -266,9 +270,9 @@ def campaign(
                 return result
 
             done = run_campaign(campaign_file, set_, rig=choice, out_parent=out, run_one=one,
-                                stop_requested=flag, checked=checked)
+                                stop_requested=flag, checked=checked, resume=resume)
         with steps.step("loading the recordings", total=len(done.results)) as advance:
-            recs = []
+            recs = [_load(p) for p in done.kept]
             for r in done.results:
                 if _measured(r):
                     recs.append(_load(r.path))

@@ -51,8 +51,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -68,6 +66,7 @@ from ffexp.calibrate.residuals import (
     contact_onset_s,
 )
 from ffexp.calibrate.resim import Trace
+from ffexp.calibrate.result import Estimate, StageResult
 from ffexp.errors import InputError
 
 #: Most moves of the delay's profile (each refits the smooth stage at a neighbour).
@@ -77,6 +76,8 @@ FD_STEP = 1e-3
 #: ... on the whole recordings: contact events shift with a key, so the residuals are rough
 #: on a small scale; a step this long sees the trend rather than one break's jump.
 FD_STEP_CONTACT = 1e-2
+#: Whole recordings: the least squares starts from the best of this many points per key.
+SCAN_POINTS = 16
 #: Least squares: most residual evaluations of the smooth stage.
 LSQ_MAX_NFEV = 25
 #: CMA-ES: most generations; converged when its step is below this in unit coordinates.
@@ -97,71 +98,6 @@ FREE_WIDTH = IDENT_WIDTH
 
 Progress = Callable[[str, int, int | None, str], None]
 """``(stage, done, total or None, status)``."""
-
-
-@dataclass
-class Estimate:
-    """One fitted parameter."""
-
-    key: str
-    start: float
-    value: float
-    lo: float
-    hi: float
-    stage: str
-    method: str
-    ci_lo: float
-    ci_hi: float
-    identified: bool
-    note: str = ""
-
-
-@dataclass
-class StageResult:
-    name: str
-    method: str
-    keys: list[str]
-    converged: bool
-    evaluations: int
-    cost_before: float
-    cost_after: float
-    note: str = ""
-    kept: bool = True
-    """False for a profile's fit at a delay that lost (its convergence does not count)."""
-
-
-@dataclass
-class FitResult:
-    """Everything a calibration found (JSON data through
-    :func:`ffexp.calibrate.report.result_dict`)."""
-
-    values: dict[str, float]
-    estimates: list[Estimate]
-    stages: list[StageResult]
-    converged: bool
-    ft_shift: int
-    condition: float
-    correlation: list[list[float]]
-    corr_keys: list[str]
-    start: dict[str, list[Comparison]] = field(default_factory=dict)
-    """``"fit"``/``"holdout"`` comparisons at the start values, per recording."""
-    final: dict[str, list[Comparison]] = field(default_factory=dict)
-    traces: dict[str, list[tuple[Trace, Trace]]] = field(default_factory=dict)
-    """Per set: (start trace, fitted trace) per recording, for figures and outcomes."""
-    rollouts: int = 0
-    elapsed_s: float = 0.0
-    start_shift: int = 0
-    """The F/T delay in samples at the start values."""
-    base_scene: dict[str, Any] = field(default_factory=dict)
-    """The start scene (JSON data), which the calibrated scene changes."""
-    inputs: dict[str, list[ReplayInput]] = field(default_factory=dict)
-    """``"fit"``/``"holdout"``: the recordings."""
-    consistent: bool = True
-    """False: the data put a fitted value outside its interval (the model cannot explain
-    them at the result); the reasons are in :attr:`inconsistent`."""
-    inconsistent: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    """One line per recording whose F/T residual exceeds twice its noise floor."""
 
 
 class Calibration:
@@ -432,6 +368,26 @@ class Calibration:
                 total += self._least_squares(group, free)
         return total
 
+    def _scan(self, ps: list[Param], free: bool, u0: np.ndarray,
+              cache: dict[bytes, np.ndarray]) -> np.ndarray:
+        """The best of ``u0`` and a space-filling sample of the bounds (Sobol', at least
+        :data:`SCAN_POINTS` per key), each replayed once, in parallel: over whole
+        recordings a key moves contact events, and the cost has local minima where a break
+        comes or goes, so a local method must start in the right basin."""
+        from scipy.stats import qmc
+
+        m = math.ceil(math.log2(SCAN_POINTS * len(ps)))
+        units = [u0, *qmc.Sobol(len(ps), scramble=False).random_base2(m)]
+        self.progress("scan", 0, len(units) * len(self.inputs), "sample of the bounds")
+        rows = self.traces([self._with(ps, u) for u in units])
+        best, best_c = u0, math.inf
+        for u, tr in zip(units, rows, strict=True):
+            r = self.residual(tr, free=free)
+            cache[np.asarray(u, dtype=float).tobytes()] = r
+            if float(r @ r) < best_c:
+                best, best_c = np.asarray(u, dtype=float), float(r @ r)
+        return best
+
     def _least_squares(self, ps: list[Param], free: bool) -> float:
         """Least squares of ``ps`` on the data before contact (``free``) or all of them."""
         from scipy.optimize import least_squares
@@ -453,7 +409,8 @@ class Calibration:
 
         u0 = np.array([p.to_unit(self.values[p.key]) for p in ps])
         r0 = fun(u0)
-        res = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf",
+        start = u0 if free else self._scan(ps, free, u0, cache)
+        res = least_squares(fun, start, jac=jac, bounds=(0.0, 1.0), method="trf",
                             x_scale="jac", max_nfev=LSQ_MAX_NFEV, xtol=1e-4, ftol=1e-4,
                             gtol=1e-10)
         for p, ui in zip(ps, res.x, strict=True):

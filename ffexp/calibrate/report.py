@@ -21,10 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from ffexp.calibrate.fit import FitResult
 from ffexp.calibrate.inputs import ReplayInput
 from ffexp.calibrate.residuals import SIGNALS, UNITS, Comparison, ft_on_recorded, outcomes
 from ffexp.calibrate.resim import Trace
+from ffexp.calibrate.result import FitResult
 
 
 def _g(v: float) -> str:

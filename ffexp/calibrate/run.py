@@ -7,12 +7,13 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from ffexp.calibrate.fit import Calibration, FitResult, Progress
+from ffexp.calibrate.fit import Calibration, Progress
 from ffexp.calibrate.inputs import ReplayInput, read_input
 from ffexp.calibrate.params import FITTABLE, Param, parse_fit
 from ffexp.calibrate.pool import Rollouts
 from ffexp.calibrate.residuals import compare
 from ffexp.calibrate.resim import base_scene
+from ffexp.calibrate.result import FitResult
 from ffexp.errors import ConfigError, InputError
 
 

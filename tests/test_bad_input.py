@@ -151,6 +151,13 @@ CASES: list[tuple[str, list[str]]] = [
     (f"campaign {CAMP} --driver warp", ["--driver"]),
     (f"campaign {CAMP} --rig {MOCK} --rig-set robot.type=warp", ["robot"]),
     ("campaign", ["campaign_file"]),
+    # check
+    ("check {tmp}/missing.toml", ["missing.toml", "not found"]),
+    ("check {colour}", ["colour.toml", "colour"]),
+    ("check {file}", ["a_file.txt"]),
+    (f"check {P} {MOCK} {ROOT / 'rigs/sim.toml'}", ["sim.toml", "second rig"]),
+    (f"check {P} --rig {MOCK} --driver sim", ["--driver", "--rig"]),
+    ("check", ["files"]),
     # analyze
     ("analyze {tmp}/missing.mcap", ["missing.mcap", "not found"]),
     ("analyze {empty}", ["empty.mcap", "empty file"]),

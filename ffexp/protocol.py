@@ -7,6 +7,8 @@ approach impedance Z 500 N/m, damping 1; PI gains k_zp 1, k_zi 0.07).
 
 from __future__ import annotations
 
+import json
+import re
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -15,7 +17,13 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from drivers.base.types import Vec6
-from drivers.config import StrictModel, apply_overrides, read_toml, validate
+from drivers.config import (
+    StrictModel,
+    apply_overrides,
+    parse_override,
+    read_toml,
+    validate,
+)
 from ffexp import scenarios
 from ffexp.contracts import PAPER_OUTCOMES
 from ffexp.controllers import REGISTRY, AlignConfig
@@ -202,6 +210,35 @@ def with_scene_overrides(data: dict[str, Any], scene: Sequence[str]) -> dict[str
     return {**data, "scene": table}
 
 
+_ELEMENT = re.compile(r"^\s*(?P<key>[A-Za-z_][\w.]*)\[(?P<index>\d+)\]\s*=(?P<value>.*)$")
+
+
+def _apply(data: dict[str, Any], overrides: Sequence[str]) -> dict[str, Any]:
+    """``data`` with the overrides applied in order; ``key[i]=value`` replaces one element
+    of a list (``align.k_ri[3]=1.0``), as a sweep's keys do."""
+    for text in overrides:
+        m = _ELEMENT.match(text)
+        if m is None:
+            data = apply_overrides(data, [text])
+            continue
+        path, value = parse_override(f"{m['key']}={m['value']}")
+        node: Any = data
+        for part in path:
+            node = node.get(part) if isinstance(node, dict) else None
+        if not isinstance(node, list):  # a field the file leaves at its default
+            node = validate(RunProtocol, data, "--set").model_dump(mode="json")
+            for part in path:
+                node = node.get(part) if isinstance(node, dict) else None
+        index = int(m["index"])
+        if not isinstance(node, list) or index >= len(node):
+            raise ConfigError("--set", text, f"{'.'.join(path)} has no element {index}"
+                              if isinstance(node, list) else f"{'.'.join(path)} is not a list")
+        element = list(node)
+        element[index] = value
+        data = apply_overrides(data, [f"{'.'.join(path)}={json.dumps(element)}"])
+    return data
+
+
 def load_run_protocol(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> RunProtocol:
     """Read a run protocol with ``--set`` overrides (one-line errors naming the field as
     written in the file: ``align.k_ri``, not pydantic's ``align.force.k_ri``); a scene
@@ -209,7 +246,7 @@ def load_run_protocol(path: Path, overrides: list[str] | tuple[str, ...] = ()) -
     own, scene = split_scene_overrides(overrides)
     raw = read_toml(path)
     try:
-        data = with_scene_overrides(apply_overrides(raw, own), scene)
+        data = with_scene_overrides(_apply(raw, own), scene)
         return validate(RunProtocol, data, str(path))
     except ConfigError as exc:
         what = wrong_kind(raw, "run protocol")

@@ -40,7 +40,7 @@ def resimulate(
     from ffexp.calibrate.simfile import resimulate as run
     from ffexp.errors import ConfigError
 
-    if out.exists():
+    if out.exists() and out.resolve() != recording.resolve():  # itself: said more precisely
         raise ConfigError("--out", str(out), "exists; a recording is never overwritten")
     with Steps() as steps, steps.step(f"replaying {recording.name} into the simulator"):
         r = run(recording, out, scene, scene_set)

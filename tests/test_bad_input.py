@@ -474,7 +474,7 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
     ],
     "overwrite": [
         ("resimulate {rec} --out {file}", ["--out", "a_file.txt", "exists"]),
-        ("resimulate {rec} --out {rec}", ["--out", "exists"]),
+        ("resimulate {rec} --out {rec}", ["--out", "the recording itself"]),
         ("calibrate {rec} --fit target.mu --out {file}", ["--out", "exists"]),
         ("recover {rec} -o {rec}", ["must differ"]),
     ],

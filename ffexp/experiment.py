@@ -128,11 +128,12 @@ def _revision_beside() -> Callable[[], str]:
 
 
 def output_path(
-    out_dir: Path, name: str, start: datetime, overrides: list[str] | tuple[str, ...] = ()
+    out_dir: Path, name: str, start: datetime, overrides: list[str] | tuple[str, ...] = (),
+    robot: str = "",
 ) -> Path:
-    """``out_dir/<name>-<overrides id>-<UTC time>.mcap`` (:mod:`ffexp.naming`), created
+    """``out_dir/<name>-<robot>-<overrides id>-<UTC time>.mcap`` (:mod:`ffexp.naming`), created
     empty and exclusively: never an existing file, never one another process took."""
-    return reserve(out_dir, run_stem(name, overrides, start), ".mcap")
+    return reserve(out_dir, run_stem(name, overrides, start, robot), ".mcap")
 
 
 def run_file(
@@ -175,7 +176,8 @@ def run_file(
             start_ns = time.time_ns()
             all_overrides = [*overrides, *(f"rig:{o}" for o in (rig or RigChoice()).overrides)]
             try:
-                path = output_path(out_dir, protocol.name, start, all_overrides)
+                path = output_path(out_dir, protocol.name, start, all_overrides,
+                                   rig_model.robot.type)
             except OSError as exc:
                 raise InputError(
                     f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None

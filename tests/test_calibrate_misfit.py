@@ -66,3 +66,10 @@ def test_a_model_that_cannot_explain_the_data_says_so_and_writes_nothing(
     assert "not consistent with the data" in result.stderr
     assert "noise floor" in result.stderr  # the warning line of the misfit
     assert not out.exists() and not (tmp_path / "lab-report" / "lab.toml").exists()
+    # the terminal's tables fit its width (80 columns when piped) ...
+    table = [x for x in result.stdout.splitlines() if x[:1] in "┏┃┡│└"]
+    assert table and max(len(line) for line in table) <= 80
+    # ... and the page shows values, not Python's reprs
+    page = (tmp_path / "lab-report" / "calibration.html").read_text()
+    assert "not consistent with the data" in page
+    assert "['" not in page and ">True<" not in page and ">False<" not in page

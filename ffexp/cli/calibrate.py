@@ -17,6 +17,10 @@ import typer
 from ffexp.cli._common import EXIT_FAILURE, cli_errors, fail
 from ffexp.cli.progress import Steps
 
+#: Columns of the terminal's tables that give way first when it is narrow (the report, the
+#: CSV and the JSON have them all).
+_PRIORITY = {"note": 6, "method": 5, "bounds": 4, "stage": 3, "start": 2, "yaw": 6,
+             "target": 5, "torque": 4, "joints": 3, "tcp": 2, "set": 2, "agree": 1}
 SCENE_HELP = "The scene the simulator starts from (default: data/scenes/paper.toml)."
 DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "data" / "scenes" / "paper.toml"
 
@@ -110,13 +114,15 @@ def calibrate(
     with _Bars() as bars:
         res, params = run(recordings, fit, scene, holdout=holdout, scene_overrides=scene_set,
                           jobs=jobs, progress=bars.update, keep_unidentified=keep_unidentified)
-    con = console(wide=True)
+    con = console()  # the terminal's width (80 columns when piped); the report has all
     rows = parameter_rows(res)
-    cols = [Column(k, k) for k in rows[0]]
+    cols = [Column(k, k, _PRIORITY.get(k, 0), left=k in ("key", "note"))
+            for k in rows[0]]
     con.print(fitted_table(con, "calibrated parameters", cols, rows))
     rrows = residual_rows(res, res.inputs)
     con.print(fitted_table(con, "residuals (rms, start -> result) and validation",
-                           [Column(k, k) for k in rrows[0]], rrows))
+                           [Column(k, k, _PRIORITY.get(k, 0), left=k == "recording")
+                            for k in rrows[0]], rrows))
     header = [
         "Calibrated by `ffexp calibrate` (docs/calibrate.md)",
         f"source revision: {source_revision()}",

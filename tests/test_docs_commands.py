@@ -197,3 +197,37 @@ def test_the_override_forms_the_simulation_guide_quotes_work(form: str) -> None:
     guide = (ROOT / "docs/guides/simulation.md").read_text(encoding="utf-8")
     assert form.split("=")[0] in guide
     _check_example("run", "--set", form)
+
+
+# -- results pages: dated, and the guides link the latest ---------------------------------
+RESULTS = ROOT / "docs/results"
+_DATE = re.compile(r"^(\d{4}-\d{2}-\d{2})")
+_LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+
+
+def superseded(page: Path) -> bool:
+    """A results page that says a later page replaced it (in its first lines)."""
+    return "Superseded by" in "\n".join(page.read_text(encoding="utf-8").splitlines()[:6])
+
+
+def test_every_results_page_is_dated_in_its_name_and_its_title() -> None:
+    pages = sorted(RESULTS.glob("*.md"))
+    assert pages
+    for page in pages:
+        m = _DATE.match(page.name)
+        assert m, f"{page.name}: a results page's name starts with its date"
+        title = page.read_text(encoding="utf-8").splitlines()[0]
+        assert title.startswith("# ") and m.group(1) in title, (page.name, title)
+
+
+@pytest.mark.parametrize("page", [p for p in PAGES if RESULTS not in p.parents],
+                         ids=lambda p: str(p.relative_to(ROOT)))
+def test_pages_link_no_superseded_results(page: Path) -> None:
+    old = [t for t in _LINK.findall(page.read_text(encoding="utf-8"))
+           if "results/" in t and (page.parent / t).is_file() and superseded(page.parent / t)]
+    assert not old, f"{page.relative_to(ROOT)} links superseded results pages: {old}"
+
+
+def test_a_superseded_page_is_found() -> None:
+    assert superseded(RESULTS / "2026-11-26.md")
+    assert not superseded(RESULTS / "2026-11-26-fidelity.md")

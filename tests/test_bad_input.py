@@ -471,6 +471,8 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         ("emulate --remote 127.0.0.1:1 --listen 127.0.0.1:30004", ["--listen", "lwr4"]),
         (f"run {P} --scene-set scene.target.mu=0.006 --out {{out}}", ["--scene-set"]),
         (f"run {P} --scene-set noequals --out {{out}}", ["--scene-set", "noequals"]),
+        (f"limits {P} --key align.f_ref[2] --key align.f_ref[2] --range 0:1 --range 0:1 "
+         "--out {out}", ["--key", "the same key twice"]),
     ],
     "overwrite": [
         ("resimulate {rec} --out {file}", ["--out", "a_file.txt", "exists"]),

@@ -234,6 +234,9 @@ def limits(
     if len(key) != len(range_):
         raise ConfigError("--range", " ".join(range_), "give one --range LO:HI per --key")
     keys = [parse_key(k, "--key") for k in key]
+    if len({k.text for k in keys}) < len(keys):
+        raise ConfigError("--key", " ".join(key), "the same key twice: a plane needs two "
+                          "different keys")
     spans = []
     for text in range_:
         _k, lo, hi = parse_range(text, "--range")

@@ -167,8 +167,8 @@ def _check_example(command: str, option: str, value: str) -> None:
         parse_fit([value], base_scene(scene))
     elif option == "--rig-set":
         load_rig_choice(RigChoice(driver="fri", overrides=("robot.robot_ip='10.0.0.1'", value)))
-    elif option == "--scene-set" and command in ("calibrate", "resimulate"):
-        load_scene(scene, [value])
+    elif command in ("calibrate", "resimulate", "emulate") and option != "--fit":
+        load_scene(scene, [value])  # their --set / --scene-set override the scene itself
     else:  # a run protocol's --set or --scene-set
         sets = with_scene_sets([value] if option == "--set" else [],
                                [value] if option == "--scene-set" else [])

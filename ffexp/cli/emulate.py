@@ -74,7 +74,10 @@ def emulate(
     seed: int | None = typer.Option(
         None, "--seed", help="World seed (use the protocol's seed to reproduce a run)."
     ),
-    set_: list[str] = typer.Option([], "--set", help="Override a scene field (repeatable)."),
+    set_: list[str] = typer.Option([], "--set", help="Override a scene field, e.g. --set "
+                                   "target.mu=0.006 (repeatable; the same as --scene-set)."),
+    scene_set: list[str] = typer.Option([], "--scene-set", help="Override a scene key, e.g. "
+                                        "--scene-set target.mu=0.006 (repeatable)."),
     timeout_ms: float = typer.Option(
         1000.0, "--timeout-ms", help="Lockstep: wait this long for a command before a miss."
     ),
@@ -140,7 +143,7 @@ def emulate(
         seed=0 if seed is None else seed,
     )
     # the default scene is the paper's rig with the robot's arm; FRI's cycle is friOpen's
-    overrides = [*(entry.scene_overrides() if scene is None else ()), *set_]
+    overrides = [*(entry.scene_overrides() if scene is None else ()), *set_, *scene_set]
     if entry.takes_cycle:
         overrides.append(f"fri.cycle={cycle_ms / 1000.0}")
     if scene is None:

@@ -13,9 +13,9 @@ from typing import Any
 
 #: Tables (or keys) only one kind of file has, in the order they are tried.
 _MARKS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("study", ("claims", "ranges", "grid", "include_nominal")),
     ("campaign", ("runs",)),
     ("sweep protocol", ("sweep", "model")),
-    ("study", ("claims", "uncertain", "paper_runs")),
     ("run protocol", ("align", "approach", "alignment", "estimation", "krc", "limits", "task")),
     ("rig", ("robot", "ft", "tracker")),
     ("scene", ("physics", "arm", "target", "contact", "ft_sensor", "tool", "fri")),
@@ -24,7 +24,7 @@ _MARKS: tuple[tuple[str, tuple[str, ...]], ...] = (
 USE = {
     "campaign": "ffexp campaign FILE",
     "sweep protocol": "ffexp simulate sweep FILE",
-    "study": "ffexp reproduce --config FILE",
+    "study": "ffexp reproduce --config FILE",  # protocols/reproduce.toml, robustness*.toml
     "run protocol": "ffexp run FILE",
     "rig": "--rig FILE",
     "scene": "a protocol's [scene] file, or --scene FILE",

@@ -57,3 +57,17 @@ def test_a_fault_of_a_file_or_of_the_combination_is_one_line_exit_2(
     for needle in needles:
         assert needle in lines[0], lines[0]
     assert os.listdir(tmp_path) == []
+
+
+SHIPPED = sorted([*ROOT.glob("protocols/*.toml"), *ROOT.glob("rigs/*.toml"),
+                  *ROOT.glob("data/scenes/*.toml")])
+
+
+def test_every_shipped_file_is_recognised_and_checks_ok() -> None:
+    result = runner.invoke(app, ["check", *map(str, SHIPPED), "--rig",
+                                 str(ROOT / "rigs/sim.toml")])
+    assert result.exit_code == 0, result.stderr
+    kinds = {line.split(": ")[2].split(",")[0].split(" on ")[0]
+             for line in result.stdout.splitlines()}
+    assert kinds == {"run protocol", "campaign", "study", "sweep protocol", "rig", "scene"}
+    assert len(result.stdout.splitlines()) == len(SHIPPED)

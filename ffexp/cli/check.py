@@ -1,5 +1,5 @@
-"""``ffexp check FILE...``: validate protocols, campaigns, rigs, scenes and sweep protocols,
-and their combination, creating nothing.
+"""``ffexp check FILE...``: validate protocols, campaigns, rigs, scenes, sweep protocols
+and studies (``ffexp reproduce --config``), and their combination, creating nothing.
 
 Each file's kind is recognised (:mod:`ffexp.filekind`); a rig among the files (or
 ``--rig`` / ``--driver``) is the one every protocol and campaign is checked on. A
@@ -21,8 +21,8 @@ from ffexp.cli._common import SCENE_SET_HELP, SET_HELP, cli_errors, with_scene_s
 
 @cli_errors
 def check(
-    files: list[Path] = typer.Argument(..., help="Run protocols, campaigns, rigs, scenes or "
-                                       "sweep protocols (TOML)."),
+    files: list[Path] = typer.Argument(..., help="Run protocols, campaigns, rigs, scenes, "
+                                       "sweep protocols or studies (TOML)."),
     rig: Path | None = typer.Option(None, "--rig", help="Check the protocols on this rig "
                                     "(default: a rig among FILES, else the built-in sim rig)."),
     driver: str | None = typer.Option(None, "--driver", help="Without --rig: the built-in "
@@ -47,8 +47,8 @@ def check(
     for path in files:
         kind = kind_of(read_toml(path))
         if kind is None:
-            raise ConfigError(str(path), "", "not a protocol, campaign, rig, scene or sweep "
-                              "protocol of ffexp")
+            raise ConfigError(str(path), "", "not a protocol, campaign, rig, scene, sweep "
+                              "protocol or study of ffexp")
         kinds[path] = kind
     rigs = [p for p, k in kinds.items() if k == "rig"]
     if rig is None and len(rigs) > 1 and any(k in ("run protocol", "campaign")
@@ -91,7 +91,11 @@ def _check_one(path: Path, kind: str, choice: object, sets: list[str]) -> str:
     if kind == "sweep protocol":
         load_model(SweepProtocol, path, sets)
         return ""
-    return ""  # a study: ffexp reproduce checks its own
+    if kind == "study":
+        from ffexp.sweeps import reproduce as study_mod
+
+        study_mod.load(path, sets)
+    return ""
 
 
 def _open_closed(protocol_path: Path, overrides: list[str], choice: object) -> None:

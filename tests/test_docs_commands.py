@@ -17,10 +17,12 @@ try:  # typer 0.29 carries its own copy of click
 except ImportError:  # pragma: no cover - a typer on the installed click
     from click import UsageError
 
+from test_docs import pages
+
 from ffexp.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+PAGES = pages()  # the hand-written ones (not the CLI reference the build writes)
 _FENCE = re.compile(r"```[^\n]*\n(.*?)```", re.S)
 _INLINE = re.compile(r"(?<!`)`(ffexp [^`]+)`(?!`)")
 

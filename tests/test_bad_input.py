@@ -463,6 +463,11 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         ("resimulate {fifo_mcap} --out {out}/r.mcap", ["fifo.mcap", "FIFO"]),
         ("calibrate {fifo_mcap} --fit target.mu --out {ctmp}/fifo_cal.toml",
          ["fifo.mcap", "FIFO"]),
+        ("friction estimate {fifo_mcap} --px-per-m 1000 --plot {out}/p.png",
+         ["fifo.mcap", "FIFO"]),
+        ("calibrate-camera {fifo_toml} {out}/cal.toml", ["fifo.toml", "FIFO"]),
+        (f"friction estimate {VIDEO} --table-points {{fifo_toml}} --plot {{out}}/p.png",
+         ["fifo.toml", "FIFO"]),
     ],
     "conflicting_options": [
         (f"run {P} --rig {MOCK} --driver sim --out {{out}}", ["--driver", "--rig"]),

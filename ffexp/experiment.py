@@ -171,6 +171,8 @@ def run_file(
         )
         if devices.notice is not None and notice is not None:
             notice(devices.notice)
+        path: Path | None = None
+        log: RunLog | None = None
         try:
             start = datetime.now(UTC)
             start_ns = time.time_ns()
@@ -182,55 +184,54 @@ def run_file(
                 raise InputError(
                     f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None
             source_rev = revision()
-            log: RunLog | None = None
-            try:
-                with Recorder(path) as rec:
-                    rec.metadata(
-                        "run",
-                        {
-                            "protocol": protocol.name,
-                            "method": protocol.method,
-                            "protocol_file": str(protocol_path),
-                            "protocol_json": protocol.model_dump_json(),
-                            "overrides": json.dumps(list(overrides)),
-                            "overrides_id": overrides_id(all_overrides),
-                            "run_name": path.stem,
-                            "source_revision": source_rev,
-                            "seed": str(protocol.seed),
-                            "start_utc": start.isoformat(),
-                            "versions": _versions(source_rev),
-                            "host": platform.node(),
-                            "rig": rig_source,
-                            "rig_json": rig_model.model_dump_json(),
-                            **devices.metadata,
-                        },
-                    )
-                    rec.attach(protocol_path.name, protocol_path.read_bytes(),
-                               "application/toml", start_ns)
-                    for name, data in devices.attachments:
-                        rec.attach(name, data, "application/toml", start_ns)
-                    if server is not None:
-                        rec.taps.append(server.tap)
-                    log = RunLog(rec, start_ns, protocol.run.tf_period_s)
-                    writer = _scene_writer(rec, protocol_path, protocol, devices, notice)
-                    if writer is not None:
-                        log.sinks.append(writer)
-                    outcome = loop.run(
-                        protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
-                        progress=progress,
-                        stop_requested=stop_requested, timings=timings,
-                    )
-            except FfexpError as exc:
-                # refused before the robot sent anything (an address the link
-                # rejects): bad input leaves no recording behind
-                if exc.exit_code == 2 and (log is None or log.cycles == 0):
-                    path.unlink(missing_ok=True)
-                raise
+            with Recorder(path) as rec:
+                rec.metadata(
+                    "run",
+                    {
+                        "protocol": protocol.name,
+                        "method": protocol.method,
+                        "protocol_file": str(protocol_path),
+                        "protocol_json": protocol.model_dump_json(),
+                        "overrides": json.dumps(list(overrides)),
+                        "overrides_id": overrides_id(all_overrides),
+                        "run_name": path.stem,
+                        "source_revision": source_rev,
+                        "seed": str(protocol.seed),
+                        "start_utc": start.isoformat(),
+                        "versions": _versions(source_rev),
+                        "host": platform.node(),
+                        "rig": rig_source,
+                        "rig_json": rig_model.model_dump_json(),
+                        **devices.metadata,
+                    },
+                )
+                rec.attach(protocol_path.name, protocol_path.read_bytes(), "application/toml",
+                           start_ns)
+                for name, data in devices.attachments:
+                    rec.attach(name, data, "application/toml", start_ns)
+                if server is not None:
+                    rec.taps.append(server.tap)
+                log = RunLog(rec, start_ns, protocol.run.tf_period_s)
+                writer = _scene_writer(rec, protocol_path, protocol, devices, notice)
+                if writer is not None:
+                    log.sinks.append(writer)
+                outcome = loop.run(
+                    protocol, devices.robot, devices.sensor, log, tracker=devices.tracker,
+                    progress=progress,
+                    stop_requested=stop_requested, timings=timings,
+                )
+        except FfexpError as exc:
+            # refused as bad input before the robot sent anything (an address its link
+            # rejects): no recording is left behind
+            if exc.exit_code == 2 and path is not None and (log is None or log.cycles == 0):
+                path.unlink(missing_ok=True)
+            raise
         finally:
             devices.close()  # the loop closes them too; this covers failures before it runs
     finally:
         if server is not None and server is not live:
             server.close()  # publishes what is queued, then stops serving
+    assert path is not None
     return RunResult(protocol, outcome, path)
 
 

@@ -79,6 +79,8 @@ def calibrate(
                                            "parameter no recording excites at its start "
                                            "value (reported as not identified) instead of "
                                            "stopping."),
+    wide: bool = typer.Option(False, "--wide", help="Show every table column (default: as "
+                              "many as fit the terminal)."),
     force: bool = typer.Option(False, "--force", help="Write the scene even when the fit is "
                                "not consistent with the data (the data put a value outside "
                                "its interval)."),
@@ -114,7 +116,7 @@ def calibrate(
     with _Bars() as bars:
         res, params = run(recordings, fit, scene, holdout=holdout, scene_overrides=scene_set,
                           jobs=jobs, progress=bars.update, keep_unidentified=keep_unidentified)
-    con = console()  # the terminal's width (80 columns when piped); the report has all
+    con = console(wide=wide)  # the terminal's width (80 when piped); the report has all
     rows = parameter_rows(res)
     cols = [Column(k, k, _PRIORITY.get(k, 0), left=k in ("key", "note"))
             for k in rows[0]]

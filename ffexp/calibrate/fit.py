@@ -528,7 +528,7 @@ class Calibration:
                       "smooth": "least squares", "contact": "CMA-ES"}[p.stage]
             if p.stage in ("timing", "sensor"):
                 margin = self.margin.get(p.key, math.inf)
-                ok = margin >= DISCRETE_MARGIN
+                ok = bool(margin >= DISCRETE_MARGIN)
                 est.append(Estimate(p.key, p.start, v, p.lo, p.hi, p.stage, method,
                                     v if ok else p.lo, v if ok else p.hi, ok,
                                     self.notes.get(p.key, "")
@@ -541,7 +541,7 @@ class Calibration:
                 continue
             h = half[p.key]
             lo, hi = max(p.lo, v - h), min(p.hi, v + h)
-            ok = h <= IDENT_WIDTH * (p.hi - p.lo) and maxcorr[p.key] < IDENT_CORR
+            ok = bool(h <= IDENT_WIDTH * (p.hi - p.lo) and maxcorr[p.key] < IDENT_CORR)
             note = "" if ok else (f"weakly identified: 95 % half-width {h:.3g}, "
                                   f"largest correlation {maxcorr[p.key]:.3f}")
             est.append(Estimate(p.key, p.start, v, p.lo, p.hi, p.stage, method, lo, hi, ok,

@@ -114,7 +114,11 @@ def main() -> int:
         print(f"  {row['set']:<8} {row['recording']}: force {row['force']} N, tcp {row['tcp']} "
               f"m, F/T/noise {ratio:.2f}, {row['outcome (recorded | simulated)']}, agree "
               f"{row['agree']}{'' if good else '  FAIL'}")
-    ok &= res.converged and wall < 180
+    print(f"consistent with the data: {'yes' if res.consistent else 'NO'}"
+          + "".join(f"\n  {x}" for x in res.inconsistent))
+    for w in res.warnings:
+        print(f"warning: {w}")
+    ok &= res.converged and res.consistent and wall < 180
     print("\nacceptance:", "met" if ok else "NOT met")
     return 0 if ok else 1
 

@@ -26,6 +26,7 @@ The array alias ``F64`` (a float64 numpy array) is :mod:`drivers.base.types`'.
 
 from __future__ import annotations
 
+import stat
 import tomllib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -150,8 +151,27 @@ def _deep_copy(data: Mapping[str, Any]) -> dict[str, Any]:
     return {k: _deep_copy(v) if isinstance(v, Mapping) else v for k, v in data.items()}
 
 
+def not_regular(path: Path) -> str:
+    """What ``path`` is when it exists but is neither a regular file nor a directory (a
+    FIFO, a device, a socket), which reading would block on or never end; else ``""``."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return ""
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return ""
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    return "a socket" if stat.S_ISSOCK(mode) else "a special file"
+
+
 def read_toml(path: Path) -> dict[str, Any]:
     """Parse a TOML file; a missing or malformed file is a :class:`ConfigError`."""
+    odd = not_regular(path)
+    if odd:
+        raise ConfigError(str(path), "", f"is {odd}, not a regular TOML file")
     try:
         with path.open("rb") as fh:
             return tomllib.load(fh)

@@ -5,8 +5,9 @@ creates ``OUT/<campaign>-<time>/`` (never an existing directory), runs each
 entry with :func:`ffexp.experiment.run_file` and writes ``campaign.json``
 there (the campaign file, its text, the source revision and each run's
 recording and end), which ``ffexp report`` reads, as a sweep writes
-``sweep.json``. The CLI (``ffexp campaign``) only adds progress, tables and
-figures around it.
+``sweep.json``. A campaign stopped by Ctrl-C resumes in its directory
+(``resume``): the runs that finished are kept, the others run. The CLI
+(``ffexp campaign``) only adds progress, tables and figures around it.
 """
 
 from __future__ import annotations
@@ -48,6 +49,8 @@ class CampaignResult:
     name: str
     directory: Path
     results: tuple[RunResult, ...]
+    kept: tuple[Path, ...] = ()
+    """Recordings of an earlier session of a resumed campaign."""
 
 
 #: Runs one entry into the campaign directory (the CLI passes one that shows progress).
@@ -89,17 +92,45 @@ def new_directory(parent: Path, name: str) -> Path:
         return path
 
 
+def finished_runs(directory: Path, campaign_file: Path) -> list[dict[str, object]]:
+    """The runs of the campaign in ``directory`` (its ``campaign.json``) that ran to their
+    end, in order, up to the first that did not (stopped by Ctrl-C, or missing): what a
+    resumed campaign keeps. Bad input (exit 2): no manifest, or another campaign file's."""
+    path = directory / MANIFEST
+    try:
+        manifest = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError(f"--resume: {directory}: no {MANIFEST}, not a campaign "
+                         "directory") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read: {exc}") from None
+    if not isinstance(manifest, dict) or manifest.get("kind") != "campaign":
+        raise InputError(f"{path}: not a campaign manifest")
+    if manifest.get("campaign_toml") != campaign_file.read_text():
+        raise InputError(f"--resume: {directory} ran another campaign file than "
+                         f"{campaign_file} (or one since changed)")
+    kept: list[dict[str, object]] = []
+    for run in manifest.get("runs", []):
+        if run.get("end") == "stop_requested" or not (directory / str(run.get(
+                "recording", ""))).is_file():
+            break
+        kept.append(run)
+    return kept
+
+
 def write_manifest(
-    directory: Path, campaign_file: Path, name: str, results: Sequence[RunResult]
+    directory: Path, campaign_file: Path, name: str, results: Sequence[RunResult],
+    kept: Sequence[dict[str, object]] = (),
 ) -> Path:
-    """``campaign.json``: the campaign file, its text, the source revision and the runs."""
+    """``campaign.json``: the campaign file, its text, the source revision and the runs
+    (``kept``: runs of an earlier, resumed session, first)."""
     manifest = {
         "kind": "campaign",
         "name": name,
         "campaign_file": str(campaign_file),
         "campaign_toml": campaign_file.read_text(),
         "source_revision": source_revision(),
-        "runs": [
+        "runs": [*kept, *(
             {
                 "recording": r.path.name,
                 "protocol": r.protocol.name,
@@ -107,7 +138,7 @@ def write_manifest(
                 "end": r.outcome.stop_reason.value,
             }
             for r in results
-        ],
+        )],
     }
     path = directory / MANIFEST
     path.write_text(json.dumps(manifest, indent=2) + "\n")
@@ -123,16 +154,25 @@ def run_campaign(
     run_one: RunOne | None = None,
     stop_requested: Callable[[], bool] = lambda: False,
     checked: tuple[CampaignProtocol, list[CampaignEntry]] | None = None,
+    resume: Path | None = None,
 ) -> CampaignResult:
     """Run every protocol of ``campaign_file`` on ``rig`` into a new directory under
     ``out_parent`` and write its manifest; stops between runs when ``stop_requested``.
 
     ``checked``: what :func:`check_campaign` returned, when the caller checked first.
     The manifest is written even when a run raises, listing the runs that finished.
+    ``resume``: a directory of this campaign stopped before its end: its finished runs
+    are kept (:attr:`CampaignResult.kept`) and only the others run, into it.
     """
     choice = rig or RigChoice()
     camp, entries = checked or check_campaign(campaign_file, overrides, choice)
-    directory = new_directory(out_parent, f"{camp.name}-{stamp(datetime.now(UTC))}")
+    kept: list[dict[str, object]] = []
+    if resume is not None:
+        kept = finished_runs(resume, campaign_file)
+        directory = resume
+        entries = entries[len(kept):]
+    else:
+        directory = new_directory(out_parent, f"{camp.name}-{stamp(datetime.now(UTC))}")
 
     def default_run(entry: CampaignEntry, out_dir: Path) -> RunResult:
         return run_file(entry.protocol, list(entry.overrides), rig=choice, out_dir=out_dir,
@@ -146,5 +186,6 @@ def run_campaign(
                 break
             results.append(run(entry, directory))
     finally:
-        write_manifest(directory, campaign_file, camp.name, results)
-    return CampaignResult(camp.name, directory, tuple(results))
+        write_manifest(directory, campaign_file, camp.name, results, kept)
+    return CampaignResult(camp.name, directory, tuple(results),
+                          tuple(directory / str(r["recording"]) for r in kept))

@@ -25,7 +25,8 @@ from drivers.factory import Devices, open_devices
 from drivers.rig import Rig, load_rig, validate_rig
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
-from ffexp.errors import ConfigError, InputError
+from ffexp.errors import ConfigError, FfexpError, InputError
+from ffexp.filekind import wrong_kind
 from ffexp.live.address import LiveOptions
 from ffexp.naming import overrides_id, reserve, run_stem
 from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, scene_path
@@ -44,10 +45,23 @@ __all__ = [
 ]
 
 
+def named_kind(exc: ConfigError, path: Path, expected: str) -> ConfigError:
+    """``exc``, or the error naming the fault when ``path`` is another kind of ffexp file
+    than ``expected`` (a run protocol given as a rig)."""
+    try:
+        what = wrong_kind(read_toml(path), expected)
+    except ConfigError:
+        return exc
+    return exc if what is None else ConfigError(str(path), "", what)
+
+
 def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
     """The rig and the name its errors use (the file, or ``<built-in DRIVER rig>``)."""
     if choice.path is not None:
-        return load_rig(choice.path, choice.overrides), str(choice.path)
+        try:
+            return load_rig(choice.path, choice.overrides), str(choice.path)
+        except ConfigError as exc:
+            raise named_kind(exc, choice.path, "rig") from None
     driver = choice.driver or DEFAULT_DRIVER
     robot = registry.robot_for_driver(driver)
     if robot is None:
@@ -114,11 +128,12 @@ def _revision_beside() -> Callable[[], str]:
 
 
 def output_path(
-    out_dir: Path, name: str, start: datetime, overrides: list[str] | tuple[str, ...] = ()
+    out_dir: Path, name: str, start: datetime, overrides: list[str] | tuple[str, ...] = (),
+    robot: str = "",
 ) -> Path:
-    """``out_dir/<name>-<overrides id>-<UTC time>.mcap`` (:mod:`ffexp.naming`), created
+    """``out_dir/<name>-<robot>-<overrides id>-<UTC time>.mcap`` (:mod:`ffexp.naming`), created
     empty and exclusively: never an existing file, never one another process took."""
-    return reserve(out_dir, run_stem(name, overrides, start), ".mcap")
+    return reserve(out_dir, run_stem(name, overrides, start, robot), ".mcap")
 
 
 def run_file(
@@ -156,12 +171,15 @@ def run_file(
         )
         if devices.notice is not None and notice is not None:
             notice(devices.notice)
+        path: Path | None = None
+        log: RunLog | None = None
         try:
             start = datetime.now(UTC)
             start_ns = time.time_ns()
             all_overrides = [*overrides, *(f"rig:{o}" for o in (rig or RigChoice()).overrides)]
             try:
-                path = output_path(out_dir, protocol.name, start, all_overrides)
+                path = output_path(out_dir, protocol.name, start, all_overrides,
+                                   rig_model.robot.type)
             except OSError as exc:
                 raise InputError(
                     f"{exc.filename or out_dir}: cannot write: {exc.strerror}") from None
@@ -202,11 +220,18 @@ def run_file(
                     progress=progress,
                     stop_requested=stop_requested, timings=timings,
                 )
+        except FfexpError as exc:
+            # refused as bad input before the robot sent anything (an address its link
+            # rejects): no recording is left behind
+            if exc.exit_code == 2 and path is not None and (log is None or log.cycles == 0):
+                path.unlink(missing_ok=True)
+            raise
         finally:
             devices.close()  # the loop closes them too; this covers failures before it runs
     finally:
         if server is not None and server is not live:
             server.close()  # publishes what is queued, then stops serving
+    assert path is not None
     return RunResult(protocol, outcome, path)
 
 
@@ -240,10 +265,16 @@ def _scene_writer(rec: Recorder, protocol_path: Path, protocol: RunProtocol, dev
 
 def load_campaign(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> CampaignProtocol:
     """A campaign file; each entry's protocol path is relative to the campaign file."""
-    campaign = load_model(CampaignProtocol, path, overrides)
+    try:
+        campaign = load_model(CampaignProtocol, path, overrides)
+    except ConfigError as exc:
+        raise named_kind(exc, path, "campaign") from None
     for i, entry in enumerate(campaign.runs):
         p = path.parent / entry.protocol
         if not p.is_file():
             raise ConfigError(str(path), f"runs.{i}.protocol", f"{p}: file not found")
+        if p.resolve() == path.resolve():
+            raise ConfigError(str(path), f"runs.{i}.protocol", f"{entry.protocol} is this "
+                              "campaign itself; a campaign lists run protocols")
         read_toml(p)
     return campaign

@@ -269,8 +269,9 @@ def run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, lo
     """Connect, loop until DONE/ABORT plus the safe-stop hold, close (even on error).
 
     ``tracker`` (optional) is read once per cycle without blocking. A robot that
-    never sends a state (the driver's connect timeout, or its end of measurements)
-    is an ABORT with :attr:`StopReason.NO_MEASUREMENT` and the driver's message.
+    never sends a state (the driver's connect timeout, a link lost or refused before
+    the first state, or its end of measurements) is an ABORT with
+    :attr:`StopReason.NO_MEASUREMENT` and the driver's message.
     The heap that exists at the start is frozen for the run (:func:`frozen_heap`).
     """
     with frozen_heap():
@@ -333,8 +334,8 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
             cyc.flush_notes()
             t_a = clock()
     except DriverError as exc:
-        if cyc is None:
-            if isinstance(exc, DriverTimeoutError):
+        if cyc is None:  # a robot that never answered, however its link says so
+            if isinstance(exc, (DriverTimeoutError, LinkLostError)):
                 no_state = str(exc)
             else:
                 raise

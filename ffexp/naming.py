@@ -1,7 +1,8 @@
 """Names of runs, figures and reports: readable, unique, never overwriting.
 
-A run is named ``<protocol>-<overrides id>-<UTC time>``, e.g.
-``method2-a41c09-20261123-190102``: the overrides id is ``base`` without
+A run is named ``<protocol>-<robot>-<overrides id>-<UTC time>``, e.g.
+``method2-sim-a41c09-20261123-190102`` (the robot: the rig's ``robot.type``,
+so a run on the UR says so: ``method2-ur-...``): the overrides id is ``base`` without
 overrides, else the first 6 hex digits of a hash of the overrides in the
 order given, so that runs of one protocol with different ``--set`` values
 (a campaign over three f_ref values) differ by name even within one second.
@@ -34,9 +35,10 @@ def stamp(when: datetime) -> str:
     return when.strftime(STAMP_FORMAT)
 
 
-def run_stem(protocol: str, overrides: Sequence[str], when: datetime) -> str:
-    """``<protocol>-<overrides id>-<time>``."""
-    return f"{protocol}-{overrides_id(overrides)}-{stamp(when)}"
+def run_stem(protocol: str, overrides: Sequence[str], when: datetime, robot: str = "") -> str:
+    """``<protocol>-<robot>-<overrides id>-<time>`` (without ``robot``: no robot part)."""
+    who = f"{robot}-" if robot else ""
+    return f"{protocol}-{who}{overrides_id(overrides)}-{stamp(when)}"
 
 
 def unique_stem(out_dir: Path, stem: str, suffixes: Sequence[str]) -> str:

@@ -7,19 +7,30 @@ approach impedance Z 500 N/m, damping 1; PI gains k_zp 1, k_zi 0.07).
 
 from __future__ import annotations
 
+import json
+import re
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from drivers.config import StrictModel, Vec6, load_model
+from drivers.config import (
+    StrictModel,
+    Vec6,
+    apply_overrides,
+    parse_override,
+    read_toml,
+    validate,
+)
 from ffexp import scenarios
 from ffexp.controllers import REGISTRY, AlignConfig
 from ffexp.controllers.force import ForceRiConfig
 from ffexp.controllers.laws import ImpedanceConfig
 from ffexp.errors import ConfigError
 from ffexp.estimation import Estimation
+from ffexp.filekind import wrong_kind
 from ffexp.outcome import ALIASES, OUTCOMES
 from ffexp.safety import Limits
 from ffexp.scenarios import TaskConfig
@@ -89,7 +100,7 @@ class RunProtocol(StrictModel):
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
     description: str = ""
-    seed: int = 0
+    seed: int = Field(0, ge=0, description="The run's random seed (non-negative).")
     scene: SceneRef = SceneRef()
     run: RunSettings = RunSettings()
     approach: ImpedanceConfig = ImpedanceConfig()
@@ -168,12 +179,79 @@ class CampaignProtocol(StrictModel):
     runs: list[CampaignEntry] = Field(min_length=1)
 
 
+#: Keys under ``[scene]`` that are the protocol's own; any other ``scene.KEY`` is a scene key.
+SCENE_FIELDS = ("file", "set")
+
+
+def split_scene_overrides(overrides: Iterable[str]) -> tuple[list[str], list[str]]:
+    """``--set`` overrides as (the protocol's, the scene's): ``scene.target.lateral=0.012``
+    is the scene's ``target.lateral=0.012`` (an entry of ``[scene] set``); ``scene.file``
+    and ``scene.set`` stay the protocol's."""
+    own: list[str] = []
+    scene: list[str] = []
+    for text in overrides:
+        key = text.partition("=")[0].strip()
+        parts = key.split(".")
+        if len(parts) >= 2 and parts[0] == "scene" and parts[1] not in SCENE_FIELDS:
+            scene.append(text.strip()[len("scene."):])
+        else:
+            own.append(text)
+    return own, scene
+
+
+def with_scene_overrides(data: dict[str, Any], scene: Sequence[str]) -> dict[str, Any]:
+    """``data`` (a run protocol's TOML) with ``scene`` appended to its ``[scene] set``."""
+    if not scene:
+        return data
+    table = data.get("scene")
+    table = dict(table) if isinstance(table, dict) else {}
+    before = table.get("set", [])
+    table["set"] = [*(before if isinstance(before, list) else [before]), *scene]
+    return {**data, "scene": table}
+
+
+_ELEMENT = re.compile(r"^\s*(?P<key>[A-Za-z_][\w.]*)\[(?P<index>\d+)\]\s*=(?P<value>.*)$")
+
+
+def _apply(data: dict[str, Any], overrides: Sequence[str]) -> dict[str, Any]:
+    """``data`` with the overrides applied in order; ``key[i]=value`` replaces one element
+    of a list (``align.k_ri[3]=1.0``), as a sweep's keys do."""
+    for text in overrides:
+        m = _ELEMENT.match(text)
+        if m is None:
+            data = apply_overrides(data, [text])
+            continue
+        path, value = parse_override(f"{m['key']}={m['value']}")
+        node: Any = data
+        for part in path:
+            node = node.get(part) if isinstance(node, dict) else None
+        if not isinstance(node, list):  # a field the file leaves at its default
+            node = validate(RunProtocol, data, "--set").model_dump(mode="json")
+            for part in path:
+                node = node.get(part) if isinstance(node, dict) else None
+        index = int(m["index"])
+        if not isinstance(node, list) or index >= len(node):
+            raise ConfigError("--set", text, f"{'.'.join(path)} has no element {index}"
+                              if isinstance(node, list) else f"{'.'.join(path)} is not a list")
+        element = list(node)
+        element[index] = value
+        data = apply_overrides(data, [f"{'.'.join(path)}={json.dumps(element)}"])
+    return data
+
+
 def load_run_protocol(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> RunProtocol:
     """Read a run protocol with ``--set`` overrides (one-line errors naming the field as
-    written in the file: ``align.k_ri``, not pydantic's ``align.force.k_ri``)."""
+    written in the file: ``align.k_ri``, not pydantic's ``align.force.k_ri``); a scene
+    key is overridden as ``scene.target.lateral=0.012`` (:func:`split_scene_overrides`)."""
+    own, scene = split_scene_overrides(overrides)
+    raw = read_toml(path)
     try:
-        return load_model(RunProtocol, path, overrides)
+        data = with_scene_overrides(_apply(raw, own), scene)
+        return validate(RunProtocol, data, str(path))
     except ConfigError as exc:
+        what = wrong_kind(raw, "run protocol")
+        if what is not None:
+            raise ConfigError(str(path), "", what) from None
         parts = exc.field.split(".")
         if len(parts) >= 2 and parts[0] == "align" and parts[1] in REGISTRY:
             del parts[1]

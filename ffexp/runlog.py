@@ -98,6 +98,8 @@ class RunLog:
         self._target_valid = False
         self.sinks: list[CycleSink] = []
         """Further per-cycle writers (set up by :mod:`ffexp.experiment`)."""
+        self.cycles = 0
+        """Cycles written so far."""
 
     def note(self, t_ns: int, note: Note) -> None:
         """An event, or a phase change (``/runner/phase`` and an event)."""
@@ -197,6 +199,7 @@ class RunLog:
         ``approach_wrench`` is the approach law's output when it acted this
         cycle; the controller's terms are recorded in ALIGN. ``t0_ns``, the
         robot time of the run's start, is not used here (kept for callers)."""
+        self.cycles += 1
         rec = self.rec
         if rec is None:
             return

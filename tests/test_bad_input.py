@@ -11,6 +11,7 @@ comes from one short dry run on the mock rig).
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -26,6 +27,7 @@ runner = CliRunner()
 P = str(ROOT / "protocols/method2.toml")
 CAMP = str(ROOT / "protocols/paper.toml")
 SWEEP = str(ROOT / "protocols/sec3_stiffness.toml")
+SCENE = str(ROOT / "data/scenes/paper.toml")
 VIDEO = str(ROOT / "data/friction/sample.avi")
 MOCK = str(ROOT / "rigs/mock.toml")
 
@@ -149,6 +151,13 @@ CASES: list[tuple[str, list[str]]] = [
     (f"campaign {CAMP} --driver warp", ["--driver"]),
     (f"campaign {CAMP} --rig {MOCK} --rig-set robot.type=warp", ["robot"]),
     ("campaign", ["campaign_file"]),
+    # check
+    ("check {tmp}/missing.toml", ["missing.toml", "not found"]),
+    ("check {colour}", ["colour.toml", "colour"]),
+    ("check {file}", ["a_file.txt"]),
+    (f"check {P} {MOCK} {ROOT / 'rigs/sim.toml'}", ["sim.toml", "second rig"]),
+    (f"check {P} --rig {MOCK} --driver sim", ["--driver", "--rig"]),
+    ("check", ["files"]),
     # analyze
     ("analyze {tmp}/missing.mcap", ["missing.mcap", "not found"]),
     ("analyze {empty}", ["empty.mcap", "empty file"]),
@@ -374,6 +383,10 @@ def by_class(tmp_path_factory: pytest.TempPathFactory, files: dict[str, str]) ->
     write("rig_inf.toml", '[robot]\ntype = "mock"\ncycle_s = inf\n[ft]\ntype = "mock"\n')
     write("rig_long.toml", '[robot]\ntype = "fri1"\nrobot_ip = "10.0.0.1"\n'
           'connect_timeout_s = 1e12\n[ft]\ntype = "fri-estimate"\n')
+    for name in ("fifo.toml", "fifo.mcap"):  # a reader would block on these forever
+        path = out[name.replace(".", "_")] = d / name
+        os.mkfifo(path)
+    write("camp_self.toml", 'name = "c"\n[[runs]]\nprotocol = "camp_self.toml"\n')
     data = bytearray(Path(files["rec"]).read_bytes())
     middle = len(data) // 2
     data[middle:middle + 16] = bytes(b ^ 0xFF for b in data[middle:middle + 16])
@@ -440,6 +453,68 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         (f"run {P} --rt --cpu -1 --out {{out}}", ["--cpu", "-1"]),
         (f"run {P} --rt --cpu 0 --cpu 4096 --out {{out}}", ["--cpu", "4096"]),
         ("emulate --remote 127.0.0.1:1 --rt --cpu 99", ["--cpu", "99"]),
+    ],
+    "non_regular_file": [
+        ("run {fifo_toml} --out {out}", ["fifo.toml", "FIFO"]),
+        ("run /dev/null --out {out}", ["/dev/null", "a device"]),
+        (f"run {P} --rig {{fifo_toml}} --out {{out}}", ["fifo.toml", "FIFO"]),
+        ("campaign {fifo_toml} --out {out}", ["fifo.toml", "FIFO"]),
+        ("analyze {fifo_mcap}", ["fifo.mcap", "FIFO"]),
+        ("resimulate {fifo_mcap} --out {out}/r.mcap", ["fifo.mcap", "FIFO"]),
+        ("calibrate {fifo_mcap} --fit target.mu --out {ctmp}/fifo_cal.toml",
+         ["fifo.mcap", "FIFO"]),
+        ("friction estimate {fifo_mcap} --px-per-m 1000 --plot {out}/p.png",
+         ["fifo.mcap", "FIFO"]),
+        ("calibrate-camera {fifo_toml} {out}/cal.toml", ["fifo.toml", "FIFO"]),
+        (f"friction estimate {VIDEO} --table-points {{fifo_toml}} --plot {{out}}/p.png",
+         ["fifo.toml", "FIFO"]),
+    ],
+    "conflicting_options": [
+        (f"run {P} --rig {MOCK} --driver sim --out {{out}}", ["--driver", "--rig"]),
+        (f"campaign {CAMP} --rig {MOCK} --driver mock --out {{out}}", ["--driver", "--rig"]),
+        ("emulate --robot ur5e --remote 127.0.0.1:1 --duration 0.1", ["--remote", "ur5e"]),
+        ("emulate --remote 127.0.0.1:1 --listen 127.0.0.1:30004", ["--listen", "lwr4"]),
+        (f"run {P} --scene-set scene.target.mu=0.006 --out {{out}}", ["--scene-set"]),
+        (f"run {P} --scene-set noequals --out {{out}}", ["--scene-set", "noequals"]),
+        (f"limits {P} --key align.f_ref[2] --key align.f_ref[2] --range 0:1 --range 0:1 "
+         "--out {out}", ["--key", "the same key twice"]),
+    ],
+    "overwrite": [
+        ("resimulate {rec} --out {file}", ["--out", "a_file.txt", "exists"]),
+        ("resimulate {rec} --out {rec}", ["--out", "the recording itself"]),
+        ("calibrate {rec} --fit target.mu --out {file}", ["--out", "exists"]),
+        ("recover {rec} -o {rec}", ["must differ"]),
+    ],
+    "wrong_kind_of_file": [
+        (f"run {P} --rig {P} --out {{out}}", ["method2.toml", "is a run protocol, not a rig"]),
+        (f"run {CAMP} --out {{out}}", ["paper.toml", "is a campaign, not a run protocol"]),
+        (f"campaign {P} --out {{out}}", ["method2.toml", "is a run protocol, not a campaign"]),
+        (f"run {SCENE} --out {{out}}", ["paper.toml", "is a scene, not a run protocol"]),
+        (f"run {P} --rig {SCENE} --out {{out}}", ["paper.toml", "is a scene, not a rig"]),
+        (f"run {SWEEP} --out {{out}}", ["is a sweep protocol, not a run protocol"]),
+        (f"campaign {MOCK} --out {{out}}", ["mock.toml", "is a rig, not a campaign"]),
+        ("campaign {camp_self} --out {out}", ["runs.0.protocol", "this campaign itself"]),
+        (f"run {P} --rig {ROOT / 'rigs/ur5e-sim.toml'} --ft sim --out {{out}}",
+         ["ur5e-sim.toml", "ft.type"]),
+    ],
+    "refused_address": [
+        (f"run {P} --driver fri --robot-ip 999.1.1.1 --out {{out}}",
+         ["robot.robot_ip", "999.1.1.1"]),
+        (f"run {P} --driver fri --robot-ip 10.0.0.1 --netft 999.0.0.1 --out {{out}}",
+         ["ft.host", "999.0.0.1"]),
+        (f"run {P} --driver ur --robot-ip 999.1.1.1 --out {{out}}",
+         ["robot.robot_ip", "999.1.1.1"]),
+        (f"run {P} --driver ur --robot-ip bad/host --out {{out}}", ["robot.robot_ip"]),
+        (f"run {P} --rig {ROOT / 'rigs/ur5e-lab.toml'} --robot-ip 999.1.1.1 --out {{out}}",
+         ["ur5e-lab.toml", "robot.robot_ip"]),
+        ("emulate --robot ur5e --listen 10.255.255.1:30004 --duration 0.1", ["--listen"]),
+    ],
+    "negative_or_huge": [
+        (f"run {P} --set seed=-1 --out {{out}}", ["seed"]),
+        (f"run {P} --scene-set target.mu=-1 --out {{out}}", ["target.mu"]),
+        (f"run {P} --set scene.target.mu=nan --out {{out}}", ["target.mu", "finite"]),
+        (f"run {P} --scene-set target.mu=1e400 --out {{out}}", ["target.mu", "finite"]),
+        ("emulate --robot ur5e --duration -1", ["--duration"]),
     ],
     "corrupt_recording": [
         (f"{cmd} {{corrupt}}{rest}", ["corrupt.mcap", "ffexp recover"])

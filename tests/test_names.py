@@ -33,6 +33,7 @@ def test_overrides_id_is_stable_and_tells_overrides_apart() -> None:
     assert overrides_id(["a=1", "b=2"]) != overrides_id(["b=2", "a=1"])  # order matters
     when = datetime(2026, 11, 23, 19, 1, 2, tzinfo=UTC)
     assert run_stem("method2", [], when) == "method2-base-20261123-190102"
+    assert run_stem("method2", [], when, "ur") == "method2-ur-base-20261123-190102"
 
 
 def test_reserve_never_hands_out_a_name_twice(tmp_path: Path) -> None:
@@ -61,8 +62,9 @@ def same_protocol_campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_three_runs_of_one_protocol_have_three_names(same_protocol_campaign: Path) -> None:
     recs = sorted(same_protocol_campaign.glob("*.mcap"))
     assert len(recs) == 3
-    ids = {p.stem.split("-")[1] for p in recs}
+    ids = {p.stem.split("-")[2] for p in recs}
     assert len(ids) == 3 and BASE_ID not in ids
+    assert all(p.stem.split("-")[1] == "mock" for p in recs)  # the robot that ran it
     for p in recs:
         meta = load(p).metadata["run"]
         assert p.stem.startswith("method2-") and meta["run_name"] == p.stem

@@ -125,6 +125,11 @@ def test_diff_cli_exit_codes_and_figure(run: Path, same: Path, changed: Path,
     assert bad.exit_code == 1, bad.output
     assert "first difference: /control/terms ri_1" in bad.stdout
     assert sorted(p.suffix for p in tmp_path.iterdir()) == [".png", ".svg"]
+    # no figure unless asked for one
+    before = sorted(changed.parent.iterdir())
+    quiet = runner.invoke(app, ["diff", str(run), str(changed)])
+    assert quiet.exit_code == 1 and "figure:" not in quiet.stdout
+    assert sorted(changed.parent.iterdir()) == before
     # one topic asked for, within a tolerance wider than the change
     wide = runner.invoke(app, ["diff", str(run), str(changed), "--topic", "/control/command",
                                "--atol", "1.0"])

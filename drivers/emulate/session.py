@@ -284,8 +284,13 @@ class EmulatedRig:
 
         self._thread = thread = threading.Thread(target=run, name="fri-emulator", daemon=True)
         thread.start()
+        # lockstep steps the world on answers: with no remote answering, no simulated time
+        # passes, so --duration also ends the wait for a first answer after as much wall time
+        alone_until = (time.monotonic() + self.settings.duration_s
+                       if self.settings.duration_s > 0 else None)
         while thread.is_alive():
-            if stop_requested():
+            if stop_requested() or (alone_until is not None and robot.stats.answered == 0
+                                    and time.monotonic() >= alone_until):
                 robot.stop()
             thread.join(_POLL_S)
         if self._failure is not None:
@@ -304,7 +309,9 @@ class EmulatedRig:
                 self._last_status = now
                 on_status(emu.status())
 
-        ur.run(max_cycles=self.settings.max_cycles, on_cycle=on_cycle)
+        # --duration also bounds the wall time without a client: then the world never steps
+        wall = self.settings.duration_s if self.settings.duration_s > 0 else None
+        ur.run(max_cycles=self.settings.max_cycles, on_cycle=on_cycle, max_wall_s=wall)
 
     def summary(self) -> str:
         """The KRC's counters in one line, with its last state and quality."""

@@ -101,13 +101,19 @@ class UrEmulator:
         self.server.close()
 
     def run(self, max_cycles: int | None = None,
-            on_cycle: Callable[[UrEmulator], None] | None = None) -> None:
+            on_cycle: Callable[[UrEmulator], None] | None = None,
+            max_wall_s: float | None = None) -> None:
         """Wait while the server's thread serves: until ``max_cycles`` world cycles,
-        :meth:`stop` or the server's error (re-raised here)."""
+        ``max_wall_s`` of wall time without any client's session (the world steps only
+        while a client streams: without one, no simulated time passes), :meth:`stop` or
+        the server's error (re-raised here)."""
+        end = None if max_wall_s is None else time.monotonic() + max_wall_s
         while not self._stop:
             if self.server.error is not None:
                 raise self.server.error
             if max_cycles is not None and self.steps >= max_cycles:
+                break
+            if end is not None and self.sessions == 0 and time.monotonic() >= end:
                 break
             if on_cycle is not None:
                 on_cycle(self)

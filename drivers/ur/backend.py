@@ -42,8 +42,11 @@ class UrWrenchFt(DeviceConfig):
 
 
 def _open_robot(cfg: UrSettings, ctx: OpenContext) -> OpenedRobot:
+    from drivers.net.udp import resolve_ipv4
     from drivers.ur.driver import UrRobot
 
+    # an address that cannot be reached is refused here, before anything is recorded
+    resolve_ipv4(f"{ctx.where('robot')}.robot_ip", cfg.robot_ip)
     robot = UrRobot(cfg, where=ctx.where("robot"))
     return OpenedRobot(
         robot, robot.now_ns, cfg.robot_ip,

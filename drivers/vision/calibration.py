@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 from drivers.base.types import F64
+from drivers.config import not_regular
 from drivers.errors import ConfigError
 
 __all__ = ["Calibration", "calibration_from_points", "load_calibration", "save_calibration"]
@@ -80,6 +81,9 @@ def from_extrinsics(camera_matrix: F64, rvec: F64, tvec: F64, plane_z_m: float) 
 def load_calibration(path: Path, where: str) -> Calibration:
     """Read a calibration file; errors name ``where`` (the rig field) and the file's field."""
     src = f"{where}: {path}"
+    odd = not_regular(path)
+    if odd:
+        raise ConfigError(src, "", f"is {odd}, not a regular TOML file")
     try:
         data = tomllib.loads(path.read_text())
     except OSError as exc:

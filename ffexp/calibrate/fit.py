@@ -29,22 +29,33 @@ is zero) is an unidentifiable set: :class:`~ffexp.errors.InputError`, unless
 kept (``keep_unidentified``), when it stays at its start value and is
 reported with its bounds as its interval.
 
-Intervals: ``s^2 (J^T J)^-1`` at the result (``s^2`` the residual variance,
-inflated by ``(1 + rho) / (1 - rho)`` for the residuals' lag-one correlation
-``rho``), 95 % (1.96 sigma), never narrower than the black-box optimiser's
-last step; for contact parameters they are local only.
+Windows: a smooth key is fitted to what comes before each recording's first
+contact when those data inform it (its 95 % half-width from them alone is
+within a tenth of its bounds); else, e.g. bed friction when the target rests
+until the arm pushes it, to the whole recordings, where the push and the
+glide after it inform it. Contact keys are fitted to the whole recordings.
+
+Intervals: ``s^2 (J^T J)^-1`` at the result, on the data each key was fitted
+to (``s^2`` the residuals' variance, misfit included, inflated by
+``(1 + rho) / (1 - rho)`` for their lag-one correlation ``rho``), 95 %
+(1.96 sigma), never narrower than the black-box optimiser's last step; for
+contact parameters they are local only, and never narrower than the
+finite-difference step on the key's data (contact events make the whole
+recordings' residuals rough below it). The fit is *not consistent with the
+data* when the Gauss-Newton step from the result towards the minimum of those
+data is longer than a key's interval: the data put the value elsewhere than
+the interval says.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from ffexp.calibrate.inputs import ReplayInput, override
+from ffexp.calibrate.linear import gauss_newton_step, half_widths
 from ffexp.calibrate.params import Param
 from ffexp.calibrate.pool import Rollouts
 from ffexp.calibrate.residuals import (
@@ -55,12 +66,18 @@ from ffexp.calibrate.residuals import (
     contact_onset_s,
 )
 from ffexp.calibrate.resim import Trace
+from ffexp.calibrate.result import Estimate, StageResult
 from ffexp.errors import InputError
 
 #: Most moves of the delay's profile (each refits the smooth stage at a neighbour).
 TIMING_ROUNDS = 4
 #: Forward-difference step in unit coordinates (bounds mapped to [0, 1]).
 FD_STEP = 1e-3
+#: ... on the whole recordings: contact events shift with a key, so the residuals are rough
+#: on a small scale; a step this long sees the trend rather than one break's jump.
+FD_STEP_CONTACT = 1e-2
+#: Whole recordings: the least squares starts from the best of this many points per key.
+SCAN_POINTS = 16
 #: Least squares: most residual evaluations of the smooth stage.
 LSQ_MAX_NFEV = 25
 #: CMA-ES: most generations; converged when its step is below this in unit coordinates.
@@ -74,67 +91,13 @@ IDENT_WIDTH = 0.1
 IDENT_CORR = 0.98
 #: A discrete delay is identified when every other value costs this many times more.
 DISCRETE_MARGIN = 1.5
+#: A smooth key is fitted before contact when those data alone give it a 95 % half-width
+#: within this fraction of its bounds (else on the whole recordings).
+FREE_WIDTH = IDENT_WIDTH
+
 
 Progress = Callable[[str, int, int | None, str], None]
 """``(stage, done, total or None, status)``."""
-
-
-@dataclass
-class Estimate:
-    """One fitted parameter."""
-
-    key: str
-    start: float
-    value: float
-    lo: float
-    hi: float
-    stage: str
-    method: str
-    ci_lo: float
-    ci_hi: float
-    identified: bool
-    note: str = ""
-
-
-@dataclass
-class StageResult:
-    name: str
-    method: str
-    keys: list[str]
-    converged: bool
-    evaluations: int
-    cost_before: float
-    cost_after: float
-    note: str = ""
-    kept: bool = True
-    """False for a profile's fit at a delay that lost (its convergence does not count)."""
-
-
-@dataclass
-class FitResult:
-    """Everything a calibration found (JSON data through :func:`result_dict`)."""
-
-    values: dict[str, float]
-    estimates: list[Estimate]
-    stages: list[StageResult]
-    converged: bool
-    ft_shift: int
-    condition: float
-    correlation: list[list[float]]
-    corr_keys: list[str]
-    start: dict[str, list[Comparison]] = field(default_factory=dict)
-    """``"fit"``/``"holdout"`` comparisons at the start values, per recording."""
-    final: dict[str, list[Comparison]] = field(default_factory=dict)
-    traces: dict[str, list[tuple[Trace, Trace]]] = field(default_factory=dict)
-    """Per set: (start trace, fitted trace) per recording, for figures and outcomes."""
-    rollouts: int = 0
-    elapsed_s: float = 0.0
-    start_shift: int = 0
-    """The F/T delay in samples at the start values."""
-    base_scene: dict[str, Any] = field(default_factory=dict)
-    """The start scene (JSON data), which the calibrated scene changes."""
-    inputs: dict[str, list[ReplayInput]] = field(default_factory=dict)
-    """``"fit"``/``"holdout"``: the recordings."""
 
 
 class Calibration:
@@ -165,6 +128,9 @@ class Calibration:
         self.best_traces: list[Trace] | None = None
         self.step_floor: dict[str, float] = {}
         """A black-box optimiser's last step per key: no interval is narrower."""
+        self.before_contact: dict[str, bool] = {}
+        """Per smooth key: fitted to the data before contact (else the whole recordings)."""
+        self.inconsistent: list[str] = []
 
     # -- helpers ---------------------------------------------------------------
     def shift_of(self, delay_s: float | None) -> int:
@@ -211,8 +177,9 @@ class Calibration:
         """Forward differences of the scaled residuals in unit coordinates."""
         u0 = np.array([p.to_unit(values[p.key]) for p in params])
         cands, steps = [], []
+        fd = FD_STEP if free else FD_STEP_CONTACT
         for i, p in enumerate(params):
-            h = FD_STEP if u0[i] + FD_STEP <= 1.0 else -FD_STEP
+            h = fd if u0[i] + fd <= 1.0 else -fd
             u = u0.copy()
             u[i] += h
             vals = dict(values)
@@ -223,6 +190,29 @@ class Calibration:
         cols = [(self.residual(tr, which, free=free) - r0) / h
                 for tr, h in zip(rows, steps, strict=True)]
         return np.column_stack(cols) if cols else np.zeros((len(r0), 0))
+
+    def jacobians(self, params: Sequence[Param], values: dict[str, float], by_window: bool = False,
+                  ) -> dict[bool, tuple[np.ndarray, np.ndarray]]:
+        """``{free: (J, r0)}`` before contact (``True``) and on the whole recordings
+        (``False``), from one set of rollouts; ``by_window``: each key's step is the one of
+        the data it is fitted to."""
+        base = self.traces([values])[0]
+        u0 = np.array([p.to_unit(values[p.key]) for p in params])
+        cands, steps = [], []
+        for i, p in enumerate(params):
+            fd = FD_STEP if not by_window or self.before_contact.get(p.key, False) \
+                else FD_STEP_CONTACT
+            h = fd if u0[i] + fd <= 1.0 else -fd
+            cands.append({**values, p.key: p.from_unit(float(u0[i] + h))})
+            steps.append(h)
+        rows = self.traces(cands)
+        out = {}
+        for free in (True, False):
+            r0 = self.residual(base, free=free)
+            cols = [(self.residual(tr, free=free) - r0) / h
+                    for tr, h in zip(rows, steps, strict=True)]
+            out[free] = (np.column_stack(cols) if cols else np.zeros((len(r0), 0)), r0)
+        return out
 
     # -- stages ----------------------------------------------------------------
     def run(self) -> None:
@@ -348,11 +338,17 @@ class Calibration:
 
     def _check_excited(self, params: list[Param]) -> None:
         self.progress("check", 0, (len(params) + 1) * len(self.inputs), "excitation")
-        r0 = self.residual(self.traces([self.values])[0])
-        jac = self.jacobian(params, self.values, r0)
+        jacs = self.jacobians(params, self.values)
+        jac = jacs[False][0]
         for p, col in zip(params, jac.T, strict=True):
             if not np.any(np.abs(col) > 1e-12):
                 self.unexcited.add(p.key)
+        # which data inform each smooth key: before contact if those alone pin it down
+        jf, rf = jacs[True]
+        for i, p in enumerate(params):
+            if p.stage == "smooth":
+                h = half_widths(jf[:, [i]], rf)[0][0] if rf.size else math.inf
+                self.before_contact[p.key] = bool(h <= FREE_WIDTH)
         if self.unexcited and not self.keep:
             names = ", ".join(sorted(self.unexcited))
             raise InputError(f"unidentifiable: no recording excites {names} (its replay does "
@@ -360,30 +356,61 @@ class Calibration:
                              "from --fit, or --keep-unidentified")
 
     def _smooth(self) -> float | None:
-        """The smooth stage; its final cost (``None``: nothing to fit)."""
-        from scipy.optimize import least_squares
-
+        """The smooth stage: the keys the data before contact inform, fitted to those data,
+        then the others to the whole recordings; its final cost (``None``: nothing to fit)."""
         ps = [p for p in self.params if p.stage == "smooth" and p.key not in self.unexcited]
         if not ps:
             return None
+        total = 0.0
+        for free in (True, False):
+            group = [p for p in ps if self.before_contact.get(p.key, True) == free]
+            if group:
+                total += self._least_squares(group, free)
+        return total
+
+    def _scan(self, ps: list[Param], free: bool, u0: np.ndarray,
+              cache: dict[bytes, np.ndarray]) -> np.ndarray:
+        """The best of ``u0`` and a space-filling sample of the bounds (Sobol', at least
+        :data:`SCAN_POINTS` per key), each replayed once, in parallel: over whole
+        recordings a key moves contact events, and the cost has local minima where a break
+        comes or goes, so a local method must start in the right basin."""
+        from scipy.stats import qmc
+
+        m = math.ceil(math.log2(SCAN_POINTS * len(ps)))
+        units = [u0, *qmc.Sobol(len(ps), scramble=False).random_base2(m)]
+        self.progress("scan", 0, len(units) * len(self.inputs), "sample of the bounds")
+        rows = self.traces([self._with(ps, u) for u in units])
+        best, best_c = u0, math.inf
+        for u, tr in zip(units, rows, strict=True):
+            r = self.residual(tr, free=free)
+            cache[np.asarray(u, dtype=float).tobytes()] = r
+            if float(r @ r) < best_c:
+                best, best_c = np.asarray(u, dtype=float), float(r @ r)
+        return best
+
+    def _least_squares(self, ps: list[Param], free: bool) -> float:
+        """Least squares of ``ps`` on the data before contact (``free``) or all of them."""
+        from scipy.optimize import least_squares
+
         cache: dict[bytes, np.ndarray] = {}
         evals = [0]
 
         def fun(u: np.ndarray) -> np.ndarray:
             key = u.tobytes()
             if key not in cache:
-                cache[key] = self.residual(self.traces([self._with(ps, u)])[0], free=True)
+                cache[key] = self.residual(self.traces([self._with(ps, u)])[0], free=free)
                 evals[0] += 1
                 cost = float(cache[key] @ cache[key])
                 self.progress("smooth", evals[0], LSQ_MAX_NFEV, f"cost {cost:.4g}")
             return cache[key]
 
         def jac(u: np.ndarray) -> np.ndarray:
-            return self.jacobian(ps, self._with(ps, u), fun(u), free=True)
+            return self.jacobian(ps, self._with(ps, u), fun(u), free=free)
 
         u0 = np.array([p.to_unit(self.values[p.key]) for p in ps])
         r0 = fun(u0)
-        res = least_squares(fun, u0, jac=jac, bounds=(0.0, 1.0), method="trf",
+        start = u0 if free else self._scan(ps, free, u0, cache)
+        res = least_squares(fun, start, jac=jac, bounds=(0.0, 1.0), method="trf",
                             x_scale="jac", max_nfev=LSQ_MAX_NFEV, xtol=1e-4, ftol=1e-4,
                             gtol=1e-10)
         for p, ui in zip(ps, res.x, strict=True):
@@ -391,7 +418,8 @@ class Calibration:
         ok = bool(res.status > 0)
         delay = self.values.get("fri.command_delay_cycles")
         self.stages.append(StageResult(
-            f"smooth, delay {'-' if delay is None else f'{delay:g}'}",
+            f"smooth{'' if free else ' (whole runs)'}, delay "
+            f"{'-' if delay is None else f'{delay:g}'}",
             "least squares (scipy trf, finite-difference Jacobian)",
             [p.key for p in ps], ok, evals[0], float(r0 @ r0), float(2 * res.cost),
             str(res.message)))
@@ -449,7 +477,9 @@ class Calibration:
 
     # -- result ----------------------------------------------------------------
     def intervals(self) -> tuple[list[Estimate], float, list[list[float]], list[str]]:
-        """Each parameter's value, 95 % interval and identifiability at the result."""
+        """Each parameter's value, 95 % interval and identifiability at the result, from the
+        data it was fitted to; :attr:`inconsistent` names the keys those data put outside their
+        interval."""
         cont = [p for p in self.params if p.stage in ("smooth", "contact")]
         fitted = [p for p in cont if p.key not in self.unexcited]
         est: list[Estimate] = []
@@ -458,37 +488,47 @@ class Calibration:
         maxcorr: dict[str, float] = {}
         if fitted:
             self.progress("intervals", 0, (len(fitted) + 1) * len(self.inputs), "")
-            r = self.residual(self.traces([self.values])[0])
-            jac = self.jacobian(fitted, self.values, r)
+            jacs = self.jacobians(fitted, self.values, by_window=True)
             scale = np.array([p.hi - p.lo for p in fitted])
-            jp = jac / scale  # physical units
-            dof = max(len(r) - len(fitted), 1)
-            # successive residuals are correlated: fewer independent values than residuals
-            rho = float(np.corrcoef(r[:-1], r[1:])[0, 1]) if len(r) > 3 else 0.0
-            rho = min(max(rho if math.isfinite(rho) else 0.0, 0.0), 0.999)
-            s2 = float(r @ r) / dof * (1 + rho) / (1 - rho)
+            jp = jacs[False][0] / scale  # physical units, whole recordings
             jtj = jp.T @ jp
             norms = np.sqrt(np.diag(jtj))
             safe = np.where(norms > 0, norms, 1.0)
-            normed = jtj / np.outer(safe, safe)
-            sv = np.linalg.svd(normed, compute_uv=False)
+            sv = np.linalg.svd(jtj / np.outer(safe, safe), compute_uv=False)
             cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
-            cov = s2 * np.linalg.pinv(jtj)
-            sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-            denom = np.where(sd > 0, sd, 1.0)
-            corr = cov / np.outer(denom, denom)
-            for i, p in enumerate(fitted):
-                half[p.key] = (max(1.96 * float(sd[i]), self.step_floor.get(p.key, 0.0))
-                               if norms[i] > 0 else math.inf)
-                others = [abs(corr[i, j]) for j in range(len(fitted)) if j != i]
-                maxcorr[p.key] = max(others, default=0.0)
+            corr = np.zeros((len(fitted), len(fitted)))
+            for free in (True, False):
+                idx = [i for i, p in enumerate(fitted)
+                       if self.before_contact.get(p.key, False) == free]
+                if not idx:
+                    continue
+                jw, rw = jacs[free][0][:, idx] / scale[idx], jacs[free][1]
+                hw, cov = half_widths(jw, rw)
+                step = gauss_newton_step(jw, rw)
+                sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+                denom = np.where(sd > 0, sd, 1.0)
+                sub = cov / np.outer(denom, denom)
+                for a, i in enumerate(idx):
+                    p = fitted[i]
+                    # never finer than the method resolves: its difference step or last step
+                    fd = (FD_STEP if free else FD_STEP_CONTACT) * (p.hi - p.lo)
+                    h = max(float(hw[a]), self.step_floor.get(p.key, 0.0), fd)
+                    half[p.key] = h
+                    corr[i, idx] = sub[a]
+                    maxcorr[p.key] = max((abs(sub[a, b]) for b in range(len(idx)) if b != a),
+                                         default=0.0)
+                    far = abs(float(step[a]))
+                    if math.isfinite(h) and far > h:
+                        self.inconsistent.append(
+                            f"{p.key}: the data put it {far:.3g} from {self.values[p.key]:.6g}, "
+                            f"beyond its 95 % half-width {h:.3g}")
         for p in self.params:
             v = self.values[p.key]
             method = {"timing": "exhaustive", "sensor": "exhaustive shift",
                       "smooth": "least squares", "contact": "CMA-ES"}[p.stage]
             if p.stage in ("timing", "sensor"):
                 margin = self.margin.get(p.key, math.inf)
-                ok = margin >= DISCRETE_MARGIN
+                ok = bool(margin >= DISCRETE_MARGIN)
                 est.append(Estimate(p.key, p.start, v, p.lo, p.hi, p.stage, method,
                                     v if ok else p.lo, v if ok else p.hi, ok,
                                     self.notes.get(p.key, "")
@@ -501,26 +541,10 @@ class Calibration:
                 continue
             h = half[p.key]
             lo, hi = max(p.lo, v - h), min(p.hi, v + h)
-            ok = h <= IDENT_WIDTH * (p.hi - p.lo) and maxcorr[p.key] < IDENT_CORR
+            ok = bool(h <= IDENT_WIDTH * (p.hi - p.lo) and maxcorr[p.key] < IDENT_CORR)
             note = "" if ok else (f"weakly identified: 95 % half-width {h:.3g}, "
                                   f"largest correlation {maxcorr[p.key]:.3f}")
             est.append(Estimate(p.key, p.start, v, p.lo, p.hi, p.stage, method, lo, hi, ok,
                                 note))
         return est, cond, corr.tolist(), [p.key for p in fitted]
 
-
-def result_dict(res: FitResult) -> dict[str, Any]:
-    """The JSON form of a result (without traces)."""
-    def comps(cs: list[Comparison]) -> list[dict[str, Any]]:
-        return [{"rms": c.rms, "bias": c.bias.tolist(), "noise_floor_n": c.noise_floor_n,
-                 "cost": c.cost} for c in cs]
-
-    return {
-        "values": res.values, "converged": res.converged, "ft_shift_samples": res.ft_shift,
-        "condition": res.condition, "correlation": res.correlation,
-        "correlation_keys": res.corr_keys,
-        "estimates": [vars(e) for e in res.estimates], "stages": [vars(s) for s in res.stages],
-        "start": {k: comps(v) for k, v in res.start.items()},
-        "final": {k: comps(v) for k, v in res.final.items()},
-        "rollouts": res.rollouts, "elapsed_s": res.elapsed_s, "start_shift": res.start_shift,
-    }

@@ -21,14 +21,33 @@ from typing import Any
 
 import numpy as np
 
-from ffexp.calibrate.fit import FitResult, result_dict
 from ffexp.calibrate.inputs import ReplayInput
-from ffexp.calibrate.residuals import SIGNALS, UNITS, ft_on_recorded, outcomes
+from ffexp.calibrate.residuals import SIGNALS, UNITS, Comparison, ft_on_recorded, outcomes
 from ffexp.calibrate.resim import Trace
+from ffexp.calibrate.result import FitResult
 
 
 def _g(v: float) -> str:
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.4g}"
+
+
+def result_dict(res: FitResult) -> dict[str, Any]:
+    """The JSON form of a result (without traces)."""
+    def comps(cs: list[Comparison]) -> list[dict[str, Any]]:
+        return [{"rms": c.rms, "bias": c.bias.tolist(), "noise_floor_n": c.noise_floor_n,
+                 "cost": c.cost} for c in cs]
+
+    return {
+        "values": res.values, "converged": res.converged, "ft_shift_samples": res.ft_shift,
+        "condition": res.condition, "correlation": res.correlation,
+        "correlation_keys": res.corr_keys,
+        "estimates": [vars(e) for e in res.estimates], "stages": [vars(s) for s in res.stages],
+        "start": {k: comps(v) for k, v in res.start.items()},
+        "final": {k: comps(v) for k, v in res.final.items()},
+        "rollouts": res.rollouts, "elapsed_s": res.elapsed_s, "start_shift": res.start_shift,
+        "consistent": res.consistent, "inconsistent": res.inconsistent,
+        "warnings": res.warnings,
+    }
 
 
 def parameter_rows(res: FitResult) -> list[dict[str, Any]]:
@@ -96,7 +115,13 @@ def _figure(inp: ReplayInput, start: Trace, final: Trace, shift0: int, shift: in
 def _cell(value: Any) -> str:
     """A table cell for the reader: numbers to 6 significant digits (the CSV and JSON
     beside the page keep every digit)."""
-    return f"{value:.6g}" if isinstance(value, float) else str(value)
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, (list, tuple)):
+        return ", ".join(_cell(v) for v in value)
+    return str(value)
 
 
 def _table(rows: Sequence[dict[str, Any]]) -> str:
@@ -106,13 +131,13 @@ def _table(rows: Sequence[dict[str, Any]]) -> str:
     head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(_cell(r[c]))}</td>" for c in cols)
                    + "</tr>" for r in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+    return f"<div class='scroll'><table><tr>{head}</tr>{body}</table></div>"
 
 
 _CSS = ("body{font-family:sans-serif;margin:1.5em;max-width:1200px}"
         "table{border-collapse:collapse;font-size:13px;margin:0.5em 0}"
         "td,th{border:1px solid #bbb;padding:3px 6px;text-align:left}th{background:#eee}"
-        "pre{white-space:pre-wrap;overflow-wrap:anywhere}"
+        "pre{white-space:pre-wrap;overflow-wrap:anywhere}.scroll{overflow-x:auto;max-width:100%}"
         ".warn{color:#a00}img{max-width:100%}")
 
 
@@ -158,6 +183,10 @@ def write_report(directory: Path, res: FitResult, inputs: dict[str, list[ReplayI
             for k, row in zip(res.corr_keys, res.correlation, strict=True)]
     parts.append(_table(corr))
     parts.append("<h2>Stages</h2>" + _table([vars(s) for s in res.stages]))
+    if res.warnings or not res.consistent:
+        lines = [*(f"not consistent with the data: {x}" for x in res.inconsistent),
+                 *(f"warning: {w}" for w in res.warnings)]
+        parts.append("".join(f"<p class='warn'>{html.escape(x)}</p>" for x in lines))
     units = ", ".join(f"{s} [{UNITS[s]}]" for s in SIGNALS)
     parts.append(f"<h2>Residuals and validation</h2><p>RMS of recorded minus simulated, at "
                  f"the start values -> at the result: {html.escape(units)}; held-out "

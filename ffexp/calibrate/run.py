@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from ffexp.calibrate.fit import Calibration, FitResult, Progress
+from ffexp.calibrate.fit import Calibration, Progress
 from ffexp.calibrate.inputs import ReplayInput, read_input
 from ffexp.calibrate.params import FITTABLE, Param, parse_fit
 from ffexp.calibrate.pool import Rollouts
 from ffexp.calibrate.residuals import compare
 from ffexp.calibrate.resim import base_scene
+from ffexp.calibrate.result import FitResult
 from ffexp.errors import ConfigError, InputError
 
 
@@ -25,6 +27,26 @@ def load_inputs(paths: Sequence[Path], scene: dict[str, object],
             raise ConfigError(where, str(p), "the same recording is given twice")
         seen.add(p.resolve())
         out.append(read_input(p, scene, tuple(FITTABLE)))
+    return out
+
+
+#: A recording's F/T residual above this many times its noise floor gets a warning line.
+MISFIT_RATIO = 2.0
+
+
+def misfit_warnings(res: FitResult) -> list[str]:
+    """One line per recording (fitted or held out) whose F/T RMS at the result exceeds
+    :data:`MISFIT_RATIO` times its sensor's noise floor: the model does not explain it."""
+    out = []
+    for name, comps in res.final.items():
+        for inp, c in zip(res.inputs.get(name, []), comps, strict=True):
+            if not (math.isfinite(c.noise_floor_n) and c.noise_floor_n > 0):
+                continue
+            ratio = c.rms["force"] / c.noise_floor_n
+            if not ratio <= MISFIT_RATIO:
+                out.append(f"{inp.name} ({name}): F/T residual {c.rms['force']:.3g} N is "
+                           f"{ratio:.3g}x its noise floor {c.noise_floor_n:.3g} N "
+                           f"(more than {MISFIT_RATIO:g}x)")
     return out
 
 
@@ -91,5 +113,8 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
                                for i in range(lo, hi)]
             res.traces[name] = [(start_rows[i], final_rows[i]) for i in range(lo, hi)]
         res.rollouts = pool.count
+        res.inconsistent = list(cal.inconsistent)
+        res.consistent = not res.inconsistent
+        res.warnings = misfit_warnings(res)
     res.elapsed_s = time.monotonic() - t0
     return res, params

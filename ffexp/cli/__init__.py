@@ -28,6 +28,7 @@ except ImportError:  # pragma: no cover - a typer on the installed click
 
 from ffexp import __version__
 from ffexp.cli import calibrate as calibrate_cli
+from ffexp.cli import check as check_cli
 from ffexp.cli import data, emulate, friction, records, report, schema, simulate, sweeps, tracker
 from ffexp.cli import run as run_cli
 from ffexp.cli._common import CONTEXT_SETTINGS, EXIT_BAD_INPUT
@@ -84,6 +85,7 @@ app.add_typer(simulate.app, name="simulate")
 app.add_typer(friction.app, name="friction")
 app.command("run")(run_cli.run)
 app.command("campaign")(run_cli.campaign)
+app.command("check")(check_cli.check)
 app.command("analyze")(records.analyze)
 app.command("compare")(records.compare)
 app.command("recover")(records.recover_cmd)

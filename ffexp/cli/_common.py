@@ -13,14 +13,14 @@ import math
 import os
 import signal
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from types import FrameType
 from typing import ParamSpec, TypeVar
 
 import typer
 
-from ffexp.errors import FfexpError
+from ffexp.errors import ConfigError, FfexpError
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -39,8 +39,29 @@ EXIT_TIMED_OUT = 4
 EXIT_SIGNAL_BASE = 128
 """128 + N after signal N: 130 Ctrl-C (SIGINT), 143 SIGTERM."""
 
-#: ``--set dotted.key=value``, repeatable, on every command that takes a protocol.
-SET_HELP = "Override a protocol field, e.g. --set sweep.values=[1,2] (repeatable)."
+#: ``--set dotted.key=value``, repeatable, on every command that takes a run protocol.
+SET_HELP = ("Override a protocol field, e.g. --set run.timeout_s=10; a scene key as "
+            "--set scene.target.lateral=0.012 (repeatable).")
+#: ``--scene-set key=value``: a scene key, on every command that runs a simulation.
+SCENE_SET_HELP = ("Override a scene key, e.g. --scene-set target.mu=0.006 (repeatable; the "
+                  "same as --set scene.target.mu=0.006).")
+
+
+def with_scene_sets(sets: Sequence[str], scene_sets: Sequence[str]) -> list[str]:
+    """``--set`` overrides with each ``--scene-set KEY=VALUE`` as ``scene.KEY=VALUE``;
+    a malformed one is a :class:`~ffexp.errors.ConfigError` naming ``--scene-set``."""
+    out = list(sets)
+    for text in scene_sets:
+        key, sep, _value = text.partition("=")
+        parts = key.strip().split(".")
+        if not sep or not all(parts):
+            raise ConfigError("--scene-set", text, "expected scene.key=value, e.g. "
+                              "target.mu=0.006")
+        if parts[0] == "scene" or (len(parts) == 1 and parts[0] in ("file", "set")):
+            raise ConfigError("--scene-set", text, "a key of the scene file itself (e.g. "
+                              "target.mu=0.006), without scene.")
+        out.append(f"scene.{text.strip()}")
+    return out
 #: Environment variable that makes an unexpected error print its traceback.
 TRACEBACK_ENV = "FFEXP_TRACEBACK"
 

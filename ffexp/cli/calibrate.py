@@ -17,6 +17,10 @@ import typer
 from ffexp.cli._common import EXIT_FAILURE, cli_errors, fail
 from ffexp.cli.progress import Steps
 
+#: Columns of the terminal's tables that give way first when it is narrow (the report, the
+#: CSV and the JSON have them all).
+_PRIORITY = {"note": 6, "method": 5, "bounds": 4, "stage": 3, "start": 2, "yaw": 6,
+             "target": 5, "torque": 4, "joints": 3, "tcp": 2, "set": 2, "agree": 1}
 SCENE_HELP = "The scene the simulator starts from (default: data/scenes/paper.toml)."
 DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "data" / "scenes" / "paper.toml"
 
@@ -34,11 +38,14 @@ def resimulate(
     """Replay a recording's applied commands, open loop, into the simulated rig from the
     recorded start; write what the simulator measured on the same topics and times.
 
-    `ffexp diff RUN.mcap SIM.mcap --atol 0.1` then shows where they part. Exit 0, or 2 on
-    bad input (nothing written).
+    `ffexp diff RUN.mcap SIM.mcap --atol 0.1` then shows where they part. Never overwrites
+    --out. Exit 0, or 2 on bad input (nothing written).
     """
     from ffexp.calibrate.simfile import resimulate as run
+    from ffexp.errors import ConfigError
 
+    if out.exists() and out.resolve() != recording.resolve():  # itself: said more precisely
+        raise ConfigError("--out", str(out), "exists; a recording is never overwritten")
     with Steps() as steps, steps.step(f"replaying {recording.name} into the simulator"):
         r = run(recording, out, scene, scene_set)
     c = r.comparison
@@ -72,6 +79,11 @@ def calibrate(
                                            "parameter no recording excites at its start "
                                            "value (reported as not identified) instead of "
                                            "stopping."),
+    wide: bool = typer.Option(False, "--wide", help="Show every table column (default: as "
+                              "many as fit the terminal)."),
+    force: bool = typer.Option(False, "--force", help="Write the scene even when the fit is "
+                               "not consistent with the data (the data put a value outside "
+                               "its interval)."),
 ) -> None:
     """Fit scene keys to recordings by replaying them into the simulator, in stages:
     the loop's delay (every whole cycle), the smooth parameters (least squares), the
@@ -79,7 +91,8 @@ def calibrate(
     interval and whether the data identify it, residuals per signal, held-out
     validation, figures and an HTML page; writes the scene with its provenance.
 
-    Exit 0, 1 when the fit did not converge (no scene written), 2 on bad input.
+    Exit 0, 1 when the fit did not converge or is not consistent with the data (no scene
+    written; --force writes one that is not consistent), 2 on bad input.
     """
     from ffexp.calibrate.report import parameter_rows, residual_rows, write_report
     from ffexp.calibrate.run import calibrate as run
@@ -103,13 +116,15 @@ def calibrate(
     with _Bars() as bars:
         res, params = run(recordings, fit, scene, holdout=holdout, scene_overrides=scene_set,
                           jobs=jobs, progress=bars.update, keep_unidentified=keep_unidentified)
-    con = console(wide=True)
+    con = console(wide=wide)  # the terminal's width (80 when piped); the report has all
     rows = parameter_rows(res)
-    cols = [Column(k, k) for k in rows[0]]
+    cols = [Column(k, k, _PRIORITY.get(k, 0), left=k in ("key", "note"))
+            for k in rows[0]]
     con.print(fitted_table(con, "calibrated parameters", cols, rows))
     rrows = residual_rows(res, res.inputs)
     con.print(fitted_table(con, "residuals (rms, start -> result) and validation",
-                           [Column(k, k) for k in rrows[0]], rrows))
+                           [Column(k, k, _PRIORITY.get(k, 0), left=k == "recording")
+                            for k in rrows[0]], rrows))
     header = [
         "Calibrated by `ffexp calibrate` (docs/calibrate.md)",
         f"source revision: {source_revision()}",
@@ -117,14 +132,19 @@ def calibrate(
         "fitted to: " + ", ".join(str(p) for p in recordings),
         *(["held out: " + ", ".join(str(p) for p in holdout)] if holdout else []),
         f"{res.rollouts} rollouts in {res.elapsed_s:.1f} s; converged: "
-        f"{'yes' if res.converged else 'no'}",
+        f"{'yes' if res.converged else 'no'}; consistent with the data: "
+        f"{'yes' if res.consistent else 'NO (' + '; '.join(res.inconsistent) + ')'}",
+        *(f"warning: {w}" for w in res.warnings),
         *(f"{e.key} = {e.value:.6g}, 95 % [{e.ci_lo:.6g}, {e.ci_hi:.6g}], "
           f"{'identified' if e.identified else 'NOT identified'} ({e.stage}: {e.method})"
           for e in res.estimates),
         *(f"residual rms {r['recording']} ({r['set']}): force {r['force']} N, tcp {r['tcp']} m"
           for r in rrows),
     ]
-    written = write_report(report_dir, res, res.inputs, header, out if res.converged else None)
+    for w in res.warnings:
+        typer.echo(f"warning: {w}", err=True)
+    writes = res.converged and (res.consistent or force)
+    written = write_report(report_dir, res, res.inputs, header, out if writes else None)
     for path in written:
         if path.suffix == ".html":
             typer.echo(f"report: {path}")
@@ -132,6 +152,9 @@ def calibrate(
         bad = [s.name for s in res.stages if s.kept and not s.converged]
         raise fail(f"the fit did not converge ({', '.join(bad)}); no scene written "
                    f"(report: {report_dir})", EXIT_FAILURE)
+    if not res.consistent and not force:
+        raise fail(f"the fit is not consistent with the data ({'; '.join(res.inconsistent)}); "
+                   f"no scene written (--force writes it; report: {report_dir})", EXIT_FAILURE)
     data = copy.deepcopy(res.base_scene)
     notes = {}
     by = {p.key: p for p in params}

@@ -77,12 +77,13 @@ def diff(
     rtol: float = typer.Option(1e-9, "--rtol", help=f"Relative tolerance ({TOL_HELP})."),
     atol: float = typer.Option(1e-9, "--atol", help=f"Absolute tolerance ({TOL_HELP})."),
     plots: Path | None = typer.Option(
-        None, "--plots", help="Directory for the figure of the differing fields "
-        "(default: beside B, only when they differ)."
+        None, "--plots", help="Write a figure of the differing fields into this directory "
+        "(when they differ; none without --plots)."
     ),
 ) -> None:
     """Per topic and field: the largest difference and where it first exceeds the
-    tolerance, aligned by run time from each run's start; a figure of what differs.
+    tolerance, aligned by run time from each run's start; with --plots, a figure of what
+    differs.
 
     Columns: max |A-B| and its run time, "from": where it first exceeds the
     tolerance, "beyond": messages beyond it, "paired": A's messages compared.
@@ -114,7 +115,8 @@ def diff(
         return
     if first is not None:
         typer.echo(f"first difference: {first.topic} {first.column} at {first.first_s:.3f} s")
-    written = figure(result, ra, rb, plots or b.parent, f"diff-{a.stem}-vs-{b.stem}")
+    written = [] if plots is None else figure(result, ra, rb, plots,
+                                              f"diff-{a.stem}-vs-{b.stem}")
     for path in written:
         typer.echo(f"figure: {path}")
     raise typer.Exit(EXIT_FAILURE)

@@ -74,12 +74,16 @@ def emulate(
     seed: int | None = typer.Option(
         None, "--seed", help="World seed (use the protocol's seed to reproduce a run)."
     ),
-    set_: list[str] = typer.Option([], "--set", help="Override a scene field (repeatable)."),
+    set_: list[str] = typer.Option([], "--set", help="Override a scene field, e.g. --set "
+                                   "target.mu=0.006 (repeatable; the same as --scene-set)."),
+    scene_set: list[str] = typer.Option([], "--scene-set", help="Override a scene key, e.g. "
+                                        "--scene-set target.mu=0.006 (repeatable)."),
     timeout_ms: float = typer.Option(
         1000.0, "--timeout-ms", help="Lockstep: wait this long for a command before a miss."
     ),
     duration: float = typer.Option(
-        0.0, "--duration", help="Stop after this much simulated time (s) (0: until Ctrl-C)."
+        0.0, "--duration", help="Stop after this much simulated time (s), or as much wall "
+        "time for a robot no client drives (0: until Ctrl-C)."
     ),
     rt: bool = typer.Option(
         False, "--rt", help="Real-time: SCHED_FIFO where the OS allows it (said when not), "
@@ -122,6 +126,12 @@ def emulate(
     entry = ROBOTS[robot]
     if remote is None and entry.link == "fri":
         raise ConfigError("--remote", "", "the remote driver's IP:PORT is required")
+    if remote is not None and entry.link != "fri":
+        raise ConfigError("--remote", remote, f"the {robot} emulator sends to no remote "
+                          "driver: its client connects to it (--listen)")
+    if listen is not None and entry.listen is None:
+        raise ConfigError("--listen", listen, f"the {robot} emulator listens nowhere: it "
+                          "sends to its remote driver (--remote)")
     remote_addr = None if remote is None else parse_host_port("--remote", remote)
     faults = FaultSettings(
         loss=_pct("--loss", loss),
@@ -133,7 +143,7 @@ def emulate(
         seed=0 if seed is None else seed,
     )
     # the default scene is the paper's rig with the robot's arm; FRI's cycle is friOpen's
-    overrides = [*(entry.scene_overrides() if scene is None else ()), *set_]
+    overrides = [*(entry.scene_overrides() if scene is None else ()), *set_, *scene_set]
     if entry.takes_cycle:
         overrides.append(f"fri.cycle={cycle_ms / 1000.0}")
     if scene is None:

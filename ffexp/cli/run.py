@@ -17,15 +17,17 @@ from ffexp.cli._common import (
     EXIT_ABORTED,
     EXIT_OK,
     EXIT_TIMED_OUT,
+    SCENE_SET_HELP,
     SET_HELP,
     StopFlag,
     check_cpus,
     cli_errors,
     stop_signals,
+    with_scene_sets,
 )
 from ffexp.cli.live import live_view, serve_after_run
 from ffexp.cli.progress import Steps
-from ffexp.rig_choice import DEFAULT_DRIVER, DRIVERS, FT_SOURCES, TRACKERS, RigChoice
+from ffexp.rig_choice import DRIVERS, FT_SOURCES, TRACKERS, RigChoice
 
 if TYPE_CHECKING:
     from ffexp.campaign import CampaignEntry
@@ -36,7 +38,8 @@ if TYPE_CHECKING:
 
 RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardware number."
 RIG_SET_HELP = "Override a rig field, e.g. --rig-set robot.port=49939 (repeatable)."
-DRIVER_HELP = f"Without --rig: the built-in rig of {', '.join(DRIVERS)}."
+DRIVER_HELP = (f"Without --rig: the built-in rig of {', '.join(DRIVERS)} (default: sim; "
+               "not with --rig).")
 WIDE_HELP = "Show every table column (default: as many as fit the terminal)."
 TRACKER_HELP = ("Rig tracker.type: the target tracker that judges alignment "
                 f"({', '.join(TRACKERS)}).")
@@ -94,11 +97,18 @@ def _one(
 
 
 def rig_choice(
-    rig: Path | None, driver: str, rig_set: list[str], robot_ip: str = "",
+    rig: Path | None, driver: str | None, rig_set: list[str], robot_ip: str = "",
     fri_port: int | None = None, ft: str = "", netft: str = "", tracker: str = "",
     camera: str = "",
 ) -> RigChoice:
-    """The rig of a command line: the device flags become overrides of rig fields."""
+    """The rig of a command line: the device flags become overrides of rig fields;
+    ``--rig`` with ``--driver`` is a :class:`~ffexp.errors.ConfigError` (one names the
+    devices)."""
+    if rig is not None and driver is not None:
+        from ffexp.errors import ConfigError
+
+        raise ConfigError("--driver", driver, f"--rig {rig} already names the devices; give "
+                          "--rig or --driver, not both")
     overrides = list(rig_set)
     if tracker:
         overrides.append(f"tracker.type={tracker!r}")
@@ -110,14 +120,15 @@ def rig_choice(
         overrides.append(f"robot.robot_ip={robot_ip!r}")
     if fri_port is not None:
         overrides.append(f"robot.port={fri_port}")
-    if ft:
-        overrides.append(f"ft.type={ft!r}")
+    if ft:  # another sensor: the table's other keys were the previous sensor's settings
+        overrides.append(f"ft={{type = {ft!r}}}")
     if netft:
         host, _, port = netft.rpartition(":") if ":" in netft else (netft, "", "")
         overrides.append(f"ft.host={host!r}")
         if port:
             overrides.append(f"ft.port={port}")
-    return RigChoice(path=rig, overrides=tuple(overrides), driver=None if rig else driver)
+    return RigChoice(path=rig, overrides=tuple(overrides),
+                     driver=None if rig else (driver or "sim"))
 
 
 def _check_out(out: Path) -> None:
@@ -131,8 +142,9 @@ def _check_out(out: Path) -> None:
 def run(
     protocol: Path = typer.Argument(..., help="Run protocol TOML (protocols/method*.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
-    driver: str = typer.Option(DEFAULT_DRIVER, "--driver", help=DRIVER_HELP),
+    driver: str | None = typer.Option(None, "--driver", help=DRIVER_HELP, show_default=False),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP),
+    scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(Path("runs"), "--out", help="Directory for the MCAP recording."),
     fri_port: int | None = typer.Option(
@@ -155,6 +167,7 @@ def run(
     Exit code: 0 aligned, 4 timed out without aligning, 3 aborted, 2 bad input,
     1 a device or simulation failure, 128+N on signal N.
     """
+    set_ = with_scene_sets(set_, scene_set)
     _check_out(out)
     check_cpus("--cpu", cpu)
     choice = rig_choice(rig, driver, rig_set, robot_ip, fri_port, ft, netft, tracker, camera)
@@ -213,8 +226,11 @@ def _print_runs(recs: Sequence[Recording], wide: bool) -> None:
 def campaign(
     campaign_file: Path = typer.Argument(..., help="Campaign TOML (protocols/paper.toml)."),
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
-    driver: str = typer.Option(DEFAULT_DRIVER, "--driver", help=DRIVER_HELP),
-    set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol."),
+    driver: str | None = typer.Option(None, "--driver", help=DRIVER_HELP, show_default=False),
+    set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol, e.g. "
+                                   "--set run.timeout_s=10 (repeatable)."),
+    scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP
+                                        + " In every run."),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),
     out: Path = typer.Option(
         Path("runs"), "--out",
@@ -224,14 +240,19 @@ def campaign(
     draw: bool = typer.Option(
         True, "--figures/--no-figures", help="Draw the figures (PNG and SVG) at the end."
     ),
+    resume: Path | None = typer.Option(
+        None, "--resume", help="Continue the campaign in this directory (stopped by Ctrl-C): "
+        "its finished runs are kept, only the missing ones run."),
 ) -> None:
     """Run several protocols and compare them with the paper's Table (res_par).
 
     Everything goes into one campaign directory OUT/<campaign>-<time>/: the
     recordings, the figures (PNG and SVG) and campaign.json, which
-    `ffexp report` reads. Exit code: 0 when every run ran to its end (aligned
-    or not), 2 bad input, 128+N on signal N.
+    `ffexp report` reads. After Ctrl-C, --resume DIR runs only what is missing.
+    Exit code: 0 when every run ran to its end (aligned or not), 2 bad input, 128+N on
+    signal N.
     """
+    set_ = with_scene_sets(set_, scene_set)
     with Steps() as early, early.step("starting"):  # the imports take a second or two
         from ffexp.campaign import check_campaign, run_campaign
     _check_out(out)
@@ -249,9 +270,9 @@ def campaign(
                 return result
 
             done = run_campaign(campaign_file, set_, rig=choice, out_parent=out, run_one=one,
-                                stop_requested=flag, checked=checked)
+                                stop_requested=flag, checked=checked, resume=resume)
         with steps.step("loading the recordings", total=len(done.results)) as advance:
-            recs = []
+            recs = [_load(p) for p in done.kept]
             for r in done.results:
                 if _measured(r):
                     recs.append(_load(r.path))

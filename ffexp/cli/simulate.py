@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from ffexp.cli._common import CONTEXT_SETTINGS, SET_HELP, cli_errors
+from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors
 
 if TYPE_CHECKING:
     from ffexp.contact1dof import ContactParams, Summary
@@ -100,7 +100,8 @@ def _print_summary(s: Summary, params: ContactParams) -> None:
 def sweep(
     protocol: Path = typer.Argument(..., help="Sweep protocol TOML (protocols/sec3_*.toml)."),
     out: Path = typer.Option(Path("runs"), "--out", help="Output directory."),
-    set_: list[str] = typer.Option([], "--set", help=SET_HELP),
+    set_: list[str] = typer.Option([], "--set", help="Override a field of the sweep protocol, "
+                                   "e.g. --set sweep.values=[1,2] (repeatable)."),
 ) -> None:
     """Run a Section III sweep and write its F_c(t) figure (PNG, SVG) and CSVs.
 

@@ -15,7 +15,15 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from ffexp.cli._common import SET_HELP, StopFlag, cli_errors, count, stop_signals
+from ffexp.cli._common import (
+    SCENE_SET_HELP,
+    SET_HELP,
+    StopFlag,
+    cli_errors,
+    count,
+    stop_signals,
+    with_scene_sets,
+)
 
 if TYPE_CHECKING:
     from ffexp.sweeps.engine import Runner
@@ -125,6 +133,7 @@ def sweep(
     sample_seed: int = typer.Option(0, "--sample-seed", help="Seed of the Latin hypercube."),
     seeds: int = typer.Option(1, "--seeds", help=SEEDS_HELP),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
+    scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>."),
@@ -141,6 +150,7 @@ def sweep(
     every run has its row (failed runs included), 2 bad input (before any run),
     128+N on signal N.
     """
+    set_ = with_scene_sets(set_, scene_set)
     from ffexp.cli.tables import json_line
     from ffexp.sweeps.executors import parse_executor
     from ffexp.sweeps.grid import execute, prepare
@@ -188,6 +198,7 @@ def limits(
         None, "--max-breaks", help="A run aligns only with at most this many contact breaks "
         "(the paper's upper limit: contact breaks above it). Default: any."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
+    scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>-limits."),
@@ -206,6 +217,7 @@ def limits(
     Runs are cached by id in OUT: the same call twice gives the same answer.
     Exit code: 0 done, 2 bad input (before any run), 128+N on signal N.
     """
+    set_ = with_scene_sets(set_, scene_set)
     import json
 
     from ffexp.cli.tables import json_line
@@ -225,6 +237,9 @@ def limits(
     if len(key) != len(range_):
         raise ConfigError("--range", " ".join(range_), "give one --range LO:HI per --key")
     keys = [parse_key(k, "--key") for k in key]
+    if len({k.text for k in keys}) < len(keys):
+        raise ConfigError("--key", " ".join(key), "the same key twice: a plane needs two "
+                          "different keys")
     spans = []
     for text in range_:
         _k, lo, hi = parse_range(text, "--range")
@@ -292,6 +307,7 @@ def reproduce(
         help="The study: paper runs, uncertain scene keys (ranges + sample, or a grid), seeds, "
         "limit searches."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " In every paper run."),
+    scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<config name>."),
@@ -306,6 +322,7 @@ def reproduce(
     cached by id in OUT (run it again: nothing is run twice). Exit code: 0 done,
     2 bad input (before any run), 128+N on signal N.
     """
+    set_ = with_scene_sets(set_, scene_set)
     from ffexp.cli.tables import json_line
     from ffexp.sweeps import reproduce as study_mod
     from ffexp.sweeps.executors import parse_executor

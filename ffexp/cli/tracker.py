@@ -28,8 +28,12 @@ def _points(path: Path) -> tuple[Any, Any]:
 
     import numpy as np
 
+    from drivers.config import not_regular
     from ffexp.errors import InputError
 
+    odd = not_regular(path)
+    if odd:
+        raise InputError(f"{path}: is {odd}, not a regular CSV file")
     try:
         text = path.read_text()
     except OSError as exc:

@@ -64,6 +64,11 @@ def load_table_points(path: Path) -> tuple[F64, F64]:
     Raises:
         InputError: missing, unreadable or malformed file (naming it).
     """
+    from drivers.config import not_regular
+
+    odd = not_regular(path)
+    if odd:
+        raise InputError(f"{path}: is {odd}, not a regular JSON file")
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
         img = np.asarray(doc["image_px"], np.float64)

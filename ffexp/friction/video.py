@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from drivers.config import not_regular
 from ffexp.errors import InputError
 
 GreyF = npt.NDArray[np.float32]
@@ -52,6 +53,9 @@ class VideoFrames:
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        odd = not_regular(path)
+        if odd:
+            raise InputError(f"{path}: is {odd}, not a regular video file")
         if not path.is_file():
             raise InputError(f"{path}: no such file")
         with quiet_opencv():

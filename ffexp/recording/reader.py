@@ -29,6 +29,7 @@ from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 from zstandard import ZstdError
 
+from drivers.config import not_regular
 from ffexp.errors import InputError
 from ffexp.recording.schema import FieldSpec, MessageSpec
 from ffexp.recording.topics import CDR_TOPICS
@@ -146,6 +147,9 @@ def check_file(path: Path) -> None:
 
 
 def _check_magic(path: Path) -> None:
+    odd = not_regular(path)
+    if odd:
+        raise InputError(f"{path}: is {odd}, not a regular MCAP file")
     try:
         with path.open("rb") as fh:
             head = fh.read(len(MAGIC))

@@ -297,11 +297,20 @@ def render(data: ReportInput, out_dir: Path | None = None) -> str:
                      f"(overrides {html.escape(overrides)})</h3>")
         if text is not None:
             parts.append(f"<pre>{html.escape(text.decode(errors='replace'))}</pre>")
-        resolved = json.dumps(info.get("protocol_resolved", {}), indent=1)
+        resolved = _dotted_lines(info.get("protocol_resolved", {}))
         parts.append(f"<details><summary>resolved protocol</summary><pre>"
                      f"{html.escape(resolved)}</pre></details>")
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def _dotted_lines(data: Any, prefix: str = "") -> str:
+    """A resolved protocol as ``dotted.key = value`` lines, a list on one line (what
+    ``--set`` takes), not JSON's one number a line."""
+    if isinstance(data, dict):
+        return "\n".join(line for k, v in data.items()
+                         if (line := _dotted_lines(v, f"{prefix}{k}.")))
+    return f"{prefix[:-1]} = {json.dumps(data)}"
 
 
 def write_report(directory: Path, out: Path | None = None) -> Path:

@@ -18,7 +18,8 @@ _MARKS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("sweep protocol", ("sweep", "model")),
     ("run protocol", ("align", "approach", "alignment", "estimation", "krc", "limits", "task")),
     ("rig", ("robot", "ft", "tracker")),
-    ("scene", ("physics", "arm", "target", "contact", "ft_sensor", "tool", "fri")),
+    ("scene", ("physics", "arm", "target", "contact", "ft_sensor", "tool", "base",
+               "objects")),
 )
 #: How each kind is used on the command line.
 USE = {

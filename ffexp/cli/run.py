@@ -27,7 +27,7 @@ from ffexp.cli._common import (
 )
 from ffexp.cli.live import live_view, serve_after_run
 from ffexp.cli.progress import Steps
-from ffexp.rig_choice import DRIVERS, FT_SOURCES, TRACKERS, RigChoice
+from ffexp.rig_choice import DEFAULT_DRIVER, DRIVERS, FT_SOURCES, TRACKERS, RigChoice
 
 if TYPE_CHECKING:
     from ffexp.campaign import CampaignEntry
@@ -128,7 +128,7 @@ def rig_choice(
         if port:
             overrides.append(f"ft.port={port}")
     return RigChoice(path=rig, overrides=tuple(overrides),
-                     driver=None if rig else (driver or "sim"))
+                     driver=None if rig else (driver or DEFAULT_DRIVER))
 
 
 def _check_out(out: Path) -> None:

@@ -305,6 +305,18 @@ IMPULSE_TEST_GLIDE_M = 0.10
 IMPULSE_TEST_SPEED_MPS = 0.05
 
 
+def inertia_tensor(mass_kg: float, size_m: tuple[float, ...],
+                   inertia: tuple[float, ...] | None) -> NDArray[np.float64]:
+    """The 3x3 inertia tensor about the centre of mass [kg m^2]: ``inertia``
+    (``[ixx, iyy, izz, ixy, ixz, iyz]``) when given, else a uniform box of ``size_m``."""
+    if inertia is None:
+        sx, sy, sz = size_m
+        return np.diag([mass_kg * (sy**2 + sz**2) / 12.0, mass_kg * (sx**2 + sz**2) / 12.0,
+                        mass_kg * (sx**2 + sy**2) / 12.0])
+    ixx, iyy, izz, ixy, ixz, iyz = inertia
+    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+
 class HoseSettings(StrictModel):
     """The air hose: a linear spring to where the target was placed and a drag, in the bed plane.
 
@@ -393,13 +405,7 @@ class TargetSettings(StrictModel):
 
     def inertia_matrix(self) -> NDArray[np.float64]:
         """The 3x3 inertia tensor about the centre of mass, block frame [kg m^2]."""
-        if self.inertia is None:
-            m = self.mass
-            sx, sy, sz = self.size
-            return np.diag([m * (sy**2 + sz**2) / 12.0, m * (sx**2 + sz**2) / 12.0,
-                            m * (sx**2 + sy**2) / 12.0])
-        ixx, iyy, izz, ixy, ixz, iyz = self.inertia
-        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        return inertia_tensor(self.mass, self.size, self.inertia)
 
     def impulse_test_deceleration(self, gravity: float = 9.81,
                                   glide_m: float = IMPULSE_TEST_GLIDE_M,
@@ -502,13 +508,7 @@ class BaseSettings(StrictModel):
 
     def inertia_matrix(self) -> NDArray[np.float64]:
         """The 3x3 inertia tensor about the centre of mass [kg m^2]."""
-        if self.inertia is None:
-            m = self.mass
-            sx, sy, sz = self.size
-            return np.diag([m * (sy**2 + sz**2) / 12.0, m * (sx**2 + sz**2) / 12.0,
-                            m * (sx**2 + sy**2) / 12.0])
-        ixx, iyy, izz, ixy, ixz, iyz = self.inertia
-        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        return inertia_tensor(self.mass, self.size, self.inertia)
 
     @property
     def floating(self) -> bool:

@@ -202,7 +202,8 @@ class Cycle:
                applied: AppliedCommand) -> None:
         self.log.cycle(self.t_ns, self.t0_ns, state, ft, self.estimator.out, self.task.phase,
                        self.controller, self.approach_wrench, self.approach.setpoint,
-                       self.total, intent, applied, self.target, self.task.scenario)
+                       self.total, intent, applied, self.target,
+                       self.task.scenario if self.task.observed else None)
 
 
 #: Where a cycle's wall time goes (``timings`` of :func:`run`): waiting for the robot

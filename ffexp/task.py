@@ -86,6 +86,9 @@ class Task:
         self.notes: list[Note] = []
         """Notes of the current cycle, oldest first; the loop empties it."""
         self._held_since_ns: int | None = None
+        self.observed = False
+        """The scenario watched this cycle (:meth:`Scenario.observe`): its measures are the
+        cycle's, and the run log records them."""
 
     @property
     def verdict_source(self) -> str | None:
@@ -126,6 +129,7 @@ class Task:
         """Advance the phases by one cycle (after the safety checks); ``target`` is the
         tracker's newest observation of the target, if the rig has a tracker."""
         scenario = self.scenario
+        self.observed = False
         event = est.event
         if event is not None and event.kind == "made":
             self.contacts += 1
@@ -152,6 +156,7 @@ class Task:
         if phase.ended:
             return
         scenario.observe(t_ns, state, est, target)
+        self.observed = True
         if phase == Phase.APPROACH:
             if est.in_contact:
                 scenario.contact(state)

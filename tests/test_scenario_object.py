@@ -57,7 +57,6 @@ class PushBall(Scenario):
         self.start_m: np.ndarray | None = None
         self.pushed = 0.0
         self.centre = np.zeros(3)
-        self._fresh = False
 
     @property
     def hold_s(self) -> float:
@@ -79,13 +78,9 @@ class PushBall(Scenario):
             self.start_m = ball.copy()
         self.pushed = float(np.linalg.norm(ball - self.start_m))
         self.centre = state.truth.sites["ball.centre"][:3, 3].copy()
-        self._fresh = True
 
     def messages(self) -> list[tuple[str, object]]:
-        if not self._fresh:
-            return []
-        self._fresh = False
-        return [("/task/push_ball", self)]
+        return [] if self.start_m is None else [("/task/push_ball", self)]
 
     def holds(self, t_ns: int, state: RobotState, est: Estimate,
               target: TargetObservation | None) -> bool:

@@ -129,7 +129,8 @@ class Scenario(ABC):
 
     def messages(self) -> list[tuple[str, object]]:
         """This cycle's messages on :attr:`topics`: ``(topic, source)``, each source's
-        attributes its topic's fields by name (called after :meth:`observe`)."""
+        attributes its topic's fields by name (asked only in a cycle it observed, after
+        :meth:`observe`)."""
         return []
 
     def truth_label(self) -> str:

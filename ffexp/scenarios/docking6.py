@@ -140,7 +140,6 @@ class Docking6(Scenario):
         self.pose: Pose6 | None = None
         """The latest relative pose the judge used."""
         self._truth: tuple[Pose6, F64] | None = None
-        self._unrecorded = False
         self._truth_since_ns: int | None = None
         self.truth_aligned: bool | None = None
 
@@ -174,7 +173,6 @@ class Docking6(Scenario):
                 target: TargetObservation | None) -> None:
         truth = state.truth
         self._truth = None if truth is None else _truth_pose(truth, state.tcp_pose_m)
-        self._unrecorded = self._truth is not None
         if self._truth is not None:
             if self.truth_aligned is None:
                 self.truth_aligned = False
@@ -194,9 +192,8 @@ class Docking6(Scenario):
         self._truth_since_ns = None
 
     def messages(self) -> list[tuple[str, object]]:
-        if self._truth is None or not self._unrecorded:
+        if self._truth is None:
             return []
-        self._unrecorded = False
         p, d = self._truth
         return [("/task/docking6", _Record(p, np.asarray(d), self.config.within(p)))]
 

@@ -166,7 +166,6 @@ class FunnelAlignment(Scenario):
         self._target: TargetObservation | None = None
         self._truth_p: Placement | None = None
         """The truth's placement this cycle (``None``: no truth)."""
-        self._unrecorded = False  # this cycle's placement is still to be recorded
 
     @property
     def hold_s(self) -> float:
@@ -229,7 +228,6 @@ class FunnelAlignment(Scenario):
         if truth is not None and self.truth_aligned is None:
             self.truth_aligned = False  # the truth is there: it says "not aligned" until held
         self._truth_p = None if truth is None else truth_placement(truth, state.tcp_pose_m)
-        self._unrecorded = self._truth_p is not None
         self._place(state)
         z = self._advance(state)
         if est.in_contact:
@@ -282,10 +280,7 @@ class FunnelAlignment(Scenario):
 
     def messages(self) -> list[tuple[str, object]]:
         p = self._truth_p
-        if p is None or not self._unrecorded:  # not observed this cycle
-            return []
-        self._unrecorded = False
-        return [("/task/funnel", _PlacementRecord(p, self._within(p)))]
+        return [] if p is None else [("/task/funnel", _PlacementRecord(p, self._within(p)))]
 
     # -- the verdict ---------------------------------------------------------
     def holds(self, t_ns: int, state: RobotState, est: Estimate,

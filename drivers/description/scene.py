@@ -456,7 +456,8 @@ class ObjectSettings(StrictModel):
                              "pick another")
         if self.support == "fixed" and (any(self.drift_mps) or any(self.tumble_radps)):
             raise ValueError(f"objects.{self.name}: a fixed object cannot drift or tumble")
-        if any(size <= 0.0 for size in self.size[:1] + self.size[2:]):
+        used = {"box": self.size, "sphere": self.size[:1], "cylinder": self.size[::2]}
+        if any(size <= 0.0 for size in used[self.shape]):  # the values its shape uses
             raise ValueError(f"objects.{self.name}.size must be positive")
         return self
 

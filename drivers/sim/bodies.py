@@ -19,7 +19,14 @@ import numpy as np
 
 from drivers.base.types import F64, BodyTruth
 
-__all__ = ["FreeBodies"]
+__all__ = ["FreeBodies", "body_twist"]
+
+
+def body_twist(model: mujoco.MjModel, data: mujoco.MjData, body: int, work: F64) -> F64:
+    """``[v, w]`` of body ``body``'s frame origin, world coordinates (a new array; needs
+    the state's velocities, ``mj_comVel`` done); ``work`` is a 6-array it may overwrite."""
+    mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, work, 0)
+    return np.concatenate((work[3:], work[:3]))  # MuJoCo's order is [w, v]
 
 
 class FreeBodies:
@@ -73,9 +80,7 @@ class FreeBodies:
     def twist(self, name: str) -> F64:
         """``[v, w]`` of the body frame's origin, world coordinates (a new array; needs
         the velocities of the state: ``mj_comVel`` done)."""
-        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY,
-                                 self.ids[name], self._vel, 0)
-        return np.concatenate((self._vel[3:], self._vel[:3]))
+        return body_twist(self.model, self.data, self.ids[name], self._vel)
 
     def truth(self) -> dict[str, BodyTruth]:
         """Every body's state now."""

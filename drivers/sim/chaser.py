@@ -22,6 +22,7 @@ import numpy as np
 from drivers.base.types import F64
 from drivers.description.scene import BaseSettings
 from drivers.sim import mjcf
+from drivers.sim.bodies import body_twist
 
 __all__ = ["FloatingBase", "base_wrench"]
 
@@ -93,8 +94,6 @@ class FloatingBase:
         mujoco.mju_mat2Quat(self._quat, np.ascontiguousarray(tcp_in_base[:3, :3]).ravel())
         self._ft_ref_quat[:] = self._quat
         d = self.data
-        mujoco.mj_objectVelocity(self.model, d, mujoco.mjtObj.mjOBJ_BODY, self.body,
-                                 self._vel, 0)  # [w, v] at the body frame (= its centre)
-        twist = np.concatenate((self._vel[3:], self._vel[:3]))
+        twist = body_twist(self.model, d, self.body, self._vel)  # its frame is its centre
         self._xfrc[:] = base_wrench(self.settings, d.xmat[self.body].reshape(3, 3),
                                     d.xipos[self.body], twist, self._rot0, self._pos0)

@@ -191,15 +191,14 @@ def _free_target_xml(scene: Scene, layout: Layout) -> str:
     """A target in free flight: a free joint, weightless (``gravcomp``), no pads or hose."""
     tg = scene.target
     sx, sy, sz = tg.size
-    i = tg.inertia_matrix()
-    full = (i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2])
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, np.ascontiguousarray(layout.target_rot).ravel())
     return (
         f'<body name="{TARGET_BODY}" pos="{_vec(layout.target_pos)}" quat="{_vec(quat)}" '
         f'gravcomp="1">\n'
         f'<freejoint name="{TARGET_FREE_JOINT}"/>\n'
-        f'<inertial pos="0 0 0" mass="{_f(tg.mass)}" fullinertia="{_vec(full)}"/>\n'
+        f'<inertial pos="0 0 0" mass="{_f(tg.mass)}" '
+        f'fullinertia="{_full(tg.inertia_matrix())}"/>\n'
         f'<geom type="box" size="{_f(sx / 2)} {_f(sy / 2)} {_f(sz / 2)}" {_VISUAL} mass="0" '
         f'rgba="0.75 0.75 0.8 1"/>\n'
         f'<body name="target_funnel" pos="{_vec(layout.funnel_in_target)}">\n'
@@ -251,9 +250,7 @@ def target_xml(scene: Scene, layout: Layout) -> str:
     inertia = (m * (sy**2 + sz**2) / 12.0, m * (sx**2 + sz**2) / 12.0, m * (sx**2 + sy**2) / 12.0)
     body_inertia = f'diaginertia="{_vec(inertia)}"'
     if tg.inertia is not None:
-        i = tg.inertia_matrix()
-        full = (i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2])
-        body_inertia = f'fullinertia="{_vec(full)}"'
+        body_inertia = f'fullinertia="{_full(tg.inertia_matrix())}"'
     pad_r = 0.008
     pads = []
     for k, (px, py) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):

@@ -141,9 +141,9 @@ def _fill_truth(s: LazyArmState, w: SimWorld) -> None:
     sites = {"funnel_mouth": pose(w._mouth_xpos, w._mouth_xmat)}
     if w.chaser is not None:  # the TCP in the world (the state's is in the moving base's)
         sites["tcp"] = pose(w._tcp_xpos, w._tcp_xmat)
-    for name in w._object_sites:
-        site = w.data.site(name)
-        sites[name] = pose(site.xpos, site.xmat)
+    d = w.data
+    for name, site in w._object_sites:
+        sites[name] = pose(d.site_xpos[site], d.site_xmat[site])
     s.__dict__["truth"] = ground_truth(
         w.bodies.truth(), sites,
         w._contact, w._touching, tcp_twist,

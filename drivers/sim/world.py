@@ -128,7 +128,9 @@ class SimWorld:
         self.bodies = FreeBodies(m, d, (
             mjcf.TARGET_BODY, *(() if self.chaser is None else (mjcf.BASE_BODY,)),
             *(o.name for o in scene.objects if o.support == "free")))
-        self._object_sites = [f"{o.name}.{site}" for o in scene.objects for site in o.sites]
+        self._object_sites = [  # (name, id) of each object's named frame
+            (name, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, name))
+            for name in (f"{o.name}.{site}" for o in scene.objects for site in o.sites)]
         """The scene's free-moving bodies (the truth reports them by name)."""
         self._on_bed = scene.target.support == "air_bed"
         if self._on_bed:  # the bed's slides and hinge

@@ -32,12 +32,10 @@ from drivers.base.topics import CdrTopic, FieldSpec, MessageSpec
 from drivers.base.types import F64, NS_PER_S, GroundTruth, RobotState, TargetObservation
 from ffexp.estimation import Estimate
 from ffexp.scenarios.base import Scenario, ScenarioConfig, SourceChange, Verdict
+from ffexp.scenarios.funnel import MOUTH_SITE, TCP_SITE
 
 __all__ = ["Docking6", "Docking6Task", "Pose6", "relative_pose6"]
 
-#: The truth's named frames: the funnel's mouth and the true TCP.
-MOUTH_SITE = "funnel_mouth"
-TCP_SITE = "tcp"
 
 POSE6 = MessageSpec(
     "ffexp_msgs/msg/DockingPose",

@@ -1,0 +1,289 @@
+"""A study's throughput today against the bare batched physics of the very same runs.
+
+    python benchmarks/bench_study.py [--runs R] [--seconds S] [--workers N] [--repeats K]
+
+The study: R runs of the paper's methods (Method I case I and II, Method II,
+Method III; the protocols in turn, one noise seed each), ``run.timeout_s=S``.
+Measured in the same process, interleaved per repeat:
+
+* **today's pool**: the sweep engine on ``local:N`` (run, analyse, commit each
+  run in a worker process, as ``ffexp sweep`` does); its workers' start-up is
+  timed apart and not counted;
+* **bare batched physics** of the same runs: every run's own physics replayed
+  with no controller and no recording. Each run is first made once in this
+  process with ``mujoco.mj_step`` wrapped, which records the run's model, its
+  state before its first step (``mjSTATE_INTEGRATION``, a Batch row) and what it
+  wrote before every call (``ctrl``, ``qfrc_applied``, ``xfrc_applied``, the
+  mocap pose, and the model fields the simulator rewrites each cycle: the joint
+  friction's dry level and the actuators' gains), with that call's number of
+  substeps. The replay writes those into a ``mujoco.batch.Batch`` of all the
+  runs (each run on its own model via ``set_models``) and steps the runs still
+  going with one ``step`` call per recorded call, as a batched closed loop
+  would: the floor a batched study of these runs can reach on this machine;
+* the same replay on one thread as a plain loop of ``mj_step`` per run (what
+  one core gives without the batch), for scale.
+
+Throughput is simulated seconds per wall second over the whole study. Prints
+medians, the pool's throughput as a fraction of the bare batched physics (the
+issue's target for a batched pipeline is at least 0.7 of it), and the largest
+joint-position difference between a replayed run and the recorded one at its
+end (0 when the replay is the runs' physics bit for bit, as it is here).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import Executor
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import mujoco.batch
+import numpy as np
+
+from ffexp.experiment import run_file
+from ffexp.sweeps import engine
+from ffexp.sweeps.executors import PRELOAD, available_cpus, make_executor, parse_executor
+from ffexp.sweeps.worker import Job
+
+ROOT = Path(__file__).resolve().parent.parent
+PROTOCOLS = ("method1_case1", "method1_case2", "method2", "method3_impedance")
+#: The state a replay starts from: a Batch's row (mjSTATE_INTEGRATION: the full physics
+#: state, sensor history included, and the inputs).
+FULL = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+@dataclass
+class Capture:
+    """One run's physics: its model, first state and per-call inputs."""
+
+    model: mujoco.MjModel
+    state0: np.ndarray
+    nstep: list[int] = field(default_factory=list)
+    ctrl: list[np.ndarray] = field(default_factory=list)
+    qfrc: list[np.ndarray] = field(default_factory=list)
+    xfrc: list[np.ndarray] = field(default_factory=list)
+    mocap_pos: list[np.ndarray] = field(default_factory=list)
+    mocap_quat: list[np.ndarray] = field(default_factory=list)
+    frictionloss: list[np.ndarray] = field(default_factory=list)
+    gain: list[np.ndarray] = field(default_factory=list)
+    bias: list[np.ndarray] = field(default_factory=list)
+    qpos_end: np.ndarray | None = None
+
+    @property
+    def steps(self) -> int:
+        return sum(self.nstep)
+
+    @property
+    def sim_s(self) -> float:
+        return self.steps * float(self.model.opt.timestep)
+
+
+@contextmanager
+def capturing() -> Iterator[dict[int, Capture]]:
+    """Wrap ``mujoco.mj_step``: per MjData, the model, first state and inputs of every call."""
+    caps: dict[int, Capture] = {}
+    keep: list[mujoco.MjData] = []  # ids stay unique while the block runs
+    real = mujoco.mj_step
+
+    def step(m: mujoco.MjModel, d: mujoco.MjData, nstep: int = 1) -> None:
+        cap = caps.get(id(d))
+        if cap is None:
+            keep.append(d)
+            state = np.empty(mujoco.mj_stateSize(m, FULL))
+            mujoco.mj_getState(m, d, state, FULL)
+            cap = caps[id(d)] = Capture(model=m, state0=state)
+        cap.nstep.append(nstep)
+        cap.ctrl.append(d.ctrl.copy())
+        cap.qfrc.append(d.qfrc_applied.copy())
+        cap.xfrc.append(d.xfrc_applied.copy())
+        cap.mocap_pos.append(d.mocap_pos.copy())
+        cap.mocap_quat.append(d.mocap_quat.copy())
+        cap.frictionloss.append(m.dof_frictionloss.copy())
+        cap.gain.append(m.actuator_gainprm[:, 0].copy())
+        cap.bias.append(m.actuator_biasprm[:, :3].copy())
+        real(m, d, nstep)
+        cap.qpos_end = d.qpos.copy()
+
+    mujoco.mj_step = step  # type: ignore[assignment]
+    try:
+        yield caps
+    finally:
+        mujoco.mj_step = real  # type: ignore[assignment]
+
+
+def make_jobs(out: Path, runs: int, seconds: float) -> list[Job]:
+    jobs = []
+    for i in range(runs):
+        name = PROTOCOLS[i % len(PROTOCOLS)]
+        seed = i // len(PROTOCOLS)
+        jobs.append(Job(run_id=f"{name}-s{seed}", protocol=str(ROOT / f"protocols/{name}.toml"),
+                        overrides=(f"run.timeout_s={seconds}", f"seed={seed}"),
+                        out_dir=str(out), columns={"protocol": name, "seed": seed}))
+    return jobs
+
+
+def capture_runs(jobs: list[Job], tmp: Path) -> list[Capture]:
+    """Make each run once in this process and keep its physics (the MjData that stepped most)."""
+    out = []
+    for k, job in enumerate(jobs):
+        with capturing() as caps:
+            run_file(Path(job.protocol), list(job.overrides), out_dir=tmp / f"cap{k}")
+        out.append(max(caps.values(), key=lambda c: c.steps))
+    return out
+
+
+def replay_batched(caps: list[Capture], nthread: int) -> float:
+    """Wall time of all runs' physics in one Batch, one ``step`` call per recorded call."""
+    b = mujoco.batch.Batch(caps[0].model, nsim=len(caps), nthread=nthread)
+    b.set_models([c.model for c in caps])
+    state = b.state
+    for i, c in enumerate(caps):
+        state[i] = c.state0
+    views = {name: b.bind(name) for name in
+             ("ctrl", "qfrc_applied", "xfrc_applied", "mocap_pos", "mocap_quat")}
+    ncall = max(len(c.nstep) for c in caps)
+    # Inputs laid out per call (runs that ended hold their last call): no Python per run
+    # inside the timed loop beyond picking the rows still going.
+    def stack(attr: str) -> np.ndarray:
+        return np.stack([np.stack(getattr(c, attr) + [getattr(c, attr)[-1]]
+                                  * (ncall - len(c.nstep))) for c in caps], axis=1)
+    inputs = {"ctrl": stack("ctrl"), "qfrc_applied": stack("qfrc"),
+              "xfrc_applied": stack("xfrc"), "mocap_pos": stack("mocap_pos"),
+              "mocap_quat": stack("mocap_quat")}
+    # What the simulator writes into its model per cycle: the joint friction's dry level
+    # and the actuators' gains (the commanded impedance).
+    friction, gain, bias = stack("frictionloss"), stack("gain"), stack("bias")
+    models = [c.model for c in caps]
+    nstep = np.zeros((ncall, len(caps)), dtype=np.int64)
+    for i, c in enumerate(caps):
+        nstep[:len(c.nstep), i] = c.nstep
+    # Group the runs of each call by their number of substeps (one Batch.step per group).
+    plan: list[list[tuple[int, np.ndarray]]] = []
+    for k in range(ncall):
+        row = nstep[k]
+        plan.append([(int(n), np.flatnonzero(row == n)) for n in np.unique(row[row > 0])])
+    t0 = time.perf_counter()
+    for k in range(ncall):
+        for name, view in views.items():
+            view[...] = inputs[name][k]
+        for i, m in enumerate(models):
+            m.dof_frictionloss[:] = friction[k, i]
+            m.actuator_gainprm[:, 0] = gain[k, i]
+            m.actuator_biasprm[:, :3] = bias[k, i]
+        for n, ids in plan[k]:
+            b.step(ids=ids if ids.size < len(caps) else None, nstep=n)
+    wall = time.perf_counter() - t0
+    qpos = b.bind("qpos")
+    drift = max(float(np.max(np.abs(qpos[i] - c.qpos_end))) for i, c in enumerate(caps)
+                if c.qpos_end is not None)
+    REPLAY_DRIFT.append(drift)
+    return wall
+
+
+#: The replay's largest joint-position difference from the recorded run at its end.
+REPLAY_DRIFT: list[float] = []
+
+
+def replay_loop(caps: list[Capture]) -> float:
+    """Wall time of the same replay as a plain ``mj_step`` loop per run, on this thread."""
+    datas = []
+    for c in caps:
+        d = mujoco.MjData(c.model)
+        mujoco.mj_setState(c.model, d, c.state0, FULL)
+        datas.append(d)
+    t0 = time.perf_counter()
+    for c, d in zip(caps, datas, strict=True):
+        m = c.model
+        for k, n in enumerate(c.nstep):
+            d.ctrl[:] = c.ctrl[k]
+            d.qfrc_applied[:] = c.qfrc[k]
+            d.xfrc_applied[:] = c.xfrc[k]
+            d.mocap_pos[:] = c.mocap_pos[k]
+            d.mocap_quat[:] = c.mocap_quat[k]
+            m.dof_frictionloss[:] = c.frictionloss[k]
+            m.actuator_gainprm[:, 0] = c.gain[k]
+            m.actuator_biasprm[:, :3] = c.bias[k]
+            mujoco.mj_step(m, d, n)
+    return time.perf_counter() - t0
+
+
+def warm_worker() -> int:
+    import importlib
+
+    for name in PRELOAD:
+        importlib.import_module(name)
+    time.sleep(0.2)  # hold this worker so the next warm-up task goes to another
+    return os.getpid()
+
+
+def pool(workers: int) -> Callable[[Path, list[Job]], float]:
+    def run(out: Path, jobs: list[Job]) -> float:
+        jobs = [Job(j.run_id, j.protocol, j.overrides, str(out), j.columns) for j in jobs]
+        ex: Executor
+        ex, slots = make_executor(parse_executor(f"local:{workers}"))
+        try:
+            for f in [ex.submit(warm_worker) for _ in range(2 * slots)]:
+                f.result()
+            t0 = time.perf_counter()
+            with engine.Runner(out, ex, slots) as r:
+                rows = r.run_batch(jobs)
+            wall = time.perf_counter() - t0
+        finally:
+            ex.shutdown(wait=True)
+        bad = [row["error"] for row in rows if row["error"]]
+        assert not bad, bad[0]
+        return wall
+    return run
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=64)
+    ap.add_argument("--seconds", type=float, default=8.0, help="run.timeout_s of each run")
+    ap.add_argument("--workers", type=int, default=available_cpus())
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args()
+    warm_worker()
+    load0 = os.getloadavg()
+    with tempfile.TemporaryDirectory(prefix="bench_study_") as tmp_name:
+        tmp = Path(tmp_name)
+        jobs = make_jobs(tmp / "jobs", args.runs, args.seconds)
+        t0 = time.perf_counter()
+        caps = capture_runs(jobs, tmp)
+        print(f"captured {len(caps)} runs' physics in {time.perf_counter() - t0:.1f} s "
+              f"(one process, not counted)")
+        sim_s = sum(c.sim_s for c in caps)
+        steps = sum(c.steps for c in caps)
+        run_pool = pool(args.workers)
+        times: dict[str, list[float]] = {"pool": [], "batched": [], "loop": []}
+        for k in range(args.repeats):
+            times["pool"].append(run_pool(tmp / f"pool{k}", jobs))
+            times["batched"].append(replay_batched(caps, args.workers))
+            times["loop"].append(replay_loop(caps))
+    load1 = os.getloadavg()
+    rate = {name: sim_s / statistics.median(t) for name, t in times.items()}
+    print(f"{args.runs} runs ({', '.join(PROTOCOLS)}), timeout {args.seconds:g} s: "
+          f"{sim_s:.1f} s simulated, {steps} steps; {args.repeats} repeats, medians; "
+          f"{available_cpus()} CPUs, {args.workers} workers / threads")
+    labels = {"pool": f"today's pool (local:{args.workers})",
+              "batched": f"bare batched physics ({args.workers} threads)",
+              "loop": "bare physics, one thread"}
+    print(f"{'path':40s} {'wall [s]':>9s} {'sim s / wall s':>15s} {'of batched':>11s}")
+    for name, label in labels.items():
+        print(f"{label:40s} {statistics.median(times[name]):9.2f} {rate[name]:15.2f} "
+              f"{rate[name] / rate['batched']:11.2f}")
+    print(f"replay vs recorded runs: largest |qpos| difference at a run's end "
+          f"{max(REPLAY_DRIFT):.3g}")
+    print("load average (1, 5, 15 min): before " + ", ".join(f"{x:.2f}" for x in load0)
+          + "; after " + ", ".join(f"{x:.2f}" for x in load1))
+
+
+if __name__ == "__main__":
+    main()

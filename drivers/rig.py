@@ -78,8 +78,8 @@ else:
     FtConfig = registry.union("ft")
     TrackerConfig = registry.union("tracker")
 
-#: A device's identity: its recording topics' prefix.
-DeviceId = Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]{0,31}$")]
+# A device's identity: its recording topics' prefix.
+_DeviceId = Annotated[str, Field(pattern=r"^[a-z][a-z0-9_]{0,31}$")]
 #: Fields of a device's table that hold a host, and those that hold a port.
 _HOST_FIELDS = ("robot_ip", "host", "bind_host", "local_host")
 _PORT_FIELDS = ("port", "robot_port", "rtde_port", "script_port", "local_port")
@@ -89,7 +89,7 @@ _LOOPBACK = ("127.", "localhost", "::1")
 class CarrierDevice(StrictModel):
     """The second robot: the carrier that renders the target (``[carrier]``)."""
 
-    id: DeviceId = "carrier"
+    id: _DeviceId = "carrier"
     robot: RobotConfig
     ft: FtConfig | None = None
 
@@ -119,7 +119,7 @@ def _endpoints(table: str, cfg: DeviceConfig) -> Iterator[tuple[str, str, str]]:
 class Rig(StrictModel):
     """A robot, an F/T sensor and (optionally) a target tracker and a carrier."""
 
-    id: DeviceId = "chaser"
+    id: _DeviceId = "chaser"
     """The chaser's identity (its robot and F/T sensor)."""
     robot: RobotConfig = registry.robot_backend("sim").config()
     ft: FtConfig = registry.ft_backend("sim").config()

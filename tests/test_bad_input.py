@@ -131,6 +131,7 @@ CASES: list[tuple[str, list[str]]] = [
     (f"hil {HIL} --scene-set carrier.cycle_s=0.00125", ["carrier.cycle_s", "multiple"]),
     (f"hil {HIL} --out {{file}}", ["--out", "not a directory"]),
     (f"hil {P}", ["method2.toml"]),
+    (f"hil {HIL} --set faults.link_lost_at_s=-1", ["faults.link_lost_at_s"]),
     (f"hil-sweep {HIL} --out {{tmp}}/sw --delays one", ["--delays"]),
     (f"hil-sweep {HIL} --out {{tmp}}/sw --stiffness x", ["--stiffness"]),
     (f"hil-sweep {HIL} --out {{tmp}}/sw --compensation magic", ["--compensation", "magic"]),

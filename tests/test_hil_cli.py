@@ -9,9 +9,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from ffexp.cli import app
+from ffexp.recording import load
 
 ROOT = Path(__file__).resolve().parents[1]
 PROTOCOL = str(ROOT / "protocols/hil_impact.toml")
@@ -61,3 +63,17 @@ def test_hil_sweep_writes_the_table_and_the_figure(tmp_path: Path) -> None:
         ("none", "0"), ("none", "1"), ("passivity", "0"), ("passivity", "1")]
     assert float(rows[1]["restitution"]) > float(rows[0]["restitution"])
     assert (tmp_path / "hil_sweep.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize(("fault", "cause"), [
+    ("faults.link_lost_at_s=0.03", "carrier link lost"),
+    ("faults.ft_stale_at_s=0.03", "carrier F/T stale"),
+    ("impact.speed_mps=0.6", "carrier speed"),
+])
+def test_a_fault_ends_the_run_held_with_one_line(tmp_path: Path, fault: str, cause: str) -> None:
+    res = runner.invoke(app, ["hil", PROTOCOL, "--out", str(tmp_path), "--set", fault])
+    assert res.exit_code == 3
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and cause in lines[0] and "chaser stopped" in lines[0]
+    rec = load(tmp_path / "hil_impact.mcap")
+    assert [m["device"] for m in rec.json["/carrier/event"].messages] == ["carrier", "chaser"]

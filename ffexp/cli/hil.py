@@ -27,6 +27,9 @@ def hil(
     protocol: Path = typer.Argument(..., help="Impact protocol (protocols/hil_impact.toml)."),
     out: Path = typer.Option(Path("runs"), "--out", help="Folder for the recording."),
     scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
+    set_: list[str] = typer.Option([], "--set", help="Override a protocol field, e.g. "
+                                   "--set impact.speed_mps=0.05 or --set "
+                                   "faults.link_lost_at_s=0.03 (repeatable)."),
     as_json: bool = typer.Option(False, "--json", help="Print the analysis as one JSON "
                                  "object (the keys of `ffexp analyze --json`)."),
 ) -> None:
@@ -47,7 +50,7 @@ def hil(
 
     if out.exists() and not out.is_dir():
         raise ConfigError("--out", str(out), "exists and is not a directory")
-    proto = load_hil_protocol(protocol)
+    proto = load_hil_protocol(protocol, tuple(set_))
     run = run_protocol(proto, tuple(scene_set))
     path = record_impact(run, _free(out, proto.name))
     result = analyze_recording(load(path))

@@ -60,8 +60,10 @@ def analyze(
         rec = load(path)
         if is_hil(rec):  # a rendered-target impact (ffexp hil): its own numbers
             values = {"file": str(path), **analyze_recording(rec)}
-            con.print(key_value_table(path.stem, values)) if not as_json else typer.echo(
-                json_line(values))
+            if as_json:
+                typer.echo(json_line(values))
+            else:
+                con.print(key_value_table(path.stem, values))
             continue
         link = check_link(rec)
         if not link.measured and "run" in rec.metadata:  # a robot that never answered

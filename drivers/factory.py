@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 from drivers import registry
 from drivers.base.backend import OpenContext
 from drivers.base.interfaces import ForceTorqueSensor, RobotDriver, TargetTracker
+from drivers.errors import ConfigError
 from drivers.rig import Rig
 
 if TYPE_CHECKING:
@@ -72,6 +73,10 @@ def open_devices(
         scene_overrides: ``dotted.key=value`` overrides of the scene.
         seed: the run's seed (world and mock noise).
     """
+    if rig.carrier is not None:
+        raise ConfigError(source, "carrier", "a run drives the chaser alone: a carrier robot "
+                          "(the micro-gravity emulator) runs in `ffexp hil` only, simulated "
+                          "(docs/hil.md)")
     ctx = OpenContext(source, scene_file, tuple(scene_overrides), seed)
     opened = registry.robot_backend(rig.robot.type).open(rig.robot, ctx)
     try:

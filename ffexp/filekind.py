@@ -1,5 +1,5 @@
-"""Which of ffexp's TOML files a table is: a run protocol, a campaign, a sweep protocol, a
-scene, a rig. Pure: a parsed file in, a name out.
+"""Which of ffexp's TOML files a table is: a run protocol, a campaign, a sweep protocol, an
+impact protocol, a scene, a rig. Pure: a parsed file in, a name out.
 
 A file given where another kind is expected fails validation on its first
 field (``name: unknown key`` for a protocol given as a rig); the error names the
@@ -15,6 +15,7 @@ from typing import Any
 _MARKS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("study", ("claims", "ranges", "grid", "include_nominal")),
     ("campaign", ("runs",)),
+    ("impact protocol", ("impact", "faults")),
     ("sweep protocol", ("sweep", "model")),
     ("run protocol", ("align", "approach", "alignment", "estimation", "krc", "limits", "task")),
     ("rig", ("robot", "ft", "tracker")),
@@ -27,6 +28,7 @@ USE = {
     "sweep protocol": "ffexp simulate sweep FILE",
     "study": "ffexp reproduce --config FILE",  # protocols/reproduce.toml, robustness*.toml
     "run protocol": "ffexp run FILE",
+    "impact protocol": "ffexp hil FILE",
     "rig": "--rig FILE",
     "scene": "a protocol's [scene] file, or --scene FILE",
 }

@@ -50,6 +50,12 @@ def _rig() -> type[Any]:
     return Rig
 
 
+def _hil_impact() -> type[Any]:
+    from ffexp.hil.protocol import HilProtocol
+
+    return HilProtocol
+
+
 def _study() -> type[Any]:
     from ffexp.sweeps.reproduce import ReproduceConfig
 
@@ -64,6 +70,7 @@ KINDS: dict[str, tuple[Callable[[], type[Any]], str]] = {
     "scene": (_scene, "a simulated scene (data/scenes/*.toml)"),
     "rig": (_rig, "a rig (rigs/*.toml)"),
     "study": (_study, "a study of the paper's claims (protocols/reproduce.toml, robustness*.toml)"),
+    "hil-impact": (_hil_impact, "an impact on a rendered target (protocols/hil_impact.toml)"),
 }
 
 

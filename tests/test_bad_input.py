@@ -30,6 +30,7 @@ SWEEP = str(ROOT / "protocols/sec3_stiffness.toml")
 SCENE = str(ROOT / "data/scenes/paper.toml")
 VIDEO = str(ROOT / "data/friction/sample.avi")
 MOCK = str(ROOT / "rigs/mock.toml")
+HIL = str(ROOT / "protocols/hil_impact.toml")
 
 
 @pytest.fixture(scope="module")
@@ -124,6 +125,16 @@ CASES: list[tuple[str, list[str]]] = [
     (f"run {P} --set run.timeout_s=-1", ["run.timeout_s"]),
     (f"run {P} --set run.timeout_s=abc", ["run.timeout_s"]),
     (f"run {P} --rig {{tmp}}/nope_rig.toml", ["nope_rig.toml", "not found"]),
+    ("hil {tmp}/nope_impact.toml", ["nope_impact.toml", "not found"]),
+    (f"hil {HIL} --scene-set carrier.compensation=magic", ["carrier.compensation"]),
+    (f"hil {HIL} --scene-set carrier.extra_delay_cycles=-1", ["carrier.extra_delay_cycles"]),
+    (f"hil {HIL} --scene-set carrier.cycle_s=0.00125", ["carrier.cycle_s", "multiple"]),
+    (f"hil {HIL} --out {{file}}", ["--out", "not a directory"]),
+    (f"hil {P}", ["method2.toml"]),
+    (f"hil {HIL} --set faults.link_lost_at_s=-1", ["faults.link_lost_at_s"]),
+    (f"hil-sweep {HIL} --out {{tmp}}/sw --delays one", ["--delays"]),
+    (f"hil-sweep {HIL} --out {{tmp}}/sw --stiffness x", ["--stiffness"]),
+    (f"hil-sweep {HIL} --out {{tmp}}/sw --compensation magic", ["--compensation", "magic"]),
     (f"run {P} --rig {MOCK} --rig-set robot.type=warp", ["mock.toml", "robot"]),
     (f"run {P} --rig {MOCK} --rig-set robot.cycles=-1", ["robot.cycles"]),
     (f"run {P} --rig {ROOT / 'rigs/ur5e-lab.toml'} --rig-set robot.force_mode_damping=2",
@@ -383,6 +394,37 @@ def by_class(tmp_path_factory: pytest.TempPathFactory, files: dict[str, str]) ->
     write("rig_inf.toml", '[robot]\ntype = "mock"\ncycle_s = inf\n[ft]\ntype = "mock"\n')
     write("rig_long.toml", '[robot]\ntype = "fri1"\nrobot_ip = "10.0.0.1"\n'
           'connect_timeout_s = 1e12\n[ft]\ntype = "fri-estimate"\n')
+    # two devices with ids (drivers/rig.py): the chaser's tables, then a [carrier]
+    mock = '[robot]\ntype = "mock"\n[ft]\ntype = "mock"\n'
+    fri = '[robot]\ntype = "fri1"\nrobot_ip = "10.0.0.1"\n[ft]\ntype = "netft"\n' \
+          'host = "192.168.1.1"\n'
+    for name, text in {
+        "rig_same_id": 'id = "arm"\n' + mock + '[carrier]\nid = "arm"\n'
+                       '[carrier.robot]\ntype = "mock"\n[carrier.ft]\ntype = "mock"\n',
+        "rig_default_ids": 'id = "carrier"\n' + mock + '[carrier.robot]\ntype = "mock"\n'
+                           '[carrier.ft]\ntype = "mock"\n',
+        "rig_no_carrier_ft": mock + '[carrier.robot]\ntype = "mock"\n',
+        "rig_bad_id": mock + '[carrier]\nid = "Carrier Arm"\n[carrier.robot]\ntype = "mock"\n'
+                      '[carrier.ft]\ntype = "mock"\n',
+        "rig_same_robot_ip": fri + '[carrier.robot]\ntype = "ur"\nrobot_ip = "10.0.0.1"\n'
+                             '[carrier.ft]\ntype = "ur-wrench"\n',
+        "rig_same_ft": fri + '[carrier.robot]\ntype = "ur"\nrobot_ip = "10.0.0.2"\n'
+                       '[carrier.ft]\ntype = "netft"\nhost = "192.168.1.1"\n',
+        "rig_same_port": '[robot]\ntype = "fri1"\nrobot_ip = "127.0.0.1"\n[ft]\n'
+                         'type = "fri-estimate"\n[carrier.robot]\ntype = "fri1"\n'
+                         'robot_ip = "127.0.0.1"\n[carrier.ft]\ntype = "fri-estimate"\n',
+        "rig_carrier_pairing": mock + '[carrier.robot]\ntype = "mock"\n[carrier.ft]\n'
+                               'type = "fri-estimate"\n',
+        "rig_carrier_type": mock + '[carrier.robot]\ntype = "warp"\n[carrier.ft]\n'
+                            'type = "mock"\n',
+        "rig_carrier_key": mock + '[carrier]\ncolour = "red"\n[carrier.robot]\ntype = "mock"\n'
+                           '[carrier.ft]\ntype = "mock"\n',
+        "rig_carrier_port": mock + '[carrier.robot]\ntype = "fri1"\nrobot_ip = "10.0.0.5"\n'
+                            'port = 70000\n[carrier.ft]\ntype = "fri-estimate"\n',
+        "rig_with_carrier": mock + '[carrier.robot]\ntype = "mock"\n[carrier.ft]\n'
+                            'type = "mock"\n',
+    }.items():
+        write(f"{name}.toml", text)
     for name in ("fifo.toml", "fifo.mcap"):  # a reader would block on these forever
         path = out[name.replace(".", "_")] = d / name
         os.mkfifo(path)
@@ -515,6 +557,33 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         (f"run {P} --set scene.target.mu=nan --out {{out}}", ["target.mu", "finite"]),
         (f"run {P} --scene-set target.mu=1e400 --out {{out}}", ["target.mu", "finite"]),
         ("emulate --robot ur5e --duration -1", ["--duration"]),
+    ],
+    "rig_devices": [  # two devices with ids: one line each, naming the file and the field
+        (f"run {P} --rig {{rig_same_id}} --out {{out}}", ["rig_same_id.toml", "carrier.id",
+                                                         "one id"]),
+        (f"run {P} --rig {{rig_default_ids}} --out {{out}}", ["rig_default_ids.toml",
+                                                             "'carrier'", "one id"]),
+        (f"run {P} --rig {{rig_no_carrier_ft}} --out {{out}}", ["rig_no_carrier_ft.toml",
+                                                               "carrier", "F/T sensor"]),
+        (f"run {P} --rig {{rig_bad_id}} --out {{out}}", ["rig_bad_id.toml", "carrier.id"]),
+        (f"run {P} --rig {{rig_same_robot_ip}} --out {{out}}",
+         ["rig_same_robot_ip.toml", "carrier.robot.robot_ip", "10.0.0.1"]),
+        (f"run {P} --rig {{rig_same_ft}} --out {{out}}",
+         ["rig_same_ft.toml", "carrier.ft.host", "192.168.1.1:49152", "ft.host"]),
+        (f"run {P} --rig {{rig_same_port}} --out {{out}}",
+         ["rig_same_port.toml", "127.0.0.1:49938", "two devices"]),
+        (f"run {P} --rig {{rig_carrier_pairing}} --out {{out}}",
+         ["rig_carrier_pairing.toml", "carrier", "fri-estimate"]),
+        (f"run {P} --rig {{rig_carrier_type}} --out {{out}}",
+         ["rig_carrier_type.toml", "carrier.robot", "warp"]),
+        (f"run {P} --rig {{rig_carrier_key}} --out {{out}}",
+         ["rig_carrier_key.toml", "carrier.colour", "unknown key"]),
+        (f"run {P} --rig {{rig_carrier_port}} --out {{out}}",
+         ["rig_carrier_port.toml", "carrier.robot.port"]),
+        (f"run {P} --rig {{rig_with_carrier}} --out {{out}}",
+         ["rig_with_carrier.toml", "carrier", "ffexp hil"]),
+        (f"run {P} --rig {MOCK} --rig-set carrier.id=chaser --out {{out}}",
+         ["mock.toml", "carrier"]),
     ],
     "corrupt_recording": [
         (f"{cmd} {{corrupt}}{rest}", ["corrupt.mcap", "ffexp recover"])

@@ -69,5 +69,6 @@ def test_every_shipped_file_is_recognised_and_checks_ok() -> None:
     assert result.exit_code == 0, result.stderr
     kinds = {line.split(": ")[2].split(",")[0].split(" on ")[0]
              for line in result.stdout.splitlines()}
-    assert kinds == {"run protocol", "campaign", "study", "sweep protocol", "rig", "scene"}
+    assert kinds == {"run protocol", "campaign", "study", "sweep protocol", "rig", "scene",
+                     "impact protocol"}
     assert len(result.stdout.splitlines()) == len(SHIPPED)

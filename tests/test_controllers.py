@@ -90,8 +90,9 @@ def test_earlier_files_with_a_top_level_method_still_load(tmp_path: Path) -> Non
 def test_every_protocol_in_the_repo_loads() -> None:
     for f in sorted((ROOT / "protocols").glob("*.toml")):
         text = f.read_text()
-        if "[[runs]]" in text or "[model]" in text or "[claims]" in text:
-            continue  # a campaign, a Section III sweep, a reproduce/robustness study
+        if ("[[runs]]" in text or "[model]" in text or "[claims]" in text
+                or "[impact]" in text):
+            continue  # a campaign, a Section III sweep, a study, an impact (ffexp hil)
         p = load_model(RunProtocol, f)
         assert p.method in controllers.REGISTRY
 

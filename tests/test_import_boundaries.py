@@ -31,15 +31,16 @@ from drivers import registry
 ROOT = Path(__file__).resolve().parents[1]
 DRIVERS = ROOT / "drivers"
 
-#: Packages of ``drivers`` that are no back-end: anyone may import them.
-NEUTRAL_PACKAGES = frozenset({"base", "net", "description", "vision"})
+#: Packages of ``drivers`` that are no back-end: anyone may import them (``carrier``: the
+#: micro-gravity emulator's physics, pure maths on any robot's F/T and pose).
+NEUTRAL_PACKAGES = frozenset({"base", "net", "description", "vision", "carrier"})
 #: Top-level plumbing modules of ``drivers`` anyone may import.
 NEUTRAL_MODULES = frozenset({"config", "errors", "counters"})
 #: The one package that combines back-ends (the emulated controllers).
 COMBINER = "emulate"
 #: What ``ffexp`` may import from ``drivers`` (the second part of the dotted name).
 FFEXP_ALLOWED = frozenset({"base", "config", "errors", "net", "rig", "factory", "registry",
-                           "description", "vision"})
+                           "description", "vision", "carrier"})
 #: Single ``ffexp`` modules allowed one more package, and why.
 FFEXP_EXCEPTIONS = {
     # ``ffexp emulate`` serves the emulated rig (drivers.emulate.session.EmulatedRig);

@@ -250,3 +250,55 @@ def test_factory_opens_the_sim_tracker_and_checks_the_camera(paper_scene_path: P
     rig = Rig(robot=MockRobotConfig(), ft=MockFt(), tracker=CameraTrackerConfig())
     with pytest.raises(ConfigError, match=r"r\.toml: tracker\.calibration: .*calibrate-camera"):
         open_devices(rig, source="r.toml", scene_file=paper_scene_path)
+
+
+# -- two devices with ids (a carrier robot: docs/hil.md) ----------------------------------
+ONE_ROBOT = [p for p in sorted(RIGS.glob("*.toml")) if "[carrier" not in p.read_text()]
+
+
+@pytest.mark.parametrize("path", ONE_ROBOT, ids=lambda p: p.name)
+def test_a_one_robot_rig_means_what_it_meant(path: Path) -> None:
+    """No carrier, the chaser's default id, and the same tables as before ids existed."""
+    rig = load_rig(path)
+    assert rig.carrier is None and rig.id == "chaser"
+    dumped = rig.model_dump(exclude={"id", "carrier"})
+    assert set(dumped) == {"robot", "ft", "tracker"}
+
+
+def test_a_rig_with_a_carrier_names_both_devices() -> None:
+    rig = load_rig(RIGS / "hil-sim.toml")
+    assert (rig.id, rig.robot.type, rig.ft.type) == ("chaser", "sim", "sim")
+    assert rig.carrier is not None and rig.carrier.id == "carrier"
+    assert (rig.carrier.robot.type, rig.carrier.ft is not None and rig.carrier.ft.type) == (
+        "ur-sim", "ur-wrench")
+
+
+def test_two_emulators_on_loopback_may_share_the_host_not_the_port(tmp_path: Path) -> None:
+    text = ('[robot]\ntype = "fri1"\nrobot_ip = "127.0.0.1"\n[ft]\ntype = "fri-estimate"\n'
+            '[carrier.robot]\ntype = "fri1"\nrobot_ip = "127.0.0.1"\nport = {port}\n'
+            '[carrier.ft]\ntype = "fri-estimate"\n')
+    ok = tmp_path / "ok.toml"
+    ok.write_text(text.format(port=49939))
+    assert load_rig(ok).carrier is not None
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.format(port=49938))
+    with pytest.raises(ConfigError, match=r"127\.0\.0\.1:49938"):
+        load_rig(bad)
+
+
+def test_a_carrier_path_is_relative_to_the_rig_file(tmp_path: Path) -> None:
+    (tmp_path / "sub").mkdir()
+    rig_file = tmp_path / "sub" / "two.toml"
+    rig_file.write_text('[robot]\ntype = "sim"\n[ft]\ntype = "sim"\n[carrier.robot]\n'
+                        'type = "sim"\nscene_file = "scene.toml"\n[carrier.ft]\ntype = "sim"\n')
+    rig = load_rig(rig_file)
+    assert rig.carrier is not None
+    assert isinstance(rig.carrier.robot, SimRobotConfig)
+    assert rig.carrier.robot.scene_file == tmp_path / "sub" / "scene.toml"
+
+
+def test_the_factory_refuses_a_carrier_it_cannot_drive() -> None:
+    rig = load_rig(RIGS / "hil-sim.toml")
+    with pytest.raises(ConfigError, match="carrier"):
+        open_devices(rig, source="rigs/hil-sim.toml",
+                     scene_file=RIGS.parent / "data/scenes/paper.toml")

@@ -35,6 +35,7 @@ from drivers.config import (
     load_model,
 )
 from drivers.description.arm import ArmDescription
+from drivers.description.carrier import CarrierSettings
 from drivers.description.lwr4 import LWR4
 from drivers.description.ur5e import UR5E
 
@@ -281,7 +282,7 @@ class ContactSettings(StrictModel):
     restitution: Annotated[float, Field(ge=0.001, le=0.99)] = 0.5
     """Coefficient of restitution of an impact of the funnels (relative normal
     speed after over before); the contact's damping follows from it
-    (:func:`~drivers.sim.contact.damping_ratio_for`). 0 is a perfectly inelastic
+    (:func:`~drivers.description.impact.damping_ratio_for`). 0 is a perfectly inelastic
     contact; the range for plausible funnel materials: drivers/sim/NOTES.md."""
     friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.3
     """Coulomb coefficient between the funnels."""
@@ -530,6 +531,8 @@ class Scene(StrictModel):
     contact: ContactSettings = ContactSettings()
     target: TargetSettings = TargetSettings()
     base: BaseSettings = BaseSettings()
+    carrier: CarrierSettings = CarrierSettings()
+    """A second robot rendering the target's free flight (``docs/hil.md``)."""
     objects: list[ObjectSettings] = Field(default_factory=list)
     """Further bodies of the world (``[[objects]]``), for scenarios of their own."""
 

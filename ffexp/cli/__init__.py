@@ -30,6 +30,7 @@ from ffexp import __version__
 from ffexp.cli import calibrate as calibrate_cli
 from ffexp.cli import check as check_cli
 from ffexp.cli import data, emulate, friction, records, report, schema, simulate, sweeps, tracker
+from ffexp.cli import hil as hil_cli
 from ffexp.cli import run as run_cli
 from ffexp.cli._common import CONTEXT_SETTINGS, EXIT_BAD_INPUT
 
@@ -98,6 +99,8 @@ app.command("limits")(sweeps.limits)
 app.command("reproduce")(sweeps.reproduce)
 app.command("calibrate")(calibrate_cli.calibrate)
 app.command("resimulate")(calibrate_cli.resimulate)
+app.command("hil")(hil_cli.hil)
+app.command("hil-sweep")(hil_cli.hil_sweep)
 for _module in (data, tracker):  # command modules that list their commands
     for _name, _command in _module.COMMANDS:
         app.command(_name)(_command)

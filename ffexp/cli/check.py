@@ -48,7 +48,7 @@ def check(
         kind = kind_of(read_toml(path))
         if kind is None:
             raise ConfigError(str(path), "", "not a protocol, campaign, rig, scene, sweep "
-                              "protocol or study of ffexp")
+                              "protocol, impact protocol or study of ffexp")
         kinds[path] = kind
     rigs = [p for p, k in kinds.items() if k == "rig"]
     if rig is None and len(rigs) > 1 and any(k in ("run protocol", "campaign")
@@ -87,6 +87,11 @@ def _check_one(path: Path, kind: str, choice: object, sets: list[str]) -> str:
         return ""
     if kind == "scene":
         load_scene(path)
+        return ""
+    if kind == "impact protocol":
+        from ffexp.hil.protocol import load_hil_protocol
+
+        load_scene(load_hil_protocol(path).scene)
         return ""
     if kind == "sweep protocol":
         load_model(SweepProtocol, path, sets)

@@ -50,6 +50,7 @@ def analyze(
     from ffexp import figures
     from ffexp.analysis import metrics, run_name
     from ffexp.cli.tables import console, json_line, key_value_table
+    from ffexp.hil.analysis import analyze_recording, is_hil
     from ffexp.linkcheck import check_link
     from ffexp.recording import load
 
@@ -57,6 +58,13 @@ def analyze(
     con = console()
     for path in recordings:
         rec = load(path)
+        if is_hil(rec):  # a rendered-target impact (ffexp hil): its own numbers
+            values = {"file": str(path), **analyze_recording(rec)}
+            if as_json:
+                typer.echo(json_line(values))
+            else:
+                con.print(key_value_table(path.stem, values))
+            continue
         link = check_link(rec)
         if not link.measured and "run" in rec.metadata:  # a robot that never answered
             _warn(rec.warnings)

@@ -1,0 +1,62 @@
+"""The impact protocol (``protocols/hil_impact.toml``): which scene, how the chaser's
+tool meets the rendered target, and faults to inject. Light: no numpy at import."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+from pydantic import Field
+
+from drivers.config import StrictModel, load_model
+
+__all__ = ["FaultSettings", "HilProtocol", "ImpactSettings", "load_hil_protocol"]
+
+
+class ImpactSettings(StrictModel):
+    """The chaser's tool, held stiff, meets the mock-up's face."""
+
+    speed_mps: Annotated[float, Field(gt=0.0, le=1.0)] = Field(
+        0.1, description="The tool's speed into the mock-up's -x face.")
+    gap_m: Annotated[float, Field(ge=0.0, le=0.1)] = Field(
+        0.002, description="Tool tip to face at the start.")
+    offset_m: float = Field(
+        0.0, description="Where the tip meets the face, along the target's y from its centre "
+        "(off-centre: the target turns, its effective mass falls).")
+    after_s: Annotated[float, Field(gt=0.0, le=10.0)] = Field(
+        0.1, description="How long the run goes on once the contact has ended.")
+    duration_s: Annotated[float, Field(gt=0.0, le=60.0)] = Field(
+        1.0, description="The longest run.")
+
+
+class FaultSettings(StrictModel):
+    """Faults to inject (fault tests; none by default)."""
+
+    ft_stale_at_s: Annotated[float, Field(ge=0.0)] | None = Field(
+        None, description="The carrier's F/T sensor delivers nothing from this time on.")
+    link_lost_at_s: Annotated[float, Field(ge=0.0)] | None = Field(
+        None, description="The carrier's link stops answering from this time on.")
+
+
+class HilProtocol(StrictModel):
+    """An impact on a target rendered by a carrier robot."""
+
+    name: Annotated[str, Field(pattern=r"^[A-Za-z0-9_.-]+$")] = "hil_impact"
+    description: str = ""
+    scene: Path = Field(description="The scene (relative to the protocol file); its "
+                        "[carrier], [contact], [ft_sensor] and [target] tables are used.")
+    seed: int = 0
+    impact: ImpactSettings = ImpactSettings()
+    faults: FaultSettings = FaultSettings()
+
+
+def load_hil_protocol(path: Path, overrides: tuple[str, ...] = ()) -> HilProtocol:
+    """Read and validate an impact protocol; its scene path taken relative to the file.
+
+    Raises:
+        ConfigError: ``"<path>: <field>: <message>"``.
+    """
+    proto = load_model(HilProtocol, path, overrides)
+    if not proto.scene.is_absolute():
+        proto = proto.model_copy(update={"scene": path.parent / proto.scene})
+    return proto

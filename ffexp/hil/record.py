@@ -1,0 +1,124 @@
+"""Run an impact protocol on the simulated carrier and record it: one MCAP file with the
+carrier's loop (``/carrier/state``), the same impact on the ideal free body
+(``/hil/ideal``, for the target's true restitution and the rendered path's error), the
+contact's truth (``/hil/contact``), the device that stopped the run and why
+(``/carrier/event``), the scene as run and the impact's numbers (``hil_impact``
+metadata). :func:`ffexp.hil.analysis.analyze_recording` reads it back."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mcap.writer import CompressionType, Writer
+
+from drivers.base.topics import CDR_HEADER, CdrTopic, JsonTopic
+from drivers.carrier.bench import Impact, ImpactTrace, run_impact
+from drivers.carrier.topics import CARRIER_EVENT, CARRIER_STATE, HIL_CONTACT, HIL_IDEAL
+from drivers.description.scene import Scene, load_scene
+from ffexp.errors import InputError
+from ffexp.hil.protocol import HilProtocol
+
+__all__ = ["HIL_METADATA", "HilRun", "record_impact", "run_protocol"]
+
+#: The metadata record that marks a recording as a rendered-target impact.
+HIL_METADATA = "hil_impact"
+
+
+@dataclass(frozen=True)
+class HilRun:
+    """One impact: the scene as run, the rendered and the ideal trace."""
+
+    scene: Scene
+    protocol: HilProtocol
+    rendered: ImpactTrace
+    ideal: ImpactTrace
+
+
+def _impact(protocol: HilProtocol, *, render: bool) -> Impact:
+    im, faults = protocol.impact, protocol.faults
+    return Impact(speed_mps=im.speed_mps, gap_m=im.gap_m, offset_m=im.offset_m,
+                  after_s=im.after_s, duration_s=im.duration_s, render=render,
+                  ft_stale_at_s=faults.ft_stale_at_s if render else None,
+                  link_lost_at_s=faults.link_lost_at_s if render else None)
+
+
+def run_protocol(protocol: HilProtocol, scene_overrides: tuple[str, ...] = (),
+                 scene: Scene | None = None) -> HilRun:
+    """Run the protocol's impact rendered by the carrier and on the ideal free body."""
+    if scene is None:
+        scene = load_scene(protocol.scene, scene_overrides)
+    rendered = run_impact(scene, _impact(protocol, render=True), seed=protocol.seed)
+    ideal = run_impact(scene, _impact(protocol, render=False), seed=protocol.seed)
+    return HilRun(scene, protocol, rendered, ideal)
+
+
+def _cdr(topic: CdrTopic, rows: list[tuple[float, ...]]) -> list[bytes]:
+    spec = topic.spec
+    rec = np.zeros(len(rows), dtype=spec.dtype)
+    rec["_cdr_header"] = np.frombuffer(CDR_HEADER, dtype="V4")[0]
+    table = np.asarray(rows, dtype=np.float64).reshape(len(rows), -1)
+    col = 0
+    for f in spec.fields:
+        rec[f.name] = table[:, col] if f.count == 1 else table[:, col:col + f.count]
+        col += f.count
+    return [r.tobytes() for r in rec]
+
+
+def record_impact(run: HilRun, path: Path) -> Path:
+    """Write the run's recording to ``path`` (its folder is made).
+
+    Raises:
+        InputError: the file cannot be created.
+    """
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fh = path.open("xb")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot create recording: {exc.strerror}") from None
+    with fh:
+        w = Writer(fh, compression=CompressionType.ZSTD)
+        w.start(profile="", library="ffexp")
+        channels: dict[str, int] = {}
+        for topic in (CARRIER_STATE, HIL_IDEAL, HIL_CONTACT):
+            sid = w.register_schema(topic.spec.name, "ros2msg", topic.spec.ros2msg.encode())
+            channels[topic.topic] = w.register_channel(topic.topic, "cdr", sid)
+        ev: JsonTopic = CARRIER_EVENT
+        sid = w.register_schema(ev.schema_name, "jsonschema", ev.schema_bytes)
+        channels[ev.topic] = w.register_channel(ev.topic, "json", sid)
+        cycle = run.scene.carrier.cycle_s
+        series = (
+            (CARRIER_STATE, run.rendered.cycle_t_s, run.rendered.cycle),
+            (HIL_IDEAL, run.ideal.cycle_t_s, run.ideal.cycle),
+            (HIL_CONTACT, run.rendered.fine_t_s, run.rendered.fine),
+        )
+        for topic, times, rows in series:
+            cid = channels[topic.topic]
+            for seq, (t, data) in enumerate(zip(times, _cdr(topic, rows), strict=True)):
+                ns = round(t * 1e9)
+                w.add_message(cid, log_time=ns, data=data, publish_time=ns, sequence=seq)
+        hold = run.rendered.hold
+        if hold is not None:
+            ns = round(hold.t_s * 1e9)
+            for seq, (device, cause) in enumerate(((hold.device, hold.cause),
+                                                   ("chaser", f"stopped: {hold.device} held"))):
+                w.add_message(channels[ev.topic], log_time=ns, publish_time=ns, sequence=seq,
+                              data=json.dumps({"device": device, "cause": cause,
+                                               "t_s": hold.t_s}).encode())
+        r = run.rendered
+        w.add_metadata(HIL_METADATA, {
+            "protocol": run.protocol.name,
+            "effective_mass_kg": repr(r.effective_mass_kg),
+            "contact_stiffness_npm": repr(r.stiffness_npm),
+            "contact_damping_nspm": repr(r.damping_nspm),
+            "speed_mps": repr(run.protocol.impact.speed_mps),
+            "carrier_cycle_s": repr(cycle),
+            "extra_delay_cycles": str(run.scene.carrier.extra_delay_cycles),
+            "compensation": run.scene.carrier.compensation,
+        })
+        w.add_metadata("scene", {"scene_json": run.scene.model_dump_json()})
+        w.finish()  # type: ignore[no-untyped-call]
+    return path
+

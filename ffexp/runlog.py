@@ -8,8 +8,9 @@ topics they name (FRI: ``/robot/measurement``, ``/robot/link``), the estimate
 (``/estimator/state``), the control terms (``/control/terms``, plus the
 method's own topic if it declares one), the runner's intent beside what the
 driver really applied (``/control/command``; the back-end's own form, e.g.
-``/robot/command``), ground truth when the robot has it (the topics it names: ``/sim/truth``,
-``/sim/body/<name>``, ...), the scenario's own measures (``/task/funnel``), every new tracker
+``/robot/command``), ground truth when the robot has it (the topics it names:
+``/sim/truth``, ``/sim/body/<name>``, ...; the frames fixed on a body once, on
+``/sim/attached``), the scenario's own measures (``/task/funnel``), every new tracker
 observation (``/target/pose``, and ``/tf`` frame ``target_tracked``) and,
 every ``tf_period_s``, ``/tf``. Verdict notes of the task go to
 ``/alignment/verdict``.
@@ -100,6 +101,7 @@ class RunLog:
         """Further per-cycle writers (set up by :mod:`ffexp.experiment`)."""
         self.cycles = 0
         """Cycles written so far."""
+        self._attached: object = None  # the truth's attached frames last written
 
     def note(self, t_ns: int, note: Note) -> None:
         """An event, or a phase change (``/runner/phase`` and an event)."""
@@ -242,6 +244,11 @@ class RunLog:
                 msgs.append((topic, rec.encode_fields(topic, applied.extras)))
         truth = state.truth
         if truth is not None:
+            if truth.attached is not self._attached:  # once a run: frames fixed on a body
+                self._attached = truth.attached
+                fixed = truth.attached_message()
+                if fixed is not None:
+                    msgs.append((fixed[0], rec.encode_json(fixed[1])))
             for topic, source in truth.messages():
                 msgs.append((topic, rec.encode_fields(topic, source)))
         if scenario is not None:

@@ -115,6 +115,19 @@ def test_neighbour_flips_count_changes_between_grid_neighbours() -> None:
     assert claims.neighbour_flips(nominal, [True, *step], axes) == (3, 12)
 
 
+def test_a_claims_region_is_its_fraction_and_the_centre_of_its_scenes() -> None:
+    # the nominal scene (no key values: its nominal ones) and four scenes of a box
+    scenes = [{"a": None, "b": None, "all": True}, {"a": 0.0, "b": 10.0, "all": False},
+              {"a": 1.0, "b": 30.0, "all": True}, {"a": 3.0, "b": 20.0, "all": True},
+              {"a": 4.0, "b": 40.0, "all": None}]
+    r = claims.region(scenes, "all", ["a", "b"], {"a": 2.0, "b": 20.0})
+    assert (r["holds"], r["scenes"], r["fraction"]) == (3, 4, 0.75)  # one not judged
+    assert r["centre"] == {"a": 2.0, "b": pytest.approx(70.0 / 3)}  # (2 + 1 + 3) / 3
+    assert r["span"] == {"a": 0.5, "b": pytest.approx(1.0 / 3)}  # of 0..4 and 10..40
+    none = claims.region(scenes[1:2], "all", ["a"], {"a": 2.0})
+    assert (none["holds"], none["fraction"], none["centre"]) == (0, 0.0, {})
+
+
 def _config(tmp_path: Path, body: str) -> Path:
     runs = "\n".join(
         f'"{role}" = {{ protocol = "{ROOT}/protocols/{p}", set = {sets} }}'

@@ -83,6 +83,22 @@ class BodyTruth:
     """The body's own mass (not what it carries)."""
 
 
+@dataclass(frozen=True)
+class AttachedFrame:
+    """A named frame fixed on a free body: its pose follows the body's, so a recording
+    keeps it once, as this offset, beside the body's pose of every cycle."""
+
+    body: str
+    """The free body it is fixed on (a name of :attr:`GroundTruth.bodies`)."""
+    offset: F64
+    """4x4 pose of the frame in the body's frame [m]."""
+
+    def resolve(self, body_pose: F64) -> F64:
+        """The frame's 4x4 pose from its body's (``body_pose`` may be ``(n, 4, 4)``)."""
+        out: F64 = body_pose @ self.offset
+        return out
+
+
 @dataclass
 class GroundTruth:
     """What only a simulator knows, attached to a robot state (``None`` on hardware).
@@ -97,7 +113,11 @@ class GroundTruth:
 
     bodies: dict[str, BodyTruth] = field(default_factory=dict)
     sites: dict[str, F64] = field(default_factory=dict)
-    """Named frames, 4x4 in the world frame [m]."""
+    """Named frames, 4x4 in the world frame [m] (those of :attr:`attached` too)."""
+    attached: dict[str, AttachedFrame] = field(default_factory=dict)
+    """The named frames fixed on one of :attr:`bodies`, by name: recorded once as their
+    offset (:meth:`attached_message`), not every cycle. The same dict every cycle of a
+    run (the run log writes it again only when it is another)."""
     contact_wrench: F64 = field(default_factory=lambda: _zeros(6))
     """True wrench the environment exerts on the tool, TCF at the TCP [N, N m]."""
     in_contact: bool = False
@@ -115,13 +135,26 @@ class GroundTruth:
         return self.bodies.get(name)
 
     def messages(self) -> list[tuple[str, object]]:
-        """``(topic, source)`` of every recording message of this truth: each source's
-        attributes are its topic's fields by name."""
+        """``(topic, source)`` of every recording message of this cycle's truth: each
+        source's attributes are its topic's fields by name. The frames of
+        :attr:`attached` are not among them (:meth:`attached_message`)."""
         pre = self.topic_prefix
         out: list[tuple[str, object]] = [(f"{pre}/truth", self)]
         out += [(f"{pre}/body/{name}", body) for name, body in self.bodies.items()]
-        out += [(f"{pre}/site/{name}", _Frame(pose)) for name, pose in self.sites.items()]
+        attached = self.attached
+        out += [(f"{pre}/site/{name}", _Frame(pose)) for name, pose in self.sites.items()
+                if name not in attached]
         return out
+
+    def attached_message(self) -> tuple[str, dict[str, object]] | None:
+        """``(topic, message)`` of :attr:`attached` as JSON: ``{"frames": {name: {"body":
+        ..., "offset": 16 numbers, row-major}}}`` (``None``: no attached frame). A reader
+        resolves each frame's ``<prefix>/site/<name>`` from ``<prefix>/body/<body>``."""
+        if not self.attached:
+            return None
+        return f"{self.topic_prefix}/attached", {"frames": {
+            name: {"body": a.body, "offset": a.offset.reshape(-1).tolist()}
+            for name, a in self.attached.items()}}
 
 
 @dataclass

@@ -17,16 +17,33 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from drivers.base.types import F64, BodyTruth
+from drivers.base.types import F64, AttachedFrame, BodyTruth
 
 __all__ = ["FreeBodies", "body_twist"]
+
+_OBJ_BODY = mujoco.mjtObj.mjOBJ_BODY
+_OBJECT_VELOCITY = mujoco.mj_objectVelocity
+#: MuJoCo's ``[w, v]`` as ``[v, w]``
+_V_W = np.array([3, 4, 5, 0, 1, 2])
+_EYE4 = np.eye(4)
 
 
 def body_twist(model: mujoco.MjModel, data: mujoco.MjData, body: int, work: F64) -> F64:
     """``[v, w]`` of body ``body``'s frame origin, world coordinates (a new array; needs
     the state's velocities, ``mj_comVel`` done); ``work`` is a 6-array it may overwrite."""
-    mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, body, work, 0)
-    return np.concatenate((work[3:], work[:3]))  # MuJoCo's order is [w, v]
+    _OBJECT_VELOCITY(model, data, _OBJ_BODY, body, work, 0)
+    return work.take(_V_W)  # MuJoCo's order is [w, v]
+
+
+def _local(pos: F64, quat: F64) -> F64:
+    """4x4 of a position and a unit quaternion ``[w, x, y, z]`` (a body's or a site's in
+    its parent)."""
+    out = _EYE4.copy()
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, np.asarray(quat, dtype=np.float64))
+    out[:3, :3] = mat.reshape(3, 3)
+    out[:3, 3] = pos
+    return out
 
 
 class FreeBodies:
@@ -47,6 +64,29 @@ class FreeBodies:
                 raise KeyError(f"no body {name!r} in the model")
             self.ids[name] = bid
         self._vel = np.zeros(6)
+        self._mass = model.body_mass  # views into the model's and the state's buffers
+        # per body: its id, position and row-major rotation (views, current every cycle)
+        self._rows = tuple((name, bid, data.xpos[bid], data.xmat[bid].reshape(3, 3))
+                           for name, bid in self.ids.items())
+
+    def attached(self, sites: dict[str, int]) -> dict[str, AttachedFrame]:
+        """The named frames (site ids by name) fixed on one of these bodies: each its
+        body's name and its pose in that body's frame, from the model (the chain of
+        bodies welded between them: no joint). A frame on no free body is left out."""
+        m = self.model
+        by_id = {bid: name for name, bid in self.ids.items()}
+        out: dict[str, AttachedFrame] = {}
+        for name, site in sites.items():
+            if site < 0:
+                continue
+            offset = _local(m.site_pos[site], m.site_quat[site])
+            bid = int(m.site_bodyid[site])
+            while bid not in by_id and bid > 0 and m.body_jntnum[bid] == 0:
+                offset = _local(m.body_pos[bid], m.body_quat[bid]) @ offset
+                bid = int(m.body_parentid[bid])
+            if bid in by_id:
+                out[name] = AttachedFrame(by_id[bid], offset)
+        return out
 
     def _free_dofs(self, name: str) -> int | None:
         """The first dof of the body's free joint (``None``: it has none)."""
@@ -83,7 +123,13 @@ class FreeBodies:
         return body_twist(self.model, self.data, self.ids[name], self._vel)
 
     def truth(self) -> dict[str, BodyTruth]:
-        """Every body's state now."""
-        mass = self.model.body_mass
-        return {name: BodyTruth(self.pose(name), self.twist(name), float(mass[bid]))
-                for name, bid in self.ids.items()}
+        """Every body's state now (new arrays)."""
+        m, d, work, mass = self.model, self.data, self._vel, self._mass
+        out = {}
+        for name, bid, xpos, xmat in self._rows:
+            pose = _EYE4.copy()
+            pose[:3, :3] = xmat
+            pose[:3, 3] = xpos
+            _OBJECT_VELOCITY(m, d, _OBJ_BODY, bid, work, 0)
+            out[name] = BodyTruth(pose, work.take(_V_W), float(mass[bid]))
+        return out

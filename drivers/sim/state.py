@@ -147,7 +147,7 @@ def _fill_truth(s: LazyArmState, w: SimWorld) -> None:
     s.__dict__["truth"] = ground_truth(
         w.bodies.truth(), sites,
         w._contact, w._touching, tcp_twist,
-        None if w.chaser is None else w.chaser.arm_base_pose())
+        None if w.chaser is None else w.chaser.arm_base_pose(), w._attached)
 
 
 _FILL: dict[str, Callable[[LazyArmState, SimWorld], None]] = {

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from drivers.base.types import F64, BodyTruth, GroundTruth
+from drivers.base.types import F64, AttachedFrame, BodyTruth, GroundTruth
 
 __all__ = ["ground_truth", "pose"]
 
@@ -25,7 +25,10 @@ def pose(pos: F64, mat9: F64) -> F64:
 
 
 def ground_truth(bodies: dict[str, BodyTruth], sites: dict[str, F64], contact: F64,
-                 touching: bool, tcp_twist: F64, base_pose: F64 | None = None) -> GroundTruth:
-    """The cycle's truth from the world's bodies, frames and tool contact."""
+                 touching: bool, tcp_twist: F64, base_pose: F64 | None = None,
+                 attached: dict[str, AttachedFrame] | None = None) -> GroundTruth:
+    """The cycle's truth from the world's bodies, frames and tool contact; ``attached``:
+    which of the frames are fixed on a body (the same dict every cycle)."""
     return GroundTruth(bodies=bodies, sites=sites, contact_wrench=contact,
-                       in_contact=touching, tcp_twist=tcp_twist, base_pose=base_pose)
+                       in_contact=touching, tcp_twist=tcp_twist, base_pose=base_pose,
+                       attached={} if attached is None else attached)

@@ -132,6 +132,9 @@ class SimWorld:
             (name, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, name))
             for name in (f"{o.name}.{site}" for o in scene.objects for site in o.sites)]
         """The scene's free-moving bodies (the truth reports them by name)."""
+        self._attached = self.bodies.attached({"funnel_mouth": self._mouth,
+                                               **dict(self._object_sites)})
+        """The named frames fixed on a free body (the truth's ``attached``)."""
         self._on_bed = scene.target.support == "air_bed"
         if self._on_bed:  # the bed's slides and hinge
             jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n)

@@ -348,7 +348,22 @@ def reproduce(
         if result["flips"]:
             typer.echo("flips between neighbouring grid points (flips/pairs): " + ", ".join(
                 f"{f['outcome']} {f['flips']}/{f['pairs']}" for f in result["flips"]))
+        for r in result.get("regions", []):
+            typer.echo(_region_line(r))
     typer.echo(f"wrote {', '.join(p.name for p in paths)} in {out}", err=as_json)
+
+
+def _region_line(r: dict[str, Any]) -> str:
+    """One claim's region: its fraction of the scenes, and its centre beside the nominal
+    scene (each key: centre, nominal, the span of the scenes where it holds)."""
+    frac = r["fraction"]
+    head = (f"region where {r['claim']!r} holds: {r['holds']} of {r['scenes']} scenes"
+            + (f" ({100 * frac:.0f} %)" if frac is not None else ""))
+    if not r["centre"]:
+        return head + "; no centre"
+    parts = [f"{k} {v:.4g} (nominal {r['nominal'].get(k, float('nan')):.4g}, span "
+             f"{r['span'].get(k, 0.0):.2f} of the box)" for k, v in r["centre"].items()]
+    return head + "; centre: " + ", ".join(parts)
 
 
 def _print_claims(name: str, summary: Sequence[dict[str, Any]]) -> None:

@@ -31,6 +31,7 @@ from zstandard import ZstdError
 
 from drivers.config import not_regular
 from ffexp.errors import InputError
+from ffexp.recording import attached
 from ffexp.recording.schema import FieldSpec, MessageSpec
 from ffexp.recording.topics import CDR_TOPICS
 
@@ -220,9 +221,12 @@ def _read_stream(path: Path) -> _Stream:
 
 
 def _finished_messages(
-    path: Path, topics: list[str] | None, start_ns: int | None, end_ns: int | None
+    path: Path, topics: list[str] | None, start_ns: int | None, end_ns: int | None,
+    extra: list[str],
 ) -> tuple[_Stream, bool]:
-    """Read a finished file through its index; (stream, False) if it has none."""
+    """Read a finished file through its index; (stream, False) if it has none. ``topics``
+    gets the topics its attached frames need (:func:`attached.helpers`), also in
+    ``extra``."""
     out = _Stream(complete=True)
     summary = None
     with path.open("rb") as fh:
@@ -231,6 +235,9 @@ def _finished_messages(
             summary = reader.get_summary()
             if summary is None:
                 return out, False
+            if topics is not None:
+                extra += attached.helpers(topics, (c.topic for c in summary.channels.values()))
+                topics += extra
             # file order is cheaper than the reader's merge by time; each topic
             # is sorted by log time when it is decoded
             kwargs: dict[str, Any] = {"topics": topics, "log_time_order": False}
@@ -284,12 +291,17 @@ def load(
     """
     path = Path(path)
     _check_magic(path)
-    wanted = None if topics is None else list(topics)
-    stream, indexed = _finished_messages(path, wanted, start_ns, end_ns)
+    asked = None if topics is None else list(topics)
+    wanted = None if asked is None else list(asked)
+    extra: list[str] = []
+    stream, indexed = _finished_messages(path, wanted, start_ns, end_ns, extra)
     rec = Recording(path=path)
     cut = ""
     if not indexed:
         stream = _read_stream(path)
+        if asked is not None:
+            extra = attached.helpers(asked, (c.topic for c in stream.channels.values()))
+            wanted = asked + extra
         rec.complete = False
         last = max((m.log_time for m in stream.messages), default=None)
         cut = (f"{path}: recording is incomplete ({stream.error or 'no summary'}); "
@@ -305,6 +317,12 @@ def load(
             and (end_ns is None or m.log_time < end_ns)
         ]
     _decode_into(rec, stream)
+    if start_ns is not None:  # the attached frames were written at the run's start
+        fixed = [c.topic for c in stream.channels.values() if attached.is_attached(c.topic)
+                 and not len(rec.json.get(c.topic, ()))]
+        if fixed:
+            rec.json.update(load(path, fixed).json)
+    attached.resolve(rec, extra)
     if cut:  # times in the run's seconds (its first cycle is 0), as everywhere else
         upto = "" if last is None else f" up to {run_seconds(rec, last):.3f} s of the run"
         rec.warnings.insert(0, f"{cut}{upto}; `ffexp recover` rewrites it")
@@ -478,11 +496,18 @@ def contents(path: Path) -> Contents:
     first: dict[str, int] = {}
     last: dict[str, int] = {}
     schema_of: dict[str, str] = {}
+    fixed: dict[str, bytes] = {}  # the attached frames' messages by topic
     complete = False
     with path.open("rb") as fh:
         try:
             reader = make_reader(fh)
             summary = reader.get_summary()
+            if summary is not None:
+                wanted = [c.topic for c in summary.channels.values()
+                          if attached.is_attached(c.topic)]
+                for _s, channel, message in (reader.iter_messages(topics=wanted)
+                                             if wanted else ()):
+                    fixed[channel.topic] = message.data
         except _READ_ERRORS:
             summary = None
         if summary is not None:
@@ -514,9 +539,18 @@ def contents(path: Path) -> Contents:
             mch = stream.channels.get(m.channel_id)
             if mch is None:
                 continue
+            if attached.is_attached(mch.topic):
+                fixed[mch.topic] = m.data
             counts[mch.topic] += 1
             first[mch.topic] = min(first.get(mch.topic, m.log_time), m.log_time)
             last[mch.topic] = max(last.get(mch.topic, m.log_time), m.log_time)
+    for site, body in attached.sites_of(fixed).items():  # resolved on reading: as its body
+        if site not in counts and body in counts:
+            counts[site] = counts[body]
+            for times in (first, last):
+                if body in times:
+                    times[site] = times[body]
+            schema_of[site] = f"{attached.FRAME_SCHEMA} (resolved from {body})"
     t0 = min(first.values(), default=None)
     t1 = max(last.values(), default=None)
     rows = []

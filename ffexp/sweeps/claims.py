@@ -248,3 +248,30 @@ def neighbour_flips(
             pairs += 1
             flips += verdict != other
     return flips, pairs
+
+
+# -- where a claim holds ----------------------------------------------------------------
+def region(per_scene: Sequence[Mapping[str, Any]], claim: str,
+           keys: Sequence[str], nominal: Mapping[str, float]) -> dict[str, Any]:
+    """Where ``claim`` holds over the scenes: the fraction of the judged scenes, and the
+    centre of those where it holds (each key's mean over them; the nominal scene's keys
+    are its ``nominal`` values) beside the nominal values and, per key, the span of
+    the scenes where it holds as a fraction of the box's (0: one scene, 1: the whole
+    range). An empty region has no centre."""
+    judged = [e for e in per_scene if e.get(claim) is not None]
+    inside = [e for e in judged if e[claim]]
+    out: dict[str, Any] = {"claim": claim, "holds": len(inside), "scenes": len(judged),
+                           "fraction": len(inside) / len(judged) if judged else None,
+                           "centre": {}, "nominal": dict(nominal), "span": {}}
+    for key in keys:
+        def value(e: Mapping[str, Any], key: str = key) -> float | None:
+            v = e.get(key)
+            return float(v) if isinstance(v, int | float) else nominal.get(key)
+        everywhere = [v for v in (value(e) for e in per_scene) if v is not None]
+        here = [v for v in (value(e) for e in inside) if v is not None]
+        if not here or not everywhere:
+            continue
+        out["centre"][key] = sum(here) / len(here)
+        width = max(everywhere) - min(everywhere)
+        out["span"][key] = (max(here) - min(here)) / width if width > 0 else 0.0
+    return out

@@ -287,8 +287,24 @@ def evaluate(study: Study, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     limit_rows = [row for s in study.searches if s.result is not None
                   for row in s.limits_rows()]
     return {"scenes": per_scene, "summary": summary, "limits": limit_rows,
-            "flips": flips(study, per_scene),
+            "flips": flips(study, per_scene), "regions": regions(study, per_scene),
             "rows": list(rows) + [r for s in study.searches for r in s.rows]}
+
+
+#: The claims whose region (fraction and centre) the study reports.
+REGION_CLAIMS = ("ordering", "all")
+
+
+def regions(study: Study, per_scene: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Where the paper's comparison and every claim hold: each one's fraction of the
+    scenes and the centre of the scenes where it holds (:func:`claims.region`)."""
+    if not study.keys or not study.targets:
+        return []
+    from ffexp.sweeps import plots
+
+    nominal = plots.nominal_values(next(iter(study.targets.values())), study.keys)
+    names = [k.text for k in study.keys]
+    return [claims.region(per_scene, c, names, nominal) for c in REGION_CLAIMS]
 
 
 def flips(study: Study, per_scene: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
@@ -379,6 +395,7 @@ def write(study: Study, result: Mapping[str, Any], out_dir: Path) -> list[Path]:
         "kind": "reproduce", "config": str(study.path), "config_json":
         study.config.model_dump(mode="json"), "summary": result["summary"],
         "limits": result["limits"], "flips": result["flips"],
+        "regions": result.get("regions", []),
     }, indent=2, default=str) + "\n")
     paths.append(out_dir / "reproduce.json")
     paths.append(plots.claims_figure(result["summary"], f"{study.config.name}: "

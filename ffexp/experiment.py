@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 from drivers import registry
 from drivers.config import apply_overrides, load_model, read_toml
 from drivers.description import load_scene
-from drivers.factory import Devices, open_devices
+from drivers.factory import Devices, open_devices, robot_arm
 from drivers.rig import Rig, load_rig, validate_rig
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
@@ -129,30 +129,15 @@ def _revision_beside() -> Callable[[], str]:
     return get
 
 
-def robot_arm(robot: object) -> str | None:
-    """The arm model (``arm.model``) the rig's robot drives: a KRC over FRI 1.x, on the wire
-    or in-process (``fri1``, ``sim``), an LWR4+; a UR controller (``ur``, ``ur-sim``) a
-    UR5e; ``None``: any (the mock)."""
-    from drivers.emulate.backend import SimRobotConfig
-    from drivers.fri.config import FriRobotConfig
-    from drivers.ur.config import UrSettings
-
-    if isinstance(robot, UrSettings):
-        return "ur5e"
-    if isinstance(robot, FriRobotConfig | SimRobotConfig):
-        return "lwr4"
-    return None
-
-
 def check_arm(rig: Rig, rig_source: str, scene: Scene, scene_source: str) -> str:
     """Check that the rig's robot can drive the scene's arm (one ``error:`` line naming the
     scene's ``arm.model`` and the rig's robot when not); what happens to the scene's arm,
     in words, for the ``ffexp check`` line ("" when it is the robot's own)."""
-    want = robot_arm(rig.robot)
+    want, takes_place = robot_arm(rig.robot)
     have = scene.arm.model
     if want is None or have == want:
         return ""
-    if want == "ur5e":  # the UR back-ends put their arm in an LWR4+ scene's place
+    if takes_place:  # a robot that puts its own arm in a scene of another arm
         return f"the rig's {want} in place of the scene's {have}"
     raise ConfigError(scene_source, "arm.model", f"{have!r}, but the rig's robot "
                       f"({rig_source}: robot.type {rig.robot.type!r}) drives the {want}: "

@@ -24,7 +24,7 @@ from drivers.rig import Rig
 if TYPE_CHECKING:
     from drivers.description.scene import Scene
 
-__all__ = ["Devices", "open_devices"]
+__all__ = ["Devices", "open_devices", "robot_arm"]
 
 
 @dataclass
@@ -98,3 +98,23 @@ def open_devices(
     devices.tracker = tracked.tracker
     devices.metadata.update(tracker=rig.tracker.type, **tracked.metadata)
     return devices
+
+
+def robot_arm(robot: object) -> tuple[str | None, bool]:
+    """The arm model (a scene's ``arm.model``) the rig's robot drives, and whether it puts
+    that arm in the place of a scene's other arm (``None``: any arm, as the mock).
+
+    A KRC over FRI 1.x, on the wire or in-process (``fri1``, ``sim``), drives the LWR4+
+    and nothing else (its packets carry seven joints); a UR controller (``ur``,
+    ``ur-sim``) the UR5e, which it puts in an LWR4+ scene's place (the protocols' paper
+    scene), as ``ffexp emulate --robot ur5e`` does.
+    """
+    from drivers.emulate.backend import SimRobotConfig
+    from drivers.fri.config import FriRobotConfig
+    from drivers.ur.config import UrSettings
+
+    if isinstance(robot, UrSettings):
+        return "ur5e", True
+    if isinstance(robot, FriRobotConfig | SimRobotConfig):
+        return "lwr4", False
+    return None, False

@@ -18,10 +18,11 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
+from drivers.description import load_scene
 from ffexp.errors import InputError
-from ffexp.experiment import RunResult, load_campaign, load_rig_choice, run_file
+from ffexp.experiment import RunResult, check_arm, load_campaign, load_rig_choice, run_file
 from ffexp.naming import stamp
-from ffexp.protocol import CampaignProtocol, load_run_protocol
+from ffexp.protocol import CampaignProtocol, load_run_protocol, scene_path
 from ffexp.revision import source_revision
 from ffexp.rig_choice import RigChoice
 
@@ -61,17 +62,21 @@ def check_campaign(
     campaign_file: Path, overrides: Sequence[str] = (), rig: RigChoice | None = None
 ) -> tuple[CampaignProtocol, list[CampaignEntry]]:
     """The campaign and its entries, every protocol (with ``overrides``) and the rig
-    checked: bad input is an error here, before anything runs or is written."""
+    checked, each protocol's scene with them and its arm against the rig's robot: bad input
+    is an error here, before anything runs or is written."""
     camp = load_campaign(campaign_file)
+    rig_model, rig_source = load_rig_choice(rig or RigChoice())
     entries = []
     for i, entry in enumerate(camp.runs):
         path = campaign_file.parent / entry.protocol
         entry_overrides = (*entry.set, *overrides)
         protocol = load_run_protocol(path, list(entry_overrides))
+        scene_file = scene_path(path, protocol)
+        check_arm(rig_model, rig_source, load_scene(scene_file, protocol.scene.set),
+                  str(scene_file))
         entries.append(CampaignEntry(path, entry_overrides,
                                      f"{i + 1}/{len(camp.runs)} {path.stem}",
                                      protocol.run.timeout_s))
-    load_rig_choice(rig or RigChoice())
     return camp, entries
 
 

@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING
 
 from drivers import registry
 from drivers.config import apply_overrides, load_model, read_toml
-from drivers.factory import Devices, open_devices
+from drivers.description import load_scene
+from drivers.factory import Devices, open_devices, robot_arm
 from drivers.rig import Rig, load_rig, validate_rig
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
@@ -36,6 +37,7 @@ from ffexp.rig_choice import DEFAULT_DRIVER, DRIVERS, FT_SOURCES, RigChoice
 from ffexp.runlog import RunLog
 
 if TYPE_CHECKING:
+    from drivers.description.scene import Scene
     from ffexp.live.server import LiveServer
     from ffexp.scene3d import SceneWriter
 
@@ -127,6 +129,21 @@ def _revision_beside() -> Callable[[], str]:
     return get
 
 
+def check_arm(rig: Rig, rig_source: str, scene: Scene, scene_source: str) -> str:
+    """Check that the rig's robot can drive the scene's arm (one ``error:`` line naming the
+    scene's ``arm.model`` and the rig's robot when not); what happens to the scene's arm,
+    in words, for the ``ffexp check`` line ("" when it is the robot's own)."""
+    want, takes_place = robot_arm(rig.robot)
+    have = scene.arm.model
+    if want is None or have == want:
+        return ""
+    if takes_place:  # a robot that puts its own arm in a scene of another arm
+        return f"the rig's {want} in place of the scene's {have}"
+    raise ConfigError(scene_source, "arm.model", f"{have!r}, but the rig's robot "
+                      f"({rig_source}: robot.type {rig.robot.type!r}) drives the {want}: "
+                      f"use a scene of the {want}, or a rig of the {have}")
+
+
 def output_path(
     out_dir: Path, name: str, start: datetime, overrides: list[str] | tuple[str, ...] = (),
     robot: str = "",
@@ -169,11 +186,14 @@ def run_file(
             scene_overrides=protocol.scene.set,
             seed=protocol.seed,
         )
-        if devices.notice is not None and notice is not None:
-            notice(devices.notice)
         path: Path | None = None
         log: RunLog | None = None
         try:
+            check_arm(rig_model, rig_source, devices.scene or load_scene(
+                scene_path(protocol_path, protocol), protocol.scene.set),
+                str(scene_path(protocol_path, protocol)))
+            if devices.notice is not None and notice is not None:
+                notice(devices.notice)
             start = datetime.now(UTC)
             start_ns = time.time_ns()
             all_overrides = [*overrides, *(f"rig:{o}" for o in (rig or RigChoice()).overrides)]

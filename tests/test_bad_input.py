@@ -538,6 +538,11 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         ("campaign {camp_self} --out {out}", ["runs.0.protocol", "this campaign itself"]),
         (f"run {P} --rig {ROOT / 'rigs/ur5e-sim.toml'} --ft sim --out {{out}}",
          ["ur5e-sim.toml", "ft.type"]),
+        # a UR5e scene on the KRC's LWR4+ (in-process here): the scene's arm, not the rig
+        (f"run {P} --set scene.file=\"../data/scenes/paper-ur5e.toml\" --out {{out}}",
+         ["paper-ur5e.toml", "arm.model", "'ur5e'", "drives the lwr4"]),
+        (f"campaign {CAMP} --scene-set arm.model=\"ur5e\" --out {{out}}",
+         ["paper.toml", "arm", "UR5e"]),
     ],
     "refused_address": [
         (f"run {P} --driver fri --robot-ip 999.1.1.1 --out {{out}}",

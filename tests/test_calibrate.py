@@ -223,6 +223,20 @@ def test_resimulate_bad_input_writes_nothing(recs: dict[str, Path], tmp_path: Pa
     assert not out.exists()
 
 
+def test_a_resimulation_is_complete_and_not_taken_for_a_run_that_ended_abnormally(
+        recs: dict[str, Path], tmp_path: Path) -> None:
+    from ffexp.recording.reader import load
+
+    out = tmp_path / "sim.mcap"
+    result = runner.invoke(app, ["resimulate", str(recs["glide"]), "--out", str(out)])
+    assert result.exit_code == 0, result.stderr
+    sim = load(out)
+    assert sim.complete and not sim.warnings, sim.warnings
+    assert sim.metadata["resimulation"]["resimulated_from"] == str(recs["glide"])
+    diff = runner.invoke(app, ["diff", str(recs["glide"]), str(out), "--atol", "0.1"])
+    assert diff.exit_code in (0, 1) and "ended abnormally" not in diff.stderr, diff.stderr
+
+
 def test_torque_loop_r_is_fitted_from_a_scene_that_sets_it() -> None:
     """``arm.torque_loop_r`` is fittable; a base scene that leaves it unset is one clear
     error (no start value), one that sets it starts there."""

@@ -5,6 +5,8 @@ first contact), and a fit whose model cannot explain the data says so and writes
 
 from __future__ import annotations
 
+import csv
+import json
 from pathlib import Path
 
 import pytest
@@ -72,4 +74,28 @@ def test_a_model_that_cannot_explain_the_data_says_so_and_writes_nothing(
     # ... and the page shows values, not Python's reprs
     page = (tmp_path / "lab-report" / "calibration.html").read_text()
     assert "not consistent with the data" in page
+    # ... and nothing reads "identified": not the terminal, the page or its data
+    params = result.stdout.split("residuals (rms")[0]  # the parameters' table
+    assert "identi" in params and " NO " in params and " yes " not in params
+    with (tmp_path / "lab-report" / "calibration-parameters.csv").open() as f:
+        assert {row["identified"] for row in csv.DictReader(f)} == {"NO"}
+    data = json.loads((tmp_path / "lab-report" / "calibration.json").read_text())
+    assert data["consistent"] is False
+    assert not any(e["identified"] for e in data["estimates"])
     assert "['" not in page and ">True<" not in page and ">False<" not in page
+
+
+def test_an_inconsistent_fit_marks_every_estimate_not_identified() -> None:
+    from ffexp.calibrate.result import Estimate, mark_inconsistent
+
+    def est(key: str) -> Estimate:
+        return Estimate(key, 0.0, 1.0, 0.0, 2.0, "smooth", "least squares", 0.9, 1.1, True)
+
+    ests = [est("target.mu"), est("arm.friction_scale")]
+    mark_inconsistent(ests, [])
+    assert all(e.identified for e in ests)  # a consistent fit keeps its labels
+    why = "target.mu: the data put it 0.5 from 1, beyond its 95 % half-width 0.1"
+    mark_inconsistent(ests, [why])
+    assert not any(e.identified for e in ests)
+    assert ests[0].note.startswith("not consistent with the data: the data put it 0.5")
+    assert ests[1].note.startswith("the fit is not consistent with the data (target.mu:")

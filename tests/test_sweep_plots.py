@@ -113,6 +113,37 @@ def test_sweep_heatmap_names_keys_and_frames_the_nominal_cell(
     assert breaks.norm.vmin == pytest.approx(0.5) and breaks.norm.vmax == pytest.approx(1.5)
 
 
+@pytest.mark.parametrize("nominal", [{"align.k_ri[3]": 1.0, "align.f_ref[2]": 0.8},
+                                     {"align.k_ri[3]": 0.5, "align.f_ref[2]": 0.7},
+                                     {"align.k_ri[3]": 1.0, "align.f_ref[2]": 0.6}])
+def test_a_nominal_between_cells_is_pointed_at_on_the_spines_not_drawn_over_numbers(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, nominal: dict[str, float]
+) -> None:
+    figs = captured(monkeypatch)
+    grid = [(k, f) for k in (0.0, 0.5, 2.0) for f in (0.4, 0.8)]
+    df = pd.DataFrame({"align.k_ri[3]": [k for k, _ in grid],
+                       "align.f_ref[2]": [f for _, f in grid],
+                       "aligned": [k > 0.25 for k, _ in grid],
+                       "contact_breaks": [1] * len(grid), "mean_fz_align_n": [f for _, f in grid]})
+    plots.sweep_figures(df, ["align.k_ri[3]", "align.f_ref[2]"], tmp_path, "t", nominal=nominal)
+    for ax in figs[0].axes[:3]:
+        assert not [p for p in ax.patches if not p.get_fill()]  # no frame across two cells
+        xs, ys = ax.get_xlim(), ax.get_ylim()
+        points = np.vstack([c.get_offsets() for c in ax.collections])
+        assert len(points) == 4
+        for x, y in points:  # each on a spine: never over a cell's number
+            assert x in (pytest.approx(min(xs)), pytest.approx(max(xs))) or \
+                y in (pytest.approx(min(ys)), pytest.approx(max(ys)))
+        texts = [t.get_position() for t in ax.texts]
+        assert len(texts) == len(grid)
+        # k_xp 1.0 lies a third of the way from cell 1 (0.5) to cell 2 (2.0)
+        bottom = [x for x, y in points if y == pytest.approx(min(ys))]
+        expect = {1.0: 1 + 0.5 / 1.5, 0.5: 1.0}[nominal["align.k_ri[3]"]]
+        assert bottom == [pytest.approx(expect)]
+    legend = figs[0].legends[0].get_texts()[0].get_text()
+    assert "between cells" in legend
+
+
 def test_limits_figure_names_the_key_and_marks_limit_and_nominal(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

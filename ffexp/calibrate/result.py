@@ -73,3 +73,18 @@ class FitResult:
     inconsistent: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     """One line per recording whose F/T residual exceeds twice its noise floor."""
+
+
+def mark_inconsistent(estimates: list[Estimate], inconsistent: list[str]) -> None:
+    """A fit the data contradict identifies nothing: every estimate reads "not identified"
+    (in the terminal, the report and the scene's notes), its note says why (the key's own
+    reason when the data put that key outside its interval, else the fit's)."""
+    if not inconsistent:
+        return
+    for e in estimates:
+        own = [x for x in inconsistent if x.startswith(f"{e.key}: ")]
+        why = ("not consistent with the data: " + own[0][len(e.key) + 2:] if own
+               else "the fit is not consistent with the data ("
+               + "; ".join(inconsistent) + ")")
+        e.identified = False
+        e.note = why + (f"; {e.note}" if e.note else "")

@@ -13,7 +13,7 @@ from ffexp.calibrate.params import FITTABLE, Param, parse_fit
 from ffexp.calibrate.pool import Rollouts
 from ffexp.calibrate.residuals import compare
 from ffexp.calibrate.resim import base_scene
-from ffexp.calibrate.result import FitResult
+from ffexp.calibrate.result import FitResult, mark_inconsistent
 from ffexp.errors import ConfigError, InputError
 
 
@@ -115,6 +115,7 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
         res.rollouts = pool.count
         res.inconsistent = list(cal.inconsistent)
         res.consistent = not res.inconsistent
+        mark_inconsistent(res.estimates, res.inconsistent)
         res.warnings = misfit_warnings(res)
     res.elapsed_s = time.monotonic() - t0
     return res, params

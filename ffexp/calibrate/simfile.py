@@ -45,9 +45,11 @@ def _write(path: Path, inp: ReplayInput, tr: Trace, shift: int, bias: np.ndarray
         raise TypeError("a replay without its scene")
     joints = tr.scene.arm.description.joints
     with Recorder(path) as rec:
-        rec.metadata("run", {"resimulated_from": str(source), "driver": inp.robot,
-                             "scene_json": tr.scene.model_dump_json(),
-                             "ft_delay_samples": str(shift)})
+        # not a run's recording (no runner, no phases): its own metadata name, so that a
+        # reader does not take the missing run end for a run that ended abnormally
+        rec.metadata("resimulation", {"resimulated_from": str(source), "driver": inp.robot,
+                                      "scene_json": tr.scene.model_dump_json(),
+                                      "ft_delay_samples": str(shift)})
         state = rec.record("/robot/state")
         for k in range(n):
             state["time_ns"] = robot_t0_ns + round(tr.t_s[k] * 1e9)

@@ -57,37 +57,43 @@ def check(
                           "protocols on one rig at a time, or give it as --rig")
     on_rig = rig if rig is not None else (rigs[0] if rigs else None)
     choice = rig_choice(on_rig, driver, rig_set)
+    given = on_rig is not None or driver is not None  # a scene alone is checked alone
     for path, kind in kinds.items():
-        typer.echo(f"ok: {path}: {kind}{_check_one(path, kind, choice, sets)}")
+        typer.echo(f"ok: {path}: {kind}{_check_one(path, kind, choice, sets, given)}")
 
 
-def _check_one(path: Path, kind: str, choice: object, sets: list[str]) -> str:
+def _check_one(path: Path, kind: str, choice: object, sets: list[str], rig_given: bool) -> str:
     """Check one file; what it was checked with (for the ok line)."""
     from drivers.config import load_model
     from drivers.description.scene import load_scene
     from ffexp.campaign import check_campaign
     from ffexp.contact1dof.sweep import SweepProtocol
-    from ffexp.experiment import load_rig_choice
+    from ffexp.experiment import check_arm, load_rig_choice
     from ffexp.rig_choice import RigChoice
 
     assert isinstance(choice, RigChoice)
     where = f" on {choice.path}" if choice.path is not None else \
         f" on the built-in {choice.driver} rig"
     if kind == "run protocol":
-        _open_closed(path, sets, choice)
-        return where
+        what = _open_closed(path, sets, choice)
+        return where + (f" ({what})" if what else "")
     if kind == "campaign":
         _camp, entries = check_campaign(path, sets, choice)
-        for entry in entries:
-            _open_closed(entry.protocol, list(entry.overrides), choice)
-        return f", {len(entries)} run(s){where}"
+        whats = {_open_closed(entry.protocol, list(entry.overrides), choice)
+                 for entry in entries} - {""}
+        return f", {len(entries)} run(s){where}" + (f" ({'; '.join(sorted(whats))})"
+                                                    if whats else "")
     if kind == "rig":
         load_rig_choice(RigChoice(path=path, overrides=choice.overrides
                                   if choice.path == path else ()))
         return ""
     if kind == "scene":
-        load_scene(path)
-        return ""
+        scene = load_scene(path)
+        if not rig_given:
+            return ""
+        rig_model, source = load_rig_choice(choice)
+        what = check_arm(rig_model, source, scene, str(path))
+        return where + (f" ({what})" if what else "")
     if kind == "impact protocol":
         from ffexp.hil.protocol import load_hil_protocol
 
@@ -103,18 +109,24 @@ def _check_one(path: Path, kind: str, choice: object, sets: list[str]) -> str:
     return ""
 
 
-def _open_closed(protocol_path: Path, overrides: list[str], choice: object) -> None:
-    """The protocol, its scene and the rig, the devices opened on that scene and closed:
-    what ``ffexp run`` checks before its recording exists."""
+def _open_closed(protocol_path: Path, overrides: list[str], choice: object) -> str:
+    """The protocol, its scene and the rig, the devices opened on that scene and closed,
+    the scene's arm against the rig's robot: what ``ffexp run`` checks before its
+    recording exists. What becomes of the scene's arm, in words ("" when nothing)."""
+    from drivers.description.scene import load_scene
     from drivers.factory import open_devices
-    from ffexp.experiment import load_rig_choice
+    from ffexp.experiment import check_arm, load_rig_choice
     from ffexp.protocol import load_run_protocol, scene_path
     from ffexp.rig_choice import RigChoice
 
     assert isinstance(choice, RigChoice)
     protocol = load_run_protocol(protocol_path, overrides)
     rig_model, source = load_rig_choice(choice)
-    devices = open_devices(rig_model, source=source,
-                           scene_file=scene_path(protocol_path, protocol),
+    scene_file = scene_path(protocol_path, protocol)
+    devices = open_devices(rig_model, source=source, scene_file=scene_file,
                            scene_overrides=protocol.scene.set, seed=protocol.seed)
-    devices.close()
+    try:
+        scene = devices.scene or load_scene(scene_file, protocol.scene.set)
+        return check_arm(rig_model, source, scene, str(scene_file))
+    finally:
+        devices.close()

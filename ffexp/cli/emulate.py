@@ -186,5 +186,9 @@ def emulate(
             # the ready line comes once the handlers are in place: a signal sent on
             # reading it stops the emulator cleanly
             say(f"ffexp emulate: {rig.ready_line()}")
+            say("ffexp emulate: waiting for " + ("a run to connect" if entry.link == "rtde"
+                                                 else "a run to answer on the remote")
+                + (f"; stops after {duration:g} s" if duration > 0 else
+                   "; serves until Ctrl-C (--duration S: at most S seconds)"))
             rig.serve(flag, on_status=say)
     say(f"ffexp emulate: {rig.summary()}")

@@ -30,6 +30,8 @@ NOMINAL_STYLE: dict[str, Any] = {"marker": "*", "s": 160, "facecolors": "white",
                                  "edgecolors": "black", "linewidths": 1.0, "zorder": 6}
 NOMINAL_CELL: dict[str, Any] = {"fill": False, "edgecolor": "black", "linewidth": 2.0,
                                 "zorder": 6}
+NOMINAL_EDGE: dict[str, Any] = {"s": 70, "facecolors": "white", "edgecolors": "black",
+                                "linewidths": 1.0, "zorder": 6, "clip_on": False}
 NOMINAL_LABEL = "nominal (the protocol's and scene's own values)"
 
 
@@ -134,13 +136,12 @@ def _heatmaps(data: pd.DataFrame, kx: str, ky: str, title: str, more: Sequence[s
               nominal: Mapping[str, float]) -> Figure:
     import numpy as np
     from matplotlib.colors import Normalize
-    from matplotlib.patches import Rectangle
 
     from ffexp.figures import key_label, new_figure
 
     fig = new_figure(4.3 * len(OUTCOMES), 3.8)
     axes = fig.subplots(1, len(OUTCOMES))
-    marked = False
+    marked = ""
     for ax, (col, label) in zip(axes, OUTCOMES, strict=True):
         table = data.pivot_table(index=ky, columns=kx, values=col, aggfunc="mean",
                                  dropna=False)
@@ -161,21 +162,55 @@ def _heatmaps(data: pd.DataFrame, kx: str, ky: str, title: str, more: Sequence[s
                     color="white" if dark else "black")
         x0 = _position(list(table.columns), nominal.get(kx))
         y0 = _position(list(table.index), nominal.get(ky))
-        if x0 is not None and y0 is not None:  # a frame around it, the value stays legible
-            ax.add_patch(Rectangle((x0 - 0.5, y0 - 0.5), 1.0, 1.0, **NOMINAL_CELL))
-            marked = True
+        if x0 is not None and y0 is not None:
+            marked = _mark_nominal(ax, x0, y0) or marked
         ax.set_xlabel(key_label(kx))
         ax.set_ylabel(key_label(ky))
         ax.set_title(label)
         ax.grid(False)
         fig.colorbar(im, ax=ax, shrink=0.85)
     if marked:
-        fig.legend(handles=[Rectangle((0, 0), 1, 1, label=NOMINAL_LABEL, **NOMINAL_CELL)],
-                   loc="outside lower center", frameon=False)
+        fig.legend(handles=[_NOMINAL_HANDLES[marked]()], loc="outside lower center",
+                   frameon=False)
     if more:
         title += "\n(mean over " + ", ".join(key_label(k) for k in more) + ")"
     fig.suptitle(title)
     return fig
+
+
+def _mark_nominal(ax: Any, x0: float, y0: float) -> str:
+    """Mark the nominal point at cell coordinates ``(x0, y0)`` without covering any cell's
+    number: on a cell, a frame along that cell's edges; between cells, a pointer on each
+    axis's spines at its position (inside the map any mark would cross a number). Returns
+    which mark ("cell" or "edges")."""
+    from matplotlib.patches import Rectangle
+
+    if abs(x0 - round(x0)) < 1e-9 and abs(y0 - round(y0)) < 1e-9:
+        ax.add_patch(Rectangle((round(x0) - 0.5, round(y0) - 0.5), 1.0, 1.0, **NOMINAL_CELL))
+        return "cell"
+    xs, ys = ax.get_xlim(), ax.get_ylim()
+    for px, py, marker in ((x0, min(ys), "^"), (x0, max(ys), "v"),
+                           (min(xs), y0, ">"), (max(xs), y0, "<")):
+        ax.scatter([px], [py], marker=marker, **NOMINAL_EDGE)
+    ax.set_xlim(xs)
+    ax.set_ylim(ys)
+    return "edges"
+
+
+def _edge_handle() -> Any:
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], ls="", marker="^", markersize=8, markerfacecolor="white",
+                  markeredgecolor="black", label=NOMINAL_LABEL + ", between cells")
+
+
+def _cell_handle() -> Any:
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((0, 0), 1, 1, label=NOMINAL_LABEL, **NOMINAL_CELL)
+
+
+_NOMINAL_HANDLES = {"cell": _cell_handle, "edges": _edge_handle}
 
 
 def _cells(values: Any) -> list[tuple[tuple[int, int], float]]:

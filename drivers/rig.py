@@ -62,8 +62,9 @@ else:
 class Rig(StrictModel):
     """A robot, an F/T sensor and (optionally) a target tracker."""
 
-    robot: RobotConfig = registry.robot_backend("sim").config()
-    ft: FtConfig = registry.ft_backend("sim").config()
+    robot: RobotConfig = registry.robot_backend(registry.DEFAULT_ROBOT).config()
+    ft: FtConfig = registry.ft_backend(
+        registry.robot_backend(registry.DEFAULT_ROBOT).default_ft).config()
     tracker: TrackerConfig = registry.tracker_backend("none").config()
 
     @model_validator(mode="after")

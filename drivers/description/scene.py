@@ -70,7 +70,7 @@ class FriTiming(StrictModel):
     control: Literal["cart_impedance", "joint_position", "joint_impedance"] = "cart_impedance"
     command_delay_cycles: Annotated[int, Field(ge=0, le=20)] = 1
     """Whole cycles from a measurement to the first cycle its answer acts in, in
-    lockstep (:class:`~drivers.emulate.krc.CommandDelay`). The KRC sends
+    lockstep (:class:`~drivers.fri.emulate.krc.CommandDelay`). The KRC sends
     measurement k, the remote answers within the cycle and the KRC applies the
     answer at its next cycle at the earliest (Schreiber et al., ICRA 2010
     workshop, sec. V-B; the fact sheet ``fri_netft.md``): 1. 0 is the

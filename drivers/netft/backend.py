@@ -30,9 +30,10 @@ def _open_ft(cfg: NetFtConfig, ctx: OpenContext, robot: OpenedRobot) -> OpenedSe
 
 
 def _check_ft(cfg: NetFtConfig, robot: DeviceConfig) -> str | None:
-    if cfg.host is not None or robot.type == "fri1":
+    if cfg.host is not None or "netft-host" in type(robot).offers:
         return None
-    return "ft.host is required unless robot.type is 'fri1'"
+    return (f"ft.host is required (robot.type {robot.type!r} has no Net F/T box at its "
+            "address)")
 
 
 BACKEND = Backend("netft", sensors=(FtBackend(NetFtConfig, _open_ft, _check_ft),))

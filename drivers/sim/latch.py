@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from drivers.base.impedance import clip_cart_stiffness
 from drivers.base.types import F64
 from drivers.errors import InvalidCommandError
 from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
-from drivers.sim.controller import clip_cart_stiffness
 
 if TYPE_CHECKING:
     from drivers.sim.world import SimWorld

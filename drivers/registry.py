@@ -96,6 +96,8 @@ FOLDERS = (
     "camera",  # [tracker] camera: a fiducial marker seen by a camera
     "ur",  # Universal Robots e-Series: [robot] ur (RTDE), ur-sim (in-process);
     #        [ft] ur-wrench; emulator ur5e
+    "franka",  # Franka FR3 / Panda: [robot] franka (libfranka), franka-sim (in-process);
+    #            [ft] franka-wrench; emulator fr3
 )
 
 

@@ -35,11 +35,12 @@ from drivers.config import (
     load_model,
 )
 from drivers.description.arm import ArmDescription
+from drivers.description.fr3 import FR3
 from drivers.description.lwr4 import LWR4
 from drivers.description.ur5e import UR5E
 
 #: The arm models a scene may name (``arm.model``), each its published description.
-ARMS: dict[str, ArmDescription] = {"lwr4": LWR4, "ur5e": UR5E}
+ARMS: dict[str, ArmDescription] = {"lwr4": LWR4, "ur5e": UR5E, "fr3": FR3}
 
 
 class PhysicsSettings(StrictModel):
@@ -104,7 +105,7 @@ class ArmSettings(StrictModel):
 
     model: Annotated[str, Field(json_schema_extra={"enum": list(ARMS)})] = "lwr4"
     """The arm model, a name of the registry :data:`ARMS`: ``lwr4`` (KUKA LWR4+, the
-    paper's) or ``ur5e``; a new arm is one description module and one entry there."""
+    paper's), ``ur5e`` or ``fr3``; a new arm is one description module and one entry there."""
 
     @field_validator("model")
     @classmethod

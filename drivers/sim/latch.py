@@ -89,7 +89,7 @@ def take(w: SimWorld, cmd: ArmCommand) -> None:
             w._tcp_ft_key = key
     if cmd.jnt_pos_rad is not None:
         w._jnt_pos = np.clip(_finite(cmd.jnt_pos_rad, w._n, "jnt_pos"),
-                                -w._pos_limits, w._pos_limits)
+                                w._pos_lower, w._pos_limits)
     if cmd.jnt_trq_nm is not None:
         w._jnt_trq = _finite(cmd.jnt_trq_nm, w._n, "add_jnt_trq")
     if cmd.jnt_stiffness_nmprad is not None:

@@ -150,8 +150,10 @@ class SimWorld:
         self._act_ft = slice(n + 6, n + 12)
         self._vel_limits = np.radians(scene.arm.description.velocity_limits_degps)
         self._pos_limits = np.radians(scene.arm.description.position_limits_deg)
+        self._pos_lower = np.radians(scene.arm.description.lower_limits_deg)
         self._torque_limits = np.asarray(scene.arm.torque_limits)
         self._pos_warn = self._pos_limits - 1e-3
+        self._pos_warn_lower_l = (self._pos_lower + 1e-3).tolist()
         self._torque_warn = self._torque_limits - 1e-9
         self._vel_limits_l = self._vel_limits.tolist()
         self._pos_warn_l = self._pos_warn.tolist()

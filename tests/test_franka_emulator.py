@@ -54,12 +54,17 @@ def start_emulator(host: str, *args: str) -> subprocess.Popen[str]:
                              f"{host}:{codec.COMMAND_PORT}", *args],
                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, env=_env(), cwd=ROOT)
+    seen = []
     for _ in range(5):
-        line = read_line(proc, 60.0)
+        line = read_line(proc, 120.0)
+        seen.append(line)
         if "FR3 (libfranka protocol" in line:
             return proc
+        if not line:
+            break
     proc.kill()
-    pytest.fail(f"the emulator did not start: {line!r}")
+    out, _ = proc.communicate(timeout=30)
+    pytest.fail(f"the emulator did not start: {''.join(seen) + out!r}")
 
 
 def stop(proc: subprocess.Popen[str]) -> str:
@@ -151,21 +156,23 @@ def test_method1_case1_over_the_emulator_in_lockstep_equals_in_process(tmp_path:
     rig_emu.write_text(f'[robot]\ntype = "franka"\nrobot_ip = "{host}"\nrealtime = "ignore"\n'
                        '[ft]\ntype = "franka-wrench"\n')
     protocol = ROOT / "protocols/method1_case1.toml"
+    short = ["--set", "run.timeout_s=8"]  # 8 s of the approach and contact: 1600 cycles
     a = subprocess.run([*FFEXP, "run", str(protocol), "--rig", str(rig_in), "--out",
-                        str(tmp_path / "a")], capture_output=True, text=True, env=_env(),
-                       timeout=600)
+                        str(tmp_path / "a"), *short], capture_output=True, text=True,
+                       env=_env(), timeout=600)
     assert a.returncode in (0, 4), a.stdout + a.stderr
-    emu = start_emulator(host, "--pacing", "lockstep", "--seed", "1", "--timeout-ms", "60000")
+    emu = start_emulator(host, "--pacing", "lockstep", "--seed", "1", "--timeout-ms", "30000")
     try:
         b = subprocess.run([*FFEXP, "run", str(protocol), "--rig", str(rig_emu), "--out",
-                            str(tmp_path / "b")], capture_output=True, text=True, env=_env(),
-                           timeout=900)
+                            str(tmp_path / "b"), *short], capture_output=True, text=True,
+                           env=_env(), timeout=900)
     finally:
         stop(emu)
     assert b.returncode == a.returncode, b.stdout + b.stderr
     (ra,), (rb,) = (tmp_path / "a").glob("*.mcap"), (tmp_path / "b").glob("*.mcap")
     ta, tb = _numeric_topics(ra), _numeric_topics(rb)
     assert {"/robot/state", "/robot/franka", "/control/command", "/ft/raw"} <= set(ta)
+    assert len(ta["/robot/state"]) > 1500
     assert ta.keys() == tb.keys()
     for topic in ta:
         assert ta[topic] == tb[topic], topic
@@ -250,3 +257,36 @@ def test_a_fault_mid_run_aborts_naming_the_robot_and_keeps_the_recording(
     # the run recorded every cycle until the fault: about 2 s of 5 ms cycles
     n = len(rec.topics["/robot/state"]["time_ns"])
     assert 300 <= n <= 420
+
+
+FRANKY = r"""
+import sys
+import franky
+robot = franky.Robot(sys.argv[1], realtime_config=franky.RealtimeConfig.Ignore)
+robot.relative_dynamics_factor = 0.2
+q0 = list(robot.current_joint_state.position)
+target = list(q0)
+target[0] += 0.1
+target[6] -= 0.1
+robot.move(franky.JointWaypointMotion([franky.JointWaypoint(target)]))
+q = list(robot.current_joint_state.position)
+print("error", max(abs(a - b) for a, b in zip(q, target)), flush=True)
+print("moved", q[0] - q0[0], q[6] - q0[6], flush=True)
+"""
+
+
+def test_franky_runs_a_joint_motion_on_the_emulated_fr3() -> None:
+    pytest.importorskip("franky", reason="franky-control (the test extra) is not installed")
+    host = free_host()
+    emu = start_emulator(host, "--pacing", "lockstep")
+    try:
+        res = subprocess.run([sys.executable, "-c", FRANKY, host], capture_output=True,
+                             text=True, timeout=300)
+    finally:
+        stop(emu)
+    assert res.returncode == 0, res.stderr
+    lines = dict(line.split(" ", 1) for line in res.stdout.splitlines())
+    # the joint position servo holds the arm within a few mrad of franky's target
+    assert float(lines["error"]) < 5e-3
+    d0, d6 = (float(x) for x in lines["moved"].split())
+    assert d0 == pytest.approx(0.1, abs=5e-3) and d6 == pytest.approx(-0.1, abs=5e-3)

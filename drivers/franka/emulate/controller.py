@@ -4,7 +4,10 @@ Per millisecond the controller reports a ``RobotState`` (:data:`drivers.franka.c
 float32 as on the wire) and takes one ``RobotCommand``. While a motion with the external
 controller runs, the world's arm gets the commanded joint torques (``tau_J_d``, gravity
 excluded: the FR3 compensates gravity itself, as the world does inside every step) for the
-next millisecond; otherwise the joints are held where they are (the brakes' role). A cycle
+next millisecond; a motion with the robot's own joint impedance controller and a joint
+position (or velocity) generator follows the commanded joints (``q_c``, or ``dq_c``
+integrated) with the world's joint position servo (franky's joint motions); otherwise the
+joints are held where they are (the brakes' role). A cycle
 whose command did not come (or came for another state) keeps the last torque and counts
 against ``control_command_success_rate``, the fraction of the last 100 cycles answered,
 as the robot reports it.
@@ -65,6 +68,9 @@ class Fr3SimController:
         self._answers: deque[bool] = deque([True] * WINDOW, maxlen=WINDOW)
         self._tau = np.zeros(desc.joints)
         self._generator = codec.MotionGeneratorMode.JOINT_VELOCITY
+        self._controller = codec.ControllerMode.EXTERNAL_CONTROLLER
+        self._q_d = world.arm_qpos.copy()
+        self._dq_d = np.zeros(desc.joints)
         self._hold: ArmCommand | None = None
         self._f_t_ee = flange_to_tcp(world)
         self._state = np.zeros((), dtype=codec.ROBOT_STATE)
@@ -78,13 +84,23 @@ class Fr3SimController:
 
     # ------------------------------------------------------------ motion
     def start_motion(self, generator: codec.MoveMotionGeneratorMode =
-                     codec.MoveMotionGeneratorMode.JOINT_VELOCITY) -> codec.MoveStatus:
-        """A Move with the external controller (beside the motion generator the client
-        names, which the state then reports; its commands are not followed): refused while
-        a reflex is in force."""
+                     codec.MoveMotionGeneratorMode.JOINT_VELOCITY,
+                     controller: codec.MoveControllerMode =
+                     codec.MoveControllerMode.EXTERNAL_CONTROLLER) -> codec.MoveStatus:
+        """A Move: with the external controller (the motion generator the client names is
+        reported, its commands not followed), or with the robot's own controller and a
+        joint position or velocity generator; refused while a reflex is in force, or for
+        a Cartesian generator without the external controller (not emulated)."""
         if self.reflex:
             return codec.MoveStatus.COMMAND_REJECTED_DUE_TO_ACTIVATED_SAFETY_FUNCTIONS
+        external = controller == codec.MoveControllerMode.EXTERNAL_CONTROLLER
+        if not external and generator not in (codec.MoveMotionGeneratorMode.JOINT_POSITION,
+                                              codec.MoveMotionGeneratorMode.JOINT_VELOCITY):
+            return codec.MoveStatus.COMMAND_NOT_POSSIBLE_REJECTED
         self._generator = codec.MotionGeneratorMode(int(generator) + 1)
+        self._controller = codec.ControllerMode(int(controller))
+        self._q_d = self.world.arm_qpos.copy()
+        self._dq_d = np.zeros_like(self._q_d)
         self.moving, self.ended = True, None
         self._tau = np.zeros_like(self._tau)
         self._hold = None
@@ -114,17 +130,32 @@ class Fr3SimController:
         answered = command is not None and int(command["message_id"]) == self.message_id
         if self.moving:
             self._answers.append(answered)
-        if answered and self.moving:
+        external = self._controller == codec.ControllerMode.EXTERNAL_CONTROLLER
+        if answered and self.moving and not external:
+            assert command is not None
+            if self._generator == codec.MotionGeneratorMode.JOINT_POSITION:
+                q_c = np.asarray(command["q_c"], dtype=np.float64)
+                self._dq_d = (q_c - self._q_d) / self.world.cycle_s
+                self._q_d = q_c
+            else:
+                self._dq_d = np.asarray(command["dq_c"], dtype=np.float64)
+                self._q_d = self._q_d + self._dq_d * self.world.cycle_s
+        if answered and self.moving and external:
             assert command is not None
             tau = np.asarray(command["tau_J_d"], dtype=np.float64)
             if not np.all(np.isfinite(tau)) or np.any(np.abs(tau) > self._tau_max):
                 self._reflex(["tau_j_range_violation"])
             else:
                 self._tau = tau
+        if answered and self.moving:
+            assert command is not None
             if command["motion_generation_finished"] or command["torque_command_finished"]:
                 self.finish_motion()
         w = self.world
-        if self.moving:
+        if self.moving and not external:
+            w.advance(ArmCommand(mode=ArmMode.JOINT_POSITION, jnt_pos_rad=self._q_d.copy(),
+                                 jnt_trq_nm=np.zeros(7)))
+        elif self.moving:
             w.advance(ArmCommand(mode=ArmMode.JOINT_IMPEDANCE, jnt_stiffness_nmprad=np.zeros(7),
                                  jnt_damping_ratio=np.zeros(7), jnt_trq_nm=self._tau))
         else:
@@ -157,7 +188,8 @@ class Fr3SimController:
         s["O_T_EE"] = pose.ravel(order="F")
         s["O_T_EE_d"] = s["O_T_EE"]
         s["q"] = st.jnt_pos_rad
-        s["q_d"] = st.jnt_pos_rad
+        s["q_d"] = self._q_d if self.moving else st.jnt_pos_rad
+        s["dq_d"] = self._dq_d if self.moving else 0.0
         s["dq"] = w.arm_qvel
         s["tau_J_d"] = self._tau
         s["tau_J"] = st.jnt_trq_nm
@@ -170,7 +202,7 @@ class Fr3SimController:
         s["dtheta"] = s["dq"]
         if self.moving:
             s["motion_generator_mode"] = self._generator
-            s["controller_mode"] = codec.ControllerMode.EXTERNAL_CONTROLLER
+            s["controller_mode"] = self._controller
             s["robot_mode"] = codec.RobotMode.MOVE
         else:
             s["motion_generator_mode"] = codec.MotionGeneratorMode.IDLE

@@ -14,7 +14,9 @@ client at a time and serves the world's FR3
 * UDP: every cycle a ``RobotState`` to the client's port (from this server's UDP socket,
   where the client's ``RobotCommand`` comes back).
 
-Pacing: ``realtime``, one cycle per millisecond of the wall clock (a command that came for
+Pacing: ``realtime``, one cycle per millisecond of the wall clock (a cycle that began more
+than a cycle late is counted an ``overrun``: the robot's clock then lags the wall's, as
+on a machine too loaded to serve 1 kHz; a command that came for
 an older state is counted ``late`` and not applied, one that never came ``missed``: the
 robot then keeps the last torque, and ``control_command_success_rate`` drops, as a robot
 counts it); ``lockstep``, the world steps on each command for the current state, and
@@ -98,6 +100,7 @@ class FciServer:
         self._move_id: int | None = None
         self._motion_ms = 0
         self._commanded = False  # a command came in the running motion
+        self._next = time.monotonic()  # real time: when the current cycle was due
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._cmd = bytearray(codec.ROBOT_COMMAND.itemsize + 64)
@@ -231,8 +234,9 @@ class FciServer:
                       if command in codec.Command._value2member_map_ else "tcp_unknown"] += 1
         if command == codec.Command.MOVE:
             req = codec.decode(codec.MOVE_REQUEST, msg[:codec.MOVE_REQUEST.itemsize])
-            status = c.start_motion(codec.MoveMotionGeneratorMode(
-                int(req["motion_generator_mode"])))
+            status = c.start_motion(
+                codec.MoveMotionGeneratorMode(int(req["motion_generator_mode"])),
+                codec.MoveControllerMode(int(req["controller_mode"])))
             self._reply(command, command_id, int(status))
             if status == codec.MoveStatus.MOTION_STARTED:
                 self._move_id, self._motion_ms, self._commanded = command_id, 0, False
@@ -286,6 +290,10 @@ class FciServer:
         if self._conn is None:
             return
         t0 = time.monotonic()
+        if self.pacing == "realtime":
+            if t0 > self._next + _CYCLE_S:  # began more than a cycle late: the clock lags
+                self.counters["overruns"] += 1
+            self._next = max(self._next + _CYCLE_S, t0 - _CYCLE_S)
         self._send_state()
         if self.pacing == "lockstep":
             cmd = None

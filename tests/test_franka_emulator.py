@@ -15,6 +15,7 @@ import socket
 import subprocess
 import sys
 import threading
+from importlib.util import find_spec
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,14 @@ from drivers.franka import codec
 ROOT = Path(__file__).resolve().parents[1]
 FFEXP = [sys.executable, "-c", "from ffexp.cli import main; main()"]
 pytestmark = pytest.mark.slow
+
+
+def need(module: str) -> None:
+    """Skip unless ``module`` (the test extra's) is installed. Not imported here: the clients
+    run in processes of their own, and pylibfranka and franky, each with its own copy of
+    libfranka's bindings, cannot both be imported into one interpreter."""
+    if find_spec(module) is None:
+        pytest.skip(f"{module} (the test extra) is not installed")
 
 
 def free_host() -> str:
@@ -112,7 +121,7 @@ def _simulated(torques: list[np.ndarray], n_report: list[int]) -> list[np.ndarra
 
 
 def test_pylibfranka_reads_the_state_and_runs_a_torque_loop_in_lockstep() -> None:
-    pytest.importorskip("pylibfranka", reason="pylibfranka (the test extra) is not installed")
+    need("pylibfranka")
     host = free_host()
     emu = start_emulator(host, "--pacing", "lockstep")
     try:
@@ -147,7 +156,7 @@ def _numeric_topics(path: Path) -> dict[str, list[bytes]]:
 
 
 def test_method1_case1_over_the_emulator_in_lockstep_equals_in_process(tmp_path: Path) -> None:
-    pytest.importorskip("pylibfranka", reason="pylibfranka (the test extra) is not installed")
+    need("pylibfranka")
     host = free_host()
     rig_in = tmp_path / "in.toml"
     rig_in.write_text(f'[robot]\ntype = "franka-sim"\nscene_file = "{ROOT}/data/scenes/'
@@ -198,7 +207,7 @@ def _fault_line(res: subprocess.CompletedProcess[str]) -> str:
 
 
 def test_a_robot_that_never_answers_is_one_line_naming_it(tmp_path: Path) -> None:
-    pytest.importorskip("pylibfranka", reason="pylibfranka (the test extra) is not installed")
+    need("pylibfranka")
     host = free_host()
     emu = start_emulator(host, "--fault", "silence=1")
     try:
@@ -210,7 +219,7 @@ def test_a_robot_that_never_answers_is_one_line_naming_it(tmp_path: Path) -> Non
 
 def test_an_incompatible_version_names_both(tmp_path: Path) -> None:
     """A tiny fake robot that answers every Connect with version 9, refusing ours."""
-    pytest.importorskip("pylibfranka", reason="pylibfranka (the test extra) is not installed")
+    need("pylibfranka")
     host = free_host()
     srv = socket.create_server((host, codec.COMMAND_PORT))
 
@@ -240,7 +249,7 @@ def test_an_incompatible_version_names_both(tmp_path: Path) -> None:
 ])
 def test_a_fault_mid_run_aborts_naming_the_robot_and_keeps_the_recording(
         tmp_path: Path, fault: str, words: str) -> None:
-    pytest.importorskip("pylibfranka", reason="pylibfranka (the test extra) is not installed")
+    need("pylibfranka")
     from ffexp.recording.reader import load
 
     host = free_host()
@@ -276,7 +285,7 @@ print("moved", q[0] - q0[0], q[6] - q0[6], flush=True)
 
 
 def test_franky_runs_a_joint_motion_on_the_emulated_fr3() -> None:
-    pytest.importorskip("franky", reason="franky-control (the test extra) is not installed")
+    need("franky")
     host = free_host()
     emu = start_emulator(host, "--pacing", "lockstep")
     try:

@@ -5,13 +5,15 @@ no protocol error."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
 
 import numpy as np
 import pytest
-from test_franka_emulator import free_host
+from test_franka_emulator import free_host, need
+from test_rtde_ur_rtde import read_line
 
 from drivers.base.types import CartesianCommand
 from drivers.franka.config import FrankaSettings
@@ -20,32 +22,32 @@ from drivers.franka.driver import FrankaRobot
 pytestmark = pytest.mark.slow
 
 
-def _wait_for_port(host: str, proc: subprocess.Popen[str], timeout_s: float) -> None:
-    import socket
-
+def _wait_ready(proc: subprocess.Popen[str], timeout_s: float) -> None:
+    """Until franky-sim says where to connect (it serves one client at a time: no probe)."""
     deadline = time.monotonic() + timeout_s
+    seen = []
     while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            pytest.fail(f"franky-sim ended: {proc.communicate()[0]}")
-        try:
-            with socket.create_connection((host, 1337), timeout=0.5):
-                return
-        except OSError:
-            time.sleep(0.2)
-    pytest.fail("franky-sim did not listen")
+        line = read_line(proc, max(0.0, deadline - time.monotonic()))
+        seen.append(line)
+        if "Connect to the server" in line:
+            return
+        if not line and proc.poll() is not None:
+            break
+    pytest.fail(f"franky-sim did not start: {''.join(seen)!r}")
 
 
 def test_the_driver_holds_and_moves_franky_sims_arm() -> None:
-    pytest.importorskip("pylibfranka", reason="pylibfranka (the test extra) is not installed")
-    pytest.importorskip("franky_sim", reason="franky-sim (the test extra) is not installed")
+    need("pylibfranka")
+    need("franky_sim")
     host = free_host()
     proc = subprocess.Popen([sys.executable, "-m", "franky_sim.run_server", "--simulator",
                              "mujoco", "--hostname", host], stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+                            stderr=subprocess.STDOUT, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
-        _wait_for_port(host, proc, 120.0)
+        _wait_ready(proc, 180.0)
         robot = FrankaRobot(FrankaSettings(robot_ip=host, realtime="ignore",
-                                           connect_timeout_s=10.0), where="test")
+                                           connect_timeout_s=30.0), where="test")
         robot.connect()
         try:
             states = robot.measurements()

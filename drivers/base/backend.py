@@ -63,6 +63,7 @@ __all__ = [
     "cdr_topics_of",
     "needs_offer",
     "needs_robot",
+    "offering",
 ]
 
 
@@ -169,24 +170,20 @@ def needs_offer(table: str, offer: str, hint: str = ""
     def check(cfg: Any, robot: DeviceConfig) -> str | None:
         if offer in type(robot).offers:
             return None
-        have = _offering(offer)
+        have = offering(offer)
         wanted = " or ".join(f"'{t}'" for t in have) if have else f"offering {offer!r}"
         return f"{table}.type '{cfg.type}' needs robot.type {wanted}{why}"
 
     return check
 
 
-def _offering(offer: str) -> list[str]:
-    """The ``type`` of every robot table defined so far that offers ``offer``, in order."""
-    found: list[str] = []
-    stack = list(DeviceConfig.__subclasses__())
-    while stack:
-        model = stack.pop(0)
-        stack[:0] = model.__subclasses__()
-        default = model.model_fields["type"].default if "type" in model.model_fields else None
-        if offer in model.offers and isinstance(default, str) and default not in found:
-            found.append(default)
-    return found
+def offering(offer: str) -> list[str]:
+    """The ``type`` of every registered robot whose table offers ``offer``, in the
+    registry's order (read when asked: the registry is built from these entries)."""
+    from drivers import registry
+
+    return [t for t in registry.robot_types()
+            if offer in registry.robot_backend(t).config.offers]
 
 
 def cdr_topics_of(module: str) -> Callable[[], Sequence[CdrTopic]]:

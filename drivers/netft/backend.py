@@ -14,6 +14,7 @@ from drivers.base.backend import (
     OpenContext,
     OpenedRobot,
     OpenedSensor,
+    offering,
 )
 from drivers.netft.config import NetFtConfig
 
@@ -32,8 +33,8 @@ def _open_ft(cfg: NetFtConfig, ctx: OpenContext, robot: OpenedRobot) -> OpenedSe
 def _check_ft(cfg: NetFtConfig, robot: DeviceConfig) -> str | None:
     if cfg.host is not None or "netft-host" in type(robot).offers:
         return None
-    return (f"ft.host is required (robot.type {robot.type!r} has no Net F/T box at its "
-            "address)")
+    beside = " or ".join(f"'{t}'" for t in offering("netft-host"))
+    return f"ft.host is required unless robot.type is {beside}"
 
 
 BACKEND = Backend("netft", sensors=(FtBackend(NetFtConfig, _open_ft, _check_ft),))

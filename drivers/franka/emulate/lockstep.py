@@ -68,6 +68,10 @@ class SimFrankaRobot(FrankaRobot):
         super().__init__(settings, where, link=lambda: self.loopback)
         self._truth = settings.truth
 
+    @property
+    def address(self) -> str:
+        return "in-process FR3"
+
     def _robot_state(self, state: FciState) -> RobotState:
         out = super()._robot_state(state)
         if self._truth:

@@ -8,7 +8,7 @@ Options: ``--client ffexp|ur_rtde|both``; ``--rt off|on`` (SCHED_FIFO where the 
 allows it, the collector frozen, for both processes; ``ffexp.rt.realtime``);
 ``--pin`` (with ``--rt``: the server on CPU 0, the client on CPU 1).
 
-The server (:class:`drivers.emulate.rtde_server.RtdeServer`, real-time pacing
+The server (:class:`drivers.ur.emulate.rtde_server.RtdeServer`, real-time pacing
 at 500 Hz) runs as its own process, as a controller is its own machine. Its
 data source stamps each step (``time.perf_counter_ns``, just before the
 step's package is packed and sent) and writes the step number into
@@ -64,7 +64,7 @@ def produced(k: int) -> dict[str, Any]:
 
 def serve(host: str, port: int, rt: bool, pin: bool) -> None:
     """The child: serve until stdin closes, then print the link's figures as one JSON line."""
-    from drivers.emulate.rtde_server import RtdeServer
+    from drivers.ur.emulate.rtde_server import RtdeServer
     from ffexp.rt import realtime
 
     step_ns: list[int] = []

@@ -4,7 +4,7 @@
 
 Runs the protocol (default Method I case I) for ``S`` seconds of simulated
 time through ``ffexp.experiment.run_file`` on the built-in sim rig: the
-lockstep KRC (``drivers.emulate.lockstep``) with the sim F/T sensor, the
+lockstep KRC (``drivers.fri.emulate.lockstep``) with the sim F/T sensor, the
 loop (estimator, safety, task, controller) and the MCAP recording. Baselines,
 each measured in the same repeat:
 
@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 
 from drivers.description.scene import load_scene
-from drivers.emulate.lockstep import open_sim
+from drivers.fri.emulate.lockstep import open_sim
 from drivers.sim.arm import ArmCommand, ArmMode
 from drivers.sim.world import SimWorld
 from ffexp import loop

@@ -104,17 +104,16 @@ def robot_arm(robot: object) -> tuple[str | None, bool]:
     """The arm model (a scene's ``arm.model``) the rig's robot drives, and whether it puts
     that arm in the place of a scene's other arm (``None``: any arm, as the mock).
 
-    A KRC over FRI 1.x, on the wire or in-process (``fri1``, ``sim``), drives the LWR4+
-    and nothing else (its packets carry seven joints); a UR controller (``ur``,
-    ``ur-sim``) the UR5e, which it puts in an LWR4+ scene's place (the protocols' paper
-    scene), as ``ffexp emulate --robot ur5e`` does.
+    Each robot back-end declares both (:class:`~drivers.base.backend.RobotBackend`): a
+    KRC over FRI 1.x drives the LWR4+ and nothing else (its packets carry seven joints);
+    a UR controller the UR5e, which it puts in an LWR4+ scene's place (the protocols'
+    paper scene), as ``ffexp emulate --robot ur5e`` does.
     """
-    from drivers.emulate.backend import SimRobotConfig
-    from drivers.fri.config import FriRobotConfig
-    from drivers.ur.config import UrSettings
-
-    if isinstance(robot, UrSettings):
-        return "ur5e", True
-    if isinstance(robot, FriRobotConfig | SimRobotConfig):
-        return "lwr4", False
-    return None, False
+    type_ = getattr(robot, "type", None)
+    if not isinstance(type_, str):
+        return None, False
+    try:
+        backend = registry.robot_backend(type_)
+    except KeyError:
+        return None, False
+    return backend.arm, backend.takes_arm_place

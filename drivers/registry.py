@@ -9,9 +9,11 @@ and ``--ft`` names, the back-end topics of the recording
 (``ffexp.recording.topics``), the link-fault counters and link statistics
 ``ffexp`` reads from those topics (:func:`link_faults`, :func:`link_stats`) and
 the simulated robot that replays a recording (:func:`replayer`). The ``none``
-tracker (no tracker) is built in; the ``sim`` robot's entry is in
-:mod:`drivers.emulate` (the lockstep KRC in front of the simulator's world), its
-sensor's and tracker's in :mod:`drivers.sim`.
+tracker (no tracker) is built in. A robot family is one folder: its real robot, its
+simulated one in-process (the lockstep controller in front of the simulator's world,
+``drivers/<family>/emulate/``), the controller ``ffexp emulate`` serves (:func:`emulators`)
+and that controller's law on the simulated world; the simulator's sensor and tracker
+are :mod:`drivers.sim`'s.
 
 :func:`register` adds a back-end at run time (a plug-in, a test's toy back-end);
 the rig's unions are rebuilt from the registry then.
@@ -29,6 +31,7 @@ from pydantic import Field
 from drivers.base.backend import (
     Backend,
     DeviceConfig,
+    Emulator,
     FtBackend,
     LinkCounter,
     LinkStat,
@@ -43,12 +46,15 @@ if TYPE_CHECKING:
     from drivers.base.topics import CdrTopic, JsonTopic
 
 __all__ = [
+    "DEFAULT_ROBOT",
     "FOLDERS",
     "NoTracker",
     "backend_cdr_topics",
     "backend_json_topics",
     "backends",
     "driver_names",
+    "emulator",
+    "emulators",
     "ft_backend",
     "ft_types",
     "link_faults",
@@ -82,14 +88,22 @@ _NONE = Backend("none", trackers=(TrackerBackend(NoTracker, _open_none),))
 #: The shipped back-ends, one line per folder ``drivers/<name>/`` (its ``backend.py``
 #: holds ``BACKEND``); the order is the order of the types in messages and schemas.
 FOLDERS = (
-    "emulate",  # [robot] sim: the lockstep KRC in front of the simulator's world
+    "fri",  # KUKA LWR4+: [robot] sim (in-process), fri1 (a KRC2 LR over FRI 1.x);
+    #         [ft] fri-estimate; emulator lwr4
     "sim",  # [ft] sim, [tracker] sim: the simulator's sensor and camera model
     "netft",  # [ft] netft: an ATI Net F/T box
-    "fri",  # [robot] fri1: a KUKA KRC2 LR over FRI 1.x; [ft] fri-estimate
     "mock",  # [robot] mock, [ft] mock: scripted, for tests and dry runs
     "camera",  # [tracker] camera: a fiducial marker seen by a camera
-    "ur",  # [robot] ur: a Universal Robots e-Series over RTDE; [ft] ur-wrench
+    "ur",  # Universal Robots e-Series: [robot] ur (RTDE), ur-sim (in-process);
+    #        [ft] ur-wrench; emulator ur5e
+    "franka",  # Franka FR3 / Panda: [robot] franka (libfranka), franka-sim (in-process);
+    #            [ft] franka-wrench; emulator fr3
 )
+
+
+#: The built-in rig's robot (a rig file without ``[robot]``): the paper's LWR4+, simulated;
+#: its F/T sensor is the robot's ``default_ft``.
+DEFAULT_ROBOT = "sim"
 
 
 def _entry(folder: str) -> Backend:
@@ -169,6 +183,20 @@ def replayer(type_: str) -> RobotBackend[Any] | None:
                  if r.replay is not None and type_ in r.replay.robots), None)
 
 
+def emulators() -> tuple[Emulator, ...]:
+    """The robot controllers ``ffexp emulate`` can serve, in registry order (the first is
+    its default)."""
+    return tuple(e for b in _BACKENDS for e in b.emulators)
+
+
+def emulator(name: str) -> Emulator:
+    """The emulated controller ``--robot name`` (KeyError if none)."""
+    for e in emulators():
+        if e.name == name:
+            return e
+    raise KeyError(name)
+
+
 def link_faults() -> tuple[LinkCounter, ...]:
     """Every back-end's link-fault counters, in registry order."""
     return tuple(c for b in _BACKENDS for c in b.link_faults)
@@ -212,6 +240,10 @@ def backend_json_topics() -> tuple[JsonTopic, ...]:
 
 
 def _check_new(backend: Backend) -> None:
+    taken = {e.name for e in emulators()}
+    for emu in backend.emulators:
+        if emu.name in taken:
+            raise ValueError(f"back-end {backend.name!r}: emulator {emu.name!r} is taken")
     for kinds, have in ((backend.robots, _robots()), (backend.sensors, _sensors()),
                         (backend.trackers, _trackers())):
         for kind in kinds:

@@ -121,8 +121,9 @@ class Rig(StrictModel):
 
     id: _DeviceId = "chaser"
     """The chaser's identity (its robot and F/T sensor)."""
-    robot: RobotConfig = registry.robot_backend("sim").config()
-    ft: FtConfig = registry.ft_backend("sim").config()
+    robot: RobotConfig = registry.robot_backend(registry.DEFAULT_ROBOT).config()
+    ft: FtConfig = registry.ft_backend(
+        registry.robot_backend(registry.DEFAULT_ROBOT).default_ft).config()
     tracker: TrackerConfig = registry.tracker_backend("none").config()
     carrier: CarrierDevice | None = None
     """The second robot, the micro-gravity emulator (``docs/hil.md``)."""

@@ -14,9 +14,9 @@ from pathlib import Path
 
 from drivers.description.scene import load_scene
 from drivers.emulate.faults import FaultSettings
-from drivers.emulate.fri_server import EmulatorSettings, EmulatorStats, FriEmulator
 from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriEstimateSensor, FriRobot
+from drivers.fri.emulate.server import EmulatorSettings, EmulatorStats, FriEmulator
 from drivers.fri.link import QualityThresholds
 from drivers.sim.world import SimWorld
 from ffexp import loop

@@ -80,7 +80,8 @@ SHIPPED = sorted([*ROOT.glob("protocols/*.toml"), *ROOT.glob("rigs/*.toml"),
 
 #: The simulated rig each shipped scene's arm is checked on (a scene is checked on a
 #: rig whose robot drives its arm).
-RIG_OF_ARM = {"lwr4": "rigs/sim.toml", "ur5e": "rigs/ur5e-sim.toml"}
+RIG_OF_ARM = {"lwr4": "rigs/sim.toml", "ur5e": "rigs/ur5e-sim.toml",
+              "fr3": "rigs/franka-sim.toml"}
 
 
 def test_every_shipped_file_is_recognised_and_checks_ok() -> None:

@@ -1,6 +1,6 @@
 """The KRC's command timing (``fri.command_delay_cycles``): the answer to measurement k
 acts from cycle k + d, in-process and over UDP in lockstep (one implementation:
-:class:`drivers.emulate.krc.CommandDelay`)."""
+:class:`drivers.fri.emulate.krc.CommandDelay`)."""
 
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ import pytest
 
 from drivers.base import CartesianCommand, RobotDriver, RobotState
 from drivers.description.scene import Scene
-from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
-from drivers.emulate.krc import CommandDelay
-from drivers.emulate.lockstep import SimRobot
 from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriRobot
+from drivers.fri.emulate.krc import CommandDelay
+from drivers.fri.emulate.lockstep import SimRobot
+from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
 from drivers.sim.arm import ArmCommand
 from drivers.sim.world import SimWorld
 

@@ -1,4 +1,4 @@
-"""The in-process sim robot (drivers.emulate.lockstep) and sensor, driven like the loop does."""
+"""The in-process sim robot (drivers.fri.emulate.lockstep) and sensor, driven like the loop does."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from drivers.base import ApplyStatus, CartesianCommand, ForceTorqueSensor, RobotDriver, RobotState
-from drivers.emulate.lockstep import SimRobot, open_sim
 from drivers.errors import ConfigError, InvalidCommandError, NotConnectedError
+from drivers.fri.emulate.lockstep import SimRobot, open_sim
 from drivers.fri.types import FriCommand, FriMeasurement, FriQuality, FriState
 from drivers.sim import SimWorld
 

@@ -1,4 +1,4 @@
-"""The FRI emulator (drivers.emulate.fri_server) against the remote driver, lockstep on loopback."""
+"""The FRI emulator (drivers.fri.emulate.server) against the remote driver, lockstep on loopback."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pytest
 
 from drivers.base import ApplyStatus, CartesianCommand
 from drivers.description.scene import Scene
-from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
-from drivers.emulate.lockstep import SimRobot
 from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriRobot
+from drivers.fri.emulate.lockstep import SimRobot
+from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
 from drivers.fri.types import FriMeasurement, FriState
 from drivers.sim.world import SimWorld
 

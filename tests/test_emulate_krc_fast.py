@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from drivers.base.types import CartesianCommand, LinkHealth, RobotState
-from drivers.emulate.krc import DRIVE_TEMPERATURE_C, fri_measurement, fri_warning
-from drivers.emulate.lockstep import open_sim
 from drivers.errors import NotConnectedError
 from drivers.fri.command import robot_state_from_fri
+from drivers.fri.emulate.krc import DRIVE_TEMPERATURE_C, fri_measurement, fri_warning
+from drivers.fri.emulate.lockstep import open_sim
 from drivers.fri.types import (
     WARN_POSITION_LIMIT,
     WARN_STIFFNESS_CLIPPED,

@@ -11,6 +11,7 @@ import pytest
 from drivers.description.scene import Scene
 from drivers.emulate.session import EmulatedRig, EmulatedRigSettings, SettingNames
 from drivers.errors import AddressError, ConfigError, NotConnectedError
+from drivers.fri.emulate.served import ServedKrc
 
 
 def _free_port(kind: int) -> int:
@@ -41,8 +42,8 @@ def test_it_serves_the_duration_with_nobody_answering_and_closes_everything() ->
     settings = _settings(pacing="realtime", duration_s=0.05)
     lines: list[str] = []
     with EmulatedRig(settings) as rig:
-        assert rig.robot is not None and rig.netft is not None
-        krc_port, ft_port = rig.robot.address[1], rig.netft.address[1]
+        assert rig.served is not None and rig.netft is not None
+        krc_port, ft_port = rig.served.address[1], rig.netft.address[1]
         ready = rig.ready_line()
         stats = rig.serve(lambda: False, on_status=lines.append)
     assert ready == (f"KRC on 127.0.0.1:{krc_port} -> remote 127.0.0.1:{settings.remote[1]}, "
@@ -71,12 +72,12 @@ def test_a_stop_request_ends_an_endless_serve() -> None:
 
 def test_an_error_while_serving_is_raised_in_the_callers_thread() -> None:
     with EmulatedRig(_settings(netft_port=None)) as rig:
-        assert rig.robot is not None
+        assert isinstance(rig.served, ServedKrc)
 
         def broken(**_kw: object) -> None:
             raise ConfigError("scene", "fri.cycle", "broken on purpose")
 
-        rig.robot.run = broken  # type: ignore[method-assign, assignment]
+        rig.served.emulator.run = broken  # type: ignore[method-assign, assignment]
         with pytest.raises(ConfigError, match="broken on purpose"):
             rig.serve(lambda: False)
 

@@ -19,7 +19,6 @@ import pytest
 from drivers.base.types import ApplyStatus, CartesianCommand, RobotState
 from drivers.description.scene import Scene
 from drivers.emulate.faults import FaultSettings
-from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
 from drivers.errors import AddressError, DriverTimeoutError, LinkLostError, NotConnectedError
 from drivers.fri import codec
 from drivers.fri.backend import FriRobotConfig
@@ -31,6 +30,7 @@ from drivers.fri.convert import (
     measurement_to_arrays,
 )
 from drivers.fri.driver import FriEstimateSensor, FriRobot
+from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
 from drivers.fri.types import (
     ControlMode,
     FriCommand,

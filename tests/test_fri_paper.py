@@ -21,10 +21,10 @@ import pytest
 from drivers.base.interfaces import RobotDriver
 from drivers.base.types import AppliedCommand, CartesianCommand, RobotState
 from drivers.description.scene import load_scene
-from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
-from drivers.emulate.lockstep import SimRobot
 from drivers.emulate.netft_box import NetFtServer
 from drivers.factory import open_devices
+from drivers.fri.emulate.lockstep import SimRobot
+from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
 from drivers.fri.types import FriMeasurement
 from drivers.sim.driver import SimFtSensor
 from drivers.sim.world import SimWorld

@@ -8,16 +8,24 @@ literal name):
   packages, the rig, the factory and the registry. It is an allow-list, so a new back-end
   folder is forbidden to ``ffexp`` without editing this test.
 - A back-end (any ``drivers/<name>/`` package that is not neutral and not
-  ``drivers/emulate``) imports no sibling back-end and nothing that assembles back-ends.
+  ``drivers/emulate``) imports no sibling back-end and nothing that assembles back-ends;
+  a robot family's emulated side (``drivers/<family>/emulate/``: its emulator, its
+  controller's law on the simulated world, its in-process robot) may also import the
+  simulator (``drivers.sim``) and the emulated rig's shared parts (``drivers.emulate``).
+- ``drivers/emulate`` (the emulated rig: session, faults, Net F/T box, camera) imports no
+  robot family: it finds them through :mod:`drivers.registry`.
 - The neutral packages import no back-end, and the description and vision packages no
   MuJoCo and no sockets.
 - ``drivers`` never imports ``ffexp``.
 
-And one rule on strings, since an import rule cannot see them: no string in ``ffexp``'s
-code (docstrings aside) is a back-end's type or ``--driver`` name, or holds a back-end's
-recording topic, both read from :mod:`drivers.registry` (so a new back-end is covered at
-once), except the few :data:`STRING_EXCEPTIONS`. What ``ffexp`` needs of a back-end it
-reads from the back-end's declaration (link-fault counters, command fields, its scene).
+And rules on strings, since an import rule cannot see them: no string in ``ffexp``'s
+code (docstrings aside) is a back-end's type, ``--driver`` name or emulated controller's
+name, or holds a back-end's recording topic, all read from :mod:`drivers.registry` (so a
+new back-end is covered at once), except the few :data:`STRING_EXCEPTIONS`. What ``ffexp``
+needs of a back-end it reads from the back-end's declaration (link-fault counters, command
+fields, its scene). In ``drivers``, such a name appears only in the folder of the back-end
+that declares it (and the registry): a device asks a robot for what it offers
+(``DeviceConfig.offers``), never for another back-end's type.
 """
 
 from __future__ import annotations
@@ -36,8 +44,15 @@ DRIVERS = ROOT / "drivers"
 NEUTRAL_PACKAGES = frozenset({"base", "net", "description", "vision", "carrier"})
 #: Top-level plumbing modules of ``drivers`` anyone may import.
 NEUTRAL_MODULES = frozenset({"config", "errors", "counters"})
-#: The one package that combines back-ends (the emulated controllers).
+#: The emulated rig's shared parts (session, faults, the Net F/T box, the camera).
 COMBINER = "emulate"
+#: The back-ends the emulated rig's shared parts may import (the simulated world and the
+#: Net F/T box's codec): devices of every emulated rig, no robot family.
+COMBINER_MAY_IMPORT = frozenset({"sim", "netft"})
+#: The sub-package of a robot family that is its emulated side, and what it may import
+#: besides its own family and the neutral packages.
+FAMILY_EMULATE = "emulate"
+FAMILY_EMULATE_MAY_IMPORT = frozenset({"sim", COMBINER})
 #: What ``ffexp`` may import from ``drivers`` (the second part of the dotted name).
 FFEXP_ALLOWED = frozenset({"base", "config", "errors", "net", "rig", "factory", "registry",
                            "description", "vision", "carrier"})
@@ -48,11 +63,7 @@ FFEXP_EXCEPTIONS = {
     "ffexp/cli/emulate.py": frozenset({COMBINER}),
 }
 #: The strings ``ffexp`` code may hold although they name a back-end (file, string), and why.
-STRING_EXCEPTIONS = {
-    # ``ffexp emulate`` serves drivers.emulate's robots (its import exception above); a robot
-    # of the FRI link kind answers a remote driver, which that command must be given
-    ("ffexp/cli/emulate.py", "fri"): "drivers.emulate.robots' link kind",
-}
+STRING_EXCEPTIONS: dict[tuple[str, str], str] = {}
 #: Modules the neutral description and vision packages must not use (no simulation, no I/O
 #: beyond reading their files).
 NEUTRAL_FORBIDDEN = ("mujoco", "socket", "drivers.sim")
@@ -125,8 +136,11 @@ def _first_per_line(rel: str, hits: list[tuple[int, str]]) -> list[str]:
 def backend_violations(source: str, module: str, rel: str, own: str,
                        all_backends: frozenset[str]) -> list[str]:
     """What a back-end's module imports of a sibling back-end, the combiner, the rig or
-    factory (which assemble back-ends), or ``ffexp``."""
+    factory (which assemble back-ends), or ``ffexp``; a family's emulated side
+    (``drivers.<own>.emulate``) may import the simulator and the combiner."""
     forbidden = (all_backends - {own}) | {COMBINER, "rig", "factory"}
+    if module.split(".")[2:3] == [FAMILY_EMULATE]:
+        forbidden -= FAMILY_EMULATE_MAY_IMPORT
     return _first_per_line(rel, [(line, name) for line, name in imported_modules(source, module)
                                  if name.split(".")[0] == "ffexp"
                                  or _drivers_part(name) in forbidden])
@@ -157,6 +171,31 @@ def test_no_backend_imports_a_sibling_backend_or_ffexp() -> None:
             found += backend_violations(path.read_text(), module,
                                         path.relative_to(ROOT).as_posix(), own, every)
     assert found == [], "\n".join(found)
+
+
+def test_the_emulated_rig_imports_no_robot_family() -> None:
+    forbidden = (backends() - COMBINER_MAY_IMPORT) | {"rig", "factory"}
+    found = []
+    for path, module in _sources(DRIVERS / COMBINER):
+        rel = path.relative_to(ROOT).as_posix()
+        found += _first_per_line(rel, [(line, name) for line, name
+                                       in imported_modules(path.read_text(), module)
+                                       if _drivers_part(name) in forbidden
+                                       or name.split(".")[0] == "ffexp"])
+    assert found == [], "\n".join(found)
+
+
+def test_the_import_checks_know_a_familys_emulated_side() -> None:
+    source = "from drivers.sim.world import SimWorld\nfrom drivers.emulate.faults import F\n"
+    every = frozenset({"fri", "sim", "ur"})
+    assert backend_violations(source, "drivers.fri.emulate.server",
+                              "drivers/fri/emulate/server.py", "fri", every) == []
+    assert backend_violations(source, "drivers.fri.driver", "drivers/fri/driver.py", "fri",
+                              every) == ["drivers/fri/driver.py:1: imports drivers.sim.world",
+                                         "drivers/fri/driver.py:2: imports drivers.emulate.faults"]
+    assert backend_violations("from drivers.ur.emulate import control\n",
+                              "drivers.fri.emulate.x", "x.py", "fri", every) == [
+        "x.py:1: imports drivers.ur.emulate"]
 
 
 def test_the_neutral_packages_import_no_backend_and_no_simulation() -> None:
@@ -200,9 +239,41 @@ def test_the_checks_see_every_form_of_import() -> None:
 
 
 def backend_names() -> frozenset[str]:
-    """Every back-end's rig type and ``--driver`` name (``none``, no tracker, is none)."""
+    """Every back-end's rig type, ``--driver`` name and emulated controller's name (``none``,
+    no tracker, is none)."""
     return frozenset({*registry.robot_types(), *registry.ft_types(), *registry.tracker_types(),
-                      *registry.driver_names()} - {"none"})
+                      *registry.driver_names(), *(e.name for e in registry.emulators())}
+                     - {"none"})
+
+
+def names_by_folder() -> dict[str, frozenset[str]]:
+    """The names (rig types, ``--driver`` names) each shipped back-end folder declares. (An
+    emulated controller's name is its arm model's, which the neutral description package
+    lists as every arm's; sessions find the controllers through the registry.)"""
+    out: dict[str, frozenset[str]] = {}
+    for b in registry.backends():
+        if b.name not in registry.FOLDERS:
+            continue
+        out[b.name] = frozenset({*(r.rig_type for r in b.robots), *(r.driver for r in b.robots),
+                                 *(s.rig_type for s in b.sensors),
+                                 *(t.rig_type for t in b.trackers)})
+    return out
+
+
+def drivers_string_violations() -> list[str]:
+    """Strings in ``drivers`` (docstrings aside) naming a back-end outside the folder that
+    declares the name; the registry may name them all."""
+    by_folder = names_by_folder()
+    every = frozenset().union(*by_folder.values())
+    found = []
+    for path, module in _sources(DRIVERS):
+        rel = path.relative_to(ROOT).as_posix()
+        folder = module.split(".")[1] if module.count(".") else ""
+        if module == "drivers.registry":
+            continue
+        own = by_folder.get(folder, frozenset())
+        found += string_violations(path.read_text(), rel, every - own, frozenset())
+    return found
 
 
 def backend_topics() -> frozenset[str]:
@@ -222,12 +293,19 @@ def _docstrings(tree: ast.AST) -> set[int]:
     return found
 
 
+def _default_fts(tree: ast.AST) -> set[int]:
+    """The ``default_ft="..."`` of robot entries: the built-in rig of ``--driver`` may pair a
+    robot with another back-end's sensor (its rig's default, not a closed list)."""
+    return {id(k.value) for node in ast.walk(tree) if isinstance(node, ast.Call)
+            for k in node.keywords if k.arg == "default_ft" and isinstance(k.value, ast.Constant)}
+
+
 def string_violations(source: str, rel: str, names: frozenset[str],
                       topics: frozenset[str]) -> list[str]:
     """Each string of ``source`` (file ``rel``) that is one of ``names`` or holds one of
-    ``topics``, docstrings and :data:`STRING_EXCEPTIONS` aside."""
+    ``topics``, docstrings, a robot's ``default_ft`` and :data:`STRING_EXCEPTIONS` aside."""
     tree = ast.parse(source)
-    docs = _docstrings(tree)
+    docs = _docstrings(tree) | _default_fts(tree)
     found = []
     for node in ast.walk(tree):
         if (not isinstance(node, ast.Constant) or not isinstance(node.value, str)
@@ -247,6 +325,21 @@ def test_ffexp_names_no_backend_and_no_backend_topic() -> None:
         rel = path.relative_to(ROOT).as_posix()
         found += string_violations(path.read_text(), rel, names, topics)
     assert found == [], "\n".join(found)
+
+
+def test_drivers_name_a_backend_only_in_its_own_folder() -> None:
+    """No closed list of another family's types: a new family touches no other folder."""
+    found = drivers_string_violations()
+    assert found == [], "\n".join(found)
+
+
+def test_the_drivers_string_check_sees_another_familys_name() -> None:
+    by_folder = names_by_folder()
+    assert "ur-sim" in by_folder["ur"] and "ur-sim" not in by_folder["sim"]
+    got = string_violations('def f(robot):\n    return robot.type in ("sim", "ur-sim")\n',
+                            "drivers/sim/backend.py", backend_names() - by_folder["sim"],
+                            frozenset())
+    assert got == ["drivers/sim/backend.py:2: names a back-end: 'ur-sim'"]
 
 
 def test_every_string_exception_is_still_needed() -> None:
@@ -271,8 +364,6 @@ def test_the_string_check_sees_names_and_topics_but_not_docstrings() -> None:
                             frozenset({"/robot/link", "/robot/link_driver"}))
     assert got == ["ffexp/thing.py:4: names a back-end: 'fri1'",
                    "ffexp/thing.py:5: names a back-end: '/robot/link_driver'"]
-    assert string_violations('x = "fri"\n', "ffexp/cli/emulate.py", frozenset({"fri"}),
-                             frozenset()) == []  # an explicit exception
 
 
 #: The project's type aliases and the one module that declares each.

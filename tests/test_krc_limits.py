@@ -1,7 +1,7 @@
 """The KRC's software limit switches: a joint at its limit ends CMD, latches an error, holds.
 
-In-process lockstep robot (drivers.emulate.lockstep), the UDP emulator
-(drivers.emulate.fri_server) against the remote driver, and the runner.
+In-process lockstep robot (drivers.fri.emulate.lockstep), the UDP emulator
+(drivers.fri.emulate.server) against the remote driver, and the runner.
 """
 
 from __future__ import annotations
@@ -13,16 +13,16 @@ import pytest
 
 from drivers.base import CartesianCommand
 from drivers.description.scene import Scene, load_scene
-from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
-from drivers.emulate.krc import (
+from drivers.errors import DriverError
+from drivers.fri.backend import FriRobotConfig
+from drivers.fri.driver import FriRobot
+from drivers.fri.emulate.krc import (
     HARDWARE_LIMITS_DEG,
     SOFTWARE_LIMITS_DEG,
     software_limit_error,
 )
-from drivers.emulate.lockstep import SimRobot, open_sim
-from drivers.errors import DriverError
-from drivers.fri.backend import FriRobotConfig
-from drivers.fri.driver import FriRobot
+from drivers.fri.emulate.lockstep import SimRobot, open_sim
+from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
 from drivers.fri.link import ERROR_SOFTWARE_LIMIT, KrcLink, LinkEvent, describe_error
 from drivers.fri.types import FriMeasurement, FriState
 from drivers.sim.arm import ArmMode

@@ -76,7 +76,7 @@ def test_a_ur_sim_run_whose_reader_skips_packages_in_align_is_invalid(
     """End to end: the in-process UR's link skips one data package per cycle from its
     second on; the recording's ``/robot/ur`` says so and the trial is invalid by exactly
     the cycles spent in ALIGN."""
-    from drivers.emulate.ur_lockstep import LoopbackRtde
+    from drivers.ur.emulate.lockstep import LoopbackRtde
     from ffexp.experiment import RigChoice, run_file
 
     receive = LoopbackRtde.receive_latest

@@ -198,9 +198,9 @@ def test_client_errors() -> None:
 
 def test_the_fri_emulator_serves_the_simulated_sensor(paper_scene: Scene) -> None:
     # the emulator and the simulator are imported here: the client tests above need neither
-    from drivers.emulate.fri_server import EmulatorSettings, FriEmulator
     from drivers.fri.backend import FriRobotConfig
     from drivers.fri.driver import FriRobot
+    from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
     from drivers.sim.world import SimWorld
 
     world = SimWorld(paper_scene, seed=4)

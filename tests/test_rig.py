@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from drivers.base import ApplyStatus, CartesianCommand, ForceTorqueSensor, RobotDriver
-from drivers.emulate.backend import SimRobotConfig
 from drivers.errors import AddressError, ConfigError
 from drivers.factory import open_devices
 from drivers.fri.backend import FriRobotConfig
+from drivers.fri.config import SimRobotConfig
 from drivers.mock.backend import MockRobotConfig
 from drivers.netft.backend import NetFtConfig
 from drivers.rig import Rig, default_rig, load_rig
@@ -213,7 +213,7 @@ def test_back_ends_are_imported_only_when_used(paper_scene_path: Path) -> None:
         f"open_devices(default_rig(), source='x', "
         f"scene_file=Path({str(paper_scene_path)!r})).close(); "
         "print(sorted(m for m in sys.modules if m.startswith(('drivers.fri.driver', "
-        "'drivers.netft.client', 'drivers.mock.driver', 'drivers.emulate.fri_server', "
+        "'drivers.netft.client', 'drivers.mock.driver', 'drivers.fri.emulate.server', "
         "'drivers.camera.tracker'))))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

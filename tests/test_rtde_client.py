@@ -17,7 +17,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from drivers.emulate.rtde_server import RtdeFaults, RtdeServer
 from drivers.errors import (
     AddressError,
     DriverTimeoutError,
@@ -25,6 +24,7 @@ from drivers.errors import (
     MalformedPacketError,
     NotConnectedError,
 )
+from drivers.ur.emulate.rtde_server import RtdeFaults, RtdeServer
 from drivers.ur.errors import RtdeRefusedError
 from drivers.ur.rtde import codec
 from drivers.ur.rtde.client import RtdeClient

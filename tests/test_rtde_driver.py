@@ -22,7 +22,6 @@ import pytest
 from drivers.base.types import ApplyStatus, CartesianCommand
 from drivers.config import load_model
 from drivers.description.ur5e import DH_D_M, UR5E
-from drivers.emulate.rtde_server import RtdeServer
 from drivers.errors import (
     AddressError,
     ConfigError,
@@ -33,6 +32,7 @@ from drivers.errors import (
 from drivers.ur import registers
 from drivers.ur.config import UrSettings
 from drivers.ur.driver import OUTPUT_NAMES, UrRobot, control_script
+from drivers.ur.emulate.rtde_server import RtdeServer
 from drivers.ur.errors import UrSafetyStopError
 from drivers.ur.registers import Mode
 from drivers.ur.rtde.fields import Recipe

@@ -44,7 +44,7 @@ def produced(k: int) -> dict[str, np.ndarray]:
 
 def serve(host: str, steps: int, out: str) -> None:
     """The child: serve until stdin closes, then save what the source produced."""
-    from drivers.emulate.rtde_server import RtdeServer
+    from drivers.ur.emulate.rtde_server import RtdeServer
 
     rows: dict[str, list[np.ndarray]] = {name: [] for name in VARIABLES}
 

@@ -16,7 +16,7 @@ from mcap.records import Message as McapMessage
 from mcap.stream_reader import StreamReader
 from typer.testing import CliRunner
 
-from drivers.emulate.lockstep import open_sim
+from drivers.fri.emulate.lockstep import open_sim
 from ffexp import loop
 from ffexp.cli import app
 from ffexp.errors import InputError

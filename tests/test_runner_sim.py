@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from drivers.description.scene import load_scene
-from drivers.emulate.lockstep import open_sim
+from drivers.fri.emulate.lockstep import open_sim
 from ffexp.analysis import metrics
 from ffexp.contracts import Phase
 from ffexp.experiment import run_file

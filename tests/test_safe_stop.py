@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from drivers.base.types import AppliedCommand, CartesianCommand, RobotState
-from drivers.emulate.lockstep import SimRobot, open_sim
+from drivers.fri.emulate.lockstep import SimRobot, open_sim
 from ffexp import loop
 from ffexp.contracts import Phase, RunOutcome, StopReason
 from ffexp.controllers.force import ForceRi

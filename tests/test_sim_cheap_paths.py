@@ -22,9 +22,9 @@ from drivers.base.placement import placement, placement_at_mouth
 from drivers.base.types import ApplyStatus, CartesianCommand
 from drivers.description import load_scene
 from drivers.description.scene import FtSensorSettings
-from drivers.emulate.krc import software_limit_error
-from drivers.emulate.lockstep import SimRobot
 from drivers.errors import SimulationError
+from drivers.fri.emulate.krc import software_limit_error
+from drivers.fri.emulate.lockstep import SimRobot
 from drivers.sim import ArmCommand, SimWorld
 from drivers.sim.arm import ArmMode, ArmState
 from drivers.sim.friction import JointFriction

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 import ffexp.errors
+from drivers.base.impedance import cart_impedance_torque, cartesian_mobility, normalized_damping
 from drivers.base.placement import Placement
 from drivers.base.types import FtStatus
 from drivers.description.scene import Scene
 from drivers.errors import InvalidCommandError, SimulationError
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
-from drivers.sim.controller import cart_impedance_torque, cartesian_mobility, normalized_damping
 from drivers.sim.friction import JointFriction
 from drivers.sim.world import SimWorld
 from ffexp.scenarios.funnel import truth_placement
@@ -506,7 +506,7 @@ def test_contact_wrench_equals_the_sum_over_contacts() -> None:
 
 def test_reused_cartesian_inertia_keeps_the_damping_within_0_1_percent() -> None:
     """The KRC damping's Cartesian inertia is reused while no joint moved 1 mrad."""
-    from drivers.sim.controller import cartesian_inertia
+    from drivers.base.impedance import cartesian_inertia
 
     w = SimWorld(scene())
     pose = w.last_state.tcp_pose_m.copy()

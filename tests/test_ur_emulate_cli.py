@@ -65,8 +65,11 @@ def test_a_robot_ffexp_emulate_does_not_know_is_one_line_and_exit_2() -> None:
     done = subprocess.run([sys.executable, "-m", "ffexp", "emulate", "--robot", "warp"],
                           cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
+    from drivers.emulate.robots import robot_names
+
+    assert {"lwr4", "ur5e"} <= set(robot_names())
     assert done.stderr.strip().splitlines() == [
-        "error: --robot: warp: choose one of lwr4, ur5e"]
+        f"error: --robot: warp: choose one of {', '.join(robot_names())}"]
 
 
 @pytest.mark.slow

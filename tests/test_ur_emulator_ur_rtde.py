@@ -30,14 +30,15 @@ def serve(host: str, out: str) -> None:
     """The child: the emulated UR5e until stdin closes, then save what the world produced."""
     from drivers.description import load_scene
     from drivers.emulate.session import EmulatedRig, EmulatedRigSettings
+    from drivers.ur.emulate.served import ServedUr
 
     scene = load_scene(ROOT / "data/scenes/paper-ur5e.toml")
     rows: dict[str, list[np.ndarray]] = {name: [] for name in VARIABLES}
     settings = EmulatedRigSettings(scene=scene, robot="ur5e", listen=(host, 30004),
                                    netft_port=None, pacing="realtime")
     with EmulatedRig(settings) as rig:
-        assert rig.ur is not None
-        server = rig.ur.server
+        assert isinstance(rig.served, ServedUr)
+        server = rig.served.emulator.server
         step = server.source
 
         def recorded() -> dict[str, object]:

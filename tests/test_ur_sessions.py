@@ -11,11 +11,11 @@ import pytest
 from test_ur_sim import _drive
 
 from drivers.description import load_scene
-from drivers.emulate.ur_server import UrEmulator
 from drivers.sim.world import SimWorld
 from drivers.ur import registers
 from drivers.ur.config import UrSettings
 from drivers.ur.driver import UrRobot
+from drivers.ur.emulate.server import UrEmulator
 from drivers.ur.registers import Mode
 from drivers.ur.rtde.client import RtdeClient
 

@@ -12,16 +12,15 @@ from typer.testing import CliRunner
 
 from drivers.base.types import CartesianCommand
 from drivers.description import load_scene
-from drivers.emulate.backend import UrSimConfig
-from drivers.emulate.rtde_server import RtdeServer
-from drivers.emulate.ur_controller import STALE_CYCLES, UrSimController
-from drivers.emulate.ur_lockstep import SimUrRobot
 from drivers.errors import ConfigError
-from drivers.sim.ur_control import ForceModeCommand, UrArmControl
 from drivers.sim.world import SimWorld
 from drivers.ur import registers
-from drivers.ur.config import UrSettings
+from drivers.ur.config import UrSettings, UrSimConfig
 from drivers.ur.driver import UrRobot
+from drivers.ur.emulate.control import ForceModeCommand, UrArmControl
+from drivers.ur.emulate.controller import STALE_CYCLES, UrSimController
+from drivers.ur.emulate.lockstep import SimUrRobot
+from drivers.ur.emulate.rtde_server import RtdeServer
 from drivers.ur.errors import UrSafetyStopError
 from drivers.ur.registers import Mode, ScriptState
 
@@ -230,10 +229,11 @@ def test_the_emulated_rigs_disconnect_fault_ends_the_ur_driver_naming_the_addres
     from drivers.errors import LinkLostError
 
     settings = EmulatedRigSettings(scene=scene, robot="ur5e", listen=("127.0.0.1", 0),
-                                   netft_port=None, pacing="lockstep", ur_disconnect_after=20)
+                                   netft_port=None, pacing="lockstep",
+                                   family_faults={"disconnect_after": 20})
     with EmulatedRig(settings) as rig:
-        assert rig.ur is not None
-        port = rig.ur.address[1]
+        assert rig.served is not None
+        port = rig.served.address[1]
         robot = UrRobot(UrSettings(robot_ip="127.0.0.1", rtde_port=port, script="installed",
                                    cycle_timeout_s=5.0))
         robot.connect()

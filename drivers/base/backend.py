@@ -36,7 +36,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from importlib import import_module
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Generic, Literal, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, Generic, Literal, TypeVar
 
 from drivers.config import StrictModel
 
@@ -49,6 +49,7 @@ __all__ = [
     "Backend",
     "CommandFields",
     "DeviceConfig",
+    "Emulator",
     "FtBackend",
     "LinkCounter",
     "LinkStat",
@@ -60,7 +61,9 @@ __all__ = [
     "RobotBackend",
     "TrackerBackend",
     "cdr_topics_of",
+    "needs_offer",
     "needs_robot",
+    "offering",
 ]
 
 
@@ -71,6 +74,12 @@ class DeviceConfig(StrictModel):
     """
 
     type: str
+    offers: ClassVar[frozenset[str]] = frozenset()
+    """What an opened robot of this table offers the rig's other devices (a robot table's
+    class variable, not a field): ``world`` (it runs the simulated world in-process, whose
+    target a ``sim`` tracker watches), ``world-ft`` (and leaves the world's F/T samples to
+    a ``sim`` sensor), ``netft-host`` (an F/T box at the robot's address answers there).
+    Devices ask for an offer (:func:`needs_offer`), never for another back-end's type."""
 
 
 C = TypeVar("C", bound=DeviceConfig)
@@ -149,6 +158,32 @@ def needs_robot(table: str, *types: str, hint: str = ""
         return f"{table}.type '{cfg.type}' needs robot.type {wanted}{why}"
 
     return check
+
+
+def needs_offer(table: str, offer: str, hint: str = ""
+                ) -> Callable[[Any, DeviceConfig], str | None]:
+    """A device's ``check``: it goes only with a robot whose table :attr:`~DeviceConfig.offers`
+    ``offer``; otherwise one line, ``<table>.type '<its type>' needs robot.type 'a' or 'b'``
+    (the robot types that offer it, as far as they are known), then `` (<hint>)``."""
+    why = f" ({hint})" if hint else ""
+
+    def check(cfg: Any, robot: DeviceConfig) -> str | None:
+        if offer in type(robot).offers:
+            return None
+        have = offering(offer)
+        wanted = " or ".join(f"'{t}'" for t in have) if have else f"offering {offer!r}"
+        return f"{table}.type '{cfg.type}' needs robot.type {wanted}{why}"
+
+    return check
+
+
+def offering(offer: str) -> list[str]:
+    """The ``type`` of every registered robot whose table offers ``offer``, in the
+    registry's order (read when asked: the registry is built from these entries)."""
+    from drivers import registry
+
+    return [t for t in registry.robot_types()
+            if offer in registry.robot_backend(t).config.offers]
 
 
 def cdr_topics_of(module: str) -> Callable[[], Sequence[CdrTopic]]:
@@ -253,6 +288,11 @@ class RobotBackend(Generic[C]):
     then puts on ``OpenedRobot.scene``); ``None``: a real robot."""
     replay: Replay | None = None
     """A simulated robot's way of replaying recordings; ``None``: it replays none."""
+    arm: str | None = None
+    """The arm its controller drives (a scene's ``arm.model``); ``None``: any (a mock)."""
+    takes_arm_place: bool = False
+    """It puts its arm in the place of a scene's other arm (the paper's rig with its
+    arm swapped in, as ``ffexp emulate --robot`` serves it) rather than refusing it."""
 
     @property
     def rig_type(self) -> str:
@@ -306,6 +346,54 @@ class Backend:
     """The counters of those topics that are link faults (they invalidate a trial)."""
     link_stats: tuple[LinkStat, ...] = ()
     """The statistics of those topics that summarise its link in a run's metrics."""
+    emulators: tuple[Emulator, ...] = ()
+    """The robot controllers of its family ``ffexp emulate --robot`` can serve."""
+
+
+@dataclass(frozen=True)
+class Emulator:
+    """One robot controller a family's emulator serves (``ffexp emulate --robot <name>``).
+
+    Light, like the rest of the entry: ``serve`` names the function (``module:name``) that
+    builds the served controller on a simulated world, imported when the rig opens;
+    :mod:`drivers.emulate.session` calls it and serves what it returns
+    (:class:`drivers.emulate.served.ServedRobot`).
+    """
+
+    name: str
+    """``--robot``'s name: also the scene's ``arm.model`` it serves."""
+    what: str
+    """One line for ``--help``."""
+    serve: str
+    """``module:function`` of ``(world, settings, ft_box) -> ServedRobot``."""
+    listen: tuple[str, int] | None = None
+    """Where it listens by default (its client opens the link); ``None``: it sends to the
+    remote driver it is told of (``--remote``)."""
+    overrides_from: str | None = None
+    """``module:NAME`` of the scene overrides that put this arm in the paper's rig (None:
+    the paper's rig as it is); read when asked, so the command line's start stays light."""
+    takes_cycle: bool = False
+    """Its cycle is set on the command line (FRI's friOpen); else the scene's."""
+    ft_box: bool = False
+    """The world's F/T sensor is served beside it as a Net F/T box (else its wrench goes
+    over its own link)."""
+    faults: tuple[tuple[str, str], ...] = ()
+    """Its own faults, ``(name, what)``: ``--fault name=value`` (a number)."""
+    camera: bool = False
+    """The camera above the bed may be served beside it (it calls the rig back between
+    its world steps, when the camera renders)."""
+
+    @property
+    def needs_remote(self) -> bool:
+        """It sends to a remote driver (``--remote``) rather than listening."""
+        return self.listen is None
+
+    def scene_overrides(self) -> tuple[str, ...]:
+        """The default scene: the paper's rig with these overrides."""
+        if self.overrides_from is None:
+            return ()
+        module, name = self.overrides_from.split(":")
+        return tuple(getattr(import_module(module), name))
 
 
 def _type_of(model: type[DeviceConfig]) -> str:

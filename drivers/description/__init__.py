@@ -14,11 +14,12 @@ Pure data and maths: no I/O beyond reading a scene file, no MuJoCo, no sockets.
 """
 
 from drivers.description.arm import ArmDescription
+from drivers.description.fr3 import FR3
 from drivers.description.funnel import seat_depth, tool_tip_offset
 from drivers.description.layout import Layout, compute_layout
 from drivers.description.lwr4 import LWR4
 from drivers.description.scene import Scene, load_scene
 from drivers.description.ur5e import UR5E
 
-__all__ = ["LWR4", "UR5E", "ArmDescription", "Layout", "Scene", "compute_layout", "load_scene",
-           "seat_depth", "tool_tip_offset"]
+__all__ = ["FR3", "LWR4", "UR5E", "ArmDescription", "Layout", "Scene", "compute_layout",
+           "load_scene", "seat_depth", "tool_tip_offset"]

@@ -38,7 +38,8 @@ class ArmDescription:
         name: the model's name (``"KUKA LWR4+"``).
         joint_origins_m: each joint's frame origin in its parent link's frame [m].
         joint_axes: each joint's axis in its own link frame (``+-x``, ``+-y``, ``+-z``).
-        position_limits_deg: symmetric joint position limits [deg].
+        position_limits_deg: joint position limits [deg]: the upper ones, and the lower
+            ones too negated unless ``position_lower_deg`` gives them.
         velocity_limits_degps: joint speed limits [deg/s].
         link_masses_kg: link masses [kg].
         link_coms_m: link centres of mass in the link frame [m].
@@ -54,6 +55,8 @@ class ArmDescription:
             not published).
         link_coulomb_nm, link_viscous_nmsprad: friction identified after the joint torque
             sensors (what a torque loop does not reduce) [N m], [N m s/rad] (None: none).
+        position_lower_deg: lower joint position limits of an arm whose ranges are not
+            symmetric [deg] (None: ``-position_limits_deg``).
     """
 
     name: str
@@ -72,13 +75,14 @@ class ArmDescription:
     drive_viscous_nmsprad: tuple[float, ...] | None = None
     link_coulomb_nm: tuple[float, ...] | None = None
     link_viscous_nmsprad: tuple[float, ...] | None = None
+    position_lower_deg: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.joint_origins_m)
         for name in ("joint_axes", "position_limits_deg", "velocity_limits_degps",
                      "link_masses_kg", "link_coms_m", "link_inertias_kgm2", "joint_rpy_rad",
                      "rotor_inertias_kgm2", "drive_coulomb_nm", "drive_viscous_nmsprad",
-                     "link_coulomb_nm", "link_viscous_nmsprad"):
+                     "link_coulomb_nm", "link_viscous_nmsprad", "position_lower_deg"):
             values = getattr(self, name)
             if values is not None and len(values) != n:
                 raise ValueError(f"{self.name}: {name} has {len(values)} entries for {n} joints")
@@ -90,6 +94,13 @@ class ArmDescription:
     def joints(self) -> int:
         """Number of joints."""
         return len(self.joint_origins_m)
+
+    @property
+    def lower_limits_deg(self) -> tuple[float, ...]:
+        """The lower joint position limits [deg]."""
+        if self.position_lower_deg is not None:
+            return self.position_lower_deg
+        return tuple(-v for v in self.position_limits_deg)
 
     def joint_transforms(self, q_rad: Sequence[float] | F64) -> list[F64]:
         """Each link's pose in its parent at joint positions ``q_rad`` (4x4 each)."""

@@ -36,11 +36,12 @@ from drivers.config import (
 )
 from drivers.description.arm import ArmDescription
 from drivers.description.carrier import CarrierSettings
+from drivers.description.fr3 import FR3
 from drivers.description.lwr4 import LWR4
 from drivers.description.ur5e import UR5E
 
 #: The arm models a scene may name (``arm.model``), each its published description.
-ARMS: dict[str, ArmDescription] = {"lwr4": LWR4, "ur5e": UR5E}
+ARMS: dict[str, ArmDescription] = {"lwr4": LWR4, "ur5e": UR5E, "fr3": FR3}
 
 
 class PhysicsSettings(StrictModel):
@@ -71,7 +72,7 @@ class FriTiming(StrictModel):
     control: Literal["cart_impedance", "joint_position", "joint_impedance"] = "cart_impedance"
     command_delay_cycles: Annotated[int, Field(ge=0, le=20)] = 1
     """Whole cycles from a measurement to the first cycle its answer acts in, in
-    lockstep (:class:`~drivers.emulate.krc.CommandDelay`). The KRC sends
+    lockstep (:class:`~drivers.fri.emulate.krc.CommandDelay`). The KRC sends
     measurement k, the remote answers within the cycle and the KRC applies the
     answer at its next cycle at the earliest (Schreiber et al., ICRA 2010
     workshop, sec. V-B; the fact sheet ``fri_netft.md``): 1. 0 is the
@@ -105,7 +106,7 @@ class ArmSettings(StrictModel):
 
     model: Annotated[str, Field(json_schema_extra={"enum": list(ARMS)})] = "lwr4"
     """The arm model, a name of the registry :data:`ARMS`: ``lwr4`` (KUKA LWR4+, the
-    paper's) or ``ur5e``; a new arm is one description module and one entry there."""
+    paper's), ``ur5e`` or ``fr3``; a new arm is one description module and one entry there."""
 
     @field_validator("model")
     @classmethod

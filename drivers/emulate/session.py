@@ -1,15 +1,17 @@
-"""The emulated rig as one object: world, emulated KRC, Net F/T box and camera, served.
+"""The emulated rig as one object: world, a family's emulated controller, Net F/T box and camera.
 
 :class:`EmulatedRig` assembles what ``ffexp emulate`` serves from an
-:class:`EmulatedRigSettings`: the simulated world of a scene, the KRC that
-serves it over FRI 1.x (:class:`~drivers.emulate.fri_server.FriEmulator`, with
-its pacing and injected faults), optionally the Net F/T box
-(:class:`~drivers.emulate.netft_box.NetFtServer`) and the camera above the bed
+:class:`EmulatedRigSettings`: the simulated world of a scene, the robot controller that
+serves it (``settings.robot``: a family's :class:`~drivers.base.backend.Emulator`, found
+through :mod:`drivers.registry`; what it builds is a
+:class:`~drivers.emulate.served.ServedRobot`, e.g. a KRC2 LR over FRI 1.x sending to
+``remote``, or a UR controller over RTDE listening on ``listen``), optionally the Net
+F/T box (:class:`~drivers.emulate.netft_box.NetFtServer`, for a controller whose entry
+asks for one) and the camera above the bed
 (:class:`~drivers.emulate.camera_stream.CameraStream`). As a context manager it
 opens them all on entry (closing what it opened if one fails) and closes them
-on exit; :meth:`EmulatedRig.serve` runs the KRC in its own thread until the
-duration of simulated time, a stop request or an error, and re-raises the error
-in the caller's thread::
+on exit; :meth:`EmulatedRig.serve` serves until the duration of simulated time, a stop
+request or an error, and re-raises the error in the caller's thread::
 
     with EmulatedRig(settings) as rig:
         print(rig.ready_line())
@@ -17,40 +19,30 @@ in the caller's thread::
     print(rig.summary())
 
 Errors name the caller's fields (``settings.fields``: the command line's options
-for ``ffexp emulate``). The robot served is the LWR4+ on a KRC2 LR over FRI, or
-with ``robot = "ur5e"`` the UR5e of a UR scene over RTDE on ``listen`` (127.0.0.1:30004
-by default; :class:`~drivers.emulate.ur_server.UrEmulator`; its wrench goes over
-RTDE, so no Net F/T box, and its faults are :class:`~drivers.emulate.rtde_server.RtdeFaults`:
-``faults.loss`` and ``faults.delay_s`` of the output packages, ``ur_disconnect_after``).
+for ``ffexp emulate``). Network faults common to every link are ``faults``
+(:class:`~drivers.emulate.faults.FaultSettings`); a family's own are ``family_faults``
+(``--fault name=value``, the names its entry lists).
 """
 
 from __future__ import annotations
 
-import threading
-import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from importlib import import_module
 from pathlib import Path
-from types import TracebackType
-from typing import Literal
+from types import MappingProxyType, TracebackType
+from typing import Any, Literal
 
+from drivers import registry
 from drivers.description.scene import Scene
 from drivers.emulate.camera_stream import CameraStream
 from drivers.emulate.faults import FaultSettings
-from drivers.emulate.fri_server import EmulatorSettings, EmulatorStats, FriEmulator
 from drivers.emulate.netft_box import NetFtServer
-from drivers.emulate.robots import ROBOTS
-from drivers.emulate.rtde_server import RtdeFaults
-from drivers.emulate.ur_server import UrEmulator
+from drivers.emulate.served import ServedRobot
 from drivers.errors import ConfigError, NotConnectedError
 from drivers.sim.world import SimWorld
 
 __all__ = ["EmulatedRig", "EmulatedRigSettings", "SettingNames"]
-
-#: How often :meth:`EmulatedRig.serve` reports the link's state [s of wall time].
-STATUS_PERIOD_S = 5.0
-#: How often the serving caller checks for a stop request [s].
-_POLL_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -63,6 +55,8 @@ class SettingNames:
     camera_calibration: str = "--camera-calibration"
     listen: str = "--listen"
     robot: str = "--robot"
+    remote: str = "--remote"
+    fault: str = "--fault"
 
 
 @dataclass(frozen=True)
@@ -71,9 +65,10 @@ class EmulatedRigSettings:
 
     Args:
         scene: the rig to simulate.
-        remote: the remote driver's address (``FRIHOST``, ``FRISOCK`` on a KRC).
+        remote: a controller that sends to its client (FRI): the remote driver's address
+            (``FRIHOST``, ``FRISOCK`` on a KRC).
         seed: the world's seed (None: the scene's).
-        port: local UDP port the KRC sends from (0: any).
+        port: local UDP port a sending controller sends from (0: any).
         pacing: ``realtime`` (wall clock) or ``lockstep`` (a step on each answer).
         lockstep_timeout_s: lockstep: wait this long for a command before a miss.
         faults: injected network faults.
@@ -84,12 +79,13 @@ class EmulatedRigSettings:
         duration_s: stop after this much simulated time (0: until stopped).
         host: local address every server binds to.
         fields: how errors name these settings.
-        robot: a name of :data:`drivers.emulate.robots.ROBOTS`: ``lwr4`` (a KRC2 LR over
-            FRI) or ``ur5e`` (a UR controller over RTDE; the scene's arm must be the UR5e).
-        listen: a robot whose link the client opens (RTDE): where its server listens
-            (any loopback address may be chosen; None: the robot's default).
-        ur_disconnect_after: ``ur5e``: close a client's connection after this many data
-            packages (0: never).
+        robot: an emulated controller's name (:func:`drivers.registry.emulators`: ``lwr4``,
+            a KRC2 LR over FRI; ``ur5e``, a UR controller over RTDE; ...); the scene's arm
+            must be its arm.
+        listen: a robot whose link the client opens: where its server listens (any
+            loopback address may be chosen; None: the robot's default).
+        family_faults: the controller's own faults by name (its entry's ``faults``), e.g.
+            ``disconnect_after`` of the ``ur5e``.
     """
 
     scene: Scene
@@ -106,9 +102,9 @@ class EmulatedRigSettings:
     duration_s: float = 0.0
     host: str = "0.0.0.0"
     fields: SettingNames = field(default_factory=SettingNames)
-    robot: str = "lwr4"
+    robot: str = field(default_factory=lambda: registry.emulators()[0].name)
     listen: tuple[str, int] | None = None
-    ur_disconnect_after: int = 0
+    family_faults: Mapping[str, float] = field(default_factory=lambda: MappingProxyType({}))
 
     @property
     def max_cycles(self) -> int | None:
@@ -122,16 +118,12 @@ class EmulatedRig:
     def __init__(self, settings: EmulatedRigSettings) -> None:
         self.settings = settings
         self.world: SimWorld | None = None
-        """The world as opened (a UR's later sessions run a fresh one: ``ur.world``)."""
-        self.robot: FriEmulator | None = None
-        self.ur: UrEmulator | None = None
+        """The world as opened (a controller may run a fresh one per client session)."""
+        self.served: ServedRobot | None = None
+        """The family's controller, while open."""
         self.netft: NetFtServer | None = None
         self.camera: CameraStream | None = None
-        self._thread: threading.Thread | None = None
-        self._failure: BaseException | None = None
-        self._last_status = 0.0
-        self._stats: EmulatorStats | None = None
-        self._ur_summary: str | None = None
+        self._summary: str | None = None
 
     # ------------------------------------------------------------ lifecycle
     def __enter__(self) -> EmulatedRig:
@@ -145,21 +137,32 @@ class EmulatedRig:
     def open(self) -> None:
         """Build the world and open every server (what opened is closed if one fails)."""
         s = self.settings
-        if s.robot not in ROBOTS:
-            raise ConfigError(s.fields.robot, s.robot,
-                              f"choose one of {', '.join(ROBOTS)}")
+        try:
+            entry = registry.emulator(s.robot)
+        except KeyError:
+            names = ", ".join(e.name for e in registry.emulators())
+            raise ConfigError(s.fields.robot, s.robot, f"choose one of {names}") from None
         if s.scene.arm.model != s.robot:
             raise ConfigError(s.fields.robot, s.robot, f"the scene ({s.scene.name}) has "
                               f"arm.model {s.scene.arm.model!r}, not {s.robot!r}")
+        known = {name for name, _what in entry.faults}
+        for name in s.family_faults:
+            if name not in known:
+                have = ", ".join(sorted(known)) or "none"
+                raise ConfigError(s.fields.fault, name,
+                                  f"the {s.robot} emulator's own faults are: {have}")
+        if s.camera_port is not None and not entry.camera:
+            raise ConfigError(s.fields.camera_port, str(s.camera_port),
+                              f"the {s.robot} emulator serves no camera")
+        if entry.needs_remote and s.remote is None:
+            raise ConfigError(s.fields.remote, "", "the remote driver's address is required")
         self.world = world = SimWorld(s.scene, seed=s.seed)
-        if ROBOTS[s.robot].link == "rtde":
-            self._open_ur(world)
-            return
         try:
-            if s.netft_port is not None:
+            if entry.ft_box and s.netft_port is not None:
                 self.netft = NetFtServer.open(s.host, s.netft_port, on_bias=world.tare_ft,
                                               field=s.fields.netft_port)
-            self.robot = self._open_robot(world)
+            module, name = entry.serve.split(":")
+            self.served = getattr(import_module(module), name)(world, s, self.netft)
             if s.camera_port is not None:
                 self.camera = CameraStream(world, s.host, s.camera_port, fps=s.camera_fps,
                                            field=s.fields.camera_port)
@@ -169,36 +172,6 @@ class EmulatedRig:
             self.close()
             raise
 
-    def _open_ur(self, world: SimWorld) -> None:
-        """The UR controller's RTDE server (the scene's arm must be a UR)."""
-        s = self.settings
-        faults = RtdeFaults(loss=s.faults.loss, delay_s=s.faults.delay_s,
-                            disconnect_after=s.ur_disconnect_after, seed=s.faults.seed)
-        host, port = s.listen or ROBOTS[s.robot].listen or ("127.0.0.1", 30004)
-        self.ur = UrEmulator(world, host, port, pacing=s.pacing,
-                             lockstep_timeout_s=s.lockstep_timeout_s, faults=faults,
-                             where=s.fields.listen).start()
-
-    def _open_robot(self, world: SimWorld) -> FriEmulator:
-        """The robot controller's server: a KRC2 LR over FRI 1.x (it closes the Net F/T box
-        with itself)."""
-        s = self.settings
-        if s.remote is None:
-            raise ConfigError("--remote", "", "the remote driver's address is required")
-        return FriEmulator(
-            world,
-            EmulatorSettings(
-                remote=s.remote,
-                port=s.port,
-                port_field=s.fields.port,
-                bind_host=s.host,
-                pacing=s.pacing,
-                lockstep_timeout_s=s.lockstep_timeout_s,
-                faults=s.faults,
-            ),
-            self.netft,
-        )
-
     def _write_calibration(self, camera: CameraStream, path: Path) -> None:
         try:
             camera.write_calibration(path)
@@ -207,26 +180,16 @@ class EmulatedRig:
                               exc.strerror or str(exc)) from None
 
     def stop(self) -> None:
-        """Ask the KRC to stop after its current cycle (thread-safe)."""
-        if self.ur is not None:
-            self.ur.stop()
-        if self.robot is not None:
-            self.robot.stop()
+        """Ask the controller to stop after its current cycle (thread-safe)."""
+        if self.served is not None:
+            self.served.stop()
 
     def close(self) -> None:
         """Stop serving and close every server (idempotent)."""
-        ur, self.ur = self.ur, None
-        if ur is not None:
-            ur.close()
-            self._ur_summary = ur.summary()
-        robot, self.robot = self.robot, None
-        if robot is not None:
-            robot.stop()
-            if self._thread is not None and self._thread.is_alive():
-                self._thread.join(5.0)
-            robot.close()  # closes the Net F/T box too
-            self._stats = robot.stats
-            self._stats.state, self._stats.quality = robot.state, robot.quality
+        served, self.served = self.served, None
+        if served is not None:
+            served.close()  # closes the Net F/T box it was given too
+            self._summary = served.summary()
         elif self.netft is not None:
             self.netft.close()
         self.netft = None
@@ -236,99 +199,43 @@ class EmulatedRig:
 
     # ------------------------------------------------------------ serving
     def ready_line(self) -> str:
-        """One line: where the KRC serves, to whom, the Net F/T box and camera, cycle, pacing."""
+        """One line: where the controller serves, to whom, the Net F/T box and camera, cycle,
+        pacing."""
         s = self.settings
-        if self.ur is not None:
-            host, port = self.ur.address
-            return (f"UR5e controller (RTDE) on {host}:{port}, cycle "
-                    f"{s.scene.fri.cycle * 1000.0:g} ms, {s.pacing}")
-        robot = self._require()
-        host, lport = robot.address
-        ft = f"Net F/T on {s.host}:{self.netft.address[1]}" if self.netft is not None \
-            else "no Net F/T"
+        served = self._require()
+        extra = ""
+        if registry.emulator(s.robot).ft_box:
+            extra = (f", Net F/T on {s.host}:{self.netft.address[1]}"
+                     if self.netft is not None else ", no Net F/T")
         if self.camera is not None:
-            ft += (f", camera on http://{s.host}:{self.camera.port}/stream.mjpg at "
-                   f"{s.camera_fps:g} fps")
-        cycle_ms = round(s.scene.fri.cycle * 1000.0)
-        remote = "?" if s.remote is None else f"{s.remote[0]}:{s.remote[1]}"
-        return (f"KRC on {host}:{lport} -> remote {remote}, {ft}, "
-                f"cycle {cycle_ms} ms, {s.pacing}")
+            extra += (f", camera on http://{s.host}:{self.camera.port}/stream.mjpg at "
+                      f"{s.camera_fps:g} fps")
+        return (f"{served.ready_line()}{extra}, cycle {s.scene.fri.cycle * 1000.0:g} ms, "
+                f"{s.pacing}")
 
     def serve(self, stop_requested: Callable[[], bool],
-              on_status: Callable[[str], None] | None = None) -> EmulatorStats | None:
-        """Serve in a thread of its own (started here: it inherits the caller's scheduling)
-        until ``duration_s``, ``stop_requested()`` (polled every 0.1 s) or an error, which is
-        re-raised here. ``on_status`` gets a status line every :data:`STATUS_PERIOD_S`.
-        Returns the KRC's counters (``None`` for a UR: :meth:`summary`)."""
-        if self.ur is not None:
-            self._serve_ur(self.ur, stop_requested, on_status)
-            return None
-        robot = self._require()
-        self._last_status = time.monotonic()
+              on_status: Callable[[str], None] | None = None) -> Any:
+        """Serve until ``duration_s``, ``stop_requested()`` or an error, which is re-raised
+        here; ``on_status`` gets a status line now and then. Returns the controller's
+        counters (:meth:`ServedRobot.serve`)."""
+        served = self._require()
 
-        def on_cycle(emu: FriEmulator) -> None:
+        def on_cycle() -> None:
             if self.camera is not None:  # the camera sees the world between steps, never during
                 self.camera.publish()
-            now = time.monotonic()
-            if on_status is not None and now - self._last_status >= STATUS_PERIOD_S:
-                self._last_status = now
-                st = emu.stats
-                on_status(f"t={emu.world.time:7.2f} s  {emu.state.name} {emu.quality.name}  "
-                          f"answered {st.answered} missed {st.missed} applied {st.applied}")
 
-        def run() -> None:
-            try:
-                robot.run(max_cycles=self.settings.max_cycles, on_cycle=on_cycle)
-            except BaseException as exc:  # re-raised below, in the caller's thread
-                self._failure = exc
-
-        self._thread = thread = threading.Thread(target=run, name="fri-emulator", daemon=True)
-        thread.start()
-        # lockstep steps the world on answers: with no remote answering, no simulated time
-        # passes, so --duration also ends the wait for a first answer after as much wall time
-        alone_until = (time.monotonic() + self.settings.duration_s
-                       if self.settings.duration_s > 0 else None)
-        while thread.is_alive():
-            if stop_requested() or (alone_until is not None and robot.stats.answered == 0
-                                    and time.monotonic() >= alone_until):
-                robot.stop()
-            thread.join(_POLL_S)
-        if self._failure is not None:
-            raise self._failure
-        return robot.stats
-
-    def _serve_ur(self, ur: UrEmulator, stop_requested: Callable[[], bool],
-                  on_status: Callable[[str], None] | None) -> None:
-        self._last_status = time.monotonic()
-
-        def on_cycle(emu: UrEmulator) -> None:
-            if stop_requested():
-                emu.stop()
-            now = time.monotonic()
-            if on_status is not None and now - self._last_status >= STATUS_PERIOD_S:
-                self._last_status = now
-                on_status(emu.status())
-
-        # --duration also bounds the wall time without a client: then the world never steps
-        wall = self.settings.duration_s if self.settings.duration_s > 0 else None
-        ur.run(max_cycles=self.settings.max_cycles, on_cycle=on_cycle, max_wall_s=wall)
+        return served.serve(stop_requested, on_status, on_cycle, self.settings.max_cycles,
+                            self.settings.duration_s)
 
     def summary(self) -> str:
-        """The KRC's counters in one line, with its last state and quality."""
-        if self.ur is not None:
-            return self.ur.summary()
-        if self._ur_summary is not None:
-            return self._ur_summary
-        robot = self.robot
-        if robot is not None:
-            stats = robot.stats
-            stats.state, stats.quality = robot.state, robot.quality
-            return stats.summary()
-        if self._stats is None:
+        """The controller's counters in one line (after close: as they were at close)."""
+        if self.served is not None:
+            return self.served.summary()
+        if self._summary is None:
             raise NotConnectedError("the emulated rig was never opened")
-        return self._stats.summary()
+        return self._summary
 
-    def _require(self) -> FriEmulator:
-        if self.robot is None:
+    def _require(self) -> ServedRobot:
+        if self.served is None:
             raise NotConnectedError("the emulated rig is not open (use it as a context manager)")
-        return self.robot
+        return self.served

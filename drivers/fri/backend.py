@@ -1,10 +1,13 @@
-"""The FRI back-end's entry: the ``fri1`` robot (a KUKA KRC2 LR over FRI 1.x on UDP) and the
-``fri-estimate`` F/T source (the KRC's own external-wrench estimate).
+"""The KUKA LWR4+ family's entry: the ``fri1`` robot (a KUKA KRC2 LR over FRI 1.x on UDP), the
+``sim`` robot (the simulated LWR4+ in-process: the lockstep KRC of
+:mod:`drivers.fri.emulate.lockstep` in front of the simulator's world), the ``fri-estimate``
+F/T source (the KRC's own external-wrench estimate) and the ``lwr4`` controller ``ffexp
+emulate`` serves (:mod:`drivers.fri.emulate`).
 
 It states what ``ffexp`` reads of FRI's topics without naming them: the link-fault
 counters (the UDP driver's own on ``/robot/link_driver``, the KRC's misses on
 ``/robot/link``), the link's statistics, and where the applied command is recorded
-(:data:`FRI_COMMANDS`, which the simulated LWR4+ replays: :mod:`drivers.emulate.backend`).
+(:data:`FRI_COMMANDS`, which the simulated LWR4+ replays).
 
 :class:`FriRobotConfig` (:mod:`drivers.fri.config`) is the rig's ``[robot]`` table and what
 :class:`~drivers.fri.driver.FriRobot` takes; its errors name the rig's fields.
@@ -13,22 +16,30 @@ Light: the driver is imported when a rig opens it.
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
 from drivers.base.backend import (
     Backend,
     CommandFields,
+    Emulator,
     FtBackend,
     LinkCounter,
     LinkStat,
     OpenContext,
     OpenedRobot,
     OpenedSensor,
+    Replay,
     RobotBackend,
     cdr_topics_of,
     needs_robot,
 )
-from drivers.fri.config import FriEstimateFt, FriRobotConfig
+from drivers.fri.config import FriEstimateFt, FriRobotConfig, SimRobotConfig
 
-__all__ = ["BACKEND", "FRI_COMMANDS", "FriEstimateFt", "FriRobotConfig"]
+if TYPE_CHECKING:
+    from drivers.description.scene import Scene
+
+__all__ = ["BACKEND", "FRI_COMMANDS", "FriEstimateFt", "FriRobotConfig", "SimRobotConfig"]
 
 #: Where FRI back-ends record the command packet the KRC applied (``tFriCmdData``).
 FRI_COMMANDS = CommandFields("/robot/command", pose="cart_pos", stiffness="cart_stiffness",
@@ -89,11 +100,50 @@ def _open_estimate(cfg: FriEstimateFt, ctx: OpenContext, robot: OpenedRobot) -> 
     return OpenedSensor(FriEstimateSensor(source), note="F/T from estExtTcpFT")
 
 
+def _scene_path(cfg: SimRobotConfig, ctx: OpenContext) -> Path:
+    return cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
+
+
+def _sim_scene(cfg: SimRobotConfig, ctx: OpenContext) -> Scene:
+    from drivers.description import load_scene
+
+    return load_scene(_scene_path(cfg, ctx), ctx.scene_overrides)
+
+
+def _open_sim(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
+    from drivers.fri.emulate.lockstep import open_rig_robot
+
+    return open_rig_robot(cfg, ctx, _scene_path(cfg, ctx), _sim_scene(cfg, ctx))
+
+
+def _replay_table(start_cycles: int, wire_precision: bool) -> dict[str, Any]:
+    return {"type": "sim", "start_cycles": start_cycles, "wire_precision": wire_precision}
+
+
+def _krc_cycle_s(scene: Scene) -> float:
+    return scene.fri.cycle
+
+
+#: The simulated LWR4+ replays recordings of an LWR4+ behind a KRC, simulated or real
+#: (the commands FRI records); a real one's crossed FRI's float32 wire.
+_REPLAY = Replay(robots=("sim", "fri1"), commands=FRI_COMMANDS, table=_replay_table,
+                 cycle_s=_krc_cycle_s, wire=("fri1",), estimate_ft=("fri-estimate",))
+
+#: ``ffexp emulate --robot lwr4``: a KRC2 LR sending FRI datagrams to ``--remote``.
+EMULATOR = Emulator("lwr4", "a KRC2 LR over FRI 1.x (sends to --remote)",
+                    serve="drivers.fri.emulate.served:serve", takes_cycle=True, ft_box=True,
+                    camera=True)
+
+
 BACKEND = Backend(
     "fri",
-    robots=(RobotBackend(FriRobotConfig, _open_robot, driver="fri", default_ft="netft"),),
+    robots=(RobotBackend(SimRobotConfig, _open_sim, driver="sim", default_ft="sim",
+                         scene=_sim_scene, replay=_REPLAY, arm="lwr4"),
+            RobotBackend(FriRobotConfig, _open_robot, driver="fri", default_ft="netft",
+                         arm="lwr4")),
     sensors=(FtBackend(FriEstimateFt, _open_estimate, needs_robot("ft", "fri1", "sim")),),
     topics=cdr_topics_of("drivers.fri.topics"),
     link_faults=LINK_FAULTS,
     link_stats=LINK_STATS,
+    emulators=(EMULATOR,),
 )

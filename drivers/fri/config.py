@@ -6,20 +6,22 @@ its fields are spelled as the rig file spells them. Light: pydantic only.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from pathlib import Path
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import Field
 
 from drivers.base.backend import DeviceConfig
 from drivers.config import Port, PosFloat
 
-__all__ = ["FriEstimateFt", "FriRobotConfig"]
+__all__ = ["FriEstimateFt", "FriRobotConfig", "SimRobotConfig"]
 
 
 class FriRobotConfig(DeviceConfig):
     """A KUKA KRC2 LR over FRI 1.x (UDP): where the KRC is and how to answer it."""
 
     type: Literal["fri1"] = "fri1"
+    offers: ClassVar[frozenset[str]] = frozenset({"netft-host"})  # the box beside the KRC
     robot_ip: str
     """The KRC's address (IPv4 or host name); packets from anywhere else are dropped."""
     port: Port = 49938
@@ -52,3 +54,21 @@ class FriEstimateFt(DeviceConfig):
     """The KRC's own estimate of the external wrench (``estExtTcpFT``), one sample per cycle."""
 
     type: Literal["fri-estimate"] = "fri-estimate"
+
+
+class SimRobotConfig(DeviceConfig):
+    """The simulated LWR4+ in-process (lockstep, no sockets)."""
+
+    type: Literal["sim"] = "sim"
+    #: it runs the world in-process and leaves the world's F/T samples to the sim sensor
+    offers: ClassVar[frozenset[str]] = frozenset({"world", "world-ft"})
+    start_cycles: Annotated[int, Field(ge=0)] = 100
+    """Answered cycles before the link enters command mode (a friStart script: 100)."""
+    max_consecutive_misses: Annotated[int, Field(ge=1)] = 5
+    """Cycles without an answer in a row that end command mode."""
+    scene_file: Path | None = None
+    """Scene TOML (relative to the rig file); default: the protocol's scene."""
+    wire_precision: bool = False
+    """Round the measurement and the command through the FRI codec, as the UDP link
+    does: with ``ft.type = "fri-estimate"`` a run equals the same run in lockstep
+    over UDP against ``ffexp emulate``, bit for bit."""

@@ -2,8 +2,8 @@
 
 Pure, no I/O and no clock: the owner tells :meth:`KrcLink.cycle` whether the
 packet of each cycle was answered in time and how long the answer took. Both
-the UDP emulator (:mod:`drivers.emulate.fri_server`) and the in-process
-lockstep robot (:mod:`drivers.emulate.lockstep`, every cycle answered unless
+the UDP emulator (:mod:`drivers.fri.emulate.server`) and the in-process
+lockstep robot (:mod:`drivers.fri.emulate.lockstep`, every cycle answered unless
 the caller skips one) run this one machine.
 
 The machine is the KRL script ``friOpen(ms)``; ``WAIT FOR $FriQuality ==

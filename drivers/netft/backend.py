@@ -14,6 +14,7 @@ from drivers.base.backend import (
     OpenContext,
     OpenedRobot,
     OpenedSensor,
+    offering,
 )
 from drivers.netft.config import NetFtConfig
 
@@ -30,9 +31,10 @@ def _open_ft(cfg: NetFtConfig, ctx: OpenContext, robot: OpenedRobot) -> OpenedSe
 
 
 def _check_ft(cfg: NetFtConfig, robot: DeviceConfig) -> str | None:
-    if cfg.host is not None or robot.type == "fri1":
+    if cfg.host is not None or "netft-host" in type(robot).offers:
         return None
-    return "ft.host is required unless robot.type is 'fri1'"
+    beside = " or ".join(f"'{t}'" for t in offering("netft-host"))
+    return f"ft.host is required unless robot.type is {beside}"
 
 
 BACKEND = Backend("netft", sensors=(FtBackend(NetFtConfig, _open_ft, _check_ft),))

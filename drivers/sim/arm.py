@@ -1,6 +1,6 @@
 """What the simulated LWR4+ takes and reports, in the world's own terms (no link protocol).
 
-The arm's controller (the KRC's, modelled in :mod:`drivers.sim.controller`)
+The arm's controller (the KRC's, modelled in :mod:`drivers.base.impedance`)
 runs in one of three modes and latches the set-points and gains it is given;
 what it is not given it keeps. :class:`ArmCommand` says which fields are
 given this cycle (``None`` = keep). How a link protocol selects fields (FRI's

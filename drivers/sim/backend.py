@@ -1,10 +1,10 @@
 """The simulator back-end's entry: the ``sim`` F/T sensor (the world's Mini45 model) and the
 ``sim`` target tracker (the world's target seen like a camera), both read from the world of
-the ``sim`` robot; the tracker also from the ``ur-sim`` robot's (whose program already reads
-the world's F/T samples for ``actual_TCP_force``: its sensor is ``ur-wrench``).
+a simulated robot that runs it in-process: the tracker with any robot whose table offers
+``world``, the sensor with one that also offers ``world-ft`` (a robot whose own program
+drains the world's F/T samples does not) (:attr:`drivers.base.backend.DeviceConfig.offers`).
 
-The ``sim`` robot itself is the lockstep KRC in front of the world, which combines
-this back-end with FRI's link: its entry is :mod:`drivers.emulate.backend`. Light:
+The simulated robots themselves are their families' (``drivers/<family>/emulate/``). Light:
 pydantic models and the entry; the drivers are imported when a rig opens them.
 """
 
@@ -24,7 +24,7 @@ from drivers.base.backend import (
     OpenedTracker,
     TrackerBackend,
     cdr_topics_of,
-    needs_robot,
+    needs_offer,
 )
 from drivers.config import NonNeg
 from drivers.errors import ConfigError
@@ -36,13 +36,13 @@ __all__ = ["BACKEND", "SimFt", "SimTrackerConfig"]
 
 
 class SimFt(DeviceConfig):
-    """The simulated Mini45 of the sim robot's world."""
+    """The simulated Mini45 of the simulated robot's world."""
 
     type: Literal["sim"] = "sim"
 
 
 class SimTrackerConfig(DeviceConfig):
-    """The simulated target's pose as a camera would report it (sim and ur-sim robots)."""
+    """The simulated target's pose as a camera would report it (a simulated robot's world)."""
 
     type: Literal["sim"] = "sim"
     rate_hz: Annotated[float, Field(gt=0.0)] = 50.0
@@ -60,12 +60,12 @@ class SimTrackerConfig(DeviceConfig):
 
 
 def _world(robot: OpenedRobot, ctx: OpenContext, table: str) -> SimWorld:
-    """The sim robot's world (the simulated sensor and tracker read it)."""
+    """The simulated robot's world (the simulated sensor and tracker read it)."""
     from drivers.sim.world import SimWorld
 
     world = getattr(robot.robot, "world", None)
     if not isinstance(world, SimWorld):  # the rig's check makes this unreachable
-        raise ConfigError(ctx.source, f"{table}.type", "needs robot.type 'sim'")
+        raise ConfigError(ctx.source, f"{table}.type", "needs a simulated robot in-process")
     return world
 
 
@@ -85,11 +85,11 @@ def _open_tracker(cfg: SimTrackerConfig, ctx: OpenContext, robot: OpenedRobot) -
     return OpenedTracker(tracker)
 
 
-#: The F/T model goes with the sim robot only (the ur-sim program drains its samples).
-_check_ft = needs_robot("ft", "sim", hint="with an FRI robot the simulated sensor is served "
+#: The F/T model goes with a robot that leaves the world's samples to it.
+_check_ft = needs_offer("ft", "world-ft", hint="over a link the simulated sensor is served "
                         "by the emulator: use 'netft'")
 #: The tracker watches the world of a robot that runs it in-process (it has ``world``).
-_check_tracker = needs_robot("tracker", "sim", "ur-sim", hint="over FRI the emulator serves "
+_check_tracker = needs_offer("tracker", "world", hint="over a link the emulator serves "
                              "a camera stream: use 'camera'")
 
 

@@ -1,7 +1,7 @@
 """The simulated F/T sensor: the Mini45 model of a :class:`SimWorld`, read like a Net F/T stream.
 
 It only reads the world. The simulated robot is the lockstep KRC of
-:mod:`drivers.emulate.lockstep` (it speaks FRI, which this package does not).
+:mod:`drivers.fri.emulate.lockstep` (it speaks FRI, which this package does not).
 """
 
 from __future__ import annotations

@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from drivers.base.impedance import clip_cart_stiffness
 from drivers.base.types import F64
 from drivers.errors import InvalidCommandError
 from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
-from drivers.sim.controller import clip_cart_stiffness
 
 if TYPE_CHECKING:
     from drivers.sim.world import SimWorld
@@ -89,7 +89,7 @@ def take(w: SimWorld, cmd: ArmCommand) -> None:
             w._tcp_ft_key = key
     if cmd.jnt_pos_rad is not None:
         w._jnt_pos = np.clip(_finite(cmd.jnt_pos_rad, w._n, "jnt_pos"),
-                                -w._pos_limits, w._pos_limits)
+                                w._pos_lower, w._pos_limits)
     if cmd.jnt_trq_nm is not None:
         w._jnt_trq = _finite(cmd.jnt_trq_nm, w._n, "add_jnt_trq")
     if cmd.jnt_stiffness_nmprad is not None:

@@ -26,6 +26,7 @@ inside the physics step (see :mod:`drivers.sim.world`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
@@ -125,10 +126,11 @@ def arm_xml(scene: Scene) -> str:
         origins = (*lwr.joint_origins_m, lwr.flange_m)
     for i in reversed(range(lwr.joints)):
         lim = math.radians(lwr.position_limits_deg[i])
+        low = -lim if lwr.position_lower_deg is None else math.radians(lwr.position_lower_deg[i])
         tl = arm.torque_limits[i]
         joint = (
             f'<joint name="{ARM_JOINTS[i]}" axis="{_vec(lwr.joint_axes[i])}" '
-            f'range="{_f(-lim)} {_f(lim)}" '
+            f'range="{_f(low)} {_f(lim)}" '
             f'frictionloss="{_f(coul[i])}" damping="{_f(visc[i])}" '
             f'armature="{_f(rotors[i] * arm.rotor_fraction())}" '
             f'actuatorfrcrange="{_f(-tl)} {_f(tl)}" actuatorgravcomp="true" '
@@ -142,8 +144,7 @@ def arm_xml(scene: Scene) -> str:
             f'<inertial pos="{_vec(lwr.link_coms_m[i])}" mass="{_f(lwr.link_masses_kg[i])}" '
             f'diaginertia="{_vec(lwr.link_inertias_kgm2[i])}"/>\n'
             f"{joint}\n"
-            f'<geom type="capsule" size="0.06" fromto="0 0 0 {_vec(origins[i + 1])}" {_VISUAL} '
-            f'mass="0" rgba="1 0.5 0 0.6"/>\n'
+            f"{_link_capsule(origins[i + 1])}"
             f"{inner}\n</body>"
         )
     if scene.base.floating:
@@ -154,6 +155,15 @@ def arm_xml(scene: Scene) -> str:
         f'<geom type="cylinder" size="0.06 0.055" pos="0 0 0.055" {_VISUAL} mass="0"/>\n'
         f"{inner}\n</body>"
     )
+
+
+def _link_capsule(to: Sequence[float]) -> str:
+    """The link's drawing, a capsule to the next joint (none where that joint sits at
+    this one's origin, as two of the FR3's do)."""
+    if not any(to):
+        return ""
+    return (f'<geom type="capsule" size="0.06" fromto="0 0 0 {_vec(to)}" {_VISUAL} '
+            f'mass="0" rgba="1 0.5 0 0.6"/>\n')
 
 
 def _full(i: np.ndarray) -> str:

@@ -110,7 +110,8 @@ def _fill_joints(s: LazyArmState, w: SimWorld) -> None:
     # the limits, value by value (plain floats: 7 joints; |value| > limit)
     if any(map(_gt, map(abs, w._qvel_arm.tolist()), w._vel_limits_l)):
         warning |= _WARN_VELOCITY
-    if any(map(_gt, map(abs, q.tolist()), w._pos_warn_l)):
+    ql = q.tolist()
+    if any(map(_gt, ql, w._pos_warn_l)) or any(map(_gt, w._pos_warn_lower_l, ql)):
         warning |= _WARN_POSITION
     if any(map(_ge, map(abs, w._actuator_arm.tolist()), w._torque_warn_l)):
         warning |= _WARN_TORQUE

@@ -5,7 +5,7 @@ given), runs one control cycle of physics and returns the ArmState (:mod:`driver
 its end. It knows no link protocol: how FRI's flags select fields, when the link takes commands
 (MON/CMD) and its quality are the emulator's (:mod:`drivers.emulate`). Its rig is a Scene.
 
-How the KRC is modelled (see :mod:`drivers.sim.controller` for the laws):
+How the KRC is modelled (see :mod:`drivers.base.impedance` for the laws):
 
 * The command is held for the cycle (zero-order hold). The KRC's own
   impedance loop runs much faster than FRI; here it runs at the physics rate,
@@ -40,6 +40,7 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from drivers.base.impedance import normalized_damping
 from drivers.base.types import F64, FtSamples
 from drivers.description import Scene, compute_layout, tool_tip_offset
 from drivers.sim import mjcf
@@ -47,7 +48,6 @@ from drivers.sim.arm import ArmCommand, ArmMode
 from drivers.sim.bodies import FreeBodies
 from drivers.sim.chaser import FloatingBase
 from drivers.sim.contact import ToolContact, configure_contact
-from drivers.sim.controller import normalized_damping
 from drivers.sim.divergence import check_divergence, quiet_divergence
 from drivers.sim.friction import JointFriction
 from drivers.sim.ftsensor import FtSensorModel, FtSteps
@@ -153,8 +153,10 @@ class SimWorld:
         self._act_ft = slice(n + 6, n + 12)
         self._vel_limits = np.radians(scene.arm.description.velocity_limits_degps)
         self._pos_limits = np.radians(scene.arm.description.position_limits_deg)
+        self._pos_lower = np.radians(scene.arm.description.lower_limits_deg)
         self._torque_limits = np.asarray(scene.arm.torque_limits)
         self._pos_warn = self._pos_limits - 1e-3
+        self._pos_warn_lower_l = (self._pos_lower + 1e-3).tolist()
         self._torque_warn = self._torque_limits - 1e-9
         self._vel_limits_l = self._vel_limits.tolist()
         self._pos_warn_l = self._pos_warn.tolist()

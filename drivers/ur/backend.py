@@ -1,20 +1,23 @@
-"""The UR back-end's entry: the ``ur`` robot (a Universal Robots e-Series controller over RTDE,
-real or ``ffexp emulate --robot ur5e``) and the ``ur-wrench`` F/T source (the UR's own wrench).
+"""The UR family's entry: the ``ur`` robot (a Universal Robots e-Series controller over RTDE,
+real or ``ffexp emulate --robot ur5e``), the ``ur-sim`` robot (the simulated UR5e in-process:
+ffexp's URScript program on the world in lockstep, :mod:`drivers.ur.emulate.lockstep`), the
+``ur-wrench`` F/T source (the UR's own wrench) and the ``ur5e`` controller ``ffexp emulate``
+serves (:mod:`drivers.ur.emulate`).
 
 :class:`~drivers.ur.config.UrSettings` is the rig's ``[robot]`` table and what
-:class:`~drivers.ur.driver.UrRobot` takes; its errors name the rig's fields. The
-in-process simulated UR5e (``ur-sim``) combines this back-end with the simulator:
-its entry is :mod:`drivers.emulate.backend`. Light: the driver is imported when a
-rig opens it.
+:class:`~drivers.ur.driver.UrRobot` takes; its errors name the rig's fields. Light: the
+driver is imported when a rig opens it.
 """
 
 from __future__ import annotations
 
-from typing import Literal
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 from drivers.base.backend import (
     Backend,
     DeviceConfig,
+    Emulator,
     FtBackend,
     LinkCounter,
     OpenContext,
@@ -24,9 +27,12 @@ from drivers.base.backend import (
     cdr_topics_of,
     needs_robot,
 )
-from drivers.ur.config import UrSettings
+from drivers.ur.config import UrSettings, UrSimConfig
 
-__all__ = ["BACKEND", "UR_ROBOT_TYPES", "UrSettings", "UrWrenchFt"]
+if TYPE_CHECKING:
+    from drivers.description.scene import Scene
+
+__all__ = ["BACKEND", "UR_ROBOT_TYPES", "UrSettings", "UrSimConfig", "UrWrenchFt"]
 
 #: The robot types whose driver is a :class:`~drivers.ur.driver.UrRobot`.
 UR_ROBOT_TYPES = ("ur", "ur-sim")
@@ -67,11 +73,45 @@ def _open_wrench(cfg: UrWrenchFt, ctx: OpenContext, robot: OpenedRobot) -> Opene
                         f"F/T from the UR's {cfg.source}")
 
 
+def _scene_path(cfg: UrSimConfig, ctx: OpenContext) -> Path:
+    return cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
+
+
+def _ur_scene(cfg: UrSimConfig, ctx: OpenContext) -> Scene:
+    from drivers.description import load_scene
+    from drivers.description.ur5e import PAPER_SCENE_OVERRIDES, UR5E
+
+    path = _scene_path(cfg, ctx)
+    scene = load_scene(path, ctx.scene_overrides)
+    if scene.arm.description is not UR5E:  # another arm's scene (the protocol's): the UR5e
+        scene = load_scene(path, (*PAPER_SCENE_OVERRIDES, *ctx.scene_overrides))
+    return scene
+
+
+def _open_sim(cfg: UrSimConfig, ctx: OpenContext) -> OpenedRobot:
+    from drivers.ur.emulate.lockstep import open_sim
+
+    return open_sim(cfg, ctx, _scene_path(cfg, ctx), _ur_scene(cfg, ctx))
+
+
+#: ``ffexp emulate --robot ur5e``: a UR controller listening for RTDE clients.
+EMULATOR = Emulator("ur5e", "a UR e-Series controller over RTDE (listens on --listen, "
+                    "default 127.0.0.1:30004)", serve="drivers.ur.emulate.served:serve",
+                    listen=("127.0.0.1", 30004),
+                    overrides_from="drivers.description.ur5e:PAPER_SCENE_OVERRIDES",
+                    faults=(("disconnect_after", "close a client's connection after this "
+                             "many data packages (0: never)"),))
+
+
 BACKEND = Backend(
     "ur",
-    robots=(RobotBackend(UrSettings, _open_robot, driver="ur", default_ft="ur-wrench"),),
+    robots=(RobotBackend(UrSettings, _open_robot, driver="ur", default_ft="ur-wrench",
+                         arm="ur5e", takes_arm_place=True),
+            RobotBackend(UrSimConfig, _open_sim, driver="ur-sim", default_ft="ur-wrench",
+                         scene=_ur_scene, arm="ur5e", takes_arm_place=True)),
     sensors=(FtBackend(UrWrenchFt, _open_wrench, needs_robot("ft", *UR_ROBOT_TYPES)),),
     topics=cdr_topics_of("drivers.ur.topics"),
     # data packages the reader skipped: a cycle the runner never saw, as FRI's skipped
     link_faults=(LinkCounter("/robot/ur", "skipped_packages", "data packages the runner skipped"),),
+    emulators=(EMULATOR,),
 )

@@ -10,7 +10,8 @@ and e-Series rates (RTDE Guide: 500 Hz; 125 Hz on a CB3).
 
 from __future__ import annotations
 
-from typing import Literal
+from pathlib import Path
+from typing import ClassVar, Literal
 
 from pydantic import Field
 
@@ -52,3 +53,18 @@ class UrSettings(DeviceConfig):
     servo_lookahead_s: float = Field(0.1, ge=0.03, le=0.2,
                                      description="servoj lookahead time")
     servo_gain: float = Field(300.0, ge=100.0, le=2000.0, description="servoj gain")
+
+
+class UrSimConfig(UrSettings):
+    """The simulated UR5e in-process (lockstep, no sockets), with a real UR's force-mode
+    settings (``robot_ip``, the ports and ``script`` are not used)."""
+
+    type: Literal["ur-sim"] = "ur-sim"  # type: ignore[assignment]
+    #: it runs the world in-process; its program drains the world's F/T samples itself
+    offers: ClassVar[frozenset[str]] = frozenset({"world"})
+    robot_ip: str = "127.0.0.1"
+    scene_file: Path | None = None
+    """Scene TOML of a UR arm (relative to the rig file); default: the protocol's scene."""
+    truth: bool = True
+    """Attach the simulator's ground truth to each state (the verdict's judge); false:
+    as over RTDE, where the verdict comes from a tracker or the observer."""

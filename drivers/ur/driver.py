@@ -117,7 +117,7 @@ class UrExtras(Extras):
 
 class RtdeLink(Protocol):
     """What :class:`UrRobot` uses of its link: :class:`~drivers.ur.rtde.client.RtdeClient`
-    over TCP, or an in-process controller (:mod:`drivers.emulate.ur_lockstep`)."""
+    over TCP, or an in-process controller (:mod:`drivers.ur.emulate.lockstep`)."""
 
     @property
     def is_open(self) -> bool: ...

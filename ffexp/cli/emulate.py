@@ -2,10 +2,11 @@
 
 The controller side of the link, wrapping the MuJoCo rig. The default, a KRC2
 LR, sends FRI measurement packets to ``--remote`` every cycle and steps the
-world with the commands that come back (see :mod:`drivers.emulate.fri_server`),
+world with the commands that come back (see :mod:`drivers.fri.emulate.server`),
 and serves the simulated Mini45 as an ATI Net F/T box on ``--netft-port``;
 another controller (a UR over RTDE) listens on ``--listen``. The robots and
-their defaults are :data:`drivers.emulate.robots.ROBOTS`. This command parses
+their defaults are the families' entries (:mod:`drivers.emulate.robots`); a
+controller's own faults are ``--fault NAME=VALUE``. This command parses
 its options into settings and reports; the rig is assembled and served by
 :class:`drivers.emulate.session.EmulatedRig`.
 
@@ -23,14 +24,36 @@ from pathlib import Path
 
 import typer
 
-from drivers.emulate.robots import ROBOTS
+from drivers.emulate import robots
 from ffexp.cli._common import StopFlag, check_cpus, cli_errors, positive, stop_signals
 from ffexp.errors import ConfigError
 
-ROBOT_HELP = "The emulated controller: " + "; ".join(f"{r.name}, {r.what}" for r in ROBOTS.values())
-_LISTENERS = ", ".join(r.name for r in ROBOTS.values() if r.listen)
+_ROBOTS = tuple(robots.robot(n) for n in robots.robot_names())
+ROBOT_HELP = "The emulated controller: " + "; ".join(f"{r.name}, {r.what}" for r in _ROBOTS)
+_LISTENERS = ", ".join(r.name for r in _ROBOTS if r.listen)
+_SENDERS = ", ".join(r.name for r in _ROBOTS if r.needs_remote)
 LISTEN_HELP = (f"A robot its client connects to ({_LISTENERS}): where it listens, HOST:PORT "
                "(any loopback address; default: the robot's own).")
+FAULT_HELP = ("A controller's own fault, NAME=VALUE (repeatable): " + "; ".join(
+    f"{r.name}: " + ", ".join(f"{n} ({w})" for n, w in r.faults) for r in _ROBOTS if r.faults)
+    + ".")
+
+
+def _family_faults(robot: str, given: list[str]) -> dict[str, float]:
+    """``--fault NAME=VALUE`` options, checked against the robot's own faults."""
+    known = dict(robots.robot(robot).faults)
+    out: dict[str, float] = {}
+    for item in given:
+        name, sep, value = item.partition("=")
+        if not sep or name not in known:
+            have = ", ".join(known) or "none"
+            raise ConfigError("--fault", item, f"NAME=VALUE, NAME one of the {robot} "
+                              f"emulator's faults: {have}")
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise ConfigError("--fault", item, "the value must be a number") from None
+    return out
 
 
 def _pct(option: str, value: float) -> float:
@@ -49,9 +72,9 @@ def _ms(option: str, value: float) -> float:
 def emulate(
     remote: str | None = typer.Option(
         None, "--remote", help="The remote driver as IP:PORT (FRIHOST and FRISOCK on a KRC): "
-        "required by a robot that sends to its client (lwr4)."
+        f"required by a robot that sends to its client ({_SENDERS})."
     ),
-    robot: str = typer.Option("lwr4", "--robot", help=ROBOT_HELP),
+    robot: str = typer.Option(robots.default_robot(), "--robot", help=ROBOT_HELP),
     listen: str | None = typer.Option(None, "--listen", help=LISTEN_HELP),
     scene: Path | None = typer.Option(
         None, "--scene", help="Scene TOML (default: the paper's rig, data/scenes/paper.toml, "
@@ -97,6 +120,7 @@ def emulate(
     camera_calibration: Path | None = typer.Option(
         None, "--camera-calibration", help="Write the camera's calibration file here (also "
         "served at /calibration.toml) for the rig's tracker.calibration."),
+    fault: list[str] = typer.Option([], "--fault", help=FAULT_HELP),
 ) -> None:
     """Emulate a robot controller (a KRC over FRI 1.x by default) and the Net F/T box on the
     simulated rig."""
@@ -121,12 +145,13 @@ def emulate(
         raise ConfigError("--pacing", pacing, "choose realtime or lockstep")
     if not 1 <= cycle_ms <= 100:
         raise ConfigError("--cycle-ms", str(cycle_ms), "the FRI cycle is 1..100 ms")
-    if robot not in ROBOTS:
-        raise ConfigError("--robot", robot, f"choose one of {', '.join(ROBOTS)}")
-    entry = ROBOTS[robot]
-    if remote is None and entry.link == "fri":
+    if robot not in robots.robot_names():
+        raise ConfigError("--robot", robot, f"choose one of {', '.join(robots.robot_names())}")
+    entry = robots.robot(robot)
+    family_faults = _family_faults(robot, fault)
+    if remote is None and entry.needs_remote:
         raise ConfigError("--remote", "", "the remote driver's IP:PORT is required")
-    if remote is not None and entry.link != "fri":
+    if remote is not None and not entry.needs_remote:
         raise ConfigError("--remote", remote, f"the {robot} emulator sends to no remote "
                           "driver: its client connects to it (--listen)")
     if listen is not None and entry.listen is None:
@@ -169,6 +194,7 @@ def emulate(
         duration_s=duration,
         robot=robot,
         listen=None if listen is None else parse_host_port("--listen", listen),
+        family_faults=family_faults,
     )
     from ffexp.rt import realtime
 
@@ -186,8 +212,8 @@ def emulate(
             # the ready line comes once the handlers are in place: a signal sent on
             # reading it stops the emulator cleanly
             say(f"ffexp emulate: {rig.ready_line()}")
-            say("ffexp emulate: waiting for " + ("a run to connect" if entry.link == "rtde"
-                                                 else "a run to answer on the remote")
+            waits = "a run to answer on the remote" if entry.needs_remote else "a run to connect"
+            say("ffexp emulate: waiting for " + waits
                 + (f"; stops after {duration:g} s" if duration > 0 else
                    "; serves until Ctrl-C (--duration S: at most S seconds)"))
             rig.serve(flag, on_status=say)

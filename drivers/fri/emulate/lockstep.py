@@ -1,9 +1,10 @@
-"""The simulated LWR4+ in-process: the KRC of :mod:`drivers.emulate.krc` in lockstep, no sockets.
+"""The simulated LWR4+ in-process: the KRC of :mod:`drivers.fri.emulate.krc` in lockstep,
+no sockets.
 
 ``SimRobot.measurements()`` yields the state of the current cycle; when the
 caller asks for the next one, the world runs one cycle with the arm command
 the KRC took ``fri.command_delay_cycles`` cycles ago
-(:class:`~drivers.emulate.krc.CommandDelay`; 0: from the last
+(:class:`~drivers.fri.emulate.krc.CommandDelay`; 0: from the last
 :meth:`SimRobot.send`; none: the world holds the last one). The link is the
 same state machine as the UDP emulator's
 (:class:`~drivers.fri.link.KrcLink`, every cycle answered unless the caller
@@ -11,11 +12,11 @@ skips a ``send``): MON until ``start_cycles`` answered cycles with PERFECT
 quality (the 100th answer at the earliest), then CMD; the command of that
 cycle is the first one applied. ``start_cycles = 0`` starts in CMD.
 
-Software limit switches (:func:`~drivers.emulate.krc.software_limit_error`):
+Software limit switches (:func:`~drivers.fri.emulate.krc.software_limit_error`):
 when a joint reaches its limit at the end of a cycle, the KRC leaves CMD and
 latches the error (that cycle's measurement reports MON and the ``error``
 bits), the next cycle brakes the arm where it is
-(:func:`~drivers.emulate.krc.brake_command`), and the driver then raises
+(:func:`~drivers.fri.emulate.krc.brake_command`), and the driver then raises
 :class:`~drivers.errors.DriverError` naming the joint, so the runner aborts
 with that reason; no reported joint is ever beyond its software limit by more
 than one cycle's motion, nor beyond its hardware range.
@@ -37,21 +38,12 @@ from pathlib import Path
 
 import numpy as np
 
+from drivers.base.backend import OpenContext, OpenedRobot
 from drivers.base.guards import requires_open
+from drivers.base.impedance import clip_cart_stiffness
 from drivers.base.interfaces import RobotDriver
 from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
 from drivers.description.scene import Scene, load_scene
-from drivers.emulate.krc import (
-    SOFTWARE_LIMITS_DEG,
-    CommandDelay,
-    arm_command_from_fri,
-    brake_command,
-    control_mode,
-    fri_measurement,
-    software_limit_error,
-    software_limits_rad,
-    stop_command,
-)
 from drivers.errors import DriverError, NotConnectedError
 from drivers.fri.codec import (
     CmdArrays,
@@ -64,21 +56,32 @@ from drivers.fri.codec import (
     new_msr_buffer,
 )
 from drivers.fri.command import applied_from_fri, robot_state_from_fri, to_fri_command
+from drivers.fri.config import SimRobotConfig
 from drivers.fri.convert import (
     arrays_to_command,
     arrays_to_measurement,
     command_to_arrays,
     measurement_to_arrays,
 )
+from drivers.fri.emulate.krc import (
+    SOFTWARE_LIMITS_DEG,
+    CommandDelay,
+    arm_command_from_fri,
+    brake_command,
+    control_mode,
+    fri_measurement,
+    software_limit_error,
+    software_limits_rad,
+    stop_command,
+)
 from drivers.fri.link import KrcLink, LinkEvent
 from drivers.fri.stats import LinkWatch
 from drivers.fri.types import CmdFlags, ControlMode, FriCommand, FriMeasurement
 from drivers.sim.arm import ArmCommand, ArmMode, ArmState
-from drivers.sim.controller import clip_cart_stiffness
 from drivers.sim.driver import SimFtSensor
 from drivers.sim.world import SimWorld
 
-__all__ = ["SimRobot", "open_sim"]
+__all__ = ["SimRobot", "open_rig_robot", "open_sim"]
 
 _WHAT = "sim robot"
 _CARTSTIFF = int(CmdFlags.CARTSTIFF)  # ``int & IntFlag`` goes through the enum machinery
@@ -93,7 +96,7 @@ class SimRobot(RobotDriver):
         start_cycles: answered cycles before CMD (100, as a friStart script).
         max_consecutive_misses: cycles without ``send`` in a row that end CMD.
         software_limits_deg: the KRC's software limit switches A1..A7 [deg]
-            (default :data:`~drivers.emulate.krc.SOFTWARE_LIMITS_DEG`).
+            (default :data:`~drivers.fri.emulate.krc.SOFTWARE_LIMITS_DEG`).
         wire_precision: round the measurement and the command through the FRI
             codec, as the UDP link does.
     """
@@ -260,7 +263,7 @@ class SimRobot(RobotDriver):
         self._msr = self._measurement(state)
 
     def _arm_command(self, fri: FriCommand) -> ArmCommand:
-        """:func:`~drivers.emulate.krc.arm_command_from_fri` of the command the KRC takes."""
+        """:func:`~drivers.fri.emulate.krc.arm_command_from_fri` of the command the KRC takes."""
         if self.wire_precision:  # a new FriCommand each cycle
             return arm_command_from_fri(fri, self.world.mode)
         key = (int(fri.flags), fri.control, self.world.mode)
@@ -335,3 +338,20 @@ def open_sim(
     robot = SimRobot(world, max_cycles=max_cycles, start_cycles=start_cycles,
                      software_limits_deg=software_limits_deg)
     return robot, SimFtSensor(world)
+
+
+def open_rig_robot(cfg: SimRobotConfig, ctx: OpenContext, path: Path, scene: Scene) -> OpenedRobot:
+    """The ``sim`` robot of a rig: :class:`SimRobot` on a world of ``scene`` (read from
+    ``path``), with its run metadata and the scene file attached."""
+    world = SimWorld(scene, seed=ctx.seed)
+    robot = SimRobot(world, start_cycles=cfg.start_cycles,
+                     max_consecutive_misses=cfg.max_consecutive_misses,
+                     wire_precision=cfg.wire_precision)
+    meta = {
+        "driver": "sim",
+        "scene_file": str(path),
+        "scene_json": scene.model_dump_json(),
+        "wire_precision": str(cfg.wire_precision).lower(),
+    }
+    return OpenedRobot(robot, lambda: world.cycle * world.cycle_ns, None, meta,
+                       [(path.name, path.read_bytes())], scene=scene)

@@ -1,14 +1,14 @@
 """The emulated UR5e over RTDE: the simulated world behind a UR controller's port 30004.
 
-:class:`UrEmulator` serves :class:`~drivers.emulate.ur_controller.UrSimController`
+:class:`UrEmulator` serves :class:`~drivers.ur.emulate.controller.UrSimController`
 (ffexp's URScript program on the world) with
-:class:`~drivers.emulate.rtde_server.RtdeServer`: every base cycle (the scene's
+:class:`~drivers.ur.emulate.rtde_server.RtdeServer`: every base cycle (the scene's
 ``fri.cycle``, 2 ms: 500 Hz) the server's thread runs the world one cycle with
 the input registers last written and sends each started client its outputs.
 Lockstep pacing steps as soon as every client holding inputs has answered (or
 after ``lockstep_timeout_s``, a miss); real-time pacing one step per period of
 the wall clock. Faults: output packages lost or delayed, the connection
-closed after a number of them (:class:`~drivers.emulate.rtde_server.RtdeFaults`).
+closed after a number of them (:class:`~drivers.ur.emulate.rtde_server.RtdeFaults`).
 ``ffexp emulate --robot ur5e`` serves it through
 :class:`~drivers.emulate.session.EmulatedRig`.
 
@@ -29,10 +29,10 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any, Literal
 
-from drivers.emulate.rtde_server import RtdeFaults, RtdeServer
-from drivers.emulate.ur_controller import UrSimController
-from drivers.emulate.ur_lockstep import CONTROLLER_VERSION
 from drivers.sim.world import SimWorld
+from drivers.ur.emulate.controller import UrSimController
+from drivers.ur.emulate.lockstep import CONTROLLER_VERSION
+from drivers.ur.emulate.rtde_server import RtdeFaults, RtdeServer
 
 __all__ = ["UrEmulator"]
 

@@ -2,14 +2,14 @@
 
 :class:`UrSimController` is what both the RTDE emulator (``ffexp emulate --robot
 ur5e``, :mod:`drivers.emulate.session`) and the in-process lockstep UR
-(:mod:`drivers.emulate.ur_lockstep`) run: :meth:`~UrSimController.take` latches
+(:mod:`drivers.ur.emulate.lockstep`) run: :meth:`~UrSimController.take` latches
 the input registers a client wrote, :meth:`~UrSimController.step` runs one
 control cycle (``scene.fri.cycle``, 2 ms for a UR) and returns the RTDE outputs
 of its end, name -> value.
 
 The program's semantics are those of ``drivers/ur/ffexp_control.script``
 (register map: :mod:`drivers.ur.registers`): mode hold, pose servo, force mode
-with the selection bits (the arm's law: :mod:`drivers.sim.ur_control`) or end;
+with the selection bits (the arm's law: :mod:`drivers.ur.emulate.control`) or end;
 a sequence number unchanged for :data:`STALE_CYCLES` cycles holds the arm
 (script state 3) until a new one comes; the applied sequence number and the
 script state go to the output registers. After an end request the program is
@@ -17,7 +17,7 @@ over (state 2) until commands come again, when the emulator starts it anew (as
 ``script = "send"`` does on a real controller at connect).
 
 A protective stop (a joint at its position or speed limit,
-:class:`~drivers.sim.ur_control.UrArmControl`) sets ``safety_mode``
+:class:`~drivers.ur.emulate.control.UrArmControl`) sets ``safety_mode``
 PROTECTIVE_STOP and the ``protective_stopped`` bit of ``safety_status_bits``;
 the arm is held. ``actual_TCP_force`` is the wrench the environment exerts on
 the tool, from the simulated F/T sensor's newest sample of the cycle (its
@@ -33,9 +33,9 @@ from typing import Any, Final
 import numpy as np
 
 from drivers.base.types import F64
-from drivers.sim.ur_control import ForceModeCommand, UrArmControl
 from drivers.sim.world import SimWorld
 from drivers.ur import registers
+from drivers.ur.emulate.control import ForceModeCommand, UrArmControl
 from drivers.ur.registers import Mode, ScriptState
 from drivers.ur.rtde.variables import SAFETY_STATUS_BIT
 

@@ -16,12 +16,12 @@ What it does each cycle, as a KRC2 LR with a KRL script would:
 3. account the cycle in the link state machine (:class:`~drivers.fri.link.KrcLink`:
    statistics over the last 100 packets, quality, the KRL script's
    MON/CMD rule) and step the world with the arm command the KRC takes
-   (:mod:`drivers.emulate.krc`; a missed command is bridged: the world
+   (:mod:`drivers.fri.emulate.krc`; a missed command is bridged: the world
    holds the last one).
 
 Lockstep steps the world right after the answer, and the answer to packet k
 acts from the step ``fri.command_delay_cycles`` later
-(:class:`~drivers.emulate.krc.CommandDelay`, 1 as on a real KRC; 0: the
+(:class:`~drivers.fri.emulate.krc.CommandDelay`, 1 as on a real KRC; 0: the
 step right after it), exactly like the in-process sim. Real time is pipelined
 like a controller that interpolates: the world's step for the next packet
 runs while the remote is answering, with the command that answered the
@@ -46,11 +46,11 @@ Fault injection (:mod:`drivers.emulate.faults`, seeded; from the first
 ``friStart`` on unless ``faults_from_start``; in lockstep a reorder is only
 a delay: nothing else is in flight).
 
-Software limit switches (:func:`~drivers.emulate.krc.software_limit_error`,
+Software limit switches (:func:`~drivers.fri.emulate.krc.software_limit_error`,
 ``software_limits_deg``): a joint at its limit after a step makes the KRC
 leave CMD with the error latched in every following measurement (``error``
 bits, :data:`~drivers.fri.link.ERROR_SOFTWARE_LIMIT`); the next step brakes
-the arm where it is (:func:`~drivers.emulate.krc.brake_command`) and it stays
+the arm where it is (:func:`~drivers.fri.emulate.krc.brake_command`) and it stays
 held; CMD does not start again while the error is latched.
 
 The world's F/T samples of each cycle go to an optional
@@ -71,18 +71,6 @@ from typing import Final, Literal
 import numpy as np
 
 from drivers.emulate.faults import FaultCounters, FaultSettings, FaultyLink
-from drivers.emulate.krc import (
-    SOFTWARE_LIMITS_DEG,
-    CommandDelay,
-    arm_command_from_fri,
-    brake_command,
-    control_mode,
-    fri_measurement,
-    plausible_command,
-    software_limit_error,
-    software_limits_rad,
-    stop_command,
-)
 from drivers.emulate.netft_box import NetFtServer
 from drivers.errors import InvalidCommandError
 from drivers.fri.codec import (
@@ -102,6 +90,18 @@ from drivers.fri.convert import (
     LOCKSTEP_MARKER,
     arrays_to_command,
     measurement_to_arrays,
+)
+from drivers.fri.emulate.krc import (
+    SOFTWARE_LIMITS_DEG,
+    CommandDelay,
+    arm_command_from_fri,
+    brake_command,
+    control_mode,
+    fri_measurement,
+    plausible_command,
+    software_limit_error,
+    software_limits_rad,
+    stop_command,
 )
 from drivers.fri.link import KrcLink, LinkEvent, QualityThresholds
 from drivers.fri.types import FriCommand, FriMeasurement, FriQuality, FriState

@@ -4,7 +4,7 @@ The ``ur-sim`` robot of a rig: a :class:`~drivers.ur.driver.UrRobot` (the very
 driver of a real UR, with the rig's force-mode settings) whose RTDE link is
 :class:`LoopbackRtde`, an in-process stand-in for the controller's side:
 each :meth:`~LoopbackRtde.receive_latest` runs the controller
-(:class:`~drivers.emulate.ur_controller.UrSimController`) one output period
+(:class:`~drivers.ur.emulate.controller.UrSimController`) one output period
 with the input registers last sent, and returns its outputs as the data
 package the client would have decoded. The values are those the RTDE emulator
 sends in lockstep (doubles and integers cross the wire exactly), so a run here
@@ -15,23 +15,23 @@ lockstep``, with the ground truth added in-process (:class:`SimUrRobot`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from pathlib import Path
 
 import numpy as np
 
+from drivers.base.backend import OpenContext, OpenedRobot
 from drivers.base.types import RobotState
-from drivers.emulate.ur_controller import UrSimController
+from drivers.description.scene import Scene
 from drivers.errors import LinkLostError
 from drivers.sim.world import SimWorld
+from drivers.ur.config import UrSimConfig
 from drivers.ur.driver import UrRobot
+from drivers.ur.emulate.controller import UrSimController
 from drivers.ur.rtde.codec import ControllerVersion, DataPackage
 from drivers.ur.rtde.fields import Recipe
 from drivers.ur.rtde.variables import INPUTS, OUTPUTS
 
-if TYPE_CHECKING:  # the rig table only types the argument; backend.py imports this module
-    from drivers.emulate.backend import UrSimConfig
-
-__all__ = ["CONTROLLER_VERSION", "LoopbackRtde", "SimUrRobot"]
+__all__ = ["CONTROLLER_VERSION", "LoopbackRtde", "SimUrRobot", "open_sim"]
 
 #: The controller version the emulated UR reports (a PolyScope 5.15 e-Series).
 CONTROLLER_VERSION = ControllerVersion(5, 15, 0, 0)
@@ -110,3 +110,13 @@ class SimUrRobot(UrRobot):
         if self._truth:
             state.truth = self.world.last_state.truth
         return state
+
+
+def open_sim(cfg: UrSimConfig, ctx: OpenContext, path: Path, scene: Scene) -> OpenedRobot:
+    """The ``ur-sim`` robot of a rig: :class:`SimUrRobot` on a world of ``scene`` (read from
+    ``path``), with its run metadata and the scene file attached."""
+    world = SimWorld(scene, seed=ctx.seed)
+    robot = SimUrRobot(world, cfg, where=ctx.where("robot"))
+    meta = {"driver": "ur-sim", "scene_file": str(path), "scene_json": scene.model_dump_json()}
+    return OpenedRobot(robot, lambda: world.cycle * world.cycle_ns, None, meta,
+                       [(path.name, path.read_bytes())], scene=scene)

@@ -1,0 +1,1 @@
+"""Franka FR3 / Panda over libfranka (FCI): driver, codec, emulator (docs/franka.md)."""

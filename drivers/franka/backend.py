@@ -1,0 +1,124 @@
+"""The Franka family's entry: the ``franka`` robot (an FR3 or Panda over libfranka, real, or
+``ffexp emulate --robot fr3``, or any FCI server), the ``franka-sim`` robot (the simulated
+FR3 in-process: ffexp's driver on the FR3's controller in lockstep,
+:mod:`drivers.franka.emulate.lockstep`), the ``franka-wrench`` F/T source (the robot's
+external wrench estimate) and the ``fr3`` controller ``ffexp emulate`` serves
+(:mod:`drivers.franka.emulate`).
+
+The real robot needs ``pylibfranka`` (the optional extra ``franka``: ``pip install
+'ffexp[franka]'``; wheels for Python 3.9-3.12 on Linux x86_64 only), imported when a
+Franka rig opens; without it the rig fails with one line. Light: the driver is imported
+when a rig opens it.
+"""
+
+from __future__ import annotations
+
+import sys
+from importlib.util import find_spec
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from drivers.base.backend import (
+    Backend,
+    Emulator,
+    FtBackend,
+    LinkCounter,
+    LinkStat,
+    OpenContext,
+    OpenedRobot,
+    OpenedSensor,
+    RobotBackend,
+    cdr_topics_of,
+    needs_robot,
+)
+from drivers.errors import ConfigError
+from drivers.franka.config import FrankaSettings, FrankaSimConfig, FrankaWrenchFt
+
+if TYPE_CHECKING:
+    from drivers.description.scene import Scene
+
+__all__ = ["BACKEND", "FrankaSettings", "FrankaSimConfig", "FrankaWrenchFt"]
+
+_TOPIC = "/robot/franka"
+
+
+def _need_pylibfranka(ctx: OpenContext) -> None:
+    if find_spec("pylibfranka") is not None:
+        return
+    py = f"{sys.version_info.major}.{sys.version_info.minor}"
+    why = ("pylibfranka has no wheel for Python " + py + " (3.9-3.12 only)"
+           if sys.version_info >= (3, 13) else "install the extra: pip install 'ffexp[franka]'")
+    raise ConfigError(ctx.source, "robot.type", f"'franka' needs pylibfranka: {why}")
+
+
+def _open_robot(cfg: FrankaSettings, ctx: OpenContext) -> OpenedRobot:
+    from drivers.franka.driver import FrankaRobot
+    from drivers.net.udp import resolve_ipv4
+
+    _need_pylibfranka(ctx)
+    resolve_ipv4(f"{ctx.where('robot')}.robot_ip", cfg.robot_ip)
+    robot = FrankaRobot(cfg, where=ctx.where("robot"))
+    return OpenedRobot(
+        robot, robot.now_ns, cfg.robot_ip,
+        {"driver": "franka", "robot_ip": cfg.robot_ip,
+         "setpoint_every": str(cfg.setpoint_every)},
+        notice=f"franka: libfranka's torque loop with {cfg.robot_ip}, the set-point every "
+               f"{cfg.setpoint_every} ms")
+
+
+def _scene_path(cfg: FrankaSimConfig, ctx: OpenContext) -> Path:
+    return cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
+
+
+def _sim_scene(cfg: FrankaSimConfig, ctx: OpenContext) -> Scene:
+    from drivers.description import load_scene
+    from drivers.description.fr3 import FR3, PAPER_SCENE_OVERRIDES
+
+    path = _scene_path(cfg, ctx)
+    scene = load_scene(path, ctx.scene_overrides)
+    if scene.arm.description is not FR3:  # another arm's scene (the protocol's): the FR3
+        scene = load_scene(path, (*PAPER_SCENE_OVERRIDES, *ctx.scene_overrides))
+    return scene
+
+
+def _open_sim(cfg: FrankaSimConfig, ctx: OpenContext) -> OpenedRobot:
+    from drivers.franka.emulate.lockstep import open_sim
+
+    return open_sim(cfg, ctx, _scene_path(cfg, ctx), _sim_scene(cfg, ctx))
+
+
+def _open_wrench(cfg: FrankaWrenchFt, ctx: OpenContext, robot: OpenedRobot) -> OpenedSensor:
+    from drivers.franka.driver import FrankaRobot
+    from drivers.franka.wrench import FrankaWrenchSensor
+
+    source = robot.robot
+    if not isinstance(source, FrankaRobot):  # the rig's check makes this unreachable
+        raise TypeError(f"{type(source).__name__} is not a Franka")
+    return OpenedSensor(FrankaWrenchSensor(source), note="F/T from the Franka's O_F_ext_hat_K")
+
+
+#: ``ffexp emulate --robot fr3``: an FR3 listening on libfranka's command port.
+EMULATOR = Emulator("fr3", "a Franka FR3 over libfranka's protocol (listens on --listen, "
+                    "default 127.0.0.1:1337)", serve="drivers.franka.emulate.served:serve",
+                    listen=("127.0.0.1", 1337),
+                    overrides_from="drivers.description.fr3:PAPER_SCENE_OVERRIDES",
+                    faults=(("silence", "1: accept connections but never answer"),
+                            ("version", "answer the connection with this server version"),
+                            ("drop_after", "close the connection after this many ms "
+                             "of a motion (0: never)"),
+                            ("reflex_after", "a cartesian_reflex after this many ms of a "
+                             "motion (0: never)")))
+
+BACKEND = Backend(
+    "franka",
+    robots=(RobotBackend(FrankaSettings, _open_robot, driver="franka",
+                         default_ft="franka-wrench", arm="fr3", takes_arm_place=True),
+            RobotBackend(FrankaSimConfig, _open_sim, driver="franka-sim", default_ft="sim",
+                         scene=_sim_scene, arm="fr3", takes_arm_place=True)),
+    sensors=(FtBackend(FrankaWrenchFt, _open_wrench,
+                       needs_robot("ft", "franka", "franka-sim")),),
+    topics=cdr_topics_of("drivers.franka.topics"),
+    link_faults=(LinkCounter(_TOPIC, "missed_cycles", "1 kHz cycles the driver missed"),),
+    link_stats=(LinkStat("min_success_rate", _TOPIC, "success_rate", "min"),),
+    emulators=(EMULATOR,),
+)

@@ -1,0 +1,356 @@
+"""The emulated FR3 over libfranka's network protocol: ``ffexp emulate --robot fr3``.
+
+:class:`FciServer` listens on ``host:port`` (libfranka's command port 1337 by default; any
+loopback address may be chosen, so that parallel tests each have their own) for one
+client at a time and serves the world's FR3
+(:class:`~drivers.franka.emulate.controller.Fr3SimController`) in a thread of its own:
+
+* TCP: ``Connect`` (the client's version checked against the server's: a mismatch is
+  answered ``kIncompatibleLibraryVersion`` with the server's version, as a robot does),
+  ``GetRobotModel`` (the FR3's URDF, :mod:`drivers.franka.urdf`), ``Move`` (a torque loop
+  with the external controller: ``kMotionStarted``, then how it ended: ``kSuccess``, or
+  ``kReflexAborted`` after a reflex), ``StopMove``, the setters and error recovery
+  (answered ``kSuccess``).
+* UDP: every cycle a ``RobotState`` to the client's port (from this server's UDP socket,
+  where the client's ``RobotCommand`` comes back).
+
+Pacing: ``realtime``, one cycle per millisecond of the wall clock (a cycle that began more
+than a cycle late is counted an ``overrun``: the robot's clock then lags the wall's, as
+on a machine too loaded to serve 1 kHz; a command that came for
+an older state is counted ``late`` and not applied, one that never came ``missed``: the
+robot then keeps the last torque, and ``control_command_success_rate`` drops, as a robot
+counts it); ``lockstep``, the world steps on each command for the current state, and
+only then: while no motion runs, and in a motion until its first command (libfranka reads
+a state or two while it starts the motion), the same state is sent again every
+millisecond with a new id, the world not stepping, so that a client that reads without
+commanding sees time pass; once commands come, each state waits for its own, and after
+``lockstep_timeout_s`` without it the cycle is missed and the world steps with the last
+torque. So the world's steps are the commands, one by one, as in-process.
+
+Faults (:class:`FciFaults`): ``silence`` (connections accepted, never answered),
+``version`` (the server's protocol version), ``drop_after`` (the connection closed that
+many milliseconds into a motion), ``reflex_after`` (a ``cartesian_reflex`` then).
+"""
+
+from __future__ import annotations
+
+import select
+import socket
+import threading
+import time
+from collections import Counter
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from drivers.errors import AddressError
+from drivers.franka import codec
+from drivers.franka.emulate.controller import Fr3SimController
+from drivers.franka.urdf import urdf
+from drivers.net.udp import resolve_ipv4
+from drivers.sim.world import SimWorld
+
+__all__ = ["FciFaults", "FciServer"]
+
+_CYCLE_S = 0.001
+_POLL_S = 0.05
+
+
+@dataclass(frozen=True)
+class FciFaults:
+    """Faults the emulated FR3 injects (0: none)."""
+
+    silence: bool = False
+    version: int = codec.VERSION
+    drop_after: int = 0
+    reflex_after: int = 0
+
+
+class FciServer:
+    """The world's FR3 over libfranka's protocol on ``host:port`` (module docstring)."""
+
+    def __init__(self, world: SimWorld, host: str, port: int, *,
+                 pacing: Literal["realtime", "lockstep"] = "realtime",
+                 lockstep_timeout_s: float = 1.0, faults: FciFaults | None = None,
+                 where: str = "--listen") -> None:
+        self.world = world
+        self.controller = Fr3SimController(world)
+        self.pacing = pacing
+        self.lockstep_timeout_s = lockstep_timeout_s
+        self.faults = faults or FciFaults()
+        self.where = where
+        self.counters: Counter[str] = Counter()
+        self.error: BaseException | None = None
+        ip = resolve_ipv4(where, host)
+        self._tcp = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self._tcp.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            self._tcp.bind((ip, port))
+        except OSError as exc:
+            self._tcp.close()
+            raise AddressError(where, f"{host}:{port}", exc.strerror or str(exc)) from None
+        self._tcp.listen(1)
+        self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._udp.bind((ip, 0))
+        self._udp.setblocking(False)
+        self._conn: socket.socket | None = None
+        self._client: tuple[str, int] | None = None
+        self._inbox = b""
+        self._move_id: int | None = None
+        self._motion_ms = 0
+        self._commanded = False  # a command came in the running motion
+        self._next = time.monotonic()  # real time: when the current cycle was due
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._cmd = bytearray(codec.ROBOT_COMMAND.itemsize + 64)
+
+    @property
+    def address(self) -> tuple[str, int]:
+        host, port = self._tcp.getsockname()[:2]
+        return str(host), int(port)
+
+    @property
+    def steps(self) -> int:
+        """World steps so far (milliseconds of simulated time)."""
+        return self.controller.steps
+
+    # ------------------------------------------------------------ lifecycle
+    def start(self) -> FciServer:
+        self._thread = threading.Thread(target=self._run, name="fci-server", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(5.0)
+        self._drop()
+        self._tcp.close()
+        self._udp.close()
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                if self._conn is None:
+                    self._accept()
+                else:
+                    self._cycle()
+        except BaseException as exc:  # re-raised by the caller (served.py)
+            self.error = exc
+
+    def _drop(self) -> None:
+        conn, self._conn, self._client = self._conn, None, None
+        self._inbox = b""
+        if conn is not None:
+            conn.close()
+        self.controller.finish_motion(codec.MoveStatus.ABORTED)
+        self.controller.ended = None
+        self._move_id = None
+
+    # ------------------------------------------------------------ TCP
+    def _accept(self) -> None:
+        ready, _, _ = select.select([self._tcp], [], [], _POLL_S)
+        if not ready:
+            return
+        conn, peer = self._tcp.accept()
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.counters["connections"] += 1
+        if self.faults.silence:
+            self._silent(conn)
+            return
+        conn.settimeout(5.0)
+        try:
+            data = _recv_exact(conn, codec.CONNECT_REQUEST.itemsize)
+        except OSError:
+            conn.close()
+            return
+        req = codec.decode(codec.CONNECT_REQUEST, data)
+        cid = int(req["header"]["command_id"])
+        ok = int(req["version"]) == self.faults.version
+        status = codec.ConnectStatus.SUCCESS if ok else \
+            codec.ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION
+        conn.sendall(codec.message(codec.CONNECT_RESPONSE, codec.Command.CONNECT, cid,
+                                   status=int(status), version=self.faults.version))
+        if not ok:
+            self.counters["refused_versions"] += 1
+            conn.close()
+            return
+        conn.setblocking(False)
+        self._conn, self._client = conn, (peer[0], int(req["udp_port"]))
+
+    def _silent(self, conn: socket.socket) -> None:
+        """Hold the connection without a word until the client gives up or we stop."""
+        while not self._stop.is_set():
+            ready, _, _ = select.select([conn], [], [], _POLL_S)
+            if ready:
+                try:
+                    if not conn.recv(4096):
+                        break
+                except OSError:
+                    break
+        conn.close()
+
+    def _read_tcp(self) -> None:
+        assert self._conn is not None
+        try:
+            data = self._conn.recv(65536)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:  # the client closed the connection
+            self.counters["disconnects"] += 1
+            self._drop()
+            return
+        self._inbox += data
+        while len(self._inbox) >= codec.HEADER.itemsize:
+            head = codec.header_of(self._inbox)
+            size = int(head["size"])
+            if len(self._inbox) < size:
+                return
+            msg, self._inbox = self._inbox[:size], self._inbox[size:]
+            self._command(int(head["command"]), int(head["command_id"]), msg)
+            if self._conn is None:
+                return
+
+    def _reply(self, command: int, command_id: int, status: int, body: bytes = b"") -> None:
+        assert self._conn is not None
+        head = np.zeros((), dtype=codec.HEADER)
+        head["command"], head["command_id"] = command, command_id
+        head["size"] = codec.HEADER.itemsize + 1 + len(body)
+        self._conn.setblocking(True)
+        try:
+            self._conn.sendall(head.tobytes() + bytes([status]) + body)
+        finally:
+            self._conn.setblocking(False)
+
+    def _command(self, command: int, command_id: int, msg: bytes) -> None:
+        c = self.controller
+        self.counters[f"tcp_{codec.Command(command).name.lower()}"
+                      if command in codec.Command._value2member_map_ else "tcp_unknown"] += 1
+        if command == codec.Command.MOVE:
+            req = codec.decode(codec.MOVE_REQUEST, msg[:codec.MOVE_REQUEST.itemsize])
+            status = c.start_motion(
+                codec.MoveMotionGeneratorMode(int(req["motion_generator_mode"])),
+                codec.MoveControllerMode(int(req["controller_mode"])))
+            self._reply(command, command_id, int(status))
+            if status == codec.MoveStatus.MOTION_STARTED:
+                self._move_id, self._motion_ms, self._commanded = command_id, 0, False
+        elif command == codec.Command.STOP_MOVE:
+            c.finish_motion(codec.MoveStatus.PREEMPTED)
+            self._reply(command, command_id, 0)
+        elif command == codec.Command.GET_ROBOT_MODEL:
+            self._reply(command, command_id, 0, urdf().encode())
+        elif command == codec.Command.AUTOMATIC_ERROR_RECOVERY:
+            c.recover()
+            self._reply(command, command_id, 0)
+        elif command in codec.Command._value2member_map_:
+            self._reply(command, command_id, 0)  # the setters: accepted
+        else:
+            self._reply(command, command_id, 1)  # rejected
+
+    # ------------------------------------------------------------ UDP
+    def _send_state(self) -> None:
+        assert self._client is not None
+        self._udp.sendto(self.controller.state().tobytes(), self._client)
+        self.counters["states"] += 1
+
+    def _take_commands(self, timeout_s: float) -> np.void | None:
+        """The command for the current state, waiting up to ``timeout_s``; older ones are
+        counted late."""
+        end = time.monotonic() + timeout_s
+        want = self.controller.message_id
+        while True:
+            ready, _, _ = select.select([self._udp], [], [], max(0.0, end - time.monotonic()))
+            if not ready:
+                return None
+            while True:
+                try:
+                    n, _addr = self._udp.recvfrom_into(self._cmd)
+                except BlockingIOError:
+                    break
+                if n != codec.ROBOT_COMMAND.itemsize:
+                    self.counters["malformed"] += 1
+                    continue
+                cmd = codec.decode(codec.ROBOT_COMMAND, self._cmd[:n])
+                if int(cmd["message_id"]) == want:
+                    return cmd
+                self.counters["late"] += 1
+            if time.monotonic() >= end:
+                return None
+
+    def _cycle(self) -> None:
+        """One cycle with a client: its TCP commands, a state, its answer, a step."""
+        c = self.controller
+        self._read_tcp()
+        if self._conn is None:
+            return
+        t0 = time.monotonic()
+        if self.pacing == "realtime":
+            if t0 > self._next + _CYCLE_S:  # began more than a cycle late: the clock lags
+                self.counters["overruns"] += 1
+            self._next = max(self._next + _CYCLE_S, t0 - _CYCLE_S)
+        self._send_state()
+        if self.pacing == "lockstep":
+            cmd = None
+            if c.moving and self._commanded:
+                cmd = self._take_commands(self.lockstep_timeout_s)
+            elif c.moving:
+                cmd = self._take_commands(_CYCLE_S)
+                self._commanded = cmd is not None
+            if cmd is None and not (c.moving and self._commanded):
+                c.message_id += 1  # time passes for the reader, the world rests
+                _sleep_until(t0 + _CYCLE_S)
+                return
+        else:
+            cmd = self._take_commands(max(0.0, t0 + _CYCLE_S * 0.9 - time.monotonic()))
+        if c.moving:
+            self.counters["answered" if cmd is not None else "missed"] += 1
+        c.step(cmd)
+        self._motion_events()
+        if self.pacing == "realtime":
+            _sleep_until(t0 + _CYCLE_S)
+
+    def _motion_events(self) -> None:
+        c = self.controller
+        if c.moving:
+            self._motion_ms += 1
+            f = self.faults
+            if f.reflex_after and self._motion_ms == f.reflex_after:
+                c.inject_reflex()
+                self.counters["faults_reflex"] += 1
+            if f.drop_after and self._motion_ms == f.drop_after:
+                self.counters["faults_dropped"] += 1
+                self._drop()
+                return
+        if c.ended is not None and self._move_id is not None and self._conn is not None:
+            self._reply(codec.Command.MOVE, self._move_id, int(c.ended))
+            c.ended, self._move_id = None, None
+
+    def summary(self) -> str:
+        """The counters in one line."""
+        return " ".join(f"{k} {v}" for k, v in sorted(self.counters.items()))
+
+
+def _recv_exact(conn: socket.socket, n: int) -> bytes:
+    data = b""
+    while len(data) < n:
+        chunk = conn.recv(n - len(data))
+        if not chunk:
+            raise ConnectionError("closed")
+        data += chunk
+    return data
+
+
+def _sleep_until(deadline: float, spin_s: float = 0.0002) -> None:
+    """Sleep until ``deadline`` (monotonic): the last ``spin_s`` spinning."""
+    left = deadline - time.monotonic()
+    if left > spin_s:
+        time.sleep(left - spin_s)
+    while time.monotonic() < deadline:
+        pass
+

@@ -1,0 +1,83 @@
+"""The FR3's rigid-body model from its description, for the driver's impedance law. Pure maths.
+
+The driver closes the Cartesian impedance law itself at 1 kHz, so it needs what a KRC
+computes inside: the TCP's Jacobian in the TCF and the joint-space mass matrix (for the
+Cartesian inertia the damping ratio is taken against). Both come from the published
+description (:data:`drivers.description.fr3.FR3`): the chain's frames, the links' masses,
+centres of mass and principal inertias, and the drives' reflected inertias on the
+diagonal of the mass matrix (``M = sum_k m_k Jv_k^T Jv_k + Jw_k^T R_k I_k R_k^T Jw_k``
+plus the rotors).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drivers.base.types import F64
+from drivers.description.arm import ArmDescription
+from drivers.description.fr3 import FR3
+
+__all__ = ["ArmModel"]
+
+
+class ArmModel:
+    """Kinematics and mass matrix of ``arm`` (the FR3 by default), in its base frame."""
+
+    def __init__(self, arm: ArmDescription = FR3) -> None:
+        self.arm = arm
+        self.n = arm.joints
+        self._masses = np.asarray(arm.link_masses_kg, dtype=np.float64)
+        self._coms = np.asarray(arm.link_coms_m, dtype=np.float64)
+        self._inertias = np.asarray(arm.link_inertias_kgm2, dtype=np.float64)
+        rotors = arm.rotor_inertias_kgm2 or (0.0,) * self.n
+        self._rotors = np.diag(np.asarray(rotors, dtype=np.float64))
+        self._flange = np.eye(4)
+        self._flange[:3, 3] = arm.flange_m
+
+    def frames(self, q: F64) -> list[F64]:
+        """Each link frame's pose in the base frame (4x4), links 1..n."""
+        out = []
+        pose = np.eye(4)
+        for t in self.arm.joint_transforms(q):
+            pose = pose @ t
+            out.append(pose)
+        return out
+
+    def tcp_pose(self, q: F64, flange_to_tcp: F64) -> F64:
+        """The TCP's pose in the base frame: the flange, then ``flange_to_tcp`` (4x4)."""
+        return np.asarray(self.frames(q)[-1] @ self._flange @ flange_to_tcp, dtype=np.float64)
+
+    def jacobian_tcf(self, q: F64, flange_to_tcp: F64) -> tuple[F64, F64]:
+        """``(J, tcp pose)``: the 6xn Jacobian mapping joint speeds to the TCP's twist
+        ``[v, w]`` in the TCF, and the TCP's pose in the base frame."""
+        frames = self.frames(q)
+        tcp = frames[-1] @ self._flange @ flange_to_tcp
+        p = tcp[:3, 3]
+        jac = np.empty((6, self.n))
+        for i, f in enumerate(frames):
+            z = f[:3, :3] @ np.asarray(self.arm.joint_axes[i], dtype=np.float64)
+            jac[:3, i] = np.cross(z, p - f[:3, 3])
+            jac[3:, i] = z
+        r_t = tcp[:3, :3].T
+        jac[:3] = r_t @ jac[:3]
+        jac[3:] = r_t @ jac[3:]
+        return jac, np.asarray(tcp, dtype=np.float64)
+
+    def mass_matrix(self, q: F64) -> F64:
+        """The joint-space mass matrix (nxn) at ``q``, the drives' inertia included."""
+        frames = self.frames(q)
+        origins = [f[:3, 3] for f in frames]
+        axes = [f[:3, :3] @ np.asarray(a, dtype=np.float64)
+                for f, a in zip(frames, self.arm.joint_axes, strict=True)]
+        m = self._rotors.copy()
+        for k, f in enumerate(frames):
+            r = f[:3, :3]
+            c = f[:3, 3] + r @ self._coms[k]
+            jv = np.zeros((3, self.n))
+            jw = np.zeros((3, self.n))
+            for i in range(k + 1):
+                jv[:, i] = np.cross(axes[i], c - origins[i])
+                jw[:, i] = axes[i]
+            inertia = r @ np.diag(self._inertias[k]) @ r.T
+            m += self._masses[k] * jv.T @ jv + jw.T @ inertia @ jw
+        return m

@@ -165,6 +165,13 @@ def _check_example(command: str, option: str, value: str) -> None:
         assert result.exit_code == 0, result.stderr
     elif command == "simulate sweep":
         load_model(SweepProtocol, ROOT / "protocols/sec3_damping.toml", [value])
+    elif command in ("hil", "hil-sweep"):  # the impact protocol's own keys
+        from ffexp.hil.protocol import load_hil_protocol, split_sets
+
+        proto_sets, scene_sets = split_sets([value] if option == "--set" else [],
+                                            [value] if option == "--scene-set" else [])
+        hil = load_hil_protocol(ROOT / "protocols/hil_impact.toml", proto_sets)
+        load_scene(hil.scene, scene_sets)
     elif option == "--fit":
         parse_fit([value], base_scene(scene))
     elif option == "--rig-set":

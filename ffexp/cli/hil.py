@@ -44,14 +44,15 @@ def hil(
     from ffexp.cli.tables import json_line
     from ffexp.errors import ConfigError
     from ffexp.hil.analysis import analyze_recording
-    from ffexp.hil.protocol import load_hil_protocol
+    from ffexp.hil.protocol import load_hil_protocol, split_sets
     from ffexp.hil.record import record_impact, run_protocol
     from ffexp.recording import load
 
     if out.exists() and not out.is_dir():
         raise ConfigError("--out", str(out), "exists and is not a directory")
-    proto = load_hil_protocol(protocol, tuple(set_))
-    run = run_protocol(proto, tuple(scene_set))
+    proto_sets, scene_sets = split_sets(set_, scene_set)
+    proto = load_hil_protocol(protocol, proto_sets)
+    run = run_protocol(proto, scene_sets)
     path = record_impact(run, _free(out, proto.name))
     result = analyze_recording(load(path))
     if as_json:

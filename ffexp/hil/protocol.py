@@ -3,6 +3,7 @@ tool meets the rendered target, and faults to inject. Light: no numpy at import.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated
 
@@ -60,3 +61,13 @@ def load_hil_protocol(path: Path, overrides: tuple[str, ...] = ()) -> HilProtoco
     if not proto.scene.is_absolute():
         proto = proto.model_copy(update={"scene": path.parent / proto.scene})
     return proto
+
+
+def split_sets(sets: Sequence[str], scene_sets: Sequence[str]
+               ) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """``--set`` and ``--scene-set`` as (the protocol's overrides, the scene's): a ``--set
+    scene.KEY=VALUE`` is the scene's ``KEY=VALUE``, as ``--scene-set KEY=VALUE`` is (the
+    forms the run commands take)."""
+    scene = tuple(s.removeprefix("scene.") for s in sets if s.startswith("scene."))
+    return (tuple(s for s in sets if not s.startswith("scene.")),
+            (*scene_sets, *scene))

@@ -11,7 +11,8 @@ the collector frozen); ``--pin`` (the emulator on CPU 0, the client on CPU 1).
 
 The client reads the state for ``--seconds`` (no commands), then runs libfranka's torque
 loop (``start_torque_control``, ``readOnce``/``writeOnce``) for as long: zero torque,
-then a 0.2 N m step on joint 1 for its last 20 %. Printed, as JSON: per phase the
+then a 0.2 N m step on joint 1 for its last 5 % (at 10 s about 0.1 rad: a longer step runs
+the joint into its speed limits, a reflex). Printed, as JSON: per phase the
 states read, the cycles missed as the client counts them (the state's time advancing
 more than 1 ms from one read to the next: the sum of the excess), their share, the
 period between reads (p50, p99, p99.9, max) and, in the loop, the time from a state's
@@ -70,7 +71,7 @@ while True:
     if q0 is None:
         q0 = st.q[0]
     stamps.append(now); ids.append(round(st.time.to_sec() * 1000))
-    step = 0.2 if now > t0 + 0.8 * seconds else 0.0
+    step = 0.2 if now > t0 + 0.95 * seconds else 0.0
     ctrl.writeOnce(plf.Torques([step, 0, 0, 0, 0, 0, 0]))
     work.append(time.perf_counter() - now)
     if now >= end:

@@ -20,10 +20,13 @@ on a machine too loaded to serve 1 kHz; a command that came for
 an older state is counted ``late`` and not applied, one that never came ``missed``: the
 robot then keeps the last torque, and ``control_command_success_rate`` drops, as a robot
 counts it); ``lockstep``, the world steps on each command for the current state, and
-only then: while no motion runs, and in a motion until its first command (libfranka reads
-a state or two while it starts the motion), the same state is sent again every
-millisecond with a new id, the world not stepping, so that a client that reads without
-commanding sees time pass; once commands come, each state waits for its own, and after
+only then: while no motion runs the same state is sent again every millisecond with a new
+id, the world not stepping, so that a client that reads without commanding sees time
+pass; in a motion, until its first command, the motion's first state is sent again every
+millisecond with its own id (libfranka reads a state or two while it starts the motion,
+and a client's first command answers that state whenever it comes, so the run does not
+depend on how long the client took to start); once commands come, each state waits for
+its own, and after
 ``lockstep_timeout_s`` without it the cycle is missed and the world steps with the last
 torque. So the world's steps are the commands, one by one, as in-process.
 
@@ -289,31 +292,37 @@ class FciServer:
         self._read_tcp()
         if self._conn is None:
             return
-        t0 = time.monotonic()
-        if self.pacing == "realtime":
-            if t0 > self._next + _CYCLE_S:  # began more than a cycle late: the clock lags
+        t0 = due = time.monotonic()
+        if self.pacing == "realtime":  # cycles due on the wall clock's millisecond grid
+            due = self._next
+            if t0 > due + _CYCLE_S:  # began more than a cycle late: the clock lags
                 self.counters["overruns"] += 1
-            self._next = max(self._next + _CYCLE_S, t0 - _CYCLE_S)
+                due = t0  # and the grid starts again from now
+            self._next = due + _CYCLE_S
         self._send_state()
         if self.pacing == "lockstep":
             cmd = None
             if c.moving and self._commanded:
                 cmd = self._take_commands(self.lockstep_timeout_s)
-            elif c.moving:
+            elif c.moving:  # its first command: the state sent again until it comes
+                end = time.monotonic() + self.lockstep_timeout_s
                 cmd = self._take_commands(_CYCLE_S)
+                while cmd is None and time.monotonic() < end:
+                    self._send_state()
+                    cmd = self._take_commands(_CYCLE_S)
                 self._commanded = cmd is not None
             if cmd is None and not (c.moving and self._commanded):
                 c.message_id += 1  # time passes for the reader, the world rests
                 _sleep_until(t0 + _CYCLE_S)
                 return
         else:
-            cmd = self._take_commands(max(0.0, t0 + _CYCLE_S * 0.9 - time.monotonic()))
+            cmd = self._take_commands(max(0.0, due + _CYCLE_S * 0.9 - time.monotonic()))
         if c.moving:
             self.counters["answered" if cmd is not None else "missed"] += 1
         c.step(cmd)
         self._motion_events()
         if self.pacing == "realtime":
-            _sleep_until(t0 + _CYCLE_S)
+            _sleep_until(self._next)  # a short cycle makes up for a long one
 
     def _motion_events(self) -> None:
         c = self.controller

@@ -20,7 +20,8 @@ What runs, by rule (no list of commands here):
   positional arguments (on that page first, else on any page): the twin names at least
   the options the long form names, and runs instead with fewer points, seeds or seconds.
 - **Results pages** (``docs/results/``) are dated records of a study that took its own
-  hours; their commands are parsed and their protocols loaded, not re-run.
+  hours: their commands run as their twins (a results page's own, else a guide's), so a
+  reader who repeats a study finds its commands still work.
 - A live server (``--live``) listens on a free loopback port instead of Foxglove's 8765,
   and a viewer comes after the run and leaves, as the reader in Foxglove would; the
   server then stops by itself (it serves until its viewer has left).
@@ -45,7 +46,6 @@ from typer.testing import CliRunner
 from ffexp.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "docs" / "results"
 BESIDE = ("protocols", "data", "rigs", "schemas", "layouts", "tests")  # what they read
 _BLOCK = re.compile(r"```[^\n]*\n(.*?)```", re.S)
 _INLINE = re.compile(r"(?<!`)`(ffexp [^`]+)`(?!`)")
@@ -174,7 +174,7 @@ def needs_hardware(words: list[str]) -> str | None:
 
 
 # -- the twins ----------------------------------------------------------------------------
-PAGES = [p for p in pages() if RESULTS not in p.parents]
+PAGES = list(pages())
 
 
 def twins(page: Path) -> dict[tuple[str, ...], str]:

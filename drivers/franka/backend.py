@@ -71,14 +71,11 @@ def _scene_path(cfg: FrankaSimConfig, ctx: OpenContext) -> Path:
 
 
 def _sim_scene(cfg: FrankaSimConfig, ctx: OpenContext) -> Scene:
-    from drivers.description import load_scene
     from drivers.description.fr3 import FR3, PAPER_SCENE_OVERRIDES
+    from drivers.description.swap import scene_with_arm
 
-    path = _scene_path(cfg, ctx)
-    scene = load_scene(path, ctx.scene_overrides)
-    if scene.arm.description is not FR3:  # another arm's scene (the protocol's): the FR3
-        scene = load_scene(path, (*PAPER_SCENE_OVERRIDES, *ctx.scene_overrides))
-    return scene
+    return scene_with_arm(_scene_path(cfg, ctx), ctx.scene_overrides, FR3,
+                          PAPER_SCENE_OVERRIDES)
 
 
 def _open_sim(cfg: FrankaSimConfig, ctx: OpenContext) -> OpenedRobot:

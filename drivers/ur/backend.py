@@ -78,14 +78,11 @@ def _scene_path(cfg: UrSimConfig, ctx: OpenContext) -> Path:
 
 
 def _ur_scene(cfg: UrSimConfig, ctx: OpenContext) -> Scene:
-    from drivers.description import load_scene
+    from drivers.description.swap import scene_with_arm
     from drivers.description.ur5e import PAPER_SCENE_OVERRIDES, UR5E
 
-    path = _scene_path(cfg, ctx)
-    scene = load_scene(path, ctx.scene_overrides)
-    if scene.arm.description is not UR5E:  # another arm's scene (the protocol's): the UR5e
-        scene = load_scene(path, (*PAPER_SCENE_OVERRIDES, *ctx.scene_overrides))
-    return scene
+    return scene_with_arm(_scene_path(cfg, ctx), ctx.scene_overrides, UR5E,
+                          PAPER_SCENE_OVERRIDES)
 
 
 def _open_sim(cfg: UrSimConfig, ctx: OpenContext) -> OpenedRobot:

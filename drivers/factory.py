@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from drivers import registry
-from drivers.base.backend import OpenContext
+from drivers.base.backend import DeviceConfig, OpenContext
 from drivers.base.interfaces import ForceTorqueSensor, RobotDriver, TargetTracker
 from drivers.errors import ConfigError
 from drivers.rig import Rig
@@ -100,7 +100,7 @@ def open_devices(
     return devices
 
 
-def robot_arm(robot: object) -> tuple[str | None, bool]:
+def robot_arm(robot: DeviceConfig) -> tuple[str | None, bool]:
     """The arm model (a scene's ``arm.model``) the rig's robot drives, and whether it puts
     that arm in the place of a scene's other arm (``None``: any arm, as the mock).
 
@@ -109,11 +109,5 @@ def robot_arm(robot: object) -> tuple[str | None, bool]:
     a UR controller the UR5e, which it puts in an LWR4+ scene's place (the protocols'
     paper scene), as ``ffexp emulate --robot ur5e`` does.
     """
-    type_ = getattr(robot, "type", None)
-    if not isinstance(type_, str):
-        return None, False
-    try:
-        backend = registry.robot_backend(type_)
-    except KeyError:
-        return None, False
+    backend = registry.robot_backend(robot.type)  # a validated rig's type is registered
     return backend.arm, backend.takes_arm_place

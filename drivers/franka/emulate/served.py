@@ -1,8 +1,12 @@
 """The FR3 as :class:`~drivers.emulate.session.EmulatedRig` serves it (``--robot fr3``):
 :func:`serve`, the family's :class:`~drivers.base.backend.Emulator` ``serve``.
 
-The server listens on ``settings.listen`` (default 127.0.0.1:1337) and serves in its own
-thread; :meth:`ServedFr3.serve` waits for it. The family's faults (``--fault
+The server listens on ``settings.listen`` (default 127.0.0.1:1337) from the start (a
+client that connects early waits in the listen queue) and serves in a thread of its own
+that :meth:`ServedFr3.serve` starts and waits for: started there, inside ``ffexp emulate
+--rt``'s real-time settings, the thread takes them (on Linux a thread's scheduling policy
+and CPU affinity are its own, set at its creation from its creator's: a thread started
+before ``--rt`` would stay at normal priority on every CPU). The family's faults (``--fault
 NAME=VALUE``): ``silence=1``, ``version=N``, ``drop_after=MS``, ``reflex_after=MS``
 (:class:`~drivers.franka.emulate.server.FciFaults`).
 """
@@ -44,6 +48,8 @@ class ServedFr3:
     def serve(self, stop_requested: Callable[[], bool], on_status: Callable[[str], None] | None,
               on_cycle: Callable[[], None], max_cycles: int | None, duration_s: float) -> None:
         srv = self.server
+        if not srv.started:
+            srv.start()
         last = time.monotonic()
         end = time.monotonic() + duration_s if duration_s > 0 else None
         while not self._stop and not stop_requested():
@@ -93,5 +99,5 @@ def serve(world: SimWorld, settings: EmulatedRigSettings,
     host, port = s.listen or EMULATOR.listen or ("127.0.0.1", 1337)
     server = FciServer(world, host, port, pacing=s.pacing,
                        lockstep_timeout_s=s.lockstep_timeout_s, faults=faults,
-                       where=s.fields.listen).start()
+                       where=s.fields.listen)
     return ServedFr3(server)

@@ -58,6 +58,8 @@ __all__ = ["FciFaults", "FciServer"]
 
 _CYCLE_S = 0.001
 _POLL_S = 0.05
+#: Cycles whose CPU cost is kept (the last ones; a preallocated ring).
+COST_WINDOW = 1 << 16
 
 
 @dataclass(frozen=True)
@@ -107,6 +109,8 @@ class FciServer:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._cmd = bytearray(codec.ROBOT_COMMAND.itemsize + 64)
+        self._cost_ns = np.zeros(COST_WINDOW, dtype=np.int64)
+        self._costs = 0
 
     @property
     def address(self) -> tuple[str, int]:
@@ -119,6 +123,11 @@ class FciServer:
         return self.controller.steps
 
     # ------------------------------------------------------------ lifecycle
+    @property
+    def started(self) -> bool:
+        """The serving thread was started (:meth:`start`)."""
+        return self._thread is not None
+
     def start(self) -> FciServer:
         self._thread = threading.Thread(target=self._run, name="fci-server", daemon=True)
         self._thread.start()
@@ -286,9 +295,25 @@ class FciServer:
             if time.monotonic() >= end:
                 return None
 
+    def cycle_cpu_us(self) -> dict[str, float]:
+        """The serving thread's CPU time per cycle with a client (the last
+        :data:`COST_WINDOW` cycles; waits for the command and the pacing's sleep left
+        out) [us]: p50, p99, max; empty before the first cycle."""
+        costs = self._cost_ns[:min(self._costs, COST_WINDOW)] / 1e3
+        if not costs.size:
+            return {}
+        p50, p99 = np.percentile(costs, (50, 99))
+        return {"p50": round(float(p50), 1), "p99": round(float(p99), 1),
+                "max": round(float(costs.max()), 1)}
+
+    def _cost(self, cpu0_ns: int) -> None:
+        self._cost_ns[self._costs % COST_WINDOW] = time.thread_time_ns() - cpu0_ns
+        self._costs += 1
+
     def _cycle(self) -> None:
         """One cycle with a client: its TCP commands, a state, its answer, a step."""
         c = self.controller
+        cpu0 = time.thread_time_ns()
         self._read_tcp()
         if self._conn is None:
             return
@@ -313,6 +338,7 @@ class FciServer:
                 self._commanded = cmd is not None
             if cmd is None and not (c.moving and self._commanded):
                 c.message_id += 1  # time passes for the reader, the world rests
+                self._cost(cpu0)
                 _sleep_until(t0 + _CYCLE_S)
                 return
         else:
@@ -321,6 +347,7 @@ class FciServer:
             self.counters["answered" if cmd is not None else "missed"] += 1
         c.step(cmd)
         self._motion_events()
+        self._cost(cpu0)
         if self.pacing == "realtime":
             _sleep_until(self._next)  # a short cycle makes up for a long one
 
@@ -341,8 +368,10 @@ class FciServer:
             c.ended, self._move_id = None, None
 
     def summary(self) -> str:
-        """The counters in one line."""
-        return " ".join(f"{k} {v}" for k, v in sorted(self.counters.items()))
+        """The counters in one line, and the cycles' CPU cost."""
+        cost = self.cycle_cpu_us()
+        return " ".join([*(f"{k} {v}" for k, v in sorted(self.counters.items())),
+                         *(f"cycle_cpu_us_{k} {v:g}" for k, v in cost.items())])
 
 
 def _recv_exact(conn: socket.socket, n: int) -> bytes:

@@ -66,21 +66,26 @@ class Fr3SimController:
         self.reflex: list[str] = []
         """The errors of the reflex in force (empty: none)."""
         self._answers: deque[bool] = deque([True] * WINDOW, maxlen=WINDOW)
+        self._answered = WINDOW  # how many of ``_answers`` are True
         self._tau = np.zeros(desc.joints)
         self._generator = codec.MotionGeneratorMode.JOINT_VELOCITY
         self._controller = codec.ControllerMode.EXTERNAL_CONTROLLER
         self._q_d = world.arm_qpos.copy()
         self._dq_d = np.zeros(desc.joints)
         self._hold: ArmCommand | None = None
+        self._latched_external = False  # the world holds the torque loop's mode and gains
         self._f_t_ee = flange_to_tcp(world)
         self._state = np.zeros((), dtype=codec.ROBOT_STATE)
         self._fill_constants()
+        self._views = _StateViews(self._state)
+        self._flags_of: tuple[str, ...] | None = None  # the reflex the flags were written for
+        self._wrench_o = np.zeros(6)
         self.steps = 0
 
     @property
     def success_rate(self) -> float:
         """The fraction of the last :data:`WINDOW` cycles answered."""
-        return sum(self._answers) / WINDOW
+        return self._answered / WINDOW
 
     # ------------------------------------------------------------ motion
     def start_motion(self, generator: codec.MoveMotionGeneratorMode =
@@ -104,6 +109,7 @@ class Fr3SimController:
         self.moving, self.ended = True, None
         self._tau = np.zeros_like(self._tau)
         self._hold = None
+        self._latched_external = False
         return codec.MoveStatus.MOTION_STARTED
 
     def finish_motion(self, status: codec.MoveStatus = codec.MoveStatus.SUCCESS) -> None:
@@ -129,6 +135,7 @@ class Fr3SimController:
         for the current state, or ``None``: none came), run the world, check the limits."""
         answered = command is not None and int(command["message_id"]) == self.message_id
         if self.moving:
+            self._answered += answered - self._answers[0]  # the oldest leaves the window
             self._answers.append(answered)
         external = self._controller == codec.ControllerMode.EXTERNAL_CONTROLLER
         if answered and self.moving and not external:
@@ -142,8 +149,8 @@ class Fr3SimController:
                 self._q_d = self._q_d + self._dq_d * self.world.cycle_s
         if answered and self.moving and external:
             assert command is not None
-            tau = np.asarray(command["tau_J_d"], dtype=np.float64)
-            if not np.all(np.isfinite(tau)) or np.any(np.abs(tau) > self._tau_max):
+            tau = np.array(command["tau_J_d"], dtype=np.float64)  # a copy: kept
+            if not np.isfinite(tau).all() or (np.abs(tau) > self._tau_max).any():
                 self._reflex(["tau_j_range_violation"])
             else:
                 self._tau = tau
@@ -155,66 +162,89 @@ class Fr3SimController:
         if self.moving and not external:
             w.advance(ArmCommand(mode=ArmMode.JOINT_POSITION, jnt_pos_rad=self._q_d.copy(),
                                  jnt_trq_nm=np.zeros(7)))
+            self._latched_external = False
         elif self.moving:
-            w.advance(ArmCommand(mode=ArmMode.JOINT_IMPEDANCE, jnt_stiffness_nmprad=np.zeros(7),
-                                 jnt_damping_ratio=np.zeros(7), jnt_trq_nm=self._tau))
+            if self._latched_external:  # the mode and zero gains stay latched in the world
+                w.advance(ArmCommand(jnt_trq_nm=self._tau))
+            else:
+                w.advance(ArmCommand(mode=ArmMode.JOINT_IMPEDANCE,
+                                     jnt_stiffness_nmprad=np.zeros(7),
+                                     jnt_damping_ratio=np.zeros(7), jnt_trq_nm=self._tau))
+                self._latched_external = True
         else:
+            self._latched_external = False
             if self._hold is None:
                 self._hold = ArmCommand(mode=ArmMode.JOINT_POSITION,
                                         jnt_pos_rad=w.arm_qpos.copy(), jnt_trq_nm=np.zeros(7))
                 w.advance(self._hold)
             else:
                 w.advance(None)
+        # the world keeps its F/T sensor's samples for a reader: the FR3 has none (its
+        # wrench is the state's estimate), so they are let go every cycle, not kept
+        w.ft_samples()
         self.steps += 1
         self.message_id += 1
         if self.moving:
             q, dq = w.arm_qpos, w.arm_qvel
             names = []
-            if np.any(q <= self._lower) or np.any(q >= self._upper):
+            if (q <= self._lower).any() or (q >= self._upper).any():
                 names.append("joint_position_limits_violation")
-            if np.any(np.abs(dq) > self._speed):
+            if (np.abs(dq) > self._speed).any():
                 names.append("joint_velocity_violation")
             if names:
                 self._reflex(names)
 
     def state(self) -> np.ndarray:
         """The current ``RobotState`` record (float32 arrays, as the robot sends it: a 0-d
-        array of :data:`~drivers.franka.codec.ROBOT_STATE`, rewritten every cycle)."""
-        s = self._state
+        array of :data:`~drivers.franka.codec.ROBOT_STATE`, rewritten every cycle).
+
+        Written in place through views of its fields (:class:`_StateViews`), each value
+        cast to float32 as it is stored; the constant fields are written once, the error
+        flags when the reflex changes."""
+        v = self._views
         w = self.world
         st = w.last_state
-        s["message_id"] = self.message_id
+        v.message_id[()] = self.message_id
         pose = st.tcp_pose_m
-        s["O_T_EE"] = pose.ravel(order="F")
-        s["O_T_EE_d"] = s["O_T_EE"]
-        s["q"] = st.jnt_pos_rad
-        s["q_d"] = self._q_d if self.moving else st.jnt_pos_rad
-        s["dq_d"] = self._dq_d if self.moving else 0.0
-        s["dq"] = w.arm_qvel
-        s["tau_J_d"] = self._tau
-        s["tau_J"] = st.jnt_trq_nm
-        s["tau_ext_hat_filtered"] = st.ext_jnt_trq_nm
-        wrench = st.ext_wrench_n_nm
-        rot = pose[:3, :3]
-        s["K_F_ext_hat_K"] = wrench
-        s["O_F_ext_hat_K"] = np.concatenate((rot @ wrench[:3], rot @ wrench[3:]))
-        s["theta"] = st.jnt_pos_rad
-        s["dtheta"] = s["dq"]
+        v.o_t_ee[...] = pose  # column-major, as libfranka's arrays
+        v.o_t_ee_d[...] = pose
+        q = st.jnt_pos_rad
+        v.q[:] = q
+        v.theta[:] = q
+        dq = w.arm_qvel
+        v.dq[:] = dq
+        v.dtheta[:] = dq
         if self.moving:
-            s["motion_generator_mode"] = self._generator
-            s["controller_mode"] = self._controller
-            s["robot_mode"] = codec.RobotMode.MOVE
+            v.q_d[:] = self._q_d
+            v.dq_d[:] = self._dq_d
         else:
-            s["motion_generator_mode"] = codec.MotionGeneratorMode.IDLE
-            s["controller_mode"] = codec.ControllerMode.JOINT_IMPEDANCE
-            s["robot_mode"] = codec.RobotMode.REFLEX if self.reflex else codec.RobotMode.IDLE
-        flags = np.zeros(len(codec.ERROR_NAMES), dtype=np.uint8)
-        for name in self.reflex:
-            flags[codec.ERROR_NAMES.index(name)] = 1
-        s["errors"] = flags
-        s["reflex_reason"] = flags
-        s["control_command_success_rate"] = self.success_rate
-        return s
+            v.q_d[:] = q
+            v.dq_d[:] = 0.0
+        v.tau_j_d[:] = self._tau
+        v.tau_j[:] = st.jnt_trq_nm
+        v.tau_ext[:] = st.ext_jnt_trq_nm
+        wrench = st.ext_wrench_n_nm
+        v.k_f_ext[:] = wrench
+        rot = pose[:3, :3]
+        o = self._wrench_o
+        np.matmul(rot, wrench[:3], out=o[:3])
+        np.matmul(rot, wrench[3:], out=o[3:])
+        v.o_f_ext[:] = o
+        if self.moving:
+            v.modes[:] = (self._generator, self._controller)
+            v.robot_mode[()] = codec.RobotMode.MOVE
+        else:
+            v.modes[:] = (codec.MotionGeneratorMode.IDLE, codec.ControllerMode.JOINT_IMPEDANCE)
+            v.robot_mode[()] = codec.RobotMode.REFLEX if self.reflex else codec.RobotMode.IDLE
+        reflex = tuple(self.reflex)
+        if reflex != self._flags_of:
+            v.errors[:] = 0
+            for name in reflex:
+                v.errors[codec.ERROR_NAMES.index(name)] = 1
+            v.reflex_reason[:] = v.errors
+            self._flags_of = reflex
+        v.success_rate[()] = self._answered / WINDOW
+        return self._state
 
     def _fill_constants(self) -> None:
         s = self._state
@@ -224,3 +254,30 @@ class Fr3SimController:
         s["NE_T_EE"] = s["EE_T_K"]
         s["O_ddP_O"] = _GRAVITY
         s["elbow"] = (0.0, -1.0)
+
+
+class _StateViews:
+    """Views of the fields of a ``RobotState`` record that change from cycle to cycle
+    (writing through them stores into the record; a name looked up once, not every
+    cycle). The 4x4 poses are viewed column-major, as libfranka stores them."""
+
+    def __init__(self, s: np.ndarray) -> None:
+        self.message_id = s["message_id"]
+        self.o_t_ee = s["O_T_EE"].reshape((4, 4), order="F")
+        self.o_t_ee_d = s["O_T_EE_d"].reshape((4, 4), order="F")
+        self.q, self.q_d, self.theta = s["q"], s["q_d"], s["theta"]
+        self.dq, self.dq_d, self.dtheta = s["dq"], s["dq_d"], s["dtheta"]
+        self.tau_j, self.tau_j_d = s["tau_J"], s["tau_J_d"]
+        self.tau_ext = s["tau_ext_hat_filtered"]
+        self.k_f_ext, self.o_f_ext = s["K_F_ext_hat_K"], s["O_F_ext_hat_K"]
+        # motion_generator_mode and controller_mode are adjacent bytes
+        fields = codec.ROBOT_STATE.fields
+        assert fields is not None
+        at = fields["motion_generator_mode"][1]
+        self.modes = s.reshape(1).view(np.uint8)[at:at + 2]
+        self.robot_mode = s["robot_mode"]
+        self.errors, self.reflex_reason = s["errors"], s["reflex_reason"]
+        self.success_rate = s["control_command_success_rate"]
+        for name, view in vars(self).items():  # views, never copies
+            assert np.shares_memory(view, s), name
+

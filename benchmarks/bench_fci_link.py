@@ -23,8 +23,9 @@ state's time advanced that much less than the wall clock, from cycles the emulat
 more than a cycle late, which the client cannot count as missed) and, in the loop, the
 time from a state's read to its torques written; the robot's
 ``control_command_success_rate`` at the end; the emulator's counters (answered, missed
-and late commands and overruns as it counts them) and its serving thread's CPU time per
-cycle (``cycle_cpu_us``: p50, p99, max); and what ``--rt`` obtained on either side.
+and late commands and overruns as it counts them), its serving thread's CPU time per
+cycle (``cycle_cpu_us``: p50, p99, max) and its page faults while the client ran; and
+what ``--rt`` obtained on either side.
 Nothing here is asserted: these are measurements of this machine, as it is loaded.
 """
 
@@ -115,6 +116,15 @@ print(json.dumps({"read": read, "torque_loop": loop, "client_rt": "; ".join(got)
 """
 
 
+def faults(pid: int) -> tuple[int, int]:
+    """A process's minor and major page faults so far (0, 0 where /proc has none)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0, 0
+    return int(fields[7]), int(fields[9])
+
+
 def load1() -> float:
     return float(Path("/proc/loadavg").read_text().split()[0]) if Path(
         "/proc/loadavg").exists() else float("nan")
@@ -136,10 +146,12 @@ def one_run(args: argparse.Namespace) -> dict[str, object]:
         if "--rt:" in line:
             emu_rt = line.split("--rt:", 1)[1].strip()
     time.sleep(0.2)
+    faults0 = faults(emu.pid)
     client_rt = args.rt == "on" and args.client_rt == "on"
     res = subprocess.run([sys.executable, "-c", CLIENT, args.host, str(args.seconds),
                           "1" if args.pin else "-1", "1" if client_rt else "0"],
                          capture_output=True, text=True)
+    faults1 = faults(emu.pid)
     emu.terminate()
     out, _ = emu.communicate(timeout=30)
     if res.returncode != 0:
@@ -152,6 +164,8 @@ def one_run(args: argparse.Namespace) -> dict[str, object]:
     result["emulator_cycle_cpu_us"] = {m[0]: float(m[1]) for m in re.findall(
         r"cycle_cpu_us_(\w+) ([\d.]+)", counters)}
     result["emulator_rt"] = emu_rt
+    result["emulator_page_faults"] = {"minor": faults1[0] - faults0[0],
+                                      "major": faults1[1] - faults0[1]}
     return result
 
 

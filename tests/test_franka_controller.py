@@ -145,3 +145,24 @@ def test_the_serving_thread_is_started_by_serve_and_takes_the_callers_cpus(scene
         os.sched_setaffinity(0, old)
         served.close()
     assert seen == [{cpu}]
+
+
+@pytest.mark.parametrize("controller", [codec.MoveControllerMode.EXTERNAL_CONTROLLER,
+                                        codec.MoveControllerMode.JOINT_IMPEDANCE])
+def test_a_command_read_in_place_is_copied_when_kept(scene, controller) -> None:  # type: ignore[no-untyped-def]
+    """The server hands the controller a view of its receive buffer: the next datagram
+    written there must not change the torque or joint set-point already taken."""
+    c = Fr3SimController(SimWorld(scene, seed=0))
+    c.start_motion(codec.MoveMotionGeneratorMode.JOINT_POSITION, controller)
+    buf = bytearray(codec.ROBOT_COMMAND.itemsize)
+    rec = np.frombuffer(buf, dtype=codec.ROBOT_COMMAND, count=1)[0]
+    q0 = c.world.arm_qpos.copy()
+    rec["message_id"] = c.message_id
+    rec["tau_J_d"] = np.full(7, 0.1)
+    rec["q_c"] = q0 + 1e-4
+    c.step(rec)
+    kept = c.state().copy()
+    rec["tau_J_d"] = np.full(7, 0.3)  # the next datagram, for an older state: not taken
+    rec["q_c"] = q0 - 1e-2
+    assert kept["tau_J_d"].tolist() == c.state()["tau_J_d"].tolist()
+    assert kept["q_d"].tolist() == c.state()["q_d"].tolist()

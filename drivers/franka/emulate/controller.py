@@ -141,11 +141,11 @@ class Fr3SimController:
         if answered and self.moving and not external:
             assert command is not None
             if self._generator == codec.MotionGeneratorMode.JOINT_POSITION:
-                q_c = np.asarray(command["q_c"], dtype=np.float64)
+                q_c = np.array(command["q_c"], dtype=np.float64)  # copies: kept
                 self._dq_d = (q_c - self._q_d) / self.world.cycle_s
                 self._q_d = q_c
             else:
-                self._dq_d = np.asarray(command["dq_c"], dtype=np.float64)
+                self._dq_d = np.array(command["dq_c"], dtype=np.float64)
                 self._q_d = self._q_d + self._dq_d * self.world.cycle_s
         if answered and self.moving and external:
             assert command is not None

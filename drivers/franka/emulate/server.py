@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import select
 import socket
+import struct
 import threading
 import time
 from collections import Counter
@@ -58,6 +59,7 @@ __all__ = ["FciFaults", "FciServer"]
 
 _CYCLE_S = 0.001
 _POLL_S = 0.05
+_MESSAGE_ID = struct.Struct("<Q")  # a command's first field
 #: Cycles whose CPU cost is kept (the last ones; a preallocated ring).
 COST_WINDOW = 1 << 16
 
@@ -109,6 +111,10 @@ class FciServer:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._cmd = bytearray(codec.ROBOT_COMMAND.itemsize + 64)
+        # the received command, read in place (a view of the receive buffer)
+        self._cmd_rec: np.void = np.frombuffer(self._cmd, dtype=codec.ROBOT_COMMAND,
+                                               count=1)[0]
+        self._tcp_pending = True  # the client's TCP connection may have bytes to read
         self._cost_ns = np.zeros(COST_WINDOW, dtype=np.int64)
         self._costs = 0
 
@@ -193,6 +199,7 @@ class FciServer:
             return
         conn.setblocking(False)
         self._conn, self._client = conn, (peer[0], int(req["udp_port"]))
+        self._tcp_pending = True
 
     def _silent(self, conn: socket.socket) -> None:
         """Hold the connection without a word until the client gives up or we stop."""
@@ -208,6 +215,7 @@ class FciServer:
 
     def _read_tcp(self) -> None:
         assert self._conn is not None
+        self._tcp_pending = False
         try:
             data = self._conn.recv(65536)
         except BlockingIOError:
@@ -268,16 +276,25 @@ class FciServer:
     # ------------------------------------------------------------ UDP
     def _send_state(self) -> None:
         assert self._client is not None
-        self._udp.sendto(self.controller.state().tobytes(), self._client)
+        self._udp.sendto(self.controller.state().data, self._client)  # the record's own bytes
         self.counters["states"] += 1
 
     def _take_commands(self, timeout_s: float) -> np.void | None:
         """The command for the current state, waiting up to ``timeout_s``; older ones are
-        counted late."""
+        counted late. The record returned is a view of the receive buffer, valid until
+        the next call. The client's TCP connection is watched too: bytes there are read
+        at the next cycle's start (not every cycle looks)."""
         end = time.monotonic() + timeout_s
         want = self.controller.message_id
+        watch = [self._udp] if self._tcp_pending or self._conn is None else \
+            [self._udp, self._conn]
         while True:
-            ready, _, _ = select.select([self._udp], [], [], max(0.0, end - time.monotonic()))
+            ready, _, _ = select.select(watch, [], [], max(0.0, end - time.monotonic()))
+            if len(watch) > 1 and self._conn in ready:
+                self._tcp_pending = True
+                watch = [self._udp]
+                if self._udp not in ready:
+                    continue
             if not ready:
                 return None
             while True:
@@ -288,9 +305,8 @@ class FciServer:
                 if n != codec.ROBOT_COMMAND.itemsize:
                     self.counters["malformed"] += 1
                     continue
-                cmd = codec.decode(codec.ROBOT_COMMAND, self._cmd[:n])
-                if int(cmd["message_id"]) == want:
-                    return cmd
+                if _MESSAGE_ID.unpack_from(self._cmd)[0] == want:
+                    return self._cmd_rec
                 self.counters["late"] += 1
             if time.monotonic() >= end:
                 return None
@@ -314,7 +330,8 @@ class FciServer:
         """One cycle with a client: its TCP commands, a state, its answer, a step."""
         c = self.controller
         cpu0 = time.thread_time_ns()
-        self._read_tcp()
+        if self._tcp_pending or self.pacing == "lockstep":
+            self._read_tcp()
         if self._conn is None:
             return
         t0 = due = time.monotonic()

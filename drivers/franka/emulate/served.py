@@ -62,7 +62,9 @@ class ServedFr3:
             now = time.monotonic()
             if on_status is not None and now - last >= STATUS_PERIOD_S:
                 last = now
-                on_status(f"t={srv.world.time:7.2f} s  {srv.summary()}")
+                # the counters only: the cycles' CPU percentiles (a partition of up to
+                # 65,536 values) would hold the interpreter lock from the serving thread
+                on_status(f"t={srv.world.time:7.2f} s  {srv.summary(cost=False)}")
             time.sleep(_POLL_S)
         srv.stop()
         if srv.error is not None:

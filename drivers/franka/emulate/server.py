@@ -384,11 +384,11 @@ class FciServer:
             self._reply(codec.Command.MOVE, self._move_id, int(c.ended))
             c.ended, self._move_id = None, None
 
-    def summary(self) -> str:
-        """The counters in one line, and the cycles' CPU cost."""
-        cost = self.cycle_cpu_us()
+    def summary(self, cost: bool = True) -> str:
+        """The counters in one line, and (``cost``) the cycles' CPU cost."""
+        cost_us = self.cycle_cpu_us() if cost else {}
         return " ".join([*(f"{k} {v}" for k, v in sorted(self.counters.items())),
-                         *(f"cycle_cpu_us_{k} {v:g}" for k, v in cost.items())])
+                         *(f"cycle_cpu_us_{k} {v:g}" for k, v in cost_us.items())])
 
 
 def _recv_exact(conn: socket.socket, n: int) -> bytes:

@@ -24,8 +24,9 @@ more than a cycle late, which the client cannot count as missed) and, in the loo
 time from a state's read to its torques written; the robot's
 ``control_command_success_rate`` at the end; the emulator's counters (answered, missed
 and late commands and overruns as it counts them), its serving thread's CPU time per
-cycle (``cycle_cpu_us``: p50, p99, max) and its page faults while the client ran; and
-what ``--rt`` obtained on either side.
+cycle (``cycle_cpu_us``: p50, p99, max) and its page faults while the client ran; the
+time a hypervisor took each CPU meanwhile (``steal_ms_per_cpu``: a stall no setting in
+the guest prevents); and what ``--rt`` obtained on either side.
 Nothing here is asserted: these are measurements of this machine, as it is loaded.
 """
 
@@ -125,6 +126,16 @@ def faults(pid: int) -> tuple[int, int]:
     return int(fields[7]), int(fields[9])
 
 
+def steal_ticks() -> list[int]:
+    """Per CPU, the time the hypervisor ran something else on it (``steal`` in /proc/stat,
+    in clock ticks; empty where there is none)."""
+    try:
+        lines = Path("/proc/stat").read_text().splitlines()
+    except OSError:
+        return []
+    return [int(ln.split()[8]) for ln in lines if ln.startswith("cpu") and ln[3].isdigit()]
+
+
 def load1() -> float:
     return float(Path("/proc/loadavg").read_text().split()[0]) if Path(
         "/proc/loadavg").exists() else float("nan")
@@ -147,11 +158,13 @@ def one_run(args: argparse.Namespace) -> dict[str, object]:
             emu_rt = line.split("--rt:", 1)[1].strip()
     time.sleep(0.2)
     faults0 = faults(emu.pid)
+    steal0 = steal_ticks()
     client_rt = args.rt == "on" and args.client_rt == "on"
     res = subprocess.run([sys.executable, "-c", CLIENT, args.host, str(args.seconds),
                           "1" if args.pin else "-1", "1" if client_rt else "0"],
                          capture_output=True, text=True)
     faults1 = faults(emu.pid)
+    steal1 = steal_ticks()
     emu.terminate()
     out, _ = emu.communicate(timeout=30)
     if res.returncode != 0:
@@ -164,6 +177,9 @@ def one_run(args: argparse.Namespace) -> dict[str, object]:
     result["emulator_cycle_cpu_us"] = {m[0]: float(m[1]) for m in re.findall(
         r"cycle_cpu_us_(\w+) ([\d.]+)", counters)}
     result["emulator_rt"] = emu_rt
+    tick_ms = 1000.0 / os.sysconf("SC_CLK_TCK")
+    result["steal_ms_per_cpu"] = [round((b - a) * tick_ms)
+                                  for a, b in zip(steal0, steal1, strict=True)]
     result["emulator_page_faults"] = {"minor": faults1[0] - faults0[0],
                                       "major": faults1[1] - faults0[1]}
     return result

@@ -297,8 +297,9 @@ def test_every_help_example_runs_with_its_command(
 
 
 def _emulate(option: str, value: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    """``ffexp emulate`` for 10 cycles with nobody answering (the KRC sends to a free port
-    of the test's address): the scene it built its world from has the example's value."""
+    """``ffexp emulate`` for 0.05 s with nobody answering (the KRC sends to a free port of
+    the test's address; how many cycles that is depends on the machine's load): it ends by
+    itself, and the scene it built its world from has the example's value."""
     from emulator_process import free_udp_port
 
     import drivers.emulate.session as session
@@ -316,7 +317,7 @@ def _emulate(option: str, value: str, monkeypatch: pytest.MonkeyPatch) -> None:
              "--duration", "0.05", *_contrast(option, value), option, value]
     result = CliRunner().invoke(app, words)
     assert result.exit_code == 0, result.output
-    assert "ffexp emulate: cycles 10," in result.stderr, result.stderr
+    assert re.search(r"^ffexp emulate: cycles \d+, ", result.stderr, re.M), result.stderr
     (world,) = served
     assert _at_object(world.scene, key) == want
 

@@ -122,6 +122,8 @@ def test_every_quoted_command_parses(page: Path, line: str) -> None:
 
 
 # -- the CLI's help examples ------------------------------------------------------------
+# Here each option-value example loads through the loader its command uses (quick, and the
+# Example: lines run); tests/test_help_examples.py runs each with its command.
 _EXAMPLE = re.compile(r"(--set|--scene-set|--rig-set|--fit) ([^\s()]+)")
 _COMMAND = re.compile(r"Example: (ffexp [^\n]+)")
 

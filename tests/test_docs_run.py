@@ -364,7 +364,7 @@ def test_placeholders_are_made_in_the_page_directory(tmp_path: Path) -> None:
     (tmp_path / "runs" / "paper-20260101-000000").mkdir(parents=True)
     words = resolve(_words("ffexp calibrate RUN.mcap --fit KEY --out /tmp/x/SCENE.toml"),
                     tmp_path, rec)
-    assert words == ["calibrate", "RUN.mcap", "--fit", "target.mu=0:0.02",
+    assert words == ["calibrate", "RUN.mcap", "--fit", "target.mu=0.002:0.01",
                      "--out", str(tmp_path / "tmp/x/SCENE.toml")]
     assert (tmp_path / "RUN.mcap").read_bytes() == b"x"
     assert resolve(_words("ffexp report runs/paper-<time>"), tmp_path, rec) == \

@@ -40,7 +40,7 @@ EXIT_SIGNAL_BASE = 128
 """128 + N after signal N: 130 Ctrl-C (SIGINT), 143 SIGTERM."""
 
 #: ``--set dotted.key=value``, repeatable, on every command that takes a run protocol.
-SET_HELP = ("Override a protocol field, e.g. --set run.timeout_s=10; a scene key as "
+SET_HELP = ("Override a protocol field, e.g. --set run.timeout_s=2; a scene key as "
             "--set scene.target.lateral=0.012 (repeatable).")
 #: ``--scene-set key=value``: a scene key, on every command that runs a simulation.
 SCENE_SET_HELP = ("Override a scene key, e.g. --scene-set target.mu=0.006 (repeatable; the "

@@ -61,7 +61,7 @@ def resimulate(
 def calibrate(
     recordings: list[Path] = typer.Argument(..., help="Recordings (.mcap) to fit to."),
     fit: list[str] = typer.Option(..., "--fit", help="A scene key to fit, KEY or KEY=LO:HI "
-                                  "(repeatable), e.g. --fit target.mu=0:0.02."),
+                                  "(repeatable), e.g. --fit target.mu=0.002:0.01."),
     out: Path = typer.Option(..., "--out", help="The calibrated scene (.toml) to write; "
                              "never overwritten, never written when the fit did not "
                              "converge."),

@@ -14,8 +14,11 @@ from typing import Any
 
 import typer
 
-from ffexp.cli._common import EXIT_FAILURE, SET_HELP, cli_errors
+from ffexp.cli._common import EXIT_FAILURE, cli_errors
 
+#: A replay simulates no scene (it feeds the recorded measurements): protocol fields only.
+REPLAY_SET_HELP = ("Override a field of the protocol, e.g. --set run.timeout_s=2 (repeatable; "
+                   "the replay simulates no scene).")
 TOL_HELP = "|A-B| > max(atol, rtol max(|A|,|B|)) is a difference"
 
 
@@ -31,7 +34,7 @@ def replay(
     protocol: Path | None = typer.Option(
         None, "--protocol", help="Run protocol TOML (default: the one recorded in the run)."
     ),
-    overrides: list[str] = typer.Option([], "--set", help=SET_HELP),
+    overrides: list[str] = typer.Option([], "--set", help=REPLAY_SET_HELP),
 ) -> None:
     """Feed a run's recorded measurements, open loop, through the estimator, safety
     checks and controller of a protocol; record what it would have commanded and why.

@@ -228,7 +228,7 @@ def campaign(
     rig: Path | None = typer.Option(None, "--rig", help=RIG_HELP),
     driver: str | None = typer.Option(None, "--driver", help=DRIVER_HELP, show_default=False),
     set_: list[str] = typer.Option([], "--set", help="Override in every run's protocol, e.g. "
-                                   "--set run.timeout_s=10 (repeatable)."),
+                                   "--set run.timeout_s=2 (repeatable)."),
     scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP
                                         + " In every run."),
     rig_set: list[str] = typer.Option([], "--rig-set", help=RIG_SET_HELP),

@@ -49,9 +49,12 @@ def test_it_serves_the_duration_with_nobody_answering_and_closes_everything() ->
     assert ready == (f"KRC on 127.0.0.1:{krc_port} -> remote 127.0.0.1:{settings.remote[1]}, "
                      f"Net F/T on 127.0.0.1:{ft_port}, cycle 5 ms, realtime")
     assert settings.max_cycles == 10
-    assert stats.cycles == 10 and stats.answered == 0 and stats.missed == 10
+    # at most the duration's cycles (a loaded machine may serve fewer before the duration ends),
+    # every one sent and none answered
+    n = stats.cycles
+    assert 1 <= n <= 10 and stats.answered == 0 and stats.missed == n
     # the summary is taken at close: the KRC's last state and quality, nobody having answered
-    assert re.match(r"cycles 10, sent 10, answered 0, missed 10 ", rig.summary()), rig.summary()
+    assert re.match(rf"cycles {n}, sent {n}, answered 0, missed {n} ", rig.summary()), rig.summary()
     assert rig.summary().endswith("state MON, quality UNACCEPTABLE"), rig.summary()
     # every server is closed: their ports can be bound again
     assert _bindable(krc_port, socket.SOCK_DGRAM) and _bindable(ft_port, socket.SOCK_DGRAM)

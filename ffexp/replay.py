@@ -64,7 +64,12 @@ from ffexp.controllers import REGISTRY
 from ffexp.diff import within
 from ffexp.errors import ConfigError, InputError
 from ffexp.loop import Cycle
-from ffexp.protocol import RunProtocol, load_run_protocol
+from ffexp.protocol import (
+    RunProtocol,
+    load_run_protocol,
+    split_scene_overrides,
+    with_scene_overrides,
+)
 from ffexp.recording import Recorder, Recording, TopicData, load
 from ffexp.recording.reader import contents
 
@@ -151,7 +156,9 @@ class ReplayResult:
 
 def recorded_protocol(rec: Recording, overrides: Sequence[str] = ()) -> RunProtocol:
     """The protocol the recording was made with (metadata ``run.protocol_json``),
-    with ``--set`` overrides; errors name the recording and the field."""
+    with ``--set`` overrides (a scene key as ``scene.target.lateral=0.012``, as
+    :func:`~ffexp.protocol.load_run_protocol` takes it); errors name the recording and
+    the field."""
     source = f"{rec.path} (recorded protocol)"
     text = rec.metadata.get("run", {}).get("protocol_json")
     if not text:
@@ -164,7 +171,9 @@ def recorded_protocol(rec: Recording, overrides: Sequence[str] = ()) -> RunProto
     if not isinstance(data, dict):
         raise InputError(f"{rec.path}: metadata run.protocol_json is not a JSON object")
     try:
-        return validate(RunProtocol, apply_overrides(data, overrides), source)
+        own, scene = split_scene_overrides(overrides)
+        return validate(RunProtocol, with_scene_overrides(apply_overrides(data, own), scene),
+                        source)
     except ConfigError as exc:  # name the field as written (align.k_ri, not align.force.k_ri)
         parts = exc.field.split(".")
         if len(parts) >= 2 and parts[0] == "align" and parts[1] in REGISTRY:

@@ -248,3 +248,16 @@ def test_replay_says_the_verdict_it_computed_not_the_recorded_one(run: Path, tmp
     assert line.startswith("replayed run: DONE ") or line.startswith("replayed run: ABORT ")
     assert "the commands are the recorded ones up to it" in line
     assert metrics(load(tmp_path / "same.mcap")).verdict != "unknown"
+
+
+def test_the_recorded_protocol_takes_scene_keys_as_a_run_protocol_does(run: Path) -> None:
+    """``--set scene.KEY=V`` on a replay without ``--protocol`` reaches the protocol's
+    ``[scene] set`` as ``ffexp run`` takes it (it answered ``scene.target: unknown key``)."""
+    from ffexp.protocol import load_run_protocol
+    from ffexp.replay import recorded_protocol
+
+    form = "scene.target.lateral=0.02"
+    recorded = recorded_protocol(load(run, []), [form, "run.timeout_s=3"])
+    as_run = load_run_protocol(PROTOCOL, ["run.timeout_s=4.2", form])
+    assert recorded.scene.set[-1] == as_run.scene.set[-1] == "target.lateral=0.02"
+    assert recorded.run.timeout_s == 3.0

@@ -48,6 +48,7 @@ def serve(host: str, out: str) -> None:
             return dict(values)
 
         server.source = recorded
+        server.serve_in_thread()  # as the rig's serve() would start it
         print("ready", flush=True)
         sys.stdin.read()
     np.savez(out, **{name: np.array(v) for name, v in rows.items()})

@@ -4,6 +4,7 @@ rigs/ur5e-sim.toml."""
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -234,15 +235,22 @@ def test_the_emulated_rigs_disconnect_fault_ends_the_ur_driver_naming_the_addres
     with EmulatedRig(settings) as rig:
         assert rig.served is not None
         port = rig.served.address[1]
-        robot = UrRobot(UrSettings(robot_ip="127.0.0.1", rtde_port=port, script="installed",
-                                   cycle_timeout_s=5.0))
-        robot.connect()
-        seen = 0
-        with pytest.raises(LinkLostError, match=rf"127\.0\.0\.1:{port}"):
-            for state in robot.measurements():
-                seen += 1
-                robot.send(CartesianCommand(pose_m=state.tcp_pose_m.copy()))
-        robot.close()
+        done = threading.Event()  # the rig serves in its own thread, as ffexp emulate's
+        server = threading.Thread(target=rig.serve, args=(done.is_set,), daemon=True)
+        server.start()
+        try:
+            robot = UrRobot(UrSettings(robot_ip="127.0.0.1", rtde_port=port,
+                                       script="installed", cycle_timeout_s=5.0))
+            robot.connect()
+            seen = 0
+            with pytest.raises(LinkLostError, match=rf"127\.0\.0\.1:{port}"):
+                for state in robot.measurements():
+                    seen += 1
+                    robot.send(CartesianCommand(pose_m=state.tcp_pose_m.copy()))
+            robot.close()
+        finally:
+            done.set()
+            server.join(10.0)
     assert seen == 20
 
 

@@ -179,9 +179,10 @@ class RtdeServer:
         """The bound (host, port); the port is the real one when 0 was asked for."""
         return self.host, self.port
 
-    def start(self) -> RtdeServer:
+    def start(self, thread: bool = True) -> RtdeServer:
         """Bind and listen (:class:`~drivers.errors.AddressError` naming the address),
-        then serve in a daemon thread."""
+        then serve in a daemon thread (``thread=False``: only when :meth:`serve_in_thread`
+        is called, from the thread whose scheduling, e.g. ``--rt``, it should take)."""
         sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         try:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -193,9 +194,17 @@ class RtdeServer:
                                f"cannot listen for RTDE: {exc.strerror or exc}") from None
         self.port = sock.getsockname()[1]
         self._listener = sock
-        self._thread = threading.Thread(target=self._serve, name="rtde-server", daemon=True)
-        self._thread.start()
+        if thread:
+            self.serve_in_thread()
         return self
+
+    def serve_in_thread(self) -> None:
+        """Serve in a daemon thread, once. On Linux a new thread takes its creator's
+        scheduling policy and CPU set, so the caller's real-time settings carry over."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._serve, name="rtde-server",
+                                            daemon=True)
+            self._thread.start()
 
     def close(self) -> None:
         """Stop serving and close every connection."""

@@ -1,9 +1,11 @@
 """The UR controller as :class:`~drivers.emulate.session.EmulatedRig` serves it (``--robot
 ur5e``): :func:`serve`, the family's :class:`~drivers.base.backend.Emulator` ``serve``.
 
-The RTDE server listens on ``settings.listen`` (default 127.0.0.1:30004) and runs in its
-own thread; :meth:`ServedUr.serve` waits for it. Faults: ``faults.loss`` and
-``faults.delay_s`` of the output packages, and the family's ``disconnect_after``
+The RTDE server listens on ``settings.listen`` (default 127.0.0.1:30004) as the rig opens
+and serves in its own thread, started by :meth:`ServedUr.serve` (so under ``ffexp emulate
+--rt`` it takes the real-time policy and the pinned CPU), which waits for it. Faults:
+``faults.loss`` and ``faults.delay_s`` of the output packages, and the family's
+``disconnect_after``
 (:class:`~drivers.ur.emulate.rtde_server.RtdeFaults`).
 """
 
@@ -83,5 +85,5 @@ def serve(world: SimWorld, settings: EmulatedRigSettings,
     host, port = s.listen or EMULATOR.listen or ("127.0.0.1", 30004)
     emulator = UrEmulator(world, host, port, pacing=s.pacing,
                           lockstep_timeout_s=s.lockstep_timeout_s, faults=faults,
-                          where=s.fields.listen).start()
+                          where=s.fields.listen).start(thread=False)
     return ServedUr(emulator)

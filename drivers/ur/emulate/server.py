@@ -86,9 +86,10 @@ class UrEmulator:
         """Where it listens (the real port when 0 was asked for)."""
         return self.server.address
 
-    def start(self) -> UrEmulator:
-        """Listen (an :class:`~drivers.errors.AddressError` naming the address) and serve."""
-        self.server.start()
+    def start(self, thread: bool = True) -> UrEmulator:
+        """Listen (an :class:`~drivers.errors.AddressError` naming the address) and serve
+        (``thread=False``: from the first :meth:`run`, in a thread its caller starts)."""
+        self.server.start(thread)
         return self
 
     def stop(self) -> None:
@@ -108,6 +109,7 @@ class UrEmulator:
         while a client streams: without one, no simulated time passes), :meth:`stop` or
         the server's error (re-raised here)."""
         end = None if max_wall_s is None else time.monotonic() + max_wall_s
+        self.server.serve_in_thread()
         while not self._stop:
             if self.server.error is not None:
                 raise self.server.error

@@ -5,9 +5,10 @@ messages at one log time) writes the very same bytes as mcap's own (record,
 chunk index, message index, statistics) with one ``struct.pack`` per message
 instead of mcap's field-by-field record writer, and hands a whole chunk's
 messages to mcap's chunk builder at once; :meth:`FastWriter.add_fixed` frames a
-run of same-sized messages of one channel (numpy records) in one numpy array. A full zstd chunk is compressed in a
-worker thread while the next one fills. It uses the ``Writer``'s private chunk
-builder, statistics and record builder; if a future mcap lacks them, it falls
+run of same-sized messages of one channel (numpy records) in one numpy array.
+A full zstd chunk is compressed in a worker thread while the next one fills. It
+uses the ``Writer``'s private chunk builder, statistics and record builder; if a
+future mcap lacks them, it falls
 back to mcap's own ways (``tests/test_recording_writer.py`` checks that both
 write identical files).
 """

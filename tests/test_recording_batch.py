@@ -145,6 +145,8 @@ def test_each_runs_file_equals_the_run_written_alone(tmp_path: Path, lean: bool)
 
 def test_lean_topics_are_what_analysis_reads() -> None:
     assert lean_topic("/estimator/state") and lean_topic("/control/terms")
-    assert lean_topic("/sim/body/target")  # a member of a kept family
     assert not lean_topic("/ft/raw") and not lean_topic("/tf")
     assert not lean_topic("/robot/measurement")
+    # the truth's topics, under the prefix its back-end gives them
+    assert lean_topic("/sim/body/target", "/sim") and lean_topic("/sim/truth", "/sim/")
+    assert not lean_topic("/sim/body/target") and not lean_topic("/simulated", "/sim")

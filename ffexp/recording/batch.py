@@ -16,8 +16,8 @@ same order, as the run made alone). A run that leaves the batch (aligned, aborte
 failed) is finished alone (:meth:`BatchRecorder.finish_run`); the others go on.
 
 A study may ask for lean recordings: only :data:`LEAN_TOPICS` (what the metrics,
-the outcome and the tables read) are written, and every file says so in its
-``recording`` metadata (``lean``, ``topics``).
+the outcome and the tables read) and the ground truth's topics are written, and
+every file says so in its ``recording`` metadata (``lean``, ``topics``).
 """
 
 from __future__ import annotations
@@ -34,24 +34,23 @@ from ffexp.recording.topics import CDR_TOPICS
 
 __all__ = ["LEAN_TOPICS", "BatchEncoder", "BatchRecorder", "lean_topic"]
 
-#: The topics a lean recording keeps (a name ending in ``/*`` stands for its family):
-#: the per-cycle series of :func:`ffexp.analysis.series` and the run's truth and
-#: scenario measures the outcome reads, beside the low-rate JSON topics (events,
-#: phases, verdicts, the frames fixed on a body). Left out: the F/T samples, the
+#: The topics a lean recording keeps: the per-cycle series of
+#: :func:`ffexp.analysis.series`, the robot's state and the scenario's measures, beside
+#: the low-rate JSON topics (events, phases, verdicts, tracker observations). A lean
+#: recording also keeps the ground truth's topics, whichever back-end writes them (the
+#: topics under its ``GroundTruth.topic_prefix``). Left out: the F/T samples, the
 #: back-end's wire messages, the commands, ``/tf`` and the 3-D scene.
 LEAN_TOPICS: frozenset[str] = frozenset({
-    "/estimator/state", "/control/terms", "/robot/state", "/task/funnel", "/sim/truth",
-    "/sim/body/*", "/sim/attached", "/events", "/runner/phase", "/alignment/verdict",
-    "/target/pose",
+    "/estimator/state", "/control/terms", "/robot/state", "/task/funnel", "/events",
+    "/runner/phase", "/alignment/verdict", "/target/pose",
 })
 
 
-def lean_topic(topic: str) -> bool:
-    """Whether a lean recording keeps ``topic`` (:data:`LEAN_TOPICS`)."""
-    if topic in LEAN_TOPICS:
-        return True
-    head, _, name = topic.rpartition("/")
-    return bool(name) and f"{head}/*" in LEAN_TOPICS
+def lean_topic(topic: str, truth_prefix: str | None = None) -> bool:
+    """Whether a lean recording keeps ``topic`` (:data:`LEAN_TOPICS`, and the ground
+    truth's topics under ``truth_prefix`` when the runs have a truth)."""
+    return topic in LEAN_TOPICS or (truth_prefix is not None
+                                    and topic.startswith(truth_prefix.rstrip("/") + "/"))
 
 
 class BatchEncoder:
@@ -115,14 +114,19 @@ class BatchRecorder:
 
     Args:
         recorders: each run's open recording, in the batch's run order.
-        lean: write only :data:`LEAN_TOPICS` (said in each file's ``recording``
-            metadata).
+        lean: write only :data:`LEAN_TOPICS` and the truth's topics (said in each
+            file's ``recording`` metadata).
+        truth_prefix: the ground truth's topic prefix (``GroundTruth.topic_prefix``)
+            when the runs have a truth.
     """
 
-    def __init__(self, recorders: Sequence[Recorder], *, lean: bool = False) -> None:
+    def __init__(self, recorders: Sequence[Recorder], *, lean: bool = False,
+                 truth_prefix: str | None = None) -> None:
         self.recorders: list[Recorder | None] = list(recorders)
         self.lean = lean
-        kept = sorted(LEAN_TOPICS) if lean else ["*"]
+        self.truth_prefix = truth_prefix
+        kept = [*sorted(LEAN_TOPICS), *([f"{truth_prefix.rstrip('/')}/*"] if truth_prefix
+                                        else [])] if lean else ["*"]
         for rec in recorders:
             rec.metadata("recording", {"lean": "true" if lean else "false",
                                        "topics": ",".join(kept)})
@@ -138,7 +142,7 @@ class BatchRecorder:
 
     def keeps(self, topic: str) -> bool:
         """Whether this batch's recordings write ``topic``."""
-        return not self.lean or lean_topic(topic)
+        return not self.lean or lean_topic(topic, self.truth_prefix)
 
     def encoder(self, topic: str) -> BatchEncoder:
         """A new :class:`BatchEncoder` of ``topic`` for this batch's runs."""

@@ -92,7 +92,7 @@ def test_motion_filter_batch_gives_each_run_its_numbers_alone() -> None:
             assert batch.accel_linear_views[i].tobytes() == mf.accel_linear_view.tobytes()
     assert batch.gain_period > 0  # the repeating gain was reached and used
     for i, mf in enumerate(alone):
-        assert batch._x[i].tobytes() == mf._x[0].tobytes()
+        assert batch._x[6 * i:6 * i + 6].tobytes() == mf._x.tobytes()
     with pytest.raises(ValueError, match="at least one run"):
         MotionFilter(MotionFilterConfig(), 0.005, runs=0)
 

@@ -1,6 +1,7 @@
 """A study's throughput today against the bare batched physics of the very same runs.
 
     python benchmarks/bench_study.py [--runs R] [--seconds S] [--workers N] [--repeats K]
+    python benchmarks/bench_study.py --recording [--runs R]
 
 The study: R runs of the paper's methods (Method I case I and II, Method II,
 Method III; the protocols in turn, one noise seed each), ``run.timeout_s=S``.
@@ -28,6 +29,11 @@ medians, the pool's throughput as a fraction of the bare batched physics (the
 issue's target for a batched pipeline is at least 0.7 of it), and the largest
 joint-position difference between a replayed run and the recorded one at its
 end (0 when the replay is the runs' physics bit for bit, as it is here).
+
+``--recording`` measures only the recording's cost per run and cycle for R runs,
+on a paper run's own messages: the fixed-layout topics encoded one run at a time
+against :class:`ffexp.recording.batch.BatchEncoder` for the batch at once, and each
+run's cycle written to its own file, all topics or a lean recording's.
 """
 
 from __future__ import annotations
@@ -243,13 +249,109 @@ def pool(workers: int) -> Callable[[Path, list[Job]], float]:
     return run
 
 
+def capture_cycles(tmp: Path, seconds: float = 3.0) -> list[list[tuple[str, bytes]]]:
+    """A paper run's recorded cycles (Method I case I): per cycle its F/T samples'
+    messages and then its topics', as the run log writes them."""
+    import ffexp.experiment as experiment
+    from ffexp.recording import Recorder
+
+    cycles: list[list[tuple[str, bytes]]] = []
+    pending: list[tuple[str, bytes]] = []
+
+    class Capturing(Recorder):
+        def write_series(self, topic: str, times_ns: list[int], datas: list[bytes]) -> None:
+            pending.extend((topic, d) for d in datas)
+            super().write_series(topic, times_ns, datas)
+
+        def write_batch(self, time_ns: int, messages: list[tuple[str, bytes]]) -> None:
+            cycles.append([*pending, *messages])
+            pending.clear()
+            super().write_batch(time_ns, messages)
+
+    names = vars(experiment)  # the recorder run_file opens
+    bare = names["Recorder"]
+    names["Recorder"] = Capturing
+    try:
+        run_file(ROOT / "protocols/method1_case1.toml",
+                 [f"run.timeout_s={seconds}", "run.stop_hold_s=0"], out_dir=tmp)
+    finally:
+        names["Recorder"] = bare
+    return cycles
+
+
+def recording_costs(runs: int, cycles: int, tmp: Path) -> None:
+    """Per run and cycle: the fixed-layout topics encoded one run at a time (an encoder
+    call per run and topic, as a run alone) against the batch's
+    :class:`~ffexp.recording.batch.BatchEncoder` (an assignment per field for all the
+    runs), and each run's cycle written to its own file (framing, chunks), all topics
+    or a lean recording's. Thread CPU time; the runs' messages are a real run's."""
+    from types import SimpleNamespace
+
+    from ffexp.recording import Recorder
+    from ffexp.recording.batch import BatchEncoder, lean_topic
+    from ffexp.recording.topics import CDR_TOPICS
+
+    recorded = capture_cycles(tmp / "capture")[-cycles:]
+    per_cycle = recorded[-1]
+    fixed = [(t, d) for t, d in per_cycle if t in CDR_TOPICS and t != "/ft/raw"]
+    decoded = [(t, np.frombuffer(d, dtype=CDR_TOPICS[t].spec.dtype)[0]) for t, d in fixed]
+    sources = [(t, SimpleNamespace(**{f.name: (rec[f.name].reshape(-1).copy() if f.count > 1
+                                                else rec[f.name].item())
+                                      for f in CDR_TOPICS[t].spec.fields}))
+               for t, rec in decoded]
+    clock = time.thread_time_ns
+    with Recorder(tmp / "enc.mcap") as rec:
+        t0 = clock()
+        for _ in range(cycles):
+            for _ in range(runs):
+                for topic, src in sources:
+                    rec.encode_fields(topic, src)
+        alone_us = (clock() - t0) / 1e3 / (cycles * runs)
+    arrays = [(topic, [(f.name, np.stack([np.asarray(getattr(src, f.name))] * runs))
+                       for f in CDR_TOPICS[topic].spec.fields]) for topic, src in sources]
+    encoders = {topic: BatchEncoder(topic, runs) for topic, _ in sources}
+    t0 = clock()
+    for _ in range(cycles):
+        for topic, fields in arrays:
+            enc = encoders[topic]
+            for name, values in fields:
+                enc.set(name, values)
+            enc.messages()
+    batch_us = (clock() - t0) / 1e3 / (cycles * runs)
+    write_us = {}
+    for lean in (False, True):
+        recs = [Recorder(tmp / f"w{lean}{i}.mcap") for i in range(runs)]
+        kept = [[(t, d) for t, d in c if not lean or lean_topic(t)] for c in recorded]
+        t0 = clock()
+        for k, msgs in enumerate(kept):
+            for r in recs:
+                r.write_batch(1_000_000_000 + 5_000_000 * k, msgs)
+        write_us[lean] = (clock() - t0) / 1e3 / (len(kept) * runs)
+        for r in recs:
+            r.finish()
+    n_full = len(per_cycle)
+    n_lean = sum(lean_topic(t) for t, _ in per_cycle)
+    print(f"recording per run and cycle ({runs} runs, {len(recorded)} cycles of a paper run; "
+          f"thread CPU time):")
+    print(f"  {len(sources)} fixed-layout topics encoded run by run   {alone_us:6.1f} us")
+    print(f"  the same for the batch at once (BatchEncoder)  {batch_us:6.1f} us")
+    print(f"  written to the run's file, {n_full} messages       {write_us[False]:6.1f} us")
+    print(f"  written, lean ({n_lean} messages)                 {write_us[True]:6.1f} us")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=64)
     ap.add_argument("--seconds", type=float, default=8.0, help="run.timeout_s of each run")
     ap.add_argument("--workers", type=int, default=available_cpus())
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--recording", action="store_true",
+                    help="only the recording's cost per run and cycle, alone and batched")
     args = ap.parse_args()
+    if args.recording:
+        with tempfile.TemporaryDirectory(prefix="bench_study_") as tmp_name:
+            recording_costs(args.runs, 400, Path(tmp_name))
+        return
     warm_worker()
     load0 = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="bench_study_") as tmp_name:

@@ -63,6 +63,39 @@ def test_missing_samples_only_grow_uncertainty() -> None:
     np.testing.assert_allclose(wf.wrench, w0)
 
 
+
+def test_motion_filter_batch_gives_each_run_its_numbers_alone() -> None:
+    """Runs stepped together (one filter with a run axis) get, bit for bit, the states,
+    twists and accelerations each gets alone, through the gain's repeating cycle; the
+    runs move differently (translation, turning about different axes, one at rest)."""
+    runs, cycles = 4, 400
+    rng = np.random.default_rng(3)
+    velocity = rng.normal(size=(runs, 3)) * 0.05
+    axes = Rotation.random(runs, random_state=4).as_rotvec()
+    axes[2] = 0.0  # one run does not turn
+    start = Rotation.random(runs, random_state=5)
+    poses = np.zeros((cycles, runs, 4, 4))
+    for k in range(cycles):
+        t = k * 0.005
+        turn = Rotation.from_rotvec(axes * (0.4 * t + 0.1 * np.sin(7 * t))) * start
+        poses[k, :, :3, :3] = turn.as_matrix()
+        poses[k, :, :3, 3] = velocity * t + 0.002 * rng.normal(size=(runs, 3))
+        poses[k, :, 3, 3] = 1.0
+    batch = MotionFilter(MotionFilterConfig(), 0.005, runs=runs)
+    alone = [MotionFilter(MotionFilterConfig(), 0.005) for _ in range(runs)]
+    for k in range(cycles):
+        batch.update_batch(poses[k])
+        twists = batch.twist_tcf_batch(poses[k])
+        for i, mf in enumerate(alone):
+            mf.update(poses[k, i])
+            assert twists[i].tobytes() == mf.twist_tcf(poses[k, i]).tobytes(), (k, i)
+            assert batch.accel_linear_views[i].tobytes() == mf.accel_linear_view.tobytes()
+    assert batch.gain_period > 0  # the repeating gain was reached and used
+    for i, mf in enumerate(alone):
+        assert batch._x[6 * i:6 * i + 6].tobytes() == mf._x.tobytes()
+    with pytest.raises(ValueError, match="at least one run"):
+        MotionFilter(MotionFilterConfig(), 0.005, runs=0)
+
 def test_motion_filter_velocity_and_rate() -> None:
     mf = MotionFilter(MotionFilterConfig(), 0.005)
     v = np.array([0.05, -0.02, 0.1])

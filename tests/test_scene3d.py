@@ -190,6 +190,38 @@ def test_link_rows_are_the_link_transforms_bit_for_bit() -> None:
         assert np.array(link_rows(q)).tobytes() == np.array(link_transforms(q)).tobytes()
 
 
+
+@pytest.mark.parametrize("arm_name", ["LWR4", "UR5E"])
+def test_link_transforms_messages_are_encode_transform_of_link_rows(tmp_path: Path,
+                                                                     arm_name: str) -> None:
+    """The links' /tf messages written out are byte for byte the general encoding of the
+    links' rows, on both branches of the quaternion (joints beyond 120 deg), at zero and
+    at +-pi, with and without a base, and the general way for a DH arm."""
+    import drivers.description as desc
+    from ffexp.recording import Recorder
+    from ffexp.scene3d.kinematics import link_frames, link_rows
+    from ffexp.scene3d.linktf import LinkTransforms
+
+    arm = getattr(desc, arm_name)
+    rng = np.random.default_rng(5)
+    frames = link_frames(arm)
+    with Recorder(tmp_path / "tf.mcap") as rec:
+        for base in (None, np.eye(4)):
+            if base is not None:
+                base[:3, 3] = (0.1, -0.2, 0.05)
+            links = LinkTransforms(arm, base, frames, rec.encode_transform)
+            for k in range(400):
+                q = rng.uniform(-math.pi, math.pi, arm.joints)
+                q[k % arm.joints] = (0.0, -0.0, math.pi, -math.pi, 2.5, -2.2)[k % 6]
+                log_ns = 1_700_000_000_123_456_789 + 20_000_000 * k
+                want = [rec.encode_transform(log_ns, parent, frame, rows) for parent, frame, rows
+                        in zip(("base", *frames[:-1]), frames, link_rows(q, base, arm),
+                               strict=True)]
+                assert links.messages(log_ns, q) == want
+            with pytest.raises(ValueError, match="not finite"):
+                links.messages(0, np.full(arm.joints, np.nan))
+
+
 def test_a_dh_arms_links_are_its_descriptions_joint_transforms() -> None:
     from drivers.description import UR5E
     from ffexp.scene3d.kinematics import link_rows

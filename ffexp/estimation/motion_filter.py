@@ -29,7 +29,8 @@ _GAIN_WATCH_CYCLES = 2000
 
 
 class MotionFilter:
-    """Velocity and acceleration of the tool from its pose (base frame).
+    """Velocity and acceleration of the tool from its pose (base frame), for ``runs``
+    runs at once (arrays with the run axis first; a single run is a batch of one).
 
     Six independent constant-acceleration filters (x, y, z and the three
     components of the accumulated rotation vector), run side by side: the
@@ -43,26 +44,39 @@ class MotionFilter:
     after about 100 cycles, of 57 cycles): once the covariance after an update
     equals an earlier one bit for bit, every later covariance and gain is the
     one computed that many cycles before, so they are taken from that cycle
-    instead of computed (exact: the same bits as computing them).
+    instead of computed (exact: the same bits as computing them). So the runs of
+    a batch, which share the filter's settings and cycle, share one gain; each
+    run's state is its own six rows (one array of ``6 N`` rows: a single run's
+    arrays and operations are the single filter's), and a run's numbers are those
+    it gets alone (``tests/test_estimation.py``).
     """
 
-    def __init__(self, config: MotionFilterConfig, cycle_s: float) -> None:
+    def __init__(self, config: MotionFilterConfig, cycle_s: float, runs: int = 1) -> None:
+        if runs < 1:
+            raise ValueError(f"a motion filter needs at least one run, not {runs}")
         self.config = config
         self.cycle_s = cycle_s
+        self.runs = runs
         self._f1 = np.array([[1.0, cycle_s, 0.5 * cycle_s**2], [0.0, 1.0, cycle_s],
                              [0.0, 0.0, 1.0]])
         self._f1_t = self._f1.T.copy()
         self._q1 = Q_discrete_white_noise(dim=3, dt=cycle_s, var=config.accel_walk**2 * cycle_s)
         noise = [config.position_noise_m] * 3 + [config.rotation_noise_rad] * 3
         self._r = np.square(np.asarray(noise, dtype=np.float64))
-        self._x = np.zeros((6, 3))  # per axis: value, rate, acceleration
-        self._p = np.tile(np.eye(3) * 1e-2, (6, 1, 1))
-        self._z = np.zeros(6)
+        # per run and axis (run i's six axes are rows 6i to 6i + 5, so that one run's
+        # arrays are exactly the single filter's): value, rate, acceleration
+        self._x = np.zeros((6 * runs, 3))
+        self._p = np.tile(np.eye(3) * 1e-2, (6, 1, 1))  # shared by the runs
+        self._z = np.zeros(6 * runs)
+        self._z_rows = self._z.reshape(runs, 6)  # a view: a run's measurement per row
         self._quat = np.zeros(4)
         self._rotvec = np.zeros(3)
-        self._rot_prev = np.zeros((3, 3))  # the last cycle's rotation (once _started)
+        self._rot_prev = np.zeros((runs, 3, 3))  # each run's last rotation (once started)
         self._started = False
-        self._theta = self._z[3:]  # the accumulated rotation vector: z's own entries
+        self._theta = self._z_rows[:, 3:]  # the accumulated rotation vectors: z's own entries
+        # per run: views of its row (made once, not per cycle)
+        self._prev_rows = tuple(self._rot_prev)
+        self._theta_rows = tuple(self._theta)
         # the covariance and gain do not depend on the measurements: once the
         # covariance repeats bit for bit, its later values (and the gains) repeat too
         self._watch: dict[bytes, int] | None = {}  # covariance bytes: cycle seen
@@ -72,33 +86,49 @@ class MotionFilter:
         self._at = 0  # the next cycle's place in it
 
     def update(self, pose: F64) -> None:
-        """One cycle with the measured 4x4 tool pose (base frame)."""
-        r = pose[:3, :3]
+        """One cycle of a single run with its measured 4x4 tool pose (base frame)."""
+        self._step(pose[:3, 3], (pose[:3, :3],))
+
+    def update_batch(self, poses: F64) -> None:
+        """One cycle of every run, with the runs' measured 4x4 tool poses ``(N, 4, 4)``
+        (base frame)."""
+        self._step(poses[:, :3, 3], tuple(poses[:, :3, :3]))
+
+    def _step(self, positions: F64, rotations: tuple[F64, ...]) -> None:
+        """One cycle of every run: the tool positions ``(N, 3)`` (a single run's ``(3,)``)
+        and rotations (N 3x3)."""
         z = self._z
+        prev = self._prev_rows
         if not self._started:
             self._started = True
             self._x[:] = 0.0
-            self._x[:3, 0] = pose[:3, 3]
-            self._x[3:, 0] = self._theta
+            values = self._x[:, 0].reshape(self.runs, 6)  # a view
+            values[:, :3] = positions
+            values[:, 3:] = self._theta
         else:
-            # accumulate the incremental rotation, in the base frame (into z[3:])
-            mujoco.mju_mat2Quat(self._quat, (self._rot_prev.T @ r).ravel())
-            mujoco.mju_quat2Vel(self._rotvec, self._quat, 1.0)  # its rotation vector
-            self._theta += self._rot_prev @ self._rotvec
-        self._rot_prev[...] = r
-        z[:3] = pose[:3, 3]
+            # accumulate each run's incremental rotation, in the base frame (into z[:, 3:])
+            quat, rotvec = self._quat, self._rotvec
+            for r, p, theta in zip(rotations, prev, self._theta_rows, strict=True):
+                mujoco.mju_mat2Quat(quat, (p.T @ r).ravel())
+                mujoco.mju_quat2Vel(rotvec, quat, 1.0)  # its rotation vector
+                theta += p @ rotvec
+        for r, p in zip(rotations, prev, strict=True):
+            p[...] = r
+        self._z_rows[:, :3] = positions
         # predict
         x = self._x @ self._f1_t
         cycle = self._cycle
         if cycle:  # the covariance repeats: its gain and covariance as computed before
-            k, p = cycle[self._at]
+            k, p_next = cycle[self._at]
             self._at = (self._at + 1) % len(cycle)
         else:
-            k, p = self._gain()
+            k, p_next = self._gain()
+        if self.runs > 1:  # the shared gain, for every run's rows
+            k = np.tile(k, (self.runs, 1))
         # update with the value of each axis
         x += k * (z - x[:, 0])[:, None]
         self._x = x
-        self._p = p
+        self._p = p_next
 
     def _gain(self) -> tuple[F64, F64]:
         """The gain of this cycle and the covariance after its update, computed; once
@@ -133,26 +163,39 @@ class MotionFilter:
 
     @property
     def twist_base(self) -> F64:
-        """[vx, vy, vz, wx, wy, wz] in the base frame."""
-        return self._x[:, 1].copy()
+        """[vx, vy, vz, wx, wy, wz] in the base frame (of the first run)."""
+        return self._x[:6, 1].copy()
 
     @property
     def accel_base(self) -> F64:
-        """Linear and angular acceleration in the base frame."""
-        return self._x[:, 2].copy()
+        """Linear and angular acceleration in the base frame (of the first run)."""
+        return self._x[:6, 2].copy()
 
     @property
     def accel_linear_view(self) -> F64:
         """The linear part of :attr:`accel_base`, a view of the state (do not modify)."""
         return self._x[:3, 2]
 
+    @property
+    def accel_linear_views(self) -> F64:
+        """Every run's :attr:`accel_linear_view`, ``(N, 3)`` (a view: do not modify)."""
+        return self._x[:, 2].reshape(self.runs, 6)[:, :3]
+
     def twist_tcf(self, pose: F64) -> F64:
-        """The twist expressed in the tool frame of ``pose``."""
+        """The twist expressed in the tool frame of ``pose`` (a single run: the first)."""
         r = pose[:3, :3]
-        v = self._x[:, 1]
+        v = self._x[:6, 1]
         out = np.empty(6)
         out[:3] = v[:3] @ r
         out[3:] = v[3:] @ r
         return out
 
-
+    def twist_tcf_batch(self, poses: F64) -> F64:
+        """Each run's twist in the tool frame of its pose, ``(N, 6)``: per run the
+        products of :meth:`twist_tcf` (the same bits)."""
+        r = poses[:, :3, :3]
+        v = self._x[:, 1].reshape(self.runs, 1, 6)
+        out = np.empty((self.runs, 6))
+        out[:, :3] = np.matmul(v[:, :, :3], r)[:, 0]
+        out[:, 3:] = np.matmul(v[:, :, 3:], r)[:, 0]
+        return out

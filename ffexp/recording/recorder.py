@@ -301,27 +301,29 @@ class Recorder:
         return names
 
     def write_records(self, topic: str, times_ns: np.ndarray, records: np.ndarray) -> None:
-        """Write many messages of one CDR topic (e.g. all F/T samples of a cycle)."""
-        size = records.dtype.itemsize
-        blob = records.tobytes()
-        times = times_ns.tolist()
-        if not times:
+        """Write many messages of one CDR topic (e.g. all F/T samples of a cycle): the
+        rows of ``records`` (numpy records of the topic's layout, their bytes the
+        messages) at ``times_ns``, framed for the file in one go
+        (:meth:`FastWriter.add_fixed <ffexp.recording.mcap_writer.FastWriter.add_fixed>`)."""
+        n = len(times_ns)
+        if not n:
             return
-        if min(times) < 0:
-            raise ValueError(f"{topic}: negative log time {min(times)} ns")
+        times = np.asarray(times_ns, dtype=np.int64)
+        if int(times.min()) < 0:
+            raise ValueError(f"{topic}: negative log time {int(times.min())} ns")
         ch = self._channels.get(topic)
         if ch is None:
             ch = self._channel(topic)
-        cid, seq = ch
-        add = self._add_message
-        taps = self.taps
-        for i, t in enumerate(times):
-            msg = blob[i * size : (i + 1) * size]
-            add(cid, t, msg, t, seq + i)
-            for tap in taps:
-                tap(topic, t, msg)
-        ch[1] = seq + len(times)
-        self.message_count += len(times)
+        seq = ch[1]
+        ch[1] = seq + n
+        self._writer.add_fixed(ch[0], times, seq, records)
+        self.message_count += n
+        if self.taps:
+            blob, size = records.tobytes(), records.dtype.itemsize
+            for i, t in enumerate(times.tolist()):
+                msg = blob[i * size:(i + 1) * size]
+                for tap in self.taps:
+                    tap(topic, t, msg)
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
 

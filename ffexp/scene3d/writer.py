@@ -12,7 +12,8 @@ is drawn too, as a ghost). Then it writes
   and every ``scene_period_s`` of log time;
 - ``/tf``: ``link1`` .. ``link{n}`` of the scene's arm from the joint
   positions by forward kinematics (:mod:`ffexp.scene3d.kinematics`), each in
-  its parent, every ``tf_period_s`` (the run log's ``/tf`` period), when the
+  its parent (:class:`~ffexp.scene3d.linktf.LinkTransforms`), every ``tf_period_s``
+  (the run log's ``/tf`` period), when the
   robot reports as many joints as that arm has.
 """
 
@@ -25,7 +26,8 @@ from drivers.description import Layout, Scene, compute_layout
 from ffexp.recording import Recorder
 from ffexp.recording.topics.target import TRACKED_FRAME
 from ffexp.scene3d.entities import scene_update
-from ffexp.scene3d.kinematics import base_pose, link_frames, link_rows, translation
+from ffexp.scene3d.kinematics import base_pose, link_frames, translation
+from ffexp.scene3d.linktf import LinkTransforms
 
 __all__ = ["NOMINAL_FRAME", "SCENE_TOPIC", "TRUTH_FRAME", "SceneWriter"]
 
@@ -55,6 +57,7 @@ class SceneWriter:
         self.base = base_pose(scene)
         self.arm = scene.arm.description
         self.frames = link_frames(self.arm)
+        self.links = LinkTransforms(self.arm, self.base, self.frames, rec.encode_transform)
         self.layout: Layout | None = None
         self.target_frame = ""
         self.tracked_frame = ""
@@ -99,10 +102,6 @@ class SceneWriter:
                                                          self._nominal.tolist())))
         if tf_due:
             self._next_tf_ns = log_ns + self.tf_period_ns
-            parent = "base"
-            encode = rec.encode_transform
-            for frame, rows in zip(self.frames, link_rows(q, self.base, self.arm), strict=True):
-                msgs.append(("/tf", encode(log_ns, parent, frame, rows)))
-                parent = frame
+            msgs.extend([("/tf", data) for data in self.links.messages(log_ns, q)])
         if out is None and msgs:
             rec.write_batch(log_ns, msgs)

@@ -52,6 +52,7 @@ __all__ = [
     "backend_cdr_topics",
     "backend_json_topics",
     "backends",
+    "carrier_world",
     "driver_names",
     "emulator",
     "emulators",
@@ -181,6 +182,18 @@ def replayer(type_: str) -> RobotBackend[Any] | None:
     (:class:`~drivers.base.backend.Replay`), or ``None``."""
     return next((r for r in _robots().values()
                  if r.replay is not None and type_ in r.replay.robots), None)
+
+
+#: The world a simulated carrier arm and the chaser share (``carrier.model = "arm"``): the
+#: simulator's (``module:class``, imported when asked).
+CARRIER_WORLD = "drivers.sim.twoarm:TwoArmWorld"
+
+
+def carrier_world(scene: Any, layout: Any, seed: int = 0) -> Any:
+    """The in-process two-arm world of a rendered-target impact
+    (:class:`drivers.carrier.plant.CarrierPlant` on ``layout``)."""
+    module, name = CARRIER_WORLD.split(":")
+    return getattr(import_module(module), name)(scene, layout, seed)
 
 
 def emulators() -> tuple[Emulator, ...]:

@@ -14,14 +14,17 @@ from pathlib import Path
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
+from drivers import registry
 from drivers.base.topics import CDR_HEADER, CdrTopic, JsonTopic
+from drivers.carrier.armbench import run_arm_impact
 from drivers.carrier.bench import Impact, ImpactTrace, run_impact
+from drivers.carrier.plant import arm_layout
 from drivers.carrier.topics import CARRIER_EVENT, CARRIER_STATE, HIL_CONTACT, HIL_IDEAL
 from drivers.description.scene import Scene, load_scene
 from ffexp.errors import InputError
 from ffexp.hil.protocol import HilProtocol
 
-__all__ = ["HIL_METADATA", "HilRun", "record_impact", "run_protocol"]
+__all__ = ["HIL_METADATA", "HilRun", "record_impact", "render_impact", "run_protocol"]
 
 #: The metadata record that marks a recording as a rendered-target impact.
 HIL_METADATA = "hil_impact"
@@ -50,9 +53,18 @@ def run_protocol(protocol: HilProtocol, scene_overrides: tuple[str, ...] = (),
     """Run the protocol's impact rendered by the carrier and on the ideal free body."""
     if scene is None:
         scene = load_scene(protocol.scene, scene_overrides)
-    rendered = run_impact(scene, _impact(protocol, render=True), seed=protocol.seed)
+    rendered = render_impact(scene, _impact(protocol, render=True), protocol.seed)
     ideal = run_impact(scene, _impact(protocol, render=False), seed=protocol.seed)
     return HilRun(scene, protocol, rendered, ideal)
+
+
+def render_impact(scene: Scene, impact: Impact, seed: int = 0) -> ImpactTrace:
+    """The impact on the carrier the scene's ``carrier.model`` names: its interpolator, or
+    its arm in the two-arm world (in process)."""
+    if scene.carrier.model == "interpolator":
+        return run_impact(scene, impact, seed=seed)
+    layout = arm_layout(scene, impact.gap_m, impact.offset_m)
+    return run_arm_impact(scene, impact, layout, registry.carrier_world(scene, layout, seed))
 
 
 def _cdr(topic: CdrTopic, rows: list[tuple[float, ...]]) -> list[bytes]:
@@ -117,6 +129,7 @@ def record_impact(run: HilRun, path: Path) -> Path:
             "carrier_cycle_s": repr(cycle),
             "extra_delay_cycles": str(run.scene.carrier.extra_delay_cycles),
             "compensation": run.scene.carrier.compensation,
+            "carrier_model": run.scene.carrier.model,
         })
         w.add_metadata("scene", {"scene_json": run.scene.model_dump_json()})
         w.finish()  # type: ignore[no-untyped-call]

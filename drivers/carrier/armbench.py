@@ -127,6 +127,8 @@ def run_arm_impact(scene: Scene, impact: Impact, layout: ArmLayout,
                      for ts, w in state.samples
                      if impact.ft_stale_at_s is None or ts < impact.ft_stale_at_s]
             alive = impact.link_lost_at_s is None or t < impact.link_lost_at_s
+            if state.lost is not None:
+                loop.stop(t, state.lost)
             loop.cycle(t, fresh, ft_period, link_alive=alive)
             if servo.failed is not None and loop.hold is None:
                 loop.stop(t, servo.failed)

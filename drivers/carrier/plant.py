@@ -21,6 +21,7 @@ elbow-up posture :data:`CARRIER_SEED_Q` converges to.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Final, Protocol
 
@@ -32,7 +33,7 @@ from drivers.description.funnel import tool_tip_offset
 from drivers.description.scene import ARMS, Scene
 
 __all__ = ["CARRIER_BASE_FROM_FLANGE_M", "CARRIER_SEED_Q", "ArmLayout", "CarrierPlant",
-           "PlantCycle", "arm_layout"]
+           "JointLink", "JointReading", "PlantCycle", "WirePlant", "arm_layout"]
 
 #: The carrier's base from its flange at the start [m] (our layout: the flange at about
 #: two thirds of a UR5e's 0.85 m reach, level with the shoulder's height above the base).
@@ -55,6 +56,8 @@ class PlantCycle:
     fine: list[tuple[float, ...]] = field(default_factory=list)
     """The contact's truth per physics step: time, depth, normal force, the mock-up contact
     point's normal velocity, the tool tip's x (from the body's start centre)."""
+    lost: str | None = None
+    """The carrier's link was lost (which and why): the loop holds, the chaser stops."""
 
 
 class CarrierPlant(Protocol):
@@ -130,3 +133,78 @@ def arm_layout(scene: Scene, gap_m: float, offset_m: float) -> ArmLayout:
     q_c = carrier.solve_ik(start, seed, iterations=200)
     return ArmLayout(chaser, q0, carrier, q_c, centre, mount, sensor,
                      _torque_limits(name, scene))
+
+
+@dataclass(frozen=True)
+class JointReading:
+    """One cycle's state of an arm as its link reports it."""
+
+    t_s: float
+    q: F64
+    qd: F64
+    samples: list[tuple[float, F64]] = field(default_factory=list)
+    """The F/T samples that reached the controller during the cycle (a carrier's)."""
+
+
+class JointLink(Protocol):
+    """An arm's joint-position link (a family's, over its wire): each cycle one reading,
+    one answer with the joint targets (position and velocity, as ``servoJ`` takes them).
+    A lost link raises :class:`~drivers.errors.DriverError` from :meth:`read`."""
+
+    name: str
+    """The device and where it is, for messages (``carrier at 127.0.0.2:30004``)."""
+
+    def read(self) -> JointReading:
+        """The next cycle's state (blocks until it comes)."""
+
+    def send(self, q: F64, qd: F64) -> None:
+        """The joint targets answering the last reading."""
+
+    def close(self) -> None:
+        """Close the link."""
+
+
+class WirePlant:
+    """Both arms over their links, each behind its own emulator (a
+    :class:`CarrierPlant`). ``truth`` drains the contact's truth rows the emulated world
+    produced since the last call (a simulator's, as its truth is recorded; empty without
+    one). When the carrier's link is lost the chaser goes on alone: the cycle says
+    :attr:`PlantCycle.lost`, the carrier's state stays as last read."""
+
+    def __init__(self, carrier: JointLink, chaser: JointLink,
+                 truth: Callable[[], list[tuple[float, ...]]] | None = None) -> None:
+        self.carrier, self.chaser, self._truth = carrier, chaser, truth
+        self._last: JointReading | None = None
+        self._lost: str | None = None
+
+    def _read(self) -> PlantCycle:
+        from drivers.errors import DriverError
+
+        samples: list[tuple[float, F64]] = []
+        if self._lost is None:
+            try:
+                reading = self.carrier.read()
+                self._last = reading
+                samples = reading.samples
+            except DriverError as exc:
+                self._lost = f"carrier link lost: {exc}"
+                self.carrier.close()
+        chaser = self.chaser.read()
+        last = self._last
+        assert last is not None, "the carrier's first reading is read before any cycle"
+        fine = self._truth() if self._truth is not None else []
+        return PlantCycle(chaser.t_s, last.q, last.qd, samples, fine, self._lost)
+
+    def start(self) -> PlantCycle:
+        return self._read()
+
+    def step(self, carrier_q: F64, carrier_qd: F64, chaser_q: F64,
+             chaser_qd: F64) -> PlantCycle:
+        if self._lost is None:
+            self.carrier.send(carrier_q, carrier_qd)
+        self.chaser.send(chaser_q, chaser_qd)
+        return self._read()
+
+    def close(self) -> None:
+        self.carrier.close()
+        self.chaser.close()

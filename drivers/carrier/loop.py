@@ -137,10 +137,12 @@ class CarrierLoop:
         inertia: the target's inertia tensor (body frame).
         tool_velocity: the chaser tool's velocity (the frame the energy check uses).
         flange: the carrier (default: :class:`Servo`, the interpolator).
+        energy_check: hold when a contact leaves the target with more energy than it came
+            with (an impact's check; off where the chaser's tool is not held at one speed).
     """
 
     def __init__(self, scene: Scene, inertia: F64, tool_velocity: F64,
-                 flange: Flange | None = None) -> None:
+                 flange: Flange | None = None, *, energy_check: bool = True) -> None:
         cs = self.settings = scene.carrier
         self.cycle_s = cs.cycle_s
         self.body = FreeBody(scene.target.mass, inertia, np.zeros(3), np.eye(3),
@@ -154,6 +156,7 @@ class CarrierLoop:
         self.compliance = (VirtualCompliance(k_v, c_v) if cs.compensation == "compliance"
                            else None)
         self._g = np.array([0.0, 0.0, -cs.lab_gravity_mps2])
+        self._energy_check = energy_check
         self._tool_v = np.asarray(tool_velocity, dtype=np.float64)
         self._frame = np.concatenate((self._tool_v, np.zeros(3)))
         self._ke_start = self.body.kinetic_energy_j(self._tool_v)
@@ -232,7 +235,8 @@ class CarrierLoop:
                        f"{cs.speed_limit_mps:g} m/s")
             return
         energy = self._energy()
-        if energy > max(ENERGY_FLOOR_J, (1.0 + cs.energy_gain_limit) * self._ke_start):
+        limit = max(ENERGY_FLOOR_J, (1.0 + cs.energy_gain_limit) * self._ke_start)
+        if self._energy_check and energy > limit:
             gain = math.sqrt(energy / self._ke_start) if self._ke_start > 0 else math.inf
             self._stop(t_s, f"rendering unstable: the target gained energy in a passive "
                        f"contact (speed ratio {gain:.3f} > 1): the loop's delay is at or "

@@ -32,6 +32,11 @@ class CarrierSettings(StrictModel):
     arm: Annotated[str, Field(json_schema_extra={"enum": ["ur5e", "lwr4", "fr3"]})] = Field(
         "ur5e", description="The carrier's arm with model = 'arm' (a name of the scene's "
         "arm models).")
+    render_target: bool = Field(
+        False, description="In the simulator's world (ffexp run, campaign, sweep): the free "
+        "target is the carrier's mock-up (carrier.mockup_mass_kg, the target's shape and "
+        "funnel) held by a servo to the pose the carrier loop renders from the contact's "
+        "wrench, instead of a free body (needs target.support = 'free'; docs/hil.md).")
     servo_bandwidth_hz: Annotated[float, Field(gt=0.0, le=200.0)] = Field(
         25.0, description="The carrier arm's joint position servo: each joint's natural "
         "frequency with its own inertia at the start pose [Hz] (not published by UR: our "

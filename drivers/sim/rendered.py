@@ -92,7 +92,8 @@ class RenderedTarget:
         reading = np.concatenate((force, torque)) + self._noise * self._rng.standard_normal(6)
         self._pending.append((k + 1 + self.delay, t, reading))
         if (k + 1) % self.every == 0:
-            due = [(ts, w, np.zeros(6)) for kk, ts, w in self._pending if kk <= k + 1]
+            servo = self.loop.servo  # the mock-up's twist at each sample's time
+            due = [(ts, w, servo.at(ts)[2]) for kk, ts, w in self._pending if kk <= k + 1]
             self._pending = [p for p in self._pending if p[0] > k + 1]
             self.loop.cycle(t, due, self._period)
         pos, rot, _, _ = self.loop.servo.at(t + self.cycle_s)

@@ -2,7 +2,7 @@
 simulated world (:mod:`drivers.carrier.plant`, :class:`~drivers.emulate.shared.SharedWorld`):
 the chaser's and the carrier's, in lockstep. Each role names a family's emulator
 (:func:`drivers.registry.emulator`: ``ur5e``, ...) whose entry serves one arm of a shared
-world (``Emulator.serve_joint``); this module names no family.
+world (``Emulator.serve_joint``); this module names no family::
 
     with TwoArmServers(scene, layout, chaser=("ur5e", "127.0.0.3", 0),
                        carrier=("ur5e", "127.0.0.2", 0)) as servers:

@@ -15,6 +15,7 @@ import pytest
 from mcap.reader import make_reader
 from typer.testing import CliRunner
 
+from drivers.carrier.plant import JointReading, WirePlant
 from ffexp.cli import app
 from ffexp.hil.protocol import DeviceLink, LinkSettings, load_hil_protocol
 from ffexp.hil.record import record_impact, run_protocol
@@ -121,3 +122,46 @@ def test_a_link_needs_the_carrier_as_an_arm(tmp_path: Path) -> None:
     assert res.exit_code == 2
     assert "carrier.model" in res.output and res.output.strip().count("\n") == 0
     assert not list(tmp_path.iterdir())
+
+
+class _Fake:
+    """A joint link that fails on its n-th read or send (a lost connection)."""
+
+    def __init__(self, name: str, fail_read_at: int = -1, fail_send_at: int = -1) -> None:
+        self.name, self.reads, self.sends, self.closed = name, 0, 0, False
+        self.fail_read_at, self.fail_send_at = fail_read_at, fail_send_at
+
+    def read(self) -> JointReading:
+        from drivers.errors import LinkLostError
+
+        self.reads += 1
+        if self.reads == self.fail_read_at:
+            raise LinkLostError(f"{self.name}: connection closed")
+        return JointReading(0.002 * self.reads, np.full(6, float(self.reads)), np.zeros(6))
+
+    def send(self, q: np.ndarray, qd: np.ndarray) -> None:
+        from drivers.errors import LinkLostError
+
+        self.sends += 1
+        if self.sends == self.fail_send_at:
+            raise LinkLostError(f"{self.name}: broken pipe")
+
+    def close(self) -> None:
+        self.closed = True
+
+
+@pytest.mark.parametrize(("read_at", "send_at", "words"), [(3, -1, "connection closed"),
+                                                            (-1, 2, "broken pipe")])
+def test_a_carrier_link_lost_on_read_or_send_leaves_the_chaser_going(
+        read_at: int, send_at: int, words: str) -> None:
+    carrier, chaser = _Fake("carrier", read_at, send_at), _Fake("chaser")
+    plant = WirePlant(carrier, chaser)
+    first = plant.start()
+    assert first.lost is None and first.carrier_q[0] == 1.0
+    zero = np.zeros(6)
+    cycles = [plant.step(zero, zero, zero, zero) for _ in range(4)]
+    lost = [c.lost for c in cycles]
+    assert lost[-1] is not None and words in lost[-1] and lost[-1].startswith("carrier link lost")
+    assert carrier.closed and chaser.reads == 5 and chaser.sends == 4
+    # the carrier's state stays as last read once lost
+    assert cycles[-1].carrier_q[0] == cycles[-2].carrier_q[0]

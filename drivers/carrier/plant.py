@@ -200,8 +200,14 @@ class WirePlant:
 
     def step(self, carrier_q: F64, carrier_qd: F64, chaser_q: F64,
              chaser_qd: F64) -> PlantCycle:
+        from drivers.errors import DriverError
+
         if self._lost is None:
-            self.carrier.send(carrier_q, carrier_qd)
+            try:
+                self.carrier.send(carrier_q, carrier_qd)
+            except DriverError as exc:
+                self._lost = f"carrier link lost: {exc}"
+                self.carrier.close()
         self.chaser.send(chaser_q, chaser_qd)
         return self._read()
 

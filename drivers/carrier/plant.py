@@ -28,9 +28,10 @@ from typing import Final, Protocol
 import numpy as np
 
 from drivers.base.types import F64
-from drivers.carrier.kinematics import ArmChain
+from drivers.carrier.kinematics import ArmChain, IkError
 from drivers.description.funnel import tool_tip_offset
 from drivers.description.scene import ARMS, Scene
+from drivers.errors import ConfigError
 
 __all__ = ["CARRIER_BASE_FROM_FLANGE_M", "CARRIER_SEED_Q", "ArmLayout", "CarrierPlant",
            "JointLink", "JointReading", "PlantCycle", "WirePlant", "arm_layout"]
@@ -130,7 +131,11 @@ def arm_layout(scene: Scene, gap_m: float, offset_m: float) -> ArmLayout:
     seed = np.asarray(CARRIER_SEED_Q[:carrier.arm.joints], dtype=np.float64)
     if carrier.arm.joints > len(seed):
         seed = np.concatenate((seed, np.zeros(carrier.arm.joints - len(seed))))
-    q_c = carrier.solve_ik(start, seed, iterations=200)
+    try:
+        q_c = carrier.solve_ik(start, seed, iterations=200)
+    except IkError as exc:
+        raise ConfigError(scene.name, "carrier.arm", f"the {name} cannot reach the mock-up's "
+                          f"start: {exc}") from None
     return ArmLayout(chaser, q0, carrier, q_c, centre, mount, sensor,
                      _torque_limits(name, scene))
 

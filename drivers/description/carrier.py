@@ -29,7 +29,7 @@ class CarrierSettings(StrictModel):
         "ideal flange) or 'arm' (a position-controlled arm in one MuJoCo world with the "
         "chaser's arm, the mock-up behind a simulated F/T sensor on its flange, each "
         "set-point through inverse kinematics to joint targets as servoJ; docs/hil.md).")
-    arm: Annotated[str, Field(json_schema_extra={"enum": ["ur5e", "lwr4", "fr3"]})] = Field(
+    arm: Literal["ur5e", "lwr4", "fr3"] = Field(
         "ur5e", description="The carrier's arm with model = 'arm' (a name of the scene's "
         "arm models).")
     render_target: bool = Field(

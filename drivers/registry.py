@@ -52,11 +52,13 @@ __all__ = [
     "backend_cdr_topics",
     "backend_json_topics",
     "backends",
+    "carrier_world",
     "driver_names",
     "emulator",
     "emulators",
     "ft_backend",
     "ft_types",
+    "joint_link",
     "link_faults",
     "link_stats",
     "on_change",
@@ -66,6 +68,7 @@ __all__ = [
     "robot_backend",
     "robot_for_driver",
     "robot_types",
+    "serve_two_arms",
     "tracker_backend",
     "tracker_types",
     "union",
@@ -181,6 +184,45 @@ def replayer(type_: str) -> RobotBackend[Any] | None:
     (:class:`~drivers.base.backend.Replay`), or ``None``."""
     return next((r for r in _robots().values()
                  if r.replay is not None and type_ in r.replay.robots), None)
+
+
+#: The world a simulated carrier arm and the chaser share (``carrier.model = "arm"``): the
+#: simulator's (``module:class``, imported when asked).
+CARRIER_WORLD = "drivers.sim.twoarm:TwoArmWorld"
+
+
+def carrier_world(scene: Any, layout: Any, seed: int = 0) -> Any:
+    """The in-process two-arm world of a rendered-target impact
+    (:class:`drivers.carrier.plant.CarrierPlant` on ``layout``)."""
+    module, name = CARRIER_WORLD.split(":")
+    return getattr(import_module(module), name)(scene, layout, seed)
+
+
+#: The servers of a two-arm world, each arm behind its own emulator (``module:class``).
+TWO_ARM_SERVERS = "drivers.emulate.twoarm:TwoArmServers"
+
+
+def serve_two_arms(scene: Any, layout: Any, *, chaser: tuple[str, str, int],
+                   carrier: tuple[str, str, int], seed: int = 0) -> Any:
+    """Both arms of a two-arm world served, each by its emulator ``(name, host, port)``
+    (:class:`drivers.emulate.twoarm.TwoArmServers`, a context manager)."""
+    module, name = TWO_ARM_SERVERS.split(":")
+    return getattr(import_module(module), name)(scene, layout, chaser=chaser,
+                                                carrier=carrier, seed=seed)
+
+
+def joint_link(emulator_name: str, role: str, host: str, port: int, joints: int) -> Any:
+    """The client side of an emulator's arm of a shared world
+    (:class:`drivers.carrier.plant.JointLink`), connected to ``host:port``.
+
+    Raises:
+        KeyError: no such emulator; ValueError: it serves no such arm.
+    """
+    entry = emulator(emulator_name)
+    if entry.joint_link is None:
+        raise ValueError(f"the {emulator_name} emulator serves no arm of a shared world")
+    module, name = entry.joint_link.split(":")
+    return getattr(import_module(module), name)(role, host, port, joints)
 
 
 def emulators() -> tuple[Emulator, ...]:

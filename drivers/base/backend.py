@@ -382,6 +382,13 @@ class Emulator:
     camera: bool = False
     """The camera above the bed may be served beside it (it calls the rig back between
     its world steps, when the camera renders)."""
+    serve_joint: str | None = None
+    """``module:function`` of ``(shared_world, role, joints, host, port, cycle_s) -> server``:
+    one arm of a shared two-arm world behind this controller's link, joint positions in
+    lockstep (:mod:`drivers.emulate.twoarm`); ``None``: it serves no such arm."""
+    joint_link: str | None = None
+    """``module:class`` of the client side, ``(role, host, port, joints) -> JointLink``
+    (:class:`drivers.carrier.plant.JointLink`)."""
 
     @property
     def needs_remote(self) -> bool:

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -34,7 +35,7 @@ from drivers.carrier.body import FreeBody, cross3, rotation_exp, rotation_log
 from drivers.carrier.passivity import PassivityController, VirtualCompliance
 from drivers.description.scene import Scene
 
-__all__ = ["CarrierLoop", "Hold", "Servo", "cycle_values"]
+__all__ = ["CarrierLoop", "Flange", "Hold", "Servo", "cycle_values"]
 
 #: Below this kinetic energy in the tool's frame [J] the energy check does not judge (a
 #: target at rest relative to the tool; sensor noise gives a free body far less).
@@ -48,6 +49,20 @@ class Hold:
     t_s: float
     device: str
     cause: str
+
+
+class Flange(Protocol):
+    """What the loop commands and reads of the carrier: :class:`Servo` (the interpolator)
+    or an arm (:class:`drivers.carrier.armbench.ArmServo`)."""
+
+    def send(self, pos: F64, vel: F64, rot: F64, omega: F64) -> None:
+        """The next set-point of the mock-up's centre (the loop's frame)."""
+
+    def hold(self, t_s: float) -> None:
+        """Stop where the flange is at ``t_s`` and stay there."""
+
+    def at(self, t_s: float) -> tuple[F64, F64, F64, F64]:
+        """The mock-up's position, rotation, twist and acceleration at ``t_s``."""
 
 
 class Servo:
@@ -121,14 +136,19 @@ class CarrierLoop:
         scene: the target's mass, size and inertia and the ``[carrier]`` settings.
         inertia: the target's inertia tensor (body frame).
         tool_velocity: the chaser tool's velocity (the frame the energy check uses).
+        flange: the carrier (default: :class:`Servo`, the interpolator).
+        energy_check: hold when a contact leaves the target with more energy than it came
+            with (an impact's check; off where the chaser's tool is not held at one speed).
     """
 
-    def __init__(self, scene: Scene, inertia: F64, tool_velocity: F64) -> None:
+    def __init__(self, scene: Scene, inertia: F64, tool_velocity: F64,
+                 flange: Flange | None = None, *, energy_check: bool = True) -> None:
         cs = self.settings = scene.carrier
         self.cycle_s = cs.cycle_s
         self.body = FreeBody(scene.target.mass, inertia, np.zeros(3), np.eye(3),
                              np.zeros(3), np.zeros(3))
-        self.servo = Servo(cs.cycle_s, cs.response_cycles, np.zeros(3), np.eye(3))
+        self.servo: Flange = flange if flange is not None else Servo(
+            cs.cycle_s, cs.response_cycles, np.zeros(3), np.eye(3))
         self._line: deque[F64] = deque(maxlen=cs.extra_delay_cycles + 1)
         self.passivity = PassivityController(active=cs.compensation == "passivity")
         k_v = cs.compliance_stiffness_npm or 2.0 * scene.contact.stiffness
@@ -136,6 +156,7 @@ class CarrierLoop:
         self.compliance = (VirtualCompliance(k_v, c_v) if cs.compensation == "compliance"
                            else None)
         self._g = np.array([0.0, 0.0, -cs.lab_gravity_mps2])
+        self._energy_check = energy_check
         self._tool_v = np.asarray(tool_velocity, dtype=np.float64)
         self._frame = np.concatenate((self._tool_v, np.zeros(3)))
         self._ke_start = self.body.kinetic_energy_j(self._tool_v)
@@ -148,6 +169,11 @@ class CarrierLoop:
     def _stop(self, t_s: float, cause: str) -> None:
         self.hold = Hold(t_s, "carrier", cause)
         self.servo.hold(t_s)
+
+    def stop(self, t_s: float, cause: str) -> None:
+        """Hold the carrier for a cause found outside the loop (its link, its arm)."""
+        if self.hold is None:
+            self._stop(t_s, cause)
 
     def cycle(self, t_s: float, samples: list[tuple[float, F64, F64]], ft_period_s: float,
               *, link_alive: bool = True) -> None:
@@ -209,7 +235,8 @@ class CarrierLoop:
                        f"{cs.speed_limit_mps:g} m/s")
             return
         energy = self._energy()
-        if energy > max(ENERGY_FLOOR_J, (1.0 + cs.energy_gain_limit) * self._ke_start):
+        limit = max(ENERGY_FLOOR_J, (1.0 + cs.energy_gain_limit) * self._ke_start)
+        if self._energy_check and energy > limit:
             gain = math.sqrt(energy / self._ke_start) if self._ke_start > 0 else math.inf
             self._stop(t_s, f"rendering unstable: the target gained energy in a passive "
                        f"contact (speed ratio {gain:.3f} > 1): the loop's delay is at or "

@@ -23,6 +23,27 @@ __all__ = ["CarrierSettings"]
 class CarrierSettings(StrictModel):
     """The carrier robot's rendering loop (used when a run renders the target)."""
 
+    model: Literal["interpolator", "arm"] = Field(
+        "interpolator", description="How the carrier is simulated: 'interpolator' (its "
+        "set-points followed along a cubic, response_cycles late, the contact a point on an "
+        "ideal flange) or 'arm' (a position-controlled arm in one MuJoCo world with the "
+        "chaser's arm, the mock-up behind a simulated F/T sensor on its flange, each "
+        "set-point through inverse kinematics to joint targets as servoJ; docs/hil.md).")
+    arm: Literal["ur5e", "lwr4", "fr3"] = Field(
+        "ur5e", description="The carrier's arm with model = 'arm' (a name of the scene's "
+        "arm models).")
+    render_target: bool = Field(
+        False, description="In the simulator's world (ffexp run, campaign, sweep): the free "
+        "target is the carrier's mock-up (carrier.mockup_mass_kg, the target's shape and "
+        "funnel) held by a servo to the pose the carrier loop renders from the contact's "
+        "wrench, instead of a free body (needs target.support = 'free'; docs/hil.md).")
+    servo_bandwidth_hz: Annotated[float, Field(gt=0.0, le=200.0)] = Field(
+        25.0, description="The carrier arm's joint position servo: each joint's natural "
+        "frequency with its own inertia at the start pose [Hz] (not published by UR: our "
+        "assumption; the torques are clipped at the arm's published limits).")
+    servo_damping_ratio: Annotated[float, Field(gt=0.0, le=5.0)] = Field(
+        1.0, description="The joint servo's damping ratio.")
+
     cycle_s: Annotated[float, Field(ge=0.0005, le=0.05)] = Field(
         0.002, description="The carrier's control cycle [s] (a UR e-series' 500 Hz: 2 ms; "
         "EPOS commands at 250 Hz). A multiple of physics.timestep.")

@@ -36,6 +36,7 @@ from drivers.description.funnel import tool_tip_offset
 from drivers.description.layout import Layout
 from drivers.description.scene import ObjectSettings, Scene
 from drivers.sim import funnels
+from drivers.sim.rendered import flange_xml
 
 #: The arm's joint names (``a1`` .. ``a7``; the first six for a six-joint arm).
 ARM_JOINTS = tuple(f"a{i + 1}" for i in range(7))
@@ -203,12 +204,18 @@ def _free_target_xml(scene: Scene, layout: Layout) -> str:
     sx, sy, sz = tg.size
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, np.ascontiguousarray(layout.target_rot).ravel())
-    return (
+    mass, inertia = tg.mass, tg.inertia_matrix()
+    flange = ""
+    if scene.carrier.render_target:  # the carrier's mock-up, welded to its flange
+        mass = max(scene.carrier.mockup_mass_kg, 1e-6)
+        inertia = inertia * (mass / tg.mass)
+        flange = flange_xml(scene, _vec(layout.target_pos), _vec(quat), TARGET_BODY)[0]
+    return flange + (
         f'<body name="{TARGET_BODY}" pos="{_vec(layout.target_pos)}" quat="{_vec(quat)}" '
         f'gravcomp="1">\n'
         f'<freejoint name="{TARGET_FREE_JOINT}"/>\n'
-        f'<inertial pos="0 0 0" mass="{_f(tg.mass)}" '
-        f'fullinertia="{_full(tg.inertia_matrix())}"/>\n'
+        f'<inertial pos="0 0 0" mass="{_f(mass)}" '
+        f'fullinertia="{_full(inertia)}"/>\n'
         f'<geom type="box" size="{_f(sx / 2)} {_f(sy / 2)} {_f(sz / 2)}" {_VISUAL} mass="0" '
         f'rgba="0.75 0.75 0.8 1"/>\n'
         f'<body name="target_funnel" pos="{_vec(layout.funnel_in_target)}">\n'
@@ -303,6 +310,9 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
         f'      friction="{_f(mu)} 0.005 0.0001" solref="0.004 1" '
         f'solimp="0.95 0.99 0.001 0.5 2"\n      rgba="0.8 0.9 1 0.3"/>')
     pad_condim = 3 if mu > 0.0 else 1
+    equality = ""
+    if layout is not None and scene.target.support == "free" and scene.carrier.render_target:
+        equality = flange_xml(scene, "0 0 0", "1 0 0 0", TARGET_BODY)[1]
     cart = "\n".join(
         f'<general name="cart_{ax}" site="tcp" refsite="cmd" gear="{_vec(np.eye(6)[i])}" '
         f'gaintype="fixed" gainprm="0" biastype="affine" biasprm="0 0 0"/>'
@@ -353,6 +363,7 @@ def build_xml(scene: Scene, layout: Layout | None) -> str:
 {cart}
 {ft}
 </actuator>
+{equality}
 <sensor>
 <force name="{FT_SENSOR_FORCE}" site="ft_site" nsample="{scene.substeps}"/>
 <torque name="{FT_SENSOR_TORQUE}" site="ft_site" nsample="{scene.substeps}"/>

@@ -52,6 +52,7 @@ from drivers.sim.divergence import check_divergence, quiet_divergence
 from drivers.sim.friction import JointFriction
 from drivers.sim.ftsensor import FtSensorModel, FtSteps
 from drivers.sim.latch import take
+from drivers.sim.rendered import RenderedTarget
 from drivers.sim.state import LazyArmState
 from drivers.sim.truth import pose as _pose
 
@@ -267,6 +268,9 @@ class SimWorld:
             self.bodies.set_free_twist(mjcf.TARGET_BODY, np.asarray(tg.drift_mps),
                                        np.asarray(tg.tumble_radps))
         mujoco.mj_forward(m, d)
+        self.rendered = RenderedTarget(scene, m, d, self._target_body, self.rng) \
+            if scene.carrier.render_target else None
+        """The target rendered by the carrier (``carrier.render_target``), or ``None``."""
         self._contact, self._touching = self.contact_wrench()
         self._update_kinematics()
         self._state_ref: Callable[[], LazyArmState | None] = _no_state
@@ -514,6 +518,9 @@ class SimWorld:
         # Contacts and constraint forces are consistent now (state of the last
         # step, 1 physics step before the cycle's end).
         self._contact, self._touching = self._tool_contact.wrench()
+        if self.rendered is not None:  # the carrier's loop on the mock-up (rendered.py)
+            self.rendered.cycle(self.cycle, self._contact, d.site_xpos[self._tcp],
+                                d.site_xmat[self._tcp].reshape(3, 3))
         self._end_state_dynamics()
         check_divergence(d, self._warn_number)
         decim = self._ft_decim

@@ -97,7 +97,9 @@ EMULATOR = Emulator("ur5e", "a UR e-Series controller over RTDE (listens on --li
                     listen=("127.0.0.1", 30004),
                     overrides_from="drivers.description.ur5e:PAPER_SCENE_OVERRIDES",
                     faults=(("disconnect_after", "close a client's connection after this "
-                             "many data packages (0: never)"),))
+                             "many data packages (0: never)"),),
+                    serve_joint="drivers.ur.emulate.joint:serve",
+                    joint_link="drivers.ur.joint_link:UrJointLink")
 
 
 BACKEND = Backend(

@@ -11,7 +11,8 @@ from pydantic import Field
 
 from drivers.config import StrictModel, load_model
 
-__all__ = ["FaultSettings", "HilProtocol", "ImpactSettings", "load_hil_protocol"]
+__all__ = ["DeviceLink", "FaultSettings", "HilProtocol", "ImpactSettings", "LinkSettings",
+           "load_hil_protocol"]
 
 
 class ImpactSettings(StrictModel):
@@ -37,6 +38,28 @@ class FaultSettings(StrictModel):
         None, description="The carrier's F/T sensor delivers nothing from this time on.")
     link_lost_at_s: Annotated[float, Field(ge=0.0)] | None = Field(
         None, description="The carrier's link stops answering from this time on.")
+    carrier_emulator_killed_at_s: Annotated[float, Field(ge=0.0)] | None = Field(
+        None, description="Over the wire ([link]): the carrier's emulator is killed at the "
+        "first cycle from this time on (its connection closes under the carrier's link).")
+
+
+class DeviceLink(StrictModel):
+    """One arm's emulated controller and where it listens."""
+
+    emulator: Annotated[str, Field(min_length=1)] = Field(
+        description="The emulated controller that serves the arm (an `ffexp emulate --robot` "
+        "name whose family serves an arm of a shared world).")
+    host: str = Field("127.0.0.1", description="Its loopback address.")
+    port: Annotated[int, Field(ge=0, le=65535)] = Field(
+        0, description="Its port (0: any free one).")
+
+
+class LinkSettings(StrictModel):
+    """Both arms over the wire, each behind its own emulator on one shared world, in
+    lockstep (carrier.model = 'arm'): served by this run, each link a socket."""
+
+    chaser: DeviceLink
+    carrier: DeviceLink
 
 
 class HilProtocol(StrictModel):
@@ -47,8 +70,12 @@ class HilProtocol(StrictModel):
     scene: Path = Field(description="The scene (relative to the protocol file); its "
                         "[carrier], [contact], [ft_sensor] and [target] tables are used.")
     seed: int = 0
+    scene_set: tuple[str, ...] = Field((), description="Scene overrides (KEY=VALUE, as "
+                                       "--scene-set), applied before the command line's.")
     impact: ImpactSettings = ImpactSettings()
     faults: FaultSettings = FaultSettings()
+    link: LinkSettings | None = Field(None, description="Run over the wire (both arms behind "
+                                      "their own emulators); none: in process.")
 
 
 def load_hil_protocol(path: Path, overrides: tuple[str, ...] = ()) -> HilProtocol:

@@ -8,20 +8,25 @@ metadata). :func:`ffexp.hil.analysis.analyze_recording` reads it back."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
+from drivers import registry
 from drivers.base.topics import CDR_HEADER, CdrTopic, JsonTopic
+from drivers.base.types import F64
+from drivers.carrier.armbench import run_arm_impact
 from drivers.carrier.bench import Impact, ImpactTrace, run_impact
+from drivers.carrier.plant import JointLink, JointReading, WirePlant, arm_layout
 from drivers.carrier.topics import CARRIER_EVENT, CARRIER_STATE, HIL_CONTACT, HIL_IDEAL
 from drivers.description.scene import Scene, load_scene
 from ffexp.errors import InputError
 from ffexp.hil.protocol import HilProtocol
 
-__all__ = ["HIL_METADATA", "HilRun", "record_impact", "run_protocol"]
+__all__ = ["HIL_METADATA", "HilRun", "record_impact", "render_impact", "run_protocol"]
 
 #: The metadata record that marks a recording as a rendered-target impact.
 HIL_METADATA = "hil_impact"
@@ -47,12 +52,84 @@ def _impact(protocol: HilProtocol, *, render: bool) -> Impact:
 
 def run_protocol(protocol: HilProtocol, scene_overrides: tuple[str, ...] = (),
                  scene: Scene | None = None) -> HilRun:
-    """Run the protocol's impact rendered by the carrier and on the ideal free body."""
+    """Run the protocol's impact rendered by the carrier (in process, or over the wire
+    with its ``[link]``) and on the ideal free body."""
     if scene is None:
-        scene = load_scene(protocol.scene, scene_overrides)
-    rendered = run_impact(scene, _impact(protocol, render=True), seed=protocol.seed)
+        scene = load_scene(protocol.scene, (*protocol.scene_set, *scene_overrides))
+    impact = _impact(protocol, render=True)
+    if protocol.link is not None:
+        rendered = _over_the_wire(scene, impact, protocol)
+    else:
+        rendered = render_impact(scene, impact, protocol.seed)
     ideal = run_impact(scene, _impact(protocol, render=False), seed=protocol.seed)
     return HilRun(scene, protocol, rendered, ideal)
+
+
+def render_impact(scene: Scene, impact: Impact, seed: int = 0) -> ImpactTrace:
+    """The impact on the carrier the scene's ``carrier.model`` names: its interpolator, or
+    its arm in the two-arm world (in process)."""
+    if scene.carrier.model == "interpolator":
+        return run_impact(scene, impact, seed=seed)
+    layout = arm_layout(scene, impact.gap_m, impact.offset_m)
+    return run_arm_impact(scene, impact, layout, registry.carrier_world(scene, layout, seed))
+
+
+class _Killed:
+    """The carrier's link, whose emulator is killed at the first reading from ``at_s`` on
+    (the fault ``faults.carrier_emulator_killed_at_s``)."""
+
+    def __init__(self, link: JointLink, at_s: float, kill: Callable[[], None]) -> None:
+        self.link, self.at_s = link, at_s
+        self._kill: Callable[[], None] | None = kill
+        self.name = link.name
+
+    def read(self) -> JointReading:
+        reading = self.link.read()
+        if self._kill is not None and reading.t_s >= self.at_s - 1e-12:
+            self._kill()
+            self._kill = None
+        return reading
+
+    def send(self, q: F64, qd: F64) -> None:
+        self.link.send(q, qd)
+
+    def close(self) -> None:
+        self.link.close()
+
+
+def _over_the_wire(scene: Scene, impact: Impact, protocol: HilProtocol) -> ImpactTrace:
+    """Both arms served, each by its emulator, on one world; the run over their links."""
+    link = protocol.link
+    assert link is not None
+    if scene.carrier.model != "arm":
+        raise InputError(f"{protocol.name}: link: runs over the wire need the carrier as an "
+                         f"arm (carrier.model = 'arm'), the scene has {scene.carrier.model!r}")
+    for role, dev in (("chaser", link.chaser), ("carrier", link.carrier)):
+        try:
+            entry = registry.emulator(dev.emulator)
+        except KeyError:
+            names = ", ".join(e.name for e in registry.emulators())
+            raise InputError(f"{protocol.name}: link.{role}.emulator: {dev.emulator!r}: choose "
+                             f"one of {names}") from None
+        if entry.serve_joint is None or entry.joint_link is None:
+            raise InputError(f"{protocol.name}: link.{role}.emulator: {dev.emulator!r} serves "
+                             "no arm of a shared world")
+    layout = arm_layout(scene, impact.gap_m, impact.offset_m)
+    with registry.serve_two_arms(
+            scene, layout, chaser=(link.chaser.emulator, link.chaser.host, link.chaser.port),
+            carrier=(link.carrier.emulator, link.carrier.host, link.carrier.port),
+            seed=protocol.seed) as servers:
+        host, port = servers.address("carrier")
+        carrier: JointLink = registry.joint_link(link.carrier.emulator, "carrier", host, port,
+                                                 layout.carrier.arm.joints)
+        host, port = servers.address("chaser")
+        chaser: JointLink = registry.joint_link(link.chaser.emulator, "chaser", host, port,
+                                                layout.chaser.arm.joints)
+        killed_at = protocol.faults.carrier_emulator_killed_at_s
+        if killed_at is not None:
+            carrier = _Killed(carrier, killed_at, lambda: servers.kill("carrier"))
+        plant = WirePlant(carrier, chaser, servers.world.drain_truth)
+        return run_arm_impact(scene, impact, layout, plant)
 
 
 def _cdr(topic: CdrTopic, rows: list[tuple[float, ...]]) -> list[bytes]:
@@ -117,6 +194,7 @@ def record_impact(run: HilRun, path: Path) -> Path:
             "carrier_cycle_s": repr(cycle),
             "extra_delay_cycles": str(run.scene.carrier.extra_delay_cycles),
             "compensation": run.scene.carrier.compensation,
+            "carrier_model": run.scene.carrier.model,
         })
         w.add_metadata("scene", {"scene_json": run.scene.model_dump_json()})
         w.finish()  # type: ignore[no-untyped-call]

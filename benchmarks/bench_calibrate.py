@@ -68,7 +68,7 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--keep", type=Path, help="Keep the recordings and report here.")
     args = ap.parse_args()
-    from drivers.sim.contact import damping_ratio_for
+    from drivers.world.contact import damping_ratio_for
     from ffexp.calibrate.report import residual_rows
     from ffexp.calibrate.run import calibrate
 

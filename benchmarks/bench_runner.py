@@ -44,8 +44,8 @@ import numpy as np
 
 from drivers.description.scene import load_scene
 from drivers.fri.emulate.lockstep import open_sim
-from drivers.sim.arm import ArmCommand, ArmMode
-from drivers.sim.world import SimWorld
+from drivers.world.arm import ArmCommand, ArmMode
+from drivers.world.world import SimWorld
 from ffexp import loop
 from ffexp.experiment import run_file
 from ffexp.protocol import load_run_protocol, scene_path

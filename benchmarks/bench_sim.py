@@ -34,8 +34,8 @@ import mujoco
 import numpy as np
 
 from drivers.description import load_scene
-from drivers.sim import ArmCommand, SimWorld
-from drivers.sim.arm import ArmState
+from drivers.world import ArmCommand, SimWorld
+from drivers.world.arm import ArmState
 
 ROOT = Path(__file__).resolve().parent.parent
 

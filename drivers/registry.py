@@ -12,8 +12,8 @@ the simulated robot that replays a recording (:func:`replayer`). The ``none``
 tracker (no tracker) is built in. A robot family is one folder: its real robot, its
 simulated one in-process (the lockstep controller in front of the simulator's world,
 ``drivers/<family>/emulate/``), the controller ``ffexp emulate`` serves (:func:`emulators`)
-and that controller's law on the simulated world; the simulator's sensor and tracker
-are :mod:`drivers.sim`'s.
+and that controller's law on the simulated world (:mod:`drivers.world`, neutral); the
+simulated world's sensor and tracker are :mod:`drivers.sim`'s.
 
 :func:`register` adds a back-end at run time (a plug-in, a test's toy back-end);
 the rig's unions are rebuilt from the registry then.
@@ -188,7 +188,7 @@ def replayer(type_: str) -> RobotBackend[Any] | None:
 
 #: The world a simulated carrier arm and the chaser share (``carrier.model = "arm"``): the
 #: simulator's (``module:class``, imported when asked).
-CARRIER_WORLD = "drivers.sim.twoarm:TwoArmWorld"
+CARRIER_WORLD = "drivers.world.twoarm:TwoArmWorld"
 
 
 def carrier_world(scene: Any, layout: Any, seed: int = 0) -> Any:

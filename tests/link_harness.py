@@ -18,7 +18,7 @@ from drivers.fri.backend import FriRobotConfig
 from drivers.fri.driver import FriEstimateSensor, FriRobot
 from drivers.fri.emulate.server import EmulatorSettings, EmulatorStats, FriEmulator
 from drivers.fri.link import QualityThresholds
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 from ffexp import loop
 from ffexp.contracts import RunOutcome
 from ffexp.protocol import load_run_protocol

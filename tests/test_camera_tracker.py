@@ -13,9 +13,9 @@ import pytest
 from drivers.camera import CameraTracker
 from drivers.camera.backend import CameraTrackerConfig
 from drivers.errors import ConfigError
-from drivers.sim.render import TargetRenderer, top_view
 from drivers.vision import Calibration, load_calibration, save_calibration
 from drivers.vision.calibration import calibration_from_points, from_extrinsics
+from drivers.world.render import TargetRenderer, top_view
 
 SIZE = (1280, 720)
 
@@ -27,7 +27,7 @@ def yaw_of(pose: np.ndarray) -> float:
 @pytest.fixture(scope="module")
 def world():  # type: ignore[no-untyped-def]
     from drivers.description import load_scene
-    from drivers.sim import SimWorld
+    from drivers.world import SimWorld
 
     scene = load_scene(Path("data/scenes/paper.toml"),
                        ["target.velocity=[0.03, -0.02, 0.15]", "target.mu=0.0",

@@ -16,8 +16,8 @@ from drivers.fri.driver import FriRobot
 from drivers.fri.emulate.krc import CommandDelay
 from drivers.fri.emulate.lockstep import SimRobot
 from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
-from drivers.sim.arm import ArmCommand
-from drivers.sim.world import SimWorld
+from drivers.world.arm import ArmCommand
+from drivers.world.world import SimWorld
 
 LOCAL = "127.0.0.1"
 N = 12

@@ -11,7 +11,7 @@ from drivers.base import ApplyStatus, CartesianCommand, ForceTorqueSensor, Robot
 from drivers.errors import ConfigError, InvalidCommandError, NotConnectedError
 from drivers.fri.emulate.lockstep import SimRobot, open_sim
 from drivers.fri.types import FriCommand, FriMeasurement, FriQuality, FriState
-from drivers.sim import SimWorld
+from drivers.world import SimWorld
 
 PAPER_K = np.array([5000.0, 0.0, 0.0, 0.0, 300.0, 300.0])
 PAPER_D = np.array([0.7, 0.0, 0.0, 0.0, 0.7, 0.7])

@@ -14,7 +14,7 @@ from drivers.fri.driver import FriRobot
 from drivers.fri.emulate.lockstep import SimRobot
 from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
 from drivers.fri.types import FriMeasurement, FriState
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 LOCAL = "127.0.0.1"
 PAPER_K = np.array([5000.0, 0.0, 0.0, 0.0, 300.0, 300.0])

@@ -24,7 +24,7 @@ from drivers.fri.types import (
     FriQuality,
     FriState,
 )
-from drivers.sim.arm import ArmMode, ArmState, ArmWarning
+from drivers.world.arm import ArmMode, ArmState, ArmWarning
 
 SCENE = Path(__file__).resolve().parent.parent / "data" / "scenes" / "paper.toml"
 

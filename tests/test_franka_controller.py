@@ -17,7 +17,7 @@ from drivers.franka import codec
 from drivers.franka.emulate.controller import WINDOW, Fr3SimController, flange_to_tcp
 from drivers.franka.emulate.served import ServedFr3
 from drivers.franka.emulate.server import FciServer
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -104,7 +104,7 @@ def _simulated(torques: list[np.ndarray], n_report: list[int]) -> list[np.ndarra
     """The simulated FR3 in-process under the same torques: q at the given cycles."""
     from drivers.description import load_scene
     from drivers.franka.emulate.controller import Fr3SimController
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
     scene = load_scene(ROOT / "data/scenes/paper-fr3.toml")
     c = Fr3SimController(SimWorld(scene, seed=scene.seed))

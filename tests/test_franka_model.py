@@ -32,13 +32,13 @@ def test_the_scene_file_is_the_paper_scene_with_the_fr3_overrides() -> None:
 
 
 def _world():  # type: ignore[no-untyped-def]
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
     return SimWorld(load_scene(ROOT / "data/scenes/paper-fr3.toml"), seed=0)
 
 
 def test_the_fr3_tcp_is_where_the_lwr4s_is() -> None:
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
     lwr = SimWorld(load_scene(ROOT / "data/scenes/paper.toml"), seed=0).tcp_pose
     assert np.abs(_world().tcp_pose - lwr).max() < 1e-4

@@ -26,10 +26,10 @@ import pytest
 
 from drivers.description.scene import BaseSettings, Scene, load_scene
 from drivers.errors import ConfigError
-from drivers.sim import mjcf
-from drivers.sim.arm import ArmCommand, ArmMode
-from drivers.sim.chaser import base_wrench
-from drivers.sim.world import SimWorld
+from drivers.world import mjcf
+from drivers.world.arm import ArmCommand, ArmMode
+from drivers.world.chaser import base_wrench
+from drivers.world.world import SimWorld
 
 ROOT = Path(__file__).resolve().parents[1]
 FREE_FLYING = ROOT / "data" / "scenes" / "free-flying.toml"

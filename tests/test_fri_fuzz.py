@@ -146,7 +146,7 @@ def test_driver_survives_and_counts_100k_hostile_datagrams() -> None:
 def test_emulator_survives_and_counts_100k_hostile_datagrams(paper_scene: Scene) -> None:
     # imported here: the driver test above needs neither the emulator nor the simulator
     from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
     rng = np.random.default_rng(2)
     remote, foreign = udp(LOCAL), udp(LOCAL)

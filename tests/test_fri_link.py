@@ -39,7 +39,7 @@ from drivers.fri.types import (
     FriState,
     RemoteMeasurement,
 )
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 LOCAL = "127.0.0.1"
 PAPER_K = np.array([5000.0, 0.0, 0.0, 0.0, 300.0, 300.0])

@@ -26,8 +26,8 @@ from drivers.factory import open_devices
 from drivers.fri.emulate.lockstep import SimRobot
 from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
 from drivers.fri.types import FriMeasurement
-from drivers.sim.driver import SimFtSensor
-from drivers.sim.world import SimWorld
+from drivers.world.ftstream import SimFtSensor
+from drivers.world.world import SimWorld
 from ffexp import loop
 from ffexp.contracts import RunOutcome
 from ffexp.experiment import RigChoice, load_rig_choice

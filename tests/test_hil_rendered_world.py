@@ -13,7 +13,7 @@ import pytest
 from drivers.carrier.body import rotation_log
 from drivers.description.scene import load_scene
 from drivers.errors import ConfigError
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 ROOT = Path(__file__).resolve().parents[1]
 ZERO_G = ROOT / "data/scenes/zero-g.toml"

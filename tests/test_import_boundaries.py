@@ -11,7 +11,9 @@ literal name):
   ``drivers/emulate``) imports no sibling back-end and nothing that assembles back-ends;
   a robot family's emulated side (``drivers/<family>/emulate/``: its emulator, its
   controller's law on the simulated world, its in-process robot) may also import the
-  simulator (``drivers.sim``) and the emulated rig's shared parts (``drivers.emulate``).
+  emulated rig's shared parts (``drivers.emulate``). The simulated world itself
+  (``drivers.world``) is neutral: it imports no back-end, so any may import it; the
+  ``sim`` back-end is only the world's F/T sensor and tracker entries.
 - ``drivers/emulate`` (the emulated rig: session, faults, Net F/T box, camera) imports no
   robot family: it finds them through :mod:`drivers.registry`.
 - The neutral packages import no back-end, and the description and vision packages no
@@ -40,8 +42,9 @@ ROOT = Path(__file__).resolve().parents[1]
 DRIVERS = ROOT / "drivers"
 
 #: Packages of ``drivers`` that are no back-end: anyone may import them (``carrier``: the
-#: micro-gravity emulator's physics, pure maths on any robot's F/T and pose).
-NEUTRAL_PACKAGES = frozenset({"base", "net", "description", "vision", "carrier"})
+#: micro-gravity emulator's physics, pure maths on any robot's F/T and pose; ``world``: the
+#: simulated world every family's emulated side steps).
+NEUTRAL_PACKAGES = frozenset({"base", "net", "description", "vision", "carrier", "world"})
 #: Top-level plumbing modules of ``drivers`` anyone may import.
 NEUTRAL_MODULES = frozenset({"config", "errors", "counters"})
 #: The emulated rig's shared parts (session, faults, the Net F/T box, the camera).
@@ -52,7 +55,7 @@ COMBINER_MAY_IMPORT = frozenset({"sim", "netft"})
 #: The sub-package of a robot family that is its emulated side, and what it may import
 #: besides its own family and the neutral packages.
 FAMILY_EMULATE = "emulate"
-FAMILY_EMULATE_MAY_IMPORT = frozenset({"sim", COMBINER})
+FAMILY_EMULATE_MAY_IMPORT = frozenset({COMBINER})
 #: What ``ffexp`` may import from ``drivers`` (the second part of the dotted name).
 FFEXP_ALLOWED = frozenset({"base", "config", "errors", "net", "rig", "factory", "registry",
                            "description", "vision", "carrier"})
@@ -66,7 +69,7 @@ FFEXP_EXCEPTIONS = {
 STRING_EXCEPTIONS: dict[tuple[str, str], str] = {}
 #: Modules the neutral description and vision packages must not use (no simulation, no I/O
 #: beyond reading their files).
-NEUTRAL_FORBIDDEN = ("mujoco", "socket", "drivers.sim")
+NEUTRAL_FORBIDDEN = ("mujoco", "socket", "drivers.sim", "drivers.world")
 
 
 def imported_modules(source: str, module: str) -> Iterator[tuple[int, str]]:
@@ -103,7 +106,7 @@ def _sources(package: Path) -> Iterator[tuple[Path, str]]:
 
 
 def _drivers_part(name: str) -> str | None:
-    """``sim`` for ``drivers.sim.world``; None for names outside ``drivers``."""
+    """``world`` for ``drivers.world.world``; None for names outside ``drivers``."""
     parts = name.split(".")
     return parts[1] if parts[0] == "drivers" and len(parts) > 1 else None
 
@@ -137,7 +140,7 @@ def backend_violations(source: str, module: str, rel: str, own: str,
                        all_backends: frozenset[str]) -> list[str]:
     """What a back-end's module imports of a sibling back-end, the combiner, the rig or
     factory (which assemble back-ends), or ``ffexp``; a family's emulated side
-    (``drivers.<own>.emulate``) may import the simulator and the combiner."""
+    (``drivers.<own>.emulate``) may import the combiner."""
     forbidden = (all_backends - {own}) | {COMBINER, "rig", "factory"}
     if module.split(".")[2:3] == [FAMILY_EMULATE]:
         forbidden -= FAMILY_EMULATE_MAY_IMPORT
@@ -186,13 +189,18 @@ def test_the_emulated_rig_imports_no_robot_family() -> None:
 
 
 def test_the_import_checks_know_a_familys_emulated_side() -> None:
-    source = "from drivers.sim.world import SimWorld\nfrom drivers.emulate.faults import F\n"
+    source = ("from drivers.world.world import SimWorld\n"
+              "from drivers.emulate.faults import F\n")
     every = frozenset({"fri", "sim", "ur"})
     assert backend_violations(source, "drivers.fri.emulate.server",
                               "drivers/fri/emulate/server.py", "fri", every) == []
     assert backend_violations(source, "drivers.fri.driver", "drivers/fri/driver.py", "fri",
-                              every) == ["drivers/fri/driver.py:1: imports drivers.sim.world",
-                                         "drivers/fri/driver.py:2: imports drivers.emulate.faults"]
+                              every) == ["drivers/fri/driver.py:2: imports drivers.emulate.faults"]
+    # the sim back-end (the world's sensor and tracker entries) is a sibling to a family,
+    # its emulated side included
+    assert backend_violations("from drivers.sim.tracker import SimTracker\n",
+                              "drivers.fri.emulate.x", "x.py", "fri", every) == [
+        "x.py:1: imports drivers.sim.tracker"]
     assert backend_violations("from drivers.ur.emulate import control\n",
                               "drivers.fri.emulate.x", "x.py", "fri", every) == [
         "x.py:1: imports drivers.ur.emulate"]

@@ -25,8 +25,8 @@ from drivers.fri.emulate.lockstep import SimRobot, open_sim
 from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
 from drivers.fri.link import ERROR_SOFTWARE_LIMIT, KrcLink, LinkEvent, describe_error
 from drivers.fri.types import FriMeasurement, FriState
-from drivers.sim.arm import ArmMode
-from drivers.sim.world import SimWorld
+from drivers.world.arm import ArmMode
+from drivers.world.world import SimWorld
 from ffexp import loop
 from ffexp.contracts import StopReason
 from ffexp.protocol import load_run_protocol, scene_path

@@ -201,7 +201,7 @@ def test_the_fri_emulator_serves_the_simulated_sensor(paper_scene: Scene) -> Non
     from drivers.fri.backend import FriRobotConfig
     from drivers.fri.driver import FriRobot
     from drivers.fri.emulate.server import EmulatorSettings, FriEmulator
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
     world = SimWorld(paper_scene, seed=4)
     robot = FriRobot(FriRobotConfig(robot_ip=LOCAL, port=0, bind_host=LOCAL))

@@ -12,9 +12,9 @@ import pytest
 
 from drivers.base.types import AttachedFrame
 from drivers.description.scene import load_scene
-from drivers.sim import bodies
-from drivers.sim.arm import ArmCommand, ArmMode
-from drivers.sim.world import SimWorld
+from drivers.world import bodies
+from drivers.world.arm import ArmCommand, ArmMode
+from drivers.world.world import SimWorld
 from ffexp.experiment import RigChoice, run_file
 from ffexp.recording import load
 from ffexp.recording.reader import contents

@@ -15,7 +15,7 @@ import pytest
 from mcap.reader import make_reader
 
 from drivers.description.scene import Scene, load_scene
-from drivers.sim.mjcf import build_xml
+from drivers.world.mjcf import build_xml
 from ffexp.experiment import RigChoice, run_file
 from ffexp.scene3d.kinematics import chain, link_transforms, tcp_pose
 

@@ -64,5 +64,5 @@ def test_calibrations_base_scene_is_read_without_a_world(monkeypatch: pytest.Mon
     def no_world(*args: object, **kwargs: object) -> None:
         raise AssertionError("a world was built to read a scene")
 
-    monkeypatch.setattr("drivers.sim.world.SimWorld.__init__", no_world)
+    monkeypatch.setattr("drivers.world.world.SimWorld.__init__", no_world)
     assert base_scene(PAPER, OVERRIDES) == opened

@@ -25,10 +25,10 @@ from drivers.description.scene import FtSensorSettings
 from drivers.errors import SimulationError
 from drivers.fri.emulate.krc import software_limit_error
 from drivers.fri.emulate.lockstep import SimRobot
-from drivers.sim import ArmCommand, SimWorld
-from drivers.sim.arm import ArmMode, ArmState
-from drivers.sim.friction import JointFriction
-from drivers.sim.ftsensor import NOISE_BLOCK, FtSensorModel
+from drivers.world import ArmCommand, SimWorld
+from drivers.world.arm import ArmMode, ArmState
+from drivers.world.friction import JointFriction
+from drivers.world.ftsensor import NOISE_BLOCK, FtSensorModel
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = ROOT / "data" / "scenes" / "paper.toml"

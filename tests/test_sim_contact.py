@@ -1,4 +1,4 @@
-"""Funnel contact geometry (drivers/sim/funnels.py, drivers/description/funnel.py): smooth
+"""Funnel contact geometry (drivers/world/funnels.py, drivers/description/funnel.py): smooth
 cones from primitives.
 
 The tool's funnel sits on a free body (no gravity) at a chosen pose in the
@@ -20,7 +20,7 @@ import pytest
 
 from drivers.description.funnel import seat_depth, tool_cone_spheres
 from drivers.description.scene import Scene
-from drivers.sim import funnels
+from drivers.world import funnels
 
 TIP = 0.1  # tool tip distance from the tool body's frame in the generated geoms
 
@@ -169,7 +169,7 @@ def test_far_apart_shortcut_equals_the_contact_list() -> None:
     from pathlib import Path
 
     from drivers.description import load_scene
-    from drivers.sim import ArmCommand, SimWorld
+    from drivers.world import ArmCommand, SimWorld
 
     scene = load_scene(Path(__file__).resolve().parent.parent / "data" / "scenes" / "paper.toml",
                        ["target.distance=0.1"])

@@ -1,4 +1,4 @@
-"""Joint friction (drivers/sim/friction.py): a Stribeck curve on MuJoCo's dry friction.
+"""Joint friction (drivers/world/friction.py): a Stribeck curve on MuJoCo's dry friction.
 
 A single hinge carrying the model, its level updated once per 5 ms cycle as
 the simulated KRC does: a torque ramp breaks it away at the static level,
@@ -14,7 +14,7 @@ import pytest
 from scipy.optimize import brentq
 
 from drivers.description.scene import ArmSettings, Scene
-from drivers.sim.friction import JointFriction
+from drivers.world.friction import JointFriction
 
 DT = 0.001
 SUBSTEPS = 5
@@ -118,8 +118,8 @@ def _hand_breakaway_y(jac: np.ndarray, coulomb: np.ndarray) -> float:
 
 def _push_y(scene: object, force_n: float, cycles: int) -> np.ndarray:
     """The TCP's travel along the start TCF's Y, per cycle, under a constant TCF Y force."""
-    from drivers.sim.arm import ArmCommand, ArmMode
-    from drivers.sim.world import SimWorld
+    from drivers.world.arm import ArmCommand, ArmMode
+    from drivers.world.world import SimWorld
 
     world = SimWorld(scene, seed=1)  # type: ignore[arg-type]
     start = world.tcp_pose.copy()
@@ -136,7 +136,7 @@ def _push_y(scene: object, force_n: float, cycles: int) -> np.ndarray:
 
 
 def _with_arm(paper_scene: Scene, **update: object) -> tuple[Scene, np.ndarray]:
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
     scene = paper_scene.model_copy(update={"arm": paper_scene.arm.model_copy(update=update)})
     return scene, SimWorld(scene, seed=1).jacobian

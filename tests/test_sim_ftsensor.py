@@ -7,7 +7,7 @@ import pytest
 
 from drivers.base.types import FtStatus
 from drivers.description.scene import FtSensorSettings
-from drivers.sim.ftsensor import FtSensorModel
+from drivers.world.ftsensor import FtSensorModel
 
 QUIET = FtSensorSettings(noise_std=(0.0, 0.0), bias_std=(0.0, 0.0), drift_density=(0.0, 0.0),
                          delay_s=0.0)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from drivers.description.scene import Scene
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 K_NPM = 200.0
 C_NSPM = 20.0

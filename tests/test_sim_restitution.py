@@ -1,4 +1,4 @@
-"""Contact restitution (drivers/sim/contact.py): the clamped spring-damper's
+"""Contact restitution (drivers/world/contact.py): the clamped spring-damper's
 rebound and its inverse against closed forms, and impacts in the rig that rebound
 with ``contact.restitution``.
 
@@ -25,13 +25,13 @@ import pytest
 from drivers.description import funnel
 from drivers.description.scene import Scene, load_scene
 from drivers.errors import ConfigError
-from drivers.sim.contact import (
+from drivers.world.contact import (
     DAMPING_RATIO_RANGE,
     configure_contact,
     damping_ratio_for,
     restitution_of,
 )
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 SCENE = Path(__file__).resolve().parents[1] / "data" / "scenes" / "paper.toml"
 

@@ -16,9 +16,9 @@ from drivers.base.placement import Placement
 from drivers.base.types import FtStatus
 from drivers.description.scene import Scene
 from drivers.errors import InvalidCommandError, SimulationError
-from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
-from drivers.sim.friction import JointFriction
-from drivers.sim.world import SimWorld
+from drivers.world.arm import ArmCommand, ArmMode, ArmState, ArmWarning
+from drivers.world.friction import JointFriction
+from drivers.world.world import SimWorld
 from ffexp.scenarios.funnel import truth_placement
 
 _N_ARM = 7

@@ -11,13 +11,13 @@ import pytest
 from test_ur_sim import _drive
 
 from drivers.description import load_scene
-from drivers.sim.world import SimWorld
 from drivers.ur import registers
 from drivers.ur.config import UrSettings
 from drivers.ur.driver import UrRobot
 from drivers.ur.emulate.server import UrEmulator
 from drivers.ur.registers import Mode
 from drivers.ur.rtde.client import RtdeClient
+from drivers.world.world import SimWorld
 
 ROOT = Path(__file__).resolve().parents[1]
 CYCLES = 40

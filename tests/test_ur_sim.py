@@ -14,7 +14,6 @@ from typer.testing import CliRunner
 from drivers.base.types import CartesianCommand
 from drivers.description import load_scene
 from drivers.errors import ConfigError
-from drivers.sim.world import SimWorld
 from drivers.ur import registers
 from drivers.ur.config import UrSettings, UrSimConfig
 from drivers.ur.driver import UrRobot
@@ -24,6 +23,7 @@ from drivers.ur.emulate.lockstep import SimUrRobot
 from drivers.ur.emulate.rtde_server import RtdeServer
 from drivers.ur.errors import UrSafetyStopError
 from drivers.ur.registers import Mode, ScriptState
+from drivers.world.world import SimWorld
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "data/scenes/paper-ur5e.toml"

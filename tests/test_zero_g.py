@@ -14,8 +14,8 @@ from typer.testing import CliRunner
 from drivers.description.layout import compute_layout
 from drivers.description.scene import Scene, load_scene
 from drivers.errors import ConfigError
-from drivers.sim import mjcf
-from drivers.sim.world import SimWorld
+from drivers.world import mjcf
+from drivers.world.world import SimWorld
 from ffexp.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]

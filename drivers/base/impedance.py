@@ -12,7 +12,7 @@ Joint impedance (strategy 30) is the same per joint with
 ``D_j = 2 d_j sqrt(k_j M_jj)``; joint position mode (10) is joint impedance at
 a fixed high stiffness.
 
-:class:`~drivers.sim.world.SimWorld` realises these laws with MuJoCo
+:class:`~drivers.world.world.SimWorld` realises these laws with MuJoCo
 actuators so they run inside every physics step; these functions are the
 reference the tests compare against, and what the world uses to compute the
 gains once per FRI cycle.

@@ -2,7 +2,7 @@
 carrier loop (:class:`~drivers.carrier.loop.CarrierLoop`) reads the carrier's F/T sensor
 and commands a position-controlled arm through inverse kinematics, as ``servoJ`` takes
 joint targets; the chaser's tool, held stiff, moves at the set speed. The world is any
-:class:`~drivers.carrier.plant.CarrierPlant` (in process: :mod:`drivers.sim.twoarm`; or
+:class:`~drivers.carrier.plant.CarrierPlant` (in process: :mod:`drivers.world.twoarm`; or
 each arm behind its own emulator). No I/O here.
 
 The trace is the point bench's (:class:`~drivers.carrier.bench.ImpactTrace`), so the

@@ -7,7 +7,7 @@ the target's mock-up on the carrier's flange behind a simulated F/T sensor. Each
 cycle the loop gives both arms' joint targets (the carrier's as ``servoJ`` would take
 them: position and velocity) and gets back the carrier's joints (as a UR reports
 ``actual_q`` and ``actual_qd``) and the F/T samples that reached it. The same protocol is
-met in process (:mod:`drivers.sim.twoarm`) and over the wire, each arm behind its own
+met in process (:mod:`drivers.world.twoarm`) and over the wire, each arm behind its own
 emulator.
 
 Geometry (:func:`arm_layout`): the chaser's tool tip starts where its arm's start pose puts

@@ -5,7 +5,7 @@ The tool's funnel is a solid cone on a nose sphere, the target's a hollow cone
 the tool's colliding surface is a stack of spheres on its axis, each inscribed in
 the cone (the first is the nose); with ``"capsules"``, ``generators`` capsules
 along the cone. The simulator builds its geoms from these numbers
-(:mod:`drivers.sim.funnels`); the seat depth and the tool's length are what the
+(:mod:`drivers.world.funnels`); the seat depth and the tool's length are what the
 layout, the judges and the 3-D view need.
 
 Frames: the tool's tip (the TCP) is ``tool_tip_offset`` along the tool's axis

@@ -1,7 +1,7 @@
 """What a contact's restitution means for its damping: the coefficient of restitution
 of a linear spring-damper contact that only pushes (:func:`restitution_of`) and its
 inverse (:func:`damping_ratio_for`). The simulator's funnel contact
-(:mod:`drivers.sim.contact`) and the carrier's impact bench (:mod:`drivers.carrier`)
+(:mod:`drivers.world.contact`) and the carrier's impact bench (:mod:`drivers.carrier`)
 both derive a contact's damping from the scene's ``contact.restitution`` with them.
 Pure maths, no I/O.
 """

@@ -1,7 +1,7 @@
 """Where a scene puts the bed and the target, from the arm's start TCF. Pure maths.
 
 The simulator places its glass and target this way from the TCF its arm reaches
-at the start pose (:class:`~drivers.sim.world.SimWorld`); ``ffexp.scene3d`` does
+at the start pose (:class:`~drivers.world.world.SimWorld`); ``ffexp.scene3d`` does
 the same from the first measured TCF, so both draw the same rig.
 """
 

@@ -4,7 +4,7 @@ A scene describes the rig: the arm (where it stands, its start pose, joint
 friction, the limits of the KRC's internal controller and its FRI timing), the
 tool and the F/T sensor, the air-bed target with its funnel and hose, and the
 funnel contact, plus the physics settings of the simulator that builds it
-(:class:`~drivers.sim.world.SimWorld`). The emulated controllers and
+(:class:`~drivers.world.world.SimWorld`). The emulated controllers and
 ``ffexp.scene3d`` read the same file; nothing here does I/O beyond loading it.
 Every field has the paper's rig as its default, so an empty file is the paper's
 rig; ``data/scenes/paper.toml`` spells it out.
@@ -125,13 +125,13 @@ class ArmSettings(StrictModel):
     it of ratio about 1 + k_xp: Method II at 0.8 N slides below 0.000556 and
     Method I case I stops aligning with at most one break above 0.000858 (``ffexp
     limits``, nominal scene); 0.00069 is the band's geometric centre, so +-15 %
-    stays inside it (docs/fidelity.md, drivers/sim/NOTES.md)."""
+    stays inside it (docs/fidelity.md, drivers/world/NOTES.md)."""
     coulomb: PerJoint | None = None
     """Explicit joint Coulomb friction [N m]; overrides ``friction_scale``."""
     viscous: PerJoint | None = None
     """Explicit joint viscous friction [N m s/rad]; overrides ``friction_scale``."""
     static_ratio: Annotated[float, Field(ge=1.0, le=5.0)] = 1.3
-    """Breakaway (static) over Coulomb friction (Stribeck curve, :mod:`drivers.sim.friction`).
+    """Breakaway (static) over Coulomb friction (Stribeck curve, :mod:`drivers.world.friction`).
     No published value for the LWR4+ was found: an assumption of the order
     reported for harmonic-drive joints."""
     stribeck_speed: Annotated[float, Field(gt=0.0, le=1.0)] = 0.02
@@ -206,7 +206,7 @@ class ArmSettings(StrictModel):
 class FunnelGeometry(StrictModel):
     """A funnel: a hollow cone (target) or a solid cone on a nose sphere (tool).
 
-    ``surface = "smooth"`` (the simulator's surfaces: :mod:`drivers.sim.funnels`): the target is
+    ``surface = "smooth"`` (the simulator's surfaces: :mod:`drivers.world.funnels`): the target is
     ``panels`` flat panels tangent to the cone, the tool a stack of spheres
     inscribed in its cone, axial scallops below ``scallop``. ``"capsules"``:
     the earlier faceted funnels, ``generators`` capsules of ``capsule_radius``.
@@ -271,11 +271,11 @@ class FtSensorSettings(StrictModel):
     """Age of a sample's wrench when it is stamped [s], rounded to whole samples:
     the Net F/T's conversion and output path (and its low-pass filter, if one is
     set). 1 ms: one sample period at the paper's 1 kHz with no filter (an
-    assumption; the filter settings' delays: drivers/sim/NOTES.md)."""
+    assumption; the filter settings' delays: drivers/world/NOTES.md)."""
 
 
 class ContactSettings(StrictModel):
-    """Funnel-funnel contact. See :func:`drivers.sim.contact.configure_contact` for
+    """Funnel-funnel contact. See :func:`drivers.world.contact.configure_contact` for
     the conversion to solref."""
 
     stiffness: PosFloat = 2.0e4
@@ -284,7 +284,7 @@ class ContactSettings(StrictModel):
     """Coefficient of restitution of an impact of the funnels (relative normal
     speed after over before); the contact's damping follows from it
     (:func:`~drivers.description.impact.damping_ratio_for`). 0 is a perfectly inelastic
-    contact; the range for plausible funnel materials: drivers/sim/NOTES.md."""
+    contact; the range for plausible funnel materials: drivers/world/NOTES.md."""
     friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.3
     """Coulomb coefficient between the funnels."""
     impedance: Annotated[float, Field(gt=0.0, lt=1.0)] = 0.8
@@ -292,7 +292,7 @@ class ContactSettings(StrictModel):
     ``1 - d`` times the quasi-static stiffness (MuJoCo's soft contact makes the
     relative motion ``1 / (1 - d)`` times heavier); an impact that engages several
     contacts at once has a damping ratio within ``d**(-1/4)`` of the one
-    ``restitution`` asks for (:func:`~drivers.sim.contact.configure_contact`):
+    ``restitution`` asks for (:func:`~drivers.world.contact.configure_contact`):
     6 % at 0.8 (rebounds within 10 %, measured: tests/test_sim_restitution.py),
     19 % at 0.5."""
 

@@ -9,7 +9,7 @@ The emulator's thread hands over the target's pose after each cycle
 never reads the world while it steps); a render thread takes the newest at
 ``fps`` on the wall clock (the emulator runs the world at real time) and
 renders it
-(:class:`drivers.sim.render.TargetRenderer`); each client's thread sends the
+(:class:`drivers.world.render.TargetRenderer`); each client's thread sends the
 newest frame once. Everything stops with :meth:`CameraStream.close`.
 """
 
@@ -26,9 +26,9 @@ import numpy as np
 
 from drivers.base.types import F64
 from drivers.errors import AddressError
-from drivers.sim.render import TargetRenderer, top_view
-from drivers.sim.world import SimWorld
 from drivers.vision.calibration import save_calibration
+from drivers.world.render import TargetRenderer, top_view
+from drivers.world.world import SimWorld
 
 __all__ = ["CameraStream"]
 

@@ -40,7 +40,7 @@ from drivers.emulate.faults import FaultSettings
 from drivers.emulate.netft_box import NetFtServer
 from drivers.emulate.served import ServedRobot
 from drivers.errors import ConfigError, NotConnectedError
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 __all__ = ["EmulatedRig", "EmulatedRigSettings", "SettingNames"]
 

@@ -20,7 +20,7 @@ from drivers.carrier.plant import ArmLayout
 from drivers.description.scene import Scene
 from drivers.emulate.shared import ROLES, SharedWorld
 from drivers.errors import ConfigError
-from drivers.sim.twoarm import TwoArmWorld
+from drivers.world.twoarm import TwoArmWorld
 
 __all__ = ["TwoArmServers"]
 

@@ -30,7 +30,7 @@ from drivers.config import NonNeg
 from drivers.errors import ConfigError
 
 if TYPE_CHECKING:
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
 __all__ = ["BACKEND", "SimFt", "SimTrackerConfig"]
 
@@ -61,7 +61,7 @@ class SimTrackerConfig(DeviceConfig):
 
 def _world(robot: OpenedRobot, ctx: OpenContext, table: str) -> SimWorld:
     """The simulated robot's world (the simulated sensor and tracker read it)."""
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
     world = getattr(robot.robot, "world", None)
     if not isinstance(world, SimWorld):  # the rig's check makes this unreachable
@@ -70,7 +70,7 @@ def _world(robot: OpenedRobot, ctx: OpenContext, table: str) -> SimWorld:
 
 
 def _open_ft(cfg: SimFt, ctx: OpenContext, robot: OpenedRobot) -> OpenedSensor:
-    from drivers.sim.driver import SimFtSensor
+    from drivers.world.ftstream import SimFtSensor
 
     return OpenedSensor(SimFtSensor(_world(robot, ctx, "ft")))
 
@@ -97,5 +97,5 @@ BACKEND = Backend(
     "sim",
     sensors=(FtBackend(SimFt, _open_ft, _check_ft),),
     trackers=(TrackerBackend(SimTrackerConfig, _open_tracker, _check_tracker),),
-    topics=cdr_topics_of("drivers.sim.topics"),
+    topics=cdr_topics_of("drivers.world.topics"),
 )

@@ -22,7 +22,7 @@ import numpy as np
 
 from drivers.base.interfaces import TargetTracker
 from drivers.base.types import F64, NS_PER_S, TargetObservation
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 __all__ = ["SimTracker", "noisy_planar", "noisy_pose6"]
 

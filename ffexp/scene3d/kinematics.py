@@ -10,7 +10,7 @@ the LWR4+ has none), and turns by joint ``i`` about its axis. The flange is
 ``link7``'s origin; the F/T sensor and the tool follow along its z axis, and
 the TCF (the tool tip) is the flange frame moved ``sensor_height +
 shaft_length + funnel.depth`` along z and turned by 180 deg about it (as the
-simulator's model, :mod:`drivers.sim.mjcf`).
+simulator's model, :mod:`drivers.world.mjcf`).
 
 For a chain without fixed turns whose axes are +-y and +-z (the LWR4+) the
 rotations are written out: a 4x4 from ``cos`` and ``sin`` costs a few

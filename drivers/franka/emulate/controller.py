@@ -29,8 +29,8 @@ import numpy as np
 from drivers.base.types import F64
 from drivers.description import tool_tip_offset
 from drivers.franka import codec
-from drivers.sim.arm import ArmCommand, ArmMode
-from drivers.sim.world import SimWorld
+from drivers.world.arm import ArmCommand, ArmMode
+from drivers.world.world import SimWorld
 
 __all__ = ["WINDOW", "Fr3SimController", "flange_to_tcp"]
 

@@ -23,7 +23,7 @@ from drivers.franka.config import FrankaSimConfig
 from drivers.franka.driver import FrankaRobot
 from drivers.franka.emulate.controller import Fr3SimController
 from drivers.franka.link import FciState, state_from_record
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 __all__ = ["LoopbackFci", "SimFrankaRobot", "open_sim"]
 

@@ -21,7 +21,7 @@ from drivers.emulate.session import EmulatedRigSettings
 from drivers.errors import ConfigError
 from drivers.franka.backend import EMULATOR
 from drivers.franka.emulate.server import FciFaults, FciServer
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 __all__ = ["STATUS_PERIOD_S", "ServedFr3", "serve"]
 

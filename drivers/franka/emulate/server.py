@@ -53,7 +53,7 @@ from drivers.franka import codec
 from drivers.franka.emulate.controller import Fr3SimController
 from drivers.franka.urdf import urdf
 from drivers.net.udp import resolve_ipv4
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 __all__ = ["FciFaults", "FciServer"]
 

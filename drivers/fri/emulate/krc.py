@@ -51,7 +51,7 @@ from drivers.fri.types import (
     FriQuality,
     FriState,
 )
-from drivers.sim.arm import ArmCommand, ArmMode, ArmState, ArmWarning
+from drivers.world.arm import ArmCommand, ArmMode, ArmState, ArmWarning
 
 __all__ = [
     "HARDWARE_LIMITS_DEG",

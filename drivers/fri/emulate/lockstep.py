@@ -77,9 +77,9 @@ from drivers.fri.emulate.krc import (
 from drivers.fri.link import KrcLink, LinkEvent
 from drivers.fri.stats import LinkWatch
 from drivers.fri.types import CmdFlags, ControlMode, FriCommand, FriMeasurement
-from drivers.sim.arm import ArmCommand, ArmMode, ArmState
-from drivers.sim.driver import SimFtSensor
-from drivers.sim.world import SimWorld
+from drivers.world.arm import ArmCommand, ArmMode, ArmState
+from drivers.world.ftstream import SimFtSensor
+from drivers.world.world import SimWorld
 
 __all__ = ["SimRobot", "open_rig_robot", "open_sim"]
 

@@ -17,7 +17,7 @@ from drivers.emulate.netft_box import NetFtServer
 from drivers.emulate.session import EmulatedRigSettings
 from drivers.errors import ConfigError
 from drivers.fri.emulate.server import EmulatorSettings, EmulatorStats, FriEmulator
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 __all__ = ["STATUS_PERIOD_S", "ServedKrc", "serve"]
 

@@ -106,8 +106,8 @@ from drivers.fri.emulate.krc import (
 from drivers.fri.link import KrcLink, LinkEvent, QualityThresholds
 from drivers.fri.types import FriCommand, FriMeasurement, FriQuality, FriState
 from drivers.net.udp import bind_udp, enable_kernel_stamps, kernel_stamp_ns
-from drivers.sim.arm import ArmCommand
-from drivers.sim.world import SimWorld
+from drivers.world.arm import ArmCommand
+from drivers.world.world import SimWorld
 
 __all__ = [
     "EmulatorSettings",

@@ -38,10 +38,10 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 
 from drivers.base.types import F64
-from drivers.sim.arm import ArmCommand, ArmMode
+from drivers.world.arm import ArmCommand, ArmMode
 
 if TYPE_CHECKING:
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
 __all__ = ["SERVO_DAMPING_RATIO", "ForceModeCommand", "UrArmControl"]
 

@@ -33,11 +33,11 @@ from typing import Any, Final
 import numpy as np
 
 from drivers.base.types import F64
-from drivers.sim.world import SimWorld
 from drivers.ur import registers
 from drivers.ur.emulate.control import ForceModeCommand, UrArmControl
 from drivers.ur.registers import Mode, ScriptState
 from drivers.ur.rtde.variables import SAFETY_STATUS_BIT
+from drivers.world.world import SimWorld
 
 __all__ = ["STALE_CYCLES", "UrSimController"]
 

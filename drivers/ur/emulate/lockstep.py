@@ -23,13 +23,13 @@ from drivers.base.backend import OpenContext, OpenedRobot
 from drivers.base.types import RobotState
 from drivers.description.scene import Scene
 from drivers.errors import LinkLostError
-from drivers.sim.world import SimWorld
 from drivers.ur.config import UrSimConfig
 from drivers.ur.driver import UrRobot
 from drivers.ur.emulate.controller import UrSimController
 from drivers.ur.rtde.codec import ControllerVersion, DataPackage
 from drivers.ur.rtde.fields import Recipe
 from drivers.ur.rtde.variables import INPUTS, OUTPUTS
+from drivers.world.world import SimWorld
 
 __all__ = ["CONTROLLER_VERSION", "LoopbackRtde", "SimUrRobot", "open_sim"]
 

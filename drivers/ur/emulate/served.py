@@ -17,10 +17,10 @@ from collections.abc import Callable
 from drivers.emulate.netft_box import NetFtServer
 from drivers.emulate.session import EmulatedRigSettings
 from drivers.errors import ConfigError
-from drivers.sim.world import SimWorld
 from drivers.ur.backend import EMULATOR
 from drivers.ur.emulate.rtde_server import RtdeFaults
 from drivers.ur.emulate.server import UrEmulator
+from drivers.world.world import SimWorld
 
 __all__ = ["STATUS_PERIOD_S", "ServedUr", "serve"]
 

@@ -29,10 +29,10 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any, Literal
 
-from drivers.sim.world import SimWorld
 from drivers.ur.emulate.controller import UrSimController
 from drivers.ur.emulate.lockstep import CONTROLLER_VERSION
 from drivers.ur.emulate.rtde_server import RtdeFaults, RtdeServer
+from drivers.world.world import SimWorld
 
 __all__ = ["UrEmulator"]
 

@@ -10,7 +10,7 @@ from drivers.base.guards import requires_open
 from drivers.base.interfaces import FlagStream, ForceTorqueSensor
 from drivers.base.types import FtSamples
 from drivers.errors import NotConnectedError
-from drivers.sim.world import SimWorld
+from drivers.world.world import SimWorld
 
 __all__ = ["SimFtSensor"]
 

@@ -1,7 +1,7 @@
 """The simulated rig: the scene's arm with the KRC's impedance law, air-bed target, F/T sensor.
 
 :class:`SimWorld` is a physics world only: ``step(command)`` latches an ArmCommand (if
-given), runs one control cycle of physics and returns the ArmState (:mod:`drivers.sim.arm`) at
+given), runs one control cycle of physics and returns the ArmState (:mod:`drivers.world.arm`) at
 its end. It knows no link protocol: how FRI's flags select fields, when the link takes commands
 (MON/CMD) and its quality are the emulator's (:mod:`drivers.emulate`). Its rig is a Scene.
 
@@ -43,18 +43,18 @@ import numpy as np
 from drivers.base.impedance import normalized_damping
 from drivers.base.types import F64, FtSamples
 from drivers.description import Scene, compute_layout, tool_tip_offset
-from drivers.sim import mjcf
-from drivers.sim.arm import ArmCommand, ArmMode
-from drivers.sim.bodies import FreeBodies
-from drivers.sim.chaser import FloatingBase
-from drivers.sim.contact import ToolContact, configure_contact
-from drivers.sim.divergence import check_divergence, quiet_divergence
-from drivers.sim.friction import JointFriction
-from drivers.sim.ftsensor import FtSensorModel, FtSteps
-from drivers.sim.latch import take
-from drivers.sim.rendered import RenderedTarget
-from drivers.sim.state import LazyArmState
-from drivers.sim.truth import pose as _pose
+from drivers.world import mjcf
+from drivers.world.arm import ArmCommand, ArmMode
+from drivers.world.bodies import FreeBodies
+from drivers.world.chaser import FloatingBase
+from drivers.world.contact import ToolContact, configure_contact
+from drivers.world.divergence import check_divergence, quiet_divergence
+from drivers.world.friction import JointFriction
+from drivers.world.ftsensor import FtSensorModel, FtSteps
+from drivers.world.latch import take
+from drivers.world.rendered import RenderedTarget
+from drivers.world.state import LazyArmState
+from drivers.world.truth import pose as _pose
 
 #: The KRC's damping uses the Cartesian inertia of the configuration where it was
 #: last computed until a joint has moved this far from it [rad]. Measured pressing
@@ -453,11 +453,11 @@ class SimWorld:
 
     def _take(self, cmd: ArmCommand) -> None:
         """Latch the fields ``cmd`` gives (the others keep their values):
-        :func:`drivers.sim.latch.take`."""
+        :func:`drivers.world.latch.take`."""
         take(self, cmd)
 
     def _check_divergence(self) -> None:
-        """Raise SimulationError if the physics diverged (:mod:`drivers.sim.divergence`)."""
+        """Raise SimulationError if the physics diverged (:mod:`drivers.world.divergence`)."""
         check_divergence(self.data)
 
     def step(self, command: ArmCommand | None = None) -> LazyArmState:
@@ -478,7 +478,7 @@ class SimWorld:
     def last_state(self) -> LazyArmState:
         """The state at the end of the last cycle (the start state before the first).
 
-        Its fields are computed on first read (:mod:`drivers.sim.state`: a
+        Its fields are computed on first read (:mod:`drivers.world.state`: a
         cycle nobody reads costs no measurement, the Jacobian, mass matrix and
         truth only when read); the same object while someone holds it.
         """

@@ -4,7 +4,7 @@ Written by us from published numbers; no third-party model file is copied.
 
 The arm's numbers are its published description (:data:`drivers.description.lwr4.LWR4`,
 with their sources); the Jubien friction and rotor inertias are scaled by the
-scene (the choices made where sources are silent: ``drivers/sim/NOTES.md``). The
+scene (the choices made where sources are silent: ``drivers/world/NOTES.md``). The
 ATI Mini45: 45 mm diameter, 15.7 mm height, 0.0917 kg (ATI catalogue). Where the
 target goes: :func:`drivers.description.layout.compute_layout`.
 
@@ -15,12 +15,12 @@ has the same axes, on the Mini45's tool-side face.
 
 MuJoCo choices (fact sheet sec. 3): ``implicitfast``, elliptic cones,
 Newton; the funnels are spheres (tool) against thin boxes (target), a
-primitive pair (:mod:`drivers.sim.funnels`); the target moves in the bed
+primitive pair (:mod:`drivers.world.funnels`); the target moves in the bed
 plane on x/y slides and a z hinge at its centre of mass, plus a z slide so
 that four sphere pads carry its weight on the glass and bed friction is
 isotropic Coulomb friction ``mu * m * g``.
 The KRC's Cartesian impedance law is built from MuJoCo actuators so it runs
-inside the physics step (see :mod:`drivers.sim.world`).
+inside the physics step (see :mod:`drivers.world.world`).
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ from drivers.description.arm import rpy_matrix
 from drivers.description.funnel import tool_tip_offset
 from drivers.description.layout import Layout
 from drivers.description.scene import ObjectSettings, Scene
-from drivers.sim import funnels
-from drivers.sim.rendered import flange_xml
+from drivers.world import funnels
+from drivers.world.rendered import flange_xml
 
 #: The arm's joint names (``a1`` .. ``a7``; the first six for a six-joint arm).
 ARM_JOINTS = tuple(f"a{i + 1}" for i in range(7))
@@ -70,7 +70,7 @@ TOUCH_MARGIN = 2e-4
 _PAD = 'contype="4" conaffinity="8"'
 _GLASS = 'contype="8" conaffinity="4"'
 _VISUAL = 'contype="0" conaffinity="0"'
-# An object collides with the tool as the target's funnel does (drivers.sim.funnels).
+# An object collides with the tool as the target's funnel does (drivers.world.funnels).
 _OBJECT = 'contype="2" conaffinity="1"'
 
 

@@ -3,7 +3,7 @@ and kept for the cycles that follow (the KRC holds a command until the next). No
 
 A pose, stiffness or wrench whose bytes equal the latched one's keeps the latched
 object, so the world's actuators need no rewrite (:meth:`SimWorld._apply
-<drivers.sim.world.SimWorld>` compares objects).
+<drivers.world.world.SimWorld>` compares objects).
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ import numpy as np
 from drivers.base.impedance import clip_cart_stiffness
 from drivers.base.types import F64
 from drivers.errors import InvalidCommandError
-from drivers.sim.arm import ArmCommand, ArmMode, ArmWarning
+from drivers.world.arm import ArmCommand, ArmMode, ArmWarning
 
 if TYPE_CHECKING:
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
 __all__ = ["take"]
 

@@ -21,8 +21,8 @@ import numpy as np
 
 from drivers.base.types import F64
 from drivers.description.scene import BaseSettings
-from drivers.sim import mjcf
-from drivers.sim.bodies import body_twist
+from drivers.world import mjcf
+from drivers.world.bodies import body_twist
 
 __all__ = ["FloatingBase", "base_wrench"]
 

@@ -1,7 +1,7 @@
 """The world's state at the end of a cycle, built piece by piece when first read.
 
-:class:`LazyArmState` is the :class:`~drivers.sim.arm.ArmState` that
-:attr:`SimWorld.last_state <drivers.sim.world.SimWorld.last_state>` returns.
+:class:`LazyArmState` is the :class:`~drivers.world.arm.ArmState` that
+:attr:`SimWorld.last_state <drivers.world.world.SimWorld.last_state>` returns.
 Its fields come in three groups, each computed from the world's MuJoCo data
 on the first read of one of its fields:
 
@@ -24,11 +24,11 @@ import dataclasses
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from drivers.sim.arm import ArmMode, ArmState, ArmWarning
-from drivers.sim.truth import ground_truth, pose
+from drivers.world.arm import ArmMode, ArmState, ArmWarning
+from drivers.world.truth import ground_truth, pose
 
 if TYPE_CHECKING:
-    from drivers.sim.world import SimWorld
+    from drivers.world.world import SimWorld
 
 __all__ = ["LazyArmState"]
 

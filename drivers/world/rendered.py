@@ -34,7 +34,7 @@ FLANGE_BODY = "carrier_flange"
 
 
 def flange_xml(scene: Scene, pos: str, quat: str, target: str) -> tuple[str, str]:
-    """The flange's body and the weld (MJCF, for :mod:`drivers.sim.mjcf`)."""
+    """The flange's body and the weld (MJCF, for :mod:`drivers.world.mjcf`)."""
     tc = max(1.0 / (2.0 * math.pi * scene.carrier.servo_bandwidth_hz),
              2.0 * scene.physics.timestep)
     return (f'<body name="{FLANGE_BODY}" mocap="true" pos="{pos}" quat="{quat}"/>',

@@ -12,7 +12,7 @@ import pytest
 
 from drivers.carrier.body import rotation_log
 from drivers.description.scene import load_scene
-from drivers.errors import ConfigError
+from drivers.errors import ConfigError, SimulationError
 from drivers.world.world import SimWorld
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,3 +65,46 @@ def test_a_carrier_cycle_off_the_world_cycle_is_refused() -> None:
     scene = load_scene(ZERO_G, ("carrier.render_target=true", "carrier.cycle_s=0.002"))
     with pytest.raises(ConfigError, match=r"carrier\.cycle_s"):
         SimWorld(scene)
+
+
+def test_a_carrier_hold_stops_the_world_naming_the_device_and_the_cause() -> None:
+    """The rendered target leaves the carrier's workspace box: the carrier holds, and the
+    world's next cycle raises once, naming the carrier and its cause (the run's driver
+    ends the run ABORT with that line); the rendered body then stays where it is."""
+    drift = 0.05
+    scene = load_scene(ZERO_G, [*RENDER, f"target.drift_mps=[{drift}, 0.0, 0.0]",
+                                "target.distance=0.3", "carrier.workspace_m=[0.02, 0.02, 0.02]"])
+    w = SimWorld(scene)
+    assert w.rendered is not None
+    with pytest.raises(SimulationError, match=r"^carrier held at \d+\.\d{3} s: .*workspace"):
+        for _ in range(400):  # 2 s: the box's 0.02 m is crossed after about 0.4 s
+            w.advance()
+    hold = w.rendered.hold
+    assert hold is not None and hold.device == "carrier"
+    assert hold.t_s == pytest.approx(0.02 / drift, abs=0.05)
+    # said once: the world goes on, the rendered body held
+    held_at = w.rendered.loop.body.position_m.copy()
+    for _ in range(10):
+        w.advance()
+    np.testing.assert_array_equal(w.rendered.loop.body.position_m, held_at)
+
+
+def test_a_run_on_a_rendered_target_ends_abort_with_the_carriers_hold_recorded(
+        tmp_path: Path) -> None:
+    """``ffexp run`` on a rendered target whose carrier holds (the target drifts out of
+    the carrier's workspace box): the run ends ABORT at once, its stop names the carrier and
+    the cause, and the recording keeps every cycle until then."""
+    from ffexp.contracts import Phase, StopReason
+    from ffexp.experiment import run_file
+    from ffexp.recording import load
+
+    sets = [f"scene.{s}" for s in (*RENDER, "target.drift_mps=[0.05, 0.0, 0.0]",
+                                   "carrier.workspace_m=[0.02, 0.02, 0.02]")]
+    result = run_file(ROOT / "protocols/sixdof_method1.toml", sets, out_dir=tmp_path)
+    out = result.outcome
+    assert out.phase == Phase.ABORT and out.stop_reason == StopReason.DRIVER_ERROR
+    assert "carrier held at" in out.reason and "workspace" in out.reason
+    assert out.duration_s == pytest.approx(0.02 / 0.05, abs=0.1)
+    rec = load(result.path, ["/robot/state"])
+    cycles = len(rec.topics["/robot/state"])
+    assert rec.complete and cycles == out.cycles >= out.duration_s / 0.005 - 2

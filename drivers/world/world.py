@@ -43,6 +43,7 @@ import numpy as np
 from drivers.base.impedance import normalized_damping
 from drivers.base.types import F64, FtSamples
 from drivers.description import Scene, compute_layout, tool_tip_offset
+from drivers.errors import SimulationError
 from drivers.world import mjcf
 from drivers.world.arm import ArmCommand, ArmMode
 from drivers.world.bodies import FreeBodies
@@ -271,6 +272,7 @@ class SimWorld:
         self.rendered = RenderedTarget(scene, m, d, self._target_body, self.rng) \
             if scene.carrier.render_target else None
         """The target rendered by the carrier (``carrier.render_target``), or ``None``."""
+        self._hold_said = False
         self._contact, self._touching = self.contact_wrench()
         self._update_kinematics()
         self._state_ref: Callable[[], LazyArmState | None] = _no_state
@@ -541,6 +543,10 @@ class SimWorld:
             if abs(qi - q0) > INERTIA_REUSE_RAD:
                 self._update_inertia()
                 break
+        hold = self.rendered.hold if self.rendered is not None else None
+        if hold is not None and not self._hold_said:  # said once: the chaser's run stops
+            self._hold_said = True
+            raise SimulationError(f"{hold.device} held at {hold.t_s:.3f} s: {hold.cause}")
 
     def _end_state_dynamics(self) -> None:
         """Kinematics and bias forces of the end state (its mass matrix: :meth:`_mass`).

@@ -9,7 +9,6 @@ in its output registers), stepped in lockstep with the world's other server.
 
 from __future__ import annotations
 
-import socket
 from collections.abc import Mapping
 from typing import Any
 
@@ -74,12 +73,7 @@ class UrJointServer:
         under its client (who reads the connection closed), the world left; returns
         without waiting for the server's thread."""
         self.world.leave(self.role)
-        self.server._stop.set()
-        for sock in list(self.server._conns):
-            try:
-                sock.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
+        self.server.kill()
 
 
 def serve(world: SharedWorld, role: str, joints: int, host: str, port: int,

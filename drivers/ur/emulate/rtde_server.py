@@ -218,6 +218,17 @@ class RtdeServer:
             self._listener.close()
             self._listener = None
 
+    def kill(self) -> None:
+        """End at once, as a controller whose process died: serving stops and every
+        connection is shut down under its client (who reads it closed); returns without
+        waiting for the serving thread (:meth:`close` still releases everything)."""
+        self._stop.set()
+        for sock in list(self._conns):
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
     def __enter__(self) -> RtdeServer:
         return self.start()
 

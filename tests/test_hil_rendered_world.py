@@ -53,6 +53,8 @@ def test_the_mockup_is_what_the_world_holds_and_the_target_is_rendered() -> None
     target = w.model.body("target")
     assert float(target.mass[0]) == pytest.approx(scene.carrier.mockup_mass_kg)
     assert w.rendered is not None and w.rendered.loop.body.mass_kg == scene.target.mass
+    # the truth's target is the rendered body: its momentum is the rendered mass's
+    assert w.last_state.truth.bodies["target"].mass_kg == scene.target.mass
 
 
 def test_render_target_needs_a_free_target() -> None:

@@ -80,7 +80,8 @@ class BodyTruth:
     """``[vx, vy, vz, wx, wy, wz]``: the body frame origin's velocity and the angular
     velocity, both in world coordinates [m/s, rad/s]."""
     mass_kg: float = 0.0
-    """The body's own mass (not what it carries)."""
+    """The body's own mass (not what it carries; a rendered target's mock-up reports the
+    rendered body's, ``carrier.render_target``)."""
 
 
 @dataclass(frozen=True)

@@ -69,6 +69,12 @@ class FreeBodies:
         self._rows = tuple((name, bid, data.xpos[bid], data.xmat[bid].reshape(3, 3))
                            for name, bid in self.ids.items())
 
+    def report_mass(self, name: str, mass_kg: float) -> None:
+        """Report ``name``'s mass as ``mass_kg`` in its truth, not its model body's: a
+        rendered target's mock-up stands for the rendered body (``carrier.render_target``)."""
+        self._mass = np.array(self._mass, copy=True)
+        self._mass[self.ids[name]] = mass_kg
+
     def attached(self, sites: dict[str, int]) -> dict[str, AttachedFrame]:
         """The named frames (site ids by name) fixed on one of these bodies: each its
         body's name and its pose in that body's frame, from the model (the chain of

@@ -273,6 +273,8 @@ class SimWorld:
             if scene.carrier.render_target else None
         """The target rendered by the carrier (``carrier.render_target``), or ``None``."""
         self._hold_said = False
+        if self.rendered is not None:  # the truth's target is the rendered body
+            self.bodies.report_mass(mjcf.TARGET_BODY, tg.mass)
         self._contact, self._touching = self.contact_wrench()
         self._update_kinematics()
         self._state_ref: Callable[[], LazyArmState | None] = _no_state

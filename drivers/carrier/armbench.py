@@ -147,14 +147,8 @@ def run_arm_impact(scene: Scene, impact: Impact, layout: ArmLayout,
             tip = tip + tool_v * cs.cycle_s
             for row in state.fine:
                 ft, f = row[0], row[2]
-                if f > 0.0:
-                    if trace.contact_start_s is None:
-                        trace.contact_start_s = ft
-                    trace.contact_end_s = None
-                elif trace.contact_start_s is not None and trace.contact_end_s is None:
-                    trace.contact_end_s = ft
-                    if stop_at is None:
-                        stop_at = ft + impact.after_s
+                if trace.contact(ft, f) and stop_at is None:
+                    stop_at = ft + impact.after_s
                 trace.fine_t_s.append(ft)
                 trace.fine.append(tuple(row[1:]))
             n += 1

@@ -76,6 +76,18 @@ class ImpactTrace:
     contact_start_s: float | None = None
     contact_end_s: float | None = None
 
+    def contact(self, t_s: float, force_n: float) -> bool:
+        """Note the contact's normal force at ``t_s``: its first start, and its end after
+        the last start; True at the step it ends."""
+        if force_n > 0.0:
+            if self.contact_start_s is None:
+                self.contact_start_s = t_s
+            self.contact_end_s = None
+        elif self.contact_start_s is not None and self.contact_end_s is None:
+            self.contact_end_s = t_s
+            return True
+        return False
+
 
 #: Per-cycle values, in order: the rendered body's position (3), rotation vector (3),
 #: twist (6), the flange's position (3), the measured and the applied wrench (6 + 6),
@@ -154,14 +166,8 @@ def run_impact(scene: Scene, impact: Impact, seed: int = 0) -> ImpactTrace:
         f = max(0.0, k * depth + c * closing) if depth > 0.0 else 0.0
         force = f * n_w
         torque = cross3(r, force)
-        if f > 0.0:
-            if trace.contact_start_s is None:
-                trace.contact_start_s = t
-            trace.contact_end_s = None
-        elif trace.contact_start_s is not None and trace.contact_end_s is None:
-            trace.contact_end_s = t
-            if stop_at is None:
-                stop_at = i + round(impact.after_s / h)
+        if trace.contact(t, f) and stop_at is None:
+            stop_at = i + round(impact.after_s / h)
         trace.fine_t_s.append(t)
         trace.fine.append((depth, f, float(v_pt @ n_w), float(tip[0])))
         if loop is not None and i % n_ft == 0 and (

@@ -102,6 +102,11 @@ class OpenContext:
         """How errors name a table of this rig: ``"<source>: <table>"``."""
         return f"{self.source}: {table}"
 
+    def scene_path(self, rig_scene_file: Path | None) -> Path:
+        """The scene a simulated robot runs in: its rig table's ``scene_file`` if it names
+        one, else the protocol's."""
+        return rig_scene_file if rig_scene_file is not None else self.scene_file
+
 
 @dataclass
 class OpenedRobot:

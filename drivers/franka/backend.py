@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import sys
 from importlib.util import find_spec
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from drivers.base.backend import (
@@ -66,22 +65,18 @@ def _open_robot(cfg: FrankaSettings, ctx: OpenContext) -> OpenedRobot:
                f"{cfg.setpoint_every} ms")
 
 
-def _scene_path(cfg: FrankaSimConfig, ctx: OpenContext) -> Path:
-    return cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
-
-
 def _sim_scene(cfg: FrankaSimConfig, ctx: OpenContext) -> Scene:
     from drivers.description.fr3 import FR3, PAPER_SCENE_OVERRIDES
     from drivers.description.swap import scene_with_arm
 
-    return scene_with_arm(_scene_path(cfg, ctx), ctx.scene_overrides, FR3,
+    return scene_with_arm(ctx.scene_path(cfg.scene_file), ctx.scene_overrides, FR3,
                           PAPER_SCENE_OVERRIDES)
 
 
 def _open_sim(cfg: FrankaSimConfig, ctx: OpenContext) -> OpenedRobot:
     from drivers.franka.emulate.lockstep import open_sim
 
-    return open_sim(cfg, ctx, _scene_path(cfg, ctx), _sim_scene(cfg, ctx))
+    return open_sim(cfg, ctx, ctx.scene_path(cfg.scene_file), _sim_scene(cfg, ctx))
 
 
 def _open_wrench(cfg: FrankaWrenchFt, ctx: OpenContext, robot: OpenedRobot) -> OpenedSensor:

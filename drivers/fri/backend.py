@@ -16,7 +16,6 @@ Light: the driver is imported when a rig opens it.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from drivers.base.backend import (
@@ -100,20 +99,16 @@ def _open_estimate(cfg: FriEstimateFt, ctx: OpenContext, robot: OpenedRobot) -> 
     return OpenedSensor(FriEstimateSensor(source), note="F/T from estExtTcpFT")
 
 
-def _scene_path(cfg: SimRobotConfig, ctx: OpenContext) -> Path:
-    return cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
-
-
 def _sim_scene(cfg: SimRobotConfig, ctx: OpenContext) -> Scene:
     from drivers.description import load_scene
 
-    return load_scene(_scene_path(cfg, ctx), ctx.scene_overrides)
+    return load_scene(ctx.scene_path(cfg.scene_file), ctx.scene_overrides)
 
 
 def _open_sim(cfg: SimRobotConfig, ctx: OpenContext) -> OpenedRobot:
     from drivers.fri.emulate.lockstep import open_rig_robot
 
-    return open_rig_robot(cfg, ctx, _scene_path(cfg, ctx), _sim_scene(cfg, ctx))
+    return open_rig_robot(cfg, ctx, ctx.scene_path(cfg.scene_file), _sim_scene(cfg, ctx))
 
 
 def _replay_table(start_cycles: int, wire_precision: bool) -> dict[str, Any]:

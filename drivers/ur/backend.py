@@ -11,7 +11,6 @@ driver is imported when a rig opens it.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from drivers.base.backend import (
@@ -73,22 +72,18 @@ def _open_wrench(cfg: UrWrenchFt, ctx: OpenContext, robot: OpenedRobot) -> Opene
                         f"F/T from the UR's {cfg.source}")
 
 
-def _scene_path(cfg: UrSimConfig, ctx: OpenContext) -> Path:
-    return cfg.scene_file if cfg.scene_file is not None else ctx.scene_file
-
-
 def _ur_scene(cfg: UrSimConfig, ctx: OpenContext) -> Scene:
     from drivers.description.swap import scene_with_arm
     from drivers.description.ur5e import PAPER_SCENE_OVERRIDES, UR5E
 
-    return scene_with_arm(_scene_path(cfg, ctx), ctx.scene_overrides, UR5E,
+    return scene_with_arm(ctx.scene_path(cfg.scene_file), ctx.scene_overrides, UR5E,
                           PAPER_SCENE_OVERRIDES)
 
 
 def _open_sim(cfg: UrSimConfig, ctx: OpenContext) -> OpenedRobot:
     from drivers.ur.emulate.lockstep import open_sim
 
-    return open_sim(cfg, ctx, _scene_path(cfg, ctx), _ur_scene(cfg, ctx))
+    return open_sim(cfg, ctx, ctx.scene_path(cfg.scene_file), _ur_scene(cfg, ctx))
 
 
 #: ``ffexp emulate --robot ur5e``: a UR controller listening for RTDE clients.

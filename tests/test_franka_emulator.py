@@ -120,17 +120,23 @@ def _simulated(torques: list[np.ndarray], n_report: list[int]) -> list[np.ndarra
     return out
 
 
-def test_pylibfranka_reads_the_state_and_runs_a_torque_loop_in_lockstep() -> None:
-    need("pylibfranka")
+def _client_lines(script: str) -> dict[str, str]:
+    """Run a client ``script`` (given the host) in its own process against the emulator
+    in lockstep; its ``name value`` lines."""
     host = free_host()
     emu = start_emulator(host, "--pacing", "lockstep")
     try:
-        res = subprocess.run([sys.executable, "-c", CLIENT, host], capture_output=True,
+        res = subprocess.run([sys.executable, "-c", script, host], capture_output=True,
                              text=True, timeout=300)
     finally:
         stop(emu)
     assert res.returncode == 0, res.stderr
-    lines = dict(line.split(" ", 1) for line in res.stdout.splitlines())
+    return dict(line.split(" ", 1) for line in res.stdout.splitlines())
+
+
+def test_pylibfranka_reads_the_state_and_runs_a_torque_loop_in_lockstep() -> None:
+    need("pylibfranka")
+    lines = _client_lines(CLIENT)
     assert lines["contiguous"] == "True"
     assert float(lines["success"]) == 1.0
     torques = [np.array([0.2 if 300 <= n < 500 else 0.0] + [0.0] * 6) for n in range(600)]
@@ -286,15 +292,7 @@ print("moved", q[0] - q0[0], q[6] - q0[6], flush=True)
 
 def test_franky_runs_a_joint_motion_on_the_emulated_fr3() -> None:
     need("franky")
-    host = free_host()
-    emu = start_emulator(host, "--pacing", "lockstep")
-    try:
-        res = subprocess.run([sys.executable, "-c", FRANKY, host], capture_output=True,
-                             text=True, timeout=300)
-    finally:
-        stop(emu)
-    assert res.returncode == 0, res.stderr
-    lines = dict(line.split(" ", 1) for line in res.stdout.splitlines())
+    lines = _client_lines(FRANKY)
     # the joint position servo holds the arm within a few mrad of franky's target
     assert float(lines["error"]) < 5e-3
     d0, d6 = (float(x) for x in lines["moved"].split())

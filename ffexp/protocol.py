@@ -243,15 +243,25 @@ def load_run_protocol(path: Path, overrides: list[str] | tuple[str, ...] = ()) -
     """Read a run protocol with ``--set`` overrides (one-line errors naming the field as
     written in the file: ``align.k_ri``, not pydantic's ``align.force.k_ri``); a scene
     key is overridden as ``scene.target.lateral=0.012`` (:func:`split_scene_overrides`)."""
-    own, scene = split_scene_overrides(overrides)
     raw = read_toml(path)
     try:
-        data = with_scene_overrides(_apply(raw, own), scene)
-        return validate(RunProtocol, data, str(path))
-    except ConfigError as exc:
+        return run_protocol_from(raw, overrides, str(path))
+    except ConfigError:
         what = wrong_kind(raw, "run protocol")
         if what is not None:
             raise ConfigError(str(path), "", what) from None
+        raise
+
+
+def run_protocol_from(data: dict[str, Any], overrides: Sequence[str],
+                      source: str) -> RunProtocol:
+    """A run protocol from its table (a file's, a recording's) with ``--set`` overrides,
+    as :func:`load_run_protocol` takes them (scene keys, list elements); errors name
+    ``source`` and the field as written (``align.k_ri``, not ``align.force.k_ri``)."""
+    own, scene = split_scene_overrides(overrides)
+    try:
+        return validate(RunProtocol, with_scene_overrides(_apply(data, own), scene), source)
+    except ConfigError as exc:
         parts = exc.field.split(".")
         if len(parts) >= 2 and parts[0] == "align" and parts[1] in REGISTRY:
             del parts[1]

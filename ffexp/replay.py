@@ -58,18 +58,11 @@ from drivers.base.types import (
     RobotState,
     TargetObservation,
 )
-from drivers.config import apply_overrides, validate
 from ffexp.contracts import Phase, Stop, StopReason
-from ffexp.controllers import REGISTRY
 from ffexp.diff import within
-from ffexp.errors import ConfigError, InputError
+from ffexp.errors import InputError
 from ffexp.loop import Cycle
-from ffexp.protocol import (
-    RunProtocol,
-    load_run_protocol,
-    split_scene_overrides,
-    with_scene_overrides,
-)
+from ffexp.protocol import RunProtocol, load_run_protocol, run_protocol_from
 from ffexp.recording import Recorder, Recording, TopicData, load
 from ffexp.recording.reader import contents
 
@@ -170,16 +163,7 @@ def recorded_protocol(rec: Recording, overrides: Sequence[str] = ()) -> RunProto
         raise InputError(f"{rec.path}: metadata run.protocol_json is not JSON: {exc}") from None
     if not isinstance(data, dict):
         raise InputError(f"{rec.path}: metadata run.protocol_json is not a JSON object")
-    try:
-        own, scene = split_scene_overrides(overrides)
-        return validate(RunProtocol, with_scene_overrides(apply_overrides(data, own), scene),
-                        source)
-    except ConfigError as exc:  # name the field as written (align.k_ri, not align.force.k_ri)
-        parts = exc.field.split(".")
-        if len(parts) >= 2 and parts[0] == "align" and parts[1] in REGISTRY:
-            del parts[1]
-            raise ConfigError(exc.source, ".".join(parts), exc.message) from None
-        raise
+    return run_protocol_from(data, overrides, source)
 
 
 class Inputs:

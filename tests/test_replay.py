@@ -261,3 +261,7 @@ def test_the_recorded_protocol_takes_scene_keys_as_a_run_protocol_does(run: Path
     as_run = load_run_protocol(PROTOCOL, ["run.timeout_s=4.2", form])
     assert recorded.scene.set[-1] == as_run.scene.set[-1] == "target.lateral=0.02"
     assert recorded.run.timeout_s == 3.0
+    # and one element of a list, as a run protocol's --set takes it
+    one = recorded_protocol(load(run, []), ["align.k_ri[1]=0.4"])
+    assert one.align.k_ri == load_run_protocol(PROTOCOL, ["align.k_ri[1]=0.4"]).align.k_ri
+    assert one.align.k_ri[1] == 0.4

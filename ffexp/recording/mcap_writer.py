@@ -6,6 +6,10 @@ chunk index, message index, statistics) with one ``struct.pack`` per message
 instead of mcap's field-by-field record writer, and hands a whole chunk's
 messages to mcap's chunk builder at once; :meth:`FastWriter.add_fixed` frames a
 run of same-sized messages of one channel (numpy records) in one numpy array.
+:meth:`FastWriter.add_at` and :meth:`FastWriter.add_series` (what the
+:class:`~ffexp.recording.Recorder` uses) hold a cycle's messages and frame those of
+many cycles at once (their heads in one numpy array, their sequence numbers and index
+entries per channel by numpy): the same bytes again.
 A full zstd chunk is compressed in a worker thread while the next one fills. It
 uses the ``Writer``'s private chunk builder, statistics and record builder; if a
 future mcap lacks them, it falls
@@ -17,9 +21,11 @@ from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from functools import cache
 from itertools import chain
+from operator import itemgetter
 from typing import IO, Any
 
 import numpy as np
@@ -40,6 +46,13 @@ _NO_TIME = 1 << 64  # above every log time (uint64)
 #: A Message Index record's head: opcode, record length, channel id, entries' length.
 _INDEX_HEAD = struct.Struct("<BQHI")
 _OPCODE_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
+#: :data:`_MESSAGE_HEAD` as a packed numpy record (a held batch's heads in one array)
+_HEAD_DTYPE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
+                        ("sequence", "<u4"), ("log_time", "<u8"), ("publish_time", "<u8")])
+_HEAD_BYTES = struct.Struct(f"{_MESSAGE_HEAD.size}s")  # iter_unpack: the heads one by one
+_first = itemgetter(0)
+#: held messages drained into the chunk at the latest at this count
+HELD_MESSAGES = 4096
 
 
 @cache
@@ -113,9 +126,19 @@ class FastWriter(Writer):
         self._size = 0  # the chunk's size with the pending records
         self._t_min = 0
         self._t_max = 0
+        # messages held for a time-batched framing (add_at, add_series): in order, their
+        # channels, log times and data; their records' size; what the chunk takes first
+        self._held_cids: list[int] = []
+        self._held_times: list[int] = []
+        self._held_datas: list[bytes] = []
+        self._held_size = 0
+        self._held_room = 0
+        self._counts: dict[int, int] = {}  # per channel: sequence numbers handed out
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
+        if self._held_cids:
+            self._drain()
         if not self.fast:
             super().add_message(channel_id, log_time, data, publish_time, sequence)
             return
@@ -145,6 +168,8 @@ class FastWriter(Writer):
                      sequences: list[int]) -> None:
         """:meth:`add_message` for several messages (publish time = log time), in order:
         the same bytes, one call."""
+        if self._held_cids:
+            self._drain()
         if not self.fast:
             for cid, t, data, seq in zip(channel_ids, log_times, datas, sequences, strict=True):
                 super().add_message(cid, t, data, t, seq)
@@ -182,6 +207,8 @@ class FastWriter(Writer):
                         sequences: list[int]) -> None:
         """:meth:`add_messages` of messages all at one log time (a cycle's topics): the
         same bytes, without a time per message."""
+        if self._held_cids:
+            self._drain()
         if not self.fast:
             for cid, data, seq in zip(channel_ids, datas, sequences, strict=True):
                 super().add_message(cid, log_time, data, log_time, seq)
@@ -223,6 +250,8 @@ class FastWriter(Writer):
         rows of a numpy record array, e.g. a cycle's F/T samples; publish time = log time,
         sequences counting up from ``first_sequence``): the same bytes, their records built
         in one numpy array instead of a ``struct.pack`` each."""
+        if self._held_cids:
+            self._drain()
         n = len(log_times)
         size_each = datas.dtype.itemsize
         blob = np.ascontiguousarray(datas).tobytes()
@@ -267,7 +296,134 @@ class FastWriter(Writer):
                 self._commit()
                 self._close_chunk()
 
+    # -- time-batched: messages held, framed many cycles at once -------------------------
+    def add_at(self, channel_ids: Sequence[int], log_time: int, datas: Sequence[bytes]) -> None:
+        """Messages of several channels at one log time (a cycle's topics; publish time =
+        log time), each channel's sequence numbers counting up from 0 (:meth:`reserve`).
+
+        They are held and framed with the messages of the next cycles at once
+        (:meth:`_drain`): when the chunk they go into is full, before any other call
+        (:meth:`add_message`, a channel, metadata, :meth:`flush`, :meth:`finish`), or
+        after :data:`HELD_MESSAGES`. The file is byte for byte the one of
+        :meth:`add_messages_at` with those sequence numbers (mcap's own writer's)."""
+        if not self.fast:
+            counts = self._counts
+            for cid, data in zip(channel_ids, datas, strict=True):
+                seq = counts.get(cid, 0)
+                counts[cid] = seq + 1
+                super().add_message(cid, log_time, data, log_time, seq)
+            return
+        k = len(datas)
+        if not self._held_cids:
+            self._held_room = self._chunk_size - (
+                self._size if self._parts else self._chunks.record_writer._buffer.tell())
+        self._held_cids += channel_ids
+        self._held_times += [log_time] * k
+        self._held_datas += datas
+        self._held_size += sum(map(len, datas)) + k * _MESSAGE_HEAD.size
+        if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
+            self._drain()
+
+    def add_series(self, channel_id: int, log_times: Sequence[int],
+                   datas: Sequence[bytes]) -> None:
+        """Messages of one channel at their own log times (a cycle's F/T samples), held
+        as :meth:`add_at`'s."""
+        k = len(datas)
+        if not self.fast:
+            for t, data in zip(log_times, datas, strict=True):
+                self.add_at((channel_id,), t, (data,))
+            return
+        if not self._held_cids:
+            self._held_room = self._chunk_size - (
+                self._size if self._parts else self._chunks.record_writer._buffer.tell())
+        self._held_cids += [channel_id] * k
+        self._held_times += log_times
+        self._held_datas += datas
+        self._held_size += sum(map(len, datas)) + k * _MESSAGE_HEAD.size
+        if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
+            self._drain()
+
+    def reserve(self, channel_id: int, n: int) -> int:
+        """The next ``n`` sequence numbers of a channel (its first), for messages given
+        otherwise (:meth:`add_fixed`), after the held ones."""
+        self._drain()
+        seq = self._counts.get(channel_id, 0)
+        self._counts[channel_id] = seq + n
+        return seq
+
+    def _drain(self) -> None:
+        """Frame the held messages into the chunk: their heads in one numpy array, their
+        sequence numbers and index entries per channel by numpy, the chunk closed after
+        the very message mcap's writer would close it after."""
+        cids = self._held_cids
+        n = len(cids)
+        if not n:
+            return
+        times, datas = self._held_times, self._held_datas
+        self._held_cids, self._held_times, self._held_datas = [], [], []
+        self._held_size = 0
+        self._commit_parts()  # what was given before them
+        c = np.array(cids, dtype=np.uint16)  # MCAP's channel ids (numpy's radix sort)
+        t = np.array(times, dtype=np.uint64)
+        sizes = np.fromiter(map(len, datas), dtype=np.int64, count=n)
+        # sequences: the channel's count so far plus the rank among its held messages
+        order = np.argsort(c, kind="stable")
+        sc = c[order]
+        starts = np.flatnonzero(np.concatenate(([True], sc[1:] != sc[:-1])))
+        counts = np.diff(np.append(starts, n))
+        held = self._counts
+        base = []
+        for cid, k in zip(sc[starts].tolist(), counts.tolist(), strict=True):
+            b = held.get(cid, 0)
+            base.append(b)
+            held[cid] = b + k
+        seq = np.empty(n, dtype=np.int64)
+        seq[order] = np.arange(n) - np.repeat(starts - np.asarray(base, dtype=np.int64), counts)
+        heads = np.empty(n, dtype=_HEAD_DTYPE)
+        heads["op"] = _OPCODE_MESSAGE
+        heads["length"] = sizes + _MESSAGE_FIXED
+        heads["channel"] = c
+        heads["sequence"] = seq
+        heads["log_time"] = t
+        heads["publish_time"] = t
+        parts = [b""] * (2 * n)  # each message's head, then its data
+        parts[0::2] = map(_first, _HEAD_BYTES.iter_unpack(heads.tobytes()))
+        parts[1::2] = datas
+        records = sizes + _MESSAGE_HEAD.size
+        done = 0
+        while done < n:
+            start = self._chunks.record_writer._buffer.tell()
+            ends = np.cumsum(records[done:]) + start
+            over = np.flatnonzero(ends > self._chunk_size)  # mcap's rule, after a message
+            m = int(over[0]) + 1 if over.size else n - done
+            seg = slice(done, done + m)
+            offsets = ends[:m] - records[seg]
+            # per channel (in order of first message) its (log time, offset) entries
+            sc_seg = c[seg]
+            o = np.argsort(sc_seg, kind="stable")
+            s_sorted = sc_seg[o]
+            first = np.flatnonzero(np.concatenate(([True], s_sorted[1:] != s_sorted[:-1])))
+            pairs = list(zip(t[seg][o].tolist(), offsets[o].tolist(), strict=True))
+            bounds = [*first.tolist(), m]
+            groups = sorted(zip(o[first].tolist(), s_sorted[first].tolist(), bounds[:-1],
+                                bounds[1:], strict=True))
+            self._index = {cid: pairs[a:b] for _, cid, a, b in groups}
+            tseg = t[seg]
+            self._t_min, self._t_max = int(tseg.min()), int(tseg.max())
+            self._parts = parts[2 * done:2 * (done + m)]
+            self._size = int(ends[m - 1])
+            done += m
+            self._commit_parts()
+            if over.size:
+                self._close_chunk()
+
     def _commit(self) -> None:
+        """The held messages (:meth:`_drain`), then the pending batch, into the chunk."""
+        if self._held_cids:
+            self._drain()
+        self._commit_parts()
+
+    def _commit_parts(self) -> None:
         """Hand the pending batch to mcap's chunk builder and statistics."""
         parts = self._parts
         if not parts:

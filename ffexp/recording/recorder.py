@@ -121,11 +121,11 @@ class Recorder:
         self._clock = clock
         self._flush_interval_s = flush_interval_s
         self._last_flush = clock()
-        self._channels: dict[str, list[int]] = {}  # topic: [channel id, next sequence]
+        self._channels: dict[str, int] = {}  # topic: channel id
+        self._cids: dict[tuple[str, ...], list[int]] = {}  # a cycle's topics: their channels
         self._records: dict[str, np.ndarray] = {}
         self._names: dict[str, tuple[str, ...]] = {}
         self._layouts: dict[str, struct.Struct] = {}
-        self._add_message = self._writer.add_message
         self._plans: dict[tuple[str, type], tuple[tuple[str, np.ndarray], ...]] = {}
         self._encoders: dict[str, FieldsEncoder] = {}
         self._frames: dict[tuple[str, str], str] = {}
@@ -136,8 +136,8 @@ class Recorder:
         (a live viewer); they must return at once. Empty: no cost."""
 
     # -- channels -------------------------------------------------------------
-    def _channel(self, topic: str) -> list[int]:
-        """``[channel id, next sequence number]`` of ``topic``, registered on first use."""
+    def _channel(self, topic: str) -> int:
+        """The channel id of ``topic``, registered on first use."""
         ch = self._channels.get(topic)
         if ch is not None:
             return ch
@@ -151,8 +151,8 @@ class Recorder:
             cid = self._writer.register_channel(topic, "json", sid)
         else:
             raise KeyError(f"unknown topic {topic!r}: add it to ffexp/recording/topics/__init__.py")
-        ch = self._channels[topic] = [cid, 0]
-        return ch
+        self._channels[topic] = cid
+        return int(cid)
 
     def record(self, topic: str) -> np.ndarray:
         """The preallocated one-element record of a CDR topic (fill, then :meth:`write`)."""
@@ -174,15 +174,18 @@ class Recorder:
 
     # -- writing --------------------------------------------------------------
     def write_bytes(self, topic: str, time_ns: int, data: bytes) -> None:
-        """Write one encoded message (every write of the recorder goes through here)."""
+        """Write one encoded message.
+
+        Every message's sequence number counts its channel's messages from 0. The
+        writer frames messages many cycles at once (:meth:`FastWriter.add_at
+        <ffexp.recording.mcap_writer.FastWriter.add_at>`); :meth:`flush` and
+        :meth:`finish` write every message given."""
         if time_ns < 0:
             raise ValueError(f"{topic}: negative log time {time_ns} ns")
         ch = self._channels.get(topic)
         if ch is None:
             ch = self._channel(topic)
-        seq = ch[1]
-        ch[1] = seq + 1
-        self._add_message(ch[0], time_ns, data, time_ns, seq)
+        self._writer.add_at((ch,), time_ns, (data,))
         self.message_count += 1
         if self.taps:
             for tap in self.taps:
@@ -193,18 +196,15 @@ class Recorder:
     def write_batch(self, time_ns: int, messages: list[tuple[str, bytes]]) -> None:
         """Write encoded messages of several topics at one log time, in order (a
         cycle's topics): :meth:`write_bytes` for each, in one call."""
+        if not messages:
+            return
         if time_ns < 0:
             raise ValueError(f"{messages[0][0]}: negative log time {time_ns} ns")
-        channels, cids, seqs, datas = self._channels, [], [], []
-        for topic, data in messages:
-            ch = channels.get(topic)
-            if ch is None:
-                ch = self._channel(topic)
-            cids.append(ch[0])
-            seqs.append(ch[1])
-            ch[1] += 1
-            datas.append(data)
-        self._writer.add_messages_at(cids, time_ns, datas, seqs)
+        topics, datas = zip(*messages, strict=True)
+        cids = self._cids.get(topics)
+        if cids is None:  # a new mix of topics: their channels, registered in order
+            cids = self._cids[topics] = [self._channel(topic) for topic in topics]
+        self._writer.add_at(cids, time_ns, datas)
         self.message_count += len(datas)
         if self.taps:
             for topic, data in messages:
@@ -224,9 +224,7 @@ class Recorder:
         if ch is None:
             ch = self._channel(topic)
         n = len(times_ns)
-        seq = ch[1]
-        ch[1] = seq + n
-        self._writer.add_messages([ch[0]] * n, times_ns, datas, list(range(seq, seq + n)))
+        self._writer.add_series(ch, times_ns, datas)
         self.message_count += n
         if self.taps:
             for t, data in zip(times_ns, datas, strict=True):
@@ -314,9 +312,7 @@ class Recorder:
         ch = self._channels.get(topic)
         if ch is None:
             ch = self._channel(topic)
-        seq = ch[1]
-        ch[1] = seq + n
-        self._writer.add_fixed(ch[0], times, seq, records)
+        self._writer.add_fixed(ch, times, self._writer.reserve(ch, n), records)
         self.message_count += n
         if self.taps:
             blob, size = records.tobytes(), records.dtype.itemsize

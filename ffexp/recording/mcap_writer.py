@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from functools import cache
 from itertools import chain
@@ -35,7 +35,7 @@ from mcap.records import Chunk, ChunkIndex, MessageIndex
 from mcap.writer import CompressionType, IndexType, Writer
 from numpy.typing import NDArray
 
-__all__ = ["FastWriter"]
+__all__ = ["FastWriter", "encode_rows"]
 
 #: An MCAP Message record's head: opcode, record length, channel id, sequence,
 #: log time, publish time (the MCAP specification's field order, little endian).
@@ -67,6 +67,18 @@ def _record_dtype(data_size: int) -> np.dtype[Any]:
 def _compress(data: bytes, crcs: bool) -> tuple[bytes, int]:
     """A chunk's zstd compression (``zstandard.compress``, as mcap's ``Writer``) and CRC."""
     return zstandard.compress(data), (zlib.crc32(data) if crcs else 0)
+
+
+def encode_rows(template: NDArray[Any], blocks: list[Mapping[str, NDArray[Any]]]) -> list[bytes]:
+    """Each row's bytes: ``template`` repeated for the blocks' rows, each block's columns
+    assigned to their fields (numpy's casts), one message a row."""
+    n = sum(len(next(iter(b.values()))) for b in blocks)
+    rec = np.repeat(template, n)
+    for name in blocks[0]:
+        rec[name] = np.concatenate([b[name] for b in blocks]) if len(blocks) > 1 \
+            else blocks[0][name]
+    return list(map(_first, struct.Struct(f"{rec.dtype.itemsize}s").iter_unpack(
+        rec.tobytes())))
 
 
 class _MessageIndex(MessageIndex):
@@ -133,6 +145,8 @@ class FastWriter(Writer):
         self._held_datas: list[bytes] = []
         self._held_size = 0
         self._held_room = 0
+        # rows encoded at the drain: (where in _held_datas, how many, template, columns)
+        self._held_rows: list[tuple[int, int, NDArray[Any], Mapping[str, NDArray[Any]]]] = []
         self._counts: dict[int, int] = {}  # per channel: sequence numbers handed out
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
@@ -343,6 +357,43 @@ class FastWriter(Writer):
         if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
             self._drain()
 
+    def add_rows(self, channel_id: int, log_times: list[int], template: NDArray[Any],
+                 columns: Mapping[str, NDArray[Any]]) -> None:
+        """Messages of one channel at their own log times whose data are the rows of a
+        numpy record array (``template``, one record, repeated; then each of
+        ``columns`` assigned to its field, as numpy assigns), held as :meth:`add_at`'s
+        and encoded at the drain for all held cycles at once. The column arrays must
+        not change afterwards (give copies)."""
+        k = len(log_times)
+        if not self.fast:
+            self.add_series(channel_id, log_times, encode_rows(template, [columns]))
+            return
+        if not self._held_cids:
+            self._held_room = self._chunk_size - (
+                self._size if self._parts else self._chunks.record_writer._buffer.tell())
+        self._held_rows.append((len(self._held_datas), k, template, columns))
+        self._held_cids += [channel_id] * k
+        self._held_times += log_times
+        self._held_datas += [b""] * k  # encoded at the drain
+        self._held_size += k * (template.dtype.itemsize + _MESSAGE_HEAD.size)
+        if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
+            self._drain()
+
+    def _encode_held_rows(self, datas: list[bytes]) -> None:
+        """The held rows' messages into their places in ``datas``: one record array for
+        the rows of each template."""
+        rows = self._held_rows
+        self._held_rows = []
+        groups: dict[int, list[tuple[int, int, NDArray[Any], Mapping[str, NDArray[Any]]]]] = {}
+        for row in rows:
+            groups.setdefault(id(row[2]), []).append(row)
+        for blocks in groups.values():
+            encoded = encode_rows(blocks[0][2], [b[3] for b in blocks])
+            j = 0
+            for pos, k, _, _ in blocks:
+                datas[pos:pos + k] = encoded[j:j + k]
+                j += k
+
     def reserve(self, channel_id: int, n: int) -> int:
         """The next ``n`` sequence numbers of a channel (its first), for messages given
         otherwise (:meth:`add_fixed`), after the held ones."""
@@ -361,6 +412,8 @@ class FastWriter(Writer):
             return
         times, datas = self._held_times, self._held_datas
         self._held_cids, self._held_times, self._held_datas = [], [], []
+        if self._held_rows:
+            self._encode_held_rows(datas)
         self._held_size = 0
         self._commit_parts()  # what was given before them
         c = np.array(cids, dtype=np.uint16)  # MCAP's channel ids (numpy's radix sort)

@@ -31,7 +31,7 @@ from mcap.writer import CompressionType
 from drivers.base.types import NS_PER_S
 from ffexp.errors import InputError
 from ffexp.recording.encode import FieldsEncoder
-from ffexp.recording.mcap_writer import FastWriter
+from ffexp.recording.mcap_writer import FastWriter, encode_rows
 from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS, LOG_LEVELS
 
 CHUNK_SIZE_BYTES = 1 << 20
@@ -128,6 +128,9 @@ class Recorder:
         self._layouts: dict[str, struct.Struct] = {}
         self._plans: dict[tuple[str, type], tuple[tuple[str, np.ndarray], ...]] = {}
         self._encoders: dict[str, FieldsEncoder] = {}
+        self._row_templates: dict[str, np.ndarray] = {}  # write_rows: an empty record each
+        # a subclass that watches write_series sees write_rows' messages there, encoded now
+        self._series_watched = type(self).write_series is not Recorder.write_series
         self._frames: dict[tuple[str, str], str] = {}
         self.message_count = 0
         self.finished = False
@@ -230,6 +233,36 @@ class Recorder:
             for t, data in zip(times_ns, datas, strict=True):
                 for tap in self.taps:
                     tap(topic, t, data)
+        if self._clock() - self._last_flush >= self._flush_interval_s:
+            self.flush()
+
+    def write_rows(self, topic: str, times_ns: list[int], columns: Mapping[str, np.ndarray]
+                   ) -> None:
+        """Write messages of one CDR topic at their own log times (e.g. a cycle's F/T
+        samples) whose fields are given as columns, a row a message (``wrench`` of shape
+        ``(n, 6)``, ``seq`` of ``n``, ...; fields not given keep their zeros): the bytes
+        of :meth:`record` filled row by row, numpy converting as it does. The writer
+        encodes the rows of many cycles at once (:meth:`FastWriter.add_rows
+        <ffexp.recording.mcap_writer.FastWriter.add_rows>`); writeable columns are
+        copied now. With a tap, or in a subclass that overrides :meth:`write_series`,
+        the rows are encoded now and written through :meth:`write_series`."""
+        if not times_ns:
+            return
+        if min(times_ns) < 0:
+            raise ValueError(f"{topic}: negative log time {min(times_ns)} ns")
+        ch = self._channels.get(topic)
+        if ch is None:
+            ch = self._channel(topic)
+        template = self._row_templates.get(topic)
+        if template is None:  # zeros, the CDR header set
+            template = self._row_templates[topic] = CDR_TOPICS[topic].spec.new_record()
+        if self.taps or self._series_watched:  # a live viewer, or a subclass watching
+            self.write_series(topic, times_ns, encode_rows(template, [columns]))  # now
+            return
+        columns = {name: value.copy() if value.flags.writeable else value
+                   for name, value in columns.items()}
+        self._writer.add_rows(ch, times_ns, template, columns)
+        self.message_count += len(times_ns)
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
 

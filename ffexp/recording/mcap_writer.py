@@ -23,6 +23,7 @@ import struct
 import zlib
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from functools import cache
 from itertools import chain
 from operator import itemgetter
@@ -59,9 +60,7 @@ HELD_MESSAGES = 4096
 def _record_dtype(data_size: int) -> np.dtype[Any]:
     """A whole Message record with ``data_size`` bytes of data, as a packed numpy record
     (the fields of :data:`_MESSAGE_HEAD`, then the data)."""
-    return np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
-                     ("sequence", "<u4"), ("log_time", "<u8"), ("publish_time", "<u8"),
-                     ("data", f"V{data_size}")])
+    return np.dtype([*_HEAD_DTYPE.descr, ("data", f"V{data_size}")])
 
 
 def _compress(data: bytes, crcs: bool) -> tuple[bytes, int]:
@@ -81,15 +80,27 @@ def encode_rows(template: NDArray[Any], blocks: list[Mapping[str, NDArray[Any]]]
         rec.tobytes())))
 
 
+@dataclass
 class _MessageIndex(MessageIndex):
-    """mcap's ``MessageIndex`` written with two ``struct.pack`` calls (the same bytes as
-    its own field-by-field ``write``)."""
+    """mcap's ``MessageIndex`` whose entries are kept packed, 16 bytes each (log time,
+    offset; :meth:`add`), and written with them (the same bytes as its own
+    field-by-field ``write``; ``records`` stays empty)."""
+
+    packed: list[bytes] = field(default_factory=list)
+
+    def add(self, entries: list[tuple[int, int]] | NDArray[np.uint64]) -> None:
+        """Entries ``(log time, offset)``: a list, or a ``(k, 2)`` little-endian uint64 array."""
+        if isinstance(entries, np.ndarray):
+            self.packed.append(entries.tobytes())
+        else:
+            self.packed.append(struct.pack(f"<{2 * len(entries)}Q",
+                                           *chain.from_iterable(entries)))
 
     def write(self, stream: Any) -> None:
-        n = len(self.records)
-        stream.write(_INDEX_HEAD.pack(_OPCODE_MESSAGE_INDEX, 6 + 16 * n, self.channel_id,
-                                      16 * n))
-        stream.write(struct.pack(f"<{2 * n}Q", *chain.from_iterable(self.records)))
+        data = b"".join(self.packed)
+        stream.write(_INDEX_HEAD.pack(_OPCODE_MESSAGE_INDEX, 6 + len(data), self.channel_id,
+                                      len(data)))
+        stream.write(data)
 
 
 class FastWriter(Writer):
@@ -134,7 +145,8 @@ class FastWriter(Writer):
         self._closing: tuple[Any, ...] | None = None  # the chunk being compressed
         # the pending batch: record bytes, per channel [(log time, offset)], counts
         self._parts: list[bytes] = []
-        self._index: dict[int, list[tuple[int, int]]] = {}  # its length: the channel's count
+        # per channel its (log time, offset) entries: a list, or a (k, 2) array (_drain)
+        self._index: dict[int, Any] = {}  # their lengths: the channels' counts
         self._size = 0  # the chunk's size with the pending records
         self._t_min = 0
         self._t_max = 0
@@ -315,28 +327,15 @@ class FastWriter(Writer):
         """Messages of several channels at one log time (a cycle's topics; publish time =
         log time), each channel's sequence numbers counting up from 0 (:meth:`reserve`).
 
-        They are held and framed with the messages of the next cycles at once
-        (:meth:`_drain`): when the chunk they go into is full, before any other call
-        (:meth:`add_message`, a channel, metadata, :meth:`flush`, :meth:`finish`), or
-        after :data:`HELD_MESSAGES`. The file is byte for byte the one of
-        :meth:`add_messages_at` with those sequence numbers (mcap's own writer's)."""
+        Held, and framed with the next cycles' at once (:meth:`_drain`) when the chunk is
+        full, before any other call (a channel, :meth:`flush`, ...) or at
+        :data:`HELD_MESSAGES`: the file is byte for byte mcap's own writer's."""
         if not self.fast:
-            counts = self._counts
             for cid, data in zip(channel_ids, datas, strict=True):
-                seq = counts.get(cid, 0)
-                counts[cid] = seq + 1
-                super().add_message(cid, log_time, data, log_time, seq)
+                super().add_message(cid, log_time, data, log_time, self._next_seq(cid))
             return
-        k = len(datas)
-        if not self._held_cids:
-            self._held_room = self._chunk_size - (
-                self._size if self._parts else self._chunks.record_writer._buffer.tell())
-        self._held_cids += channel_ids
-        self._held_times += [log_time] * k
-        self._held_datas += datas
-        self._held_size += sum(map(len, datas)) + k * _MESSAGE_HEAD.size
-        if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
-            self._drain()
+        self._hold(channel_ids, [log_time] * len(datas), datas,
+                   sum(map(len, datas)) + len(datas) * _MESSAGE_HEAD.size)
 
     def add_series(self, channel_id: int, log_times: Sequence[int],
                    datas: Sequence[bytes]) -> None:
@@ -347,15 +346,8 @@ class FastWriter(Writer):
             for t, data in zip(log_times, datas, strict=True):
                 self.add_at((channel_id,), t, (data,))
             return
-        if not self._held_cids:
-            self._held_room = self._chunk_size - (
-                self._size if self._parts else self._chunks.record_writer._buffer.tell())
-        self._held_cids += [channel_id] * k
-        self._held_times += log_times
-        self._held_datas += datas
-        self._held_size += sum(map(len, datas)) + k * _MESSAGE_HEAD.size
-        if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
-            self._drain()
+        self._hold([channel_id] * k, log_times, datas,
+                   sum(map(len, datas)) + k * _MESSAGE_HEAD.size)
 
     def add_rows(self, channel_id: int, log_times: list[int], template: NDArray[Any],
                  columns: Mapping[str, NDArray[Any]]) -> None:
@@ -368,14 +360,21 @@ class FastWriter(Writer):
         if not self.fast:
             self.add_series(channel_id, log_times, encode_rows(template, [columns]))
             return
+        self._held_rows.append((len(self._held_datas), k, template, columns))
+        self._hold([channel_id] * k, log_times, [b""] * k,  # encoded at the drain
+                   k * (template.dtype.itemsize + _MESSAGE_HEAD.size))
+
+    def _hold(self, cids: Sequence[int], times: Sequence[int], datas: Sequence[bytes],
+              size: int) -> None:
+        """Hold messages (their records' ``size``); drained when the chunk they go into
+        is full, or at :data:`HELD_MESSAGES`."""
         if not self._held_cids:
             self._held_room = self._chunk_size - (
                 self._size if self._parts else self._chunks.record_writer._buffer.tell())
-        self._held_rows.append((len(self._held_datas), k, template, columns))
-        self._held_cids += [channel_id] * k
-        self._held_times += log_times
-        self._held_datas += [b""] * k  # encoded at the drain
-        self._held_size += k * (template.dtype.itemsize + _MESSAGE_HEAD.size)
+        self._held_cids += cids
+        self._held_times += times
+        self._held_datas += datas
+        self._held_size += size
         if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
             self._drain()
 
@@ -398,6 +397,9 @@ class FastWriter(Writer):
         """The next ``n`` sequence numbers of a channel (its first), for messages given
         otherwise (:meth:`add_fixed`), after the held ones."""
         self._drain()
+        return self._next_seq(channel_id, n)
+
+    def _next_seq(self, channel_id: int, n: int = 1) -> int:
         seq = self._counts.get(channel_id, 0)
         self._counts[channel_id] = seq + n
         return seq
@@ -456,11 +458,13 @@ class FastWriter(Writer):
             o = np.argsort(sc_seg, kind="stable")
             s_sorted = sc_seg[o]
             first = np.flatnonzero(np.concatenate(([True], s_sorted[1:] != s_sorted[:-1])))
-            pairs = list(zip(t[seg][o].tolist(), offsets[o].tolist(), strict=True))
+            entries = np.empty((m, 2), dtype="<u8")  # the index entries, by channel
+            entries[:, 0] = t[seg][o]
+            entries[:, 1] = offsets[o]
             bounds = [*first.tolist(), m]
             groups = sorted(zip(o[first].tolist(), s_sorted[first].tolist(), bounds[:-1],
                                 bounds[1:], strict=True))
-            self._index = {cid: pairs[a:b] for _, cid, a, b in groups}
+            self._index = {cid: entries[a:b] for _, cid, a, b in groups}
             tseg = t[seg]
             self._t_min, self._t_max = int(tseg.min()), int(tseg.max())
             self._parts = parts[2 * done:2 * (done + m)]
@@ -501,7 +505,7 @@ class FastWriter(Writer):
             index = indices.get(cid)
             if index is None:
                 index = indices[cid] = _MessageIndex(channel_id=cid, records=[])
-            index.records.extend(records)
+            index.add(records)
         cb.num_messages += n
         cb.record_writer._buffer.write(b"".join(parts))
         self._parts = []

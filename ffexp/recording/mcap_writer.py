@@ -68,14 +68,13 @@ def _compress(data: bytes, crcs: bool) -> tuple[bytes, int]:
     return zstandard.compress(data), (zlib.crc32(data) if crcs else 0)
 
 
-def encode_rows(template: NDArray[Any], blocks: list[Mapping[str, NDArray[Any]]]) -> list[bytes]:
-    """Each row's bytes: ``template`` repeated for the blocks' rows, each block's columns
-    assigned to their fields (numpy's casts), one message a row."""
-    n = sum(len(next(iter(b.values()))) for b in blocks)
+def encode_rows(template: NDArray[Any], blocks: list[Mapping[str, NDArray[Any]]],
+                n: int) -> list[bytes]:
+    """Each of the ``n`` rows' bytes: ``template`` repeated, each block's columns assigned
+    to their fields (numpy's casts), one message a row."""
     rec = np.repeat(template, n)
     for name in blocks[0]:
-        rec[name] = np.concatenate([b[name] for b in blocks]) if len(blocks) > 1 \
-            else blocks[0][name]
+        rec[name] = np.concatenate([b[name] for b in blocks])
     return list(map(_first, struct.Struct(f"{rec.dtype.itemsize}s").iter_unpack(
         rec.tobytes())))
 
@@ -157,8 +156,9 @@ class FastWriter(Writer):
         self._held_datas: list[bytes] = []
         self._held_size = 0
         self._held_room = 0
-        # rows encoded at the drain: (where in _held_datas, how many, template, columns)
-        self._held_rows: list[tuple[int, int, NDArray[Any], Mapping[str, NDArray[Any]]]] = []
+        # rows encoded at the drain, per template: [(where in _held_datas, how many, columns)]
+        self._held_rows: dict[int, tuple[NDArray[Any], list[tuple[
+            int, int, Mapping[str, NDArray[Any]]]]]] = {}
         self._counts: dict[int, int] = {}  # per channel: sequence numbers handed out
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
@@ -358,9 +358,12 @@ class FastWriter(Writer):
         not change afterwards (give copies)."""
         k = len(log_times)
         if not self.fast:
-            self.add_series(channel_id, log_times, encode_rows(template, [columns]))
+            self.add_series(channel_id, log_times, encode_rows(template, [columns], k))
             return
-        self._held_rows.append((len(self._held_datas), k, template, columns))
+        group = self._held_rows.get(id(template))
+        if group is None:
+            group = self._held_rows[id(template)] = (template, [])
+        group[1].append((len(self._held_datas), k, columns))
         self._hold([channel_id] * k, log_times, [b""] * k,  # encoded at the drain
                    k * (template.dtype.itemsize + _MESSAGE_HEAD.size))
 
@@ -381,15 +384,13 @@ class FastWriter(Writer):
     def _encode_held_rows(self, datas: list[bytes]) -> None:
         """The held rows' messages into their places in ``datas``: one record array for
         the rows of each template."""
-        rows = self._held_rows
-        self._held_rows = []
-        groups: dict[int, list[tuple[int, int, NDArray[Any], Mapping[str, NDArray[Any]]]]] = {}
-        for row in rows:
-            groups.setdefault(id(row[2]), []).append(row)
-        for blocks in groups.values():
-            encoded = encode_rows(blocks[0][2], [b[3] for b in blocks])
+        groups = self._held_rows
+        self._held_rows = {}
+        for template, blocks in groups.values():
+            encoded = encode_rows(template, [b[2] for b in blocks],
+                                  sum([b[1] for b in blocks]))
             j = 0
-            for pos, k, _, _ in blocks:
+            for pos, k, _ in blocks:
                 datas[pos:pos + k] = encoded[j:j + k]
                 j += k
 

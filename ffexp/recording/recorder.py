@@ -257,7 +257,8 @@ class Recorder:
         if template is None:  # zeros, the CDR header set
             template = self._row_templates[topic] = CDR_TOPICS[topic].spec.new_record()
         if self.taps or self._series_watched:  # a live viewer, or a subclass watching
-            self.write_series(topic, times_ns, encode_rows(template, [columns]))  # now
+            self.write_series(topic, times_ns,  # now
+                              encode_rows(template, [columns], len(times_ns)))
             return
         columns = {name: value.copy() if value.flags.writeable else value
                    for name, value in columns.items()}

@@ -107,7 +107,7 @@ PARTS = (
     ("  3-D scene sink", "ffexp.scene3d.writer", "SceneWriter", "cycle"),
     ("  /tf encoding (also in the sink)", "ffexp.recording.recorder", "Recorder",
      "encode_transform"),
-    ("held messages framed (in both recordings)", "ffexp.recording.mcap_writer",
+    ("recording: held messages framed", "ffexp.recording.mcap_writer",
      "FastWriter", "_drain"),
     ("chunk compression (worker thread)", "ffexp.recording", "mcap_writer", "_compress"),
 )

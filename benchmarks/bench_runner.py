@@ -86,7 +86,9 @@ def run_once(ppath: Path, seconds: float, out: Path) -> tuple[float, dict[str, f
 
 #: The parts of the step and of the recording, timed in the instrumented run:
 #: (label, module, owner: a class or module in it, method); nested parts are inside
-#: their parents; the chunk compression runs beside the loop, in the writer's thread.
+#: their parents; the writer frames the messages of many cycles at once, inside
+#: whichever recording call fills its batch; the chunk compression runs beside the
+#: loop, in the writer's thread.
 PARTS = (
     ("step", "ffexp.loop", "Cycle", "step"),
     ("  estimator", "ffexp.estimation", "Estimator", "update"),
@@ -105,6 +107,8 @@ PARTS = (
     ("  3-D scene sink", "ffexp.scene3d.writer", "SceneWriter", "cycle"),
     ("  /tf encoding (also in the sink)", "ffexp.recording.recorder", "Recorder",
      "encode_transform"),
+    ("recording: held messages framed", "ffexp.recording.mcap_writer",
+     "FastWriter", "_drain"),
     ("chunk compression (worker thread)", "ffexp.recording", "mcap_writer", "_compress"),
 )
 

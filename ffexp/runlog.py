@@ -21,7 +21,6 @@ events are kept, in :attr:`RunLog.events`.
 
 from __future__ import annotations
 
-import struct
 from struct import Struct
 from typing import Protocol
 
@@ -92,7 +91,6 @@ class RunLog:
         """``(run time [s], name, message)`` of every event, for the outcome."""
         self._next_tf_ns = 0
         self._layouts: dict[str, Struct] | None = None
-        self._ft_template: np.ndarray | None = None
         self.verdicts: list[Verdict] = []
         """Every verdict note, in order (the last one with ``final`` is the run's)."""
         self._target_frames = -1
@@ -155,30 +153,10 @@ class RunLog:
         if rec is None or not n:
             return
         times = (ft.time_ns + (self.start_utc_ns - t0_ns)).tolist()
-        pack = rec.layout("/ft/raw").pack
-        try:
-            datas = [pack(CDR_HEADER, w0, w1, w2, w3, w4, w5, seq, status)
-                     for (w0, w1, w2, w3, w4, w5), seq, status in zip(
-                         ft.wrench.tolist(), (ft.seq & 0xFFFFFFFF).tolist(),
-                         ft.status.tolist(), strict=True)]
-        except (struct.error, TypeError, ValueError):  # not plain: numpy converts
-            datas = self._sample_records(ft)
-        rec.write_series("/ft/raw", times, datas)
-
-    def _sample_records(self, ft: FtSamples) -> list[bytes]:
-        """The samples' messages through numpy records (values numpy would convert)."""
-        assert self.rec is not None
-        n = len(ft)
-        tpl = self._ft_template
-        if tpl is None or tpl.shape[0] < n:
-            proto = self.rec.record("/ft/raw")
-            tpl = self._ft_template = np.zeros(max(n, 16), dtype=proto.dtype)
-            tpl["_cdr_header"] = proto["_cdr_header"][0]
-        recs = tpl[:n]
-        recs["wrench"] = ft.wrench
-        recs["seq"] = ft.seq & 0xFFFFFFFF
-        recs["status"] = ft.status
-        return [r.tobytes() for r in recs]
+        # the numpy record filled row by row (seq modulo 2^32: numpy's cast into uint32),
+        # encoded with the samples of many cycles at once
+        rec.write_rows("/ft/raw", times, {"wrench": ft.wrench, "seq": ft.seq,
+                                          "status": ft.status})
 
     def cycle(
         self,

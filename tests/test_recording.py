@@ -11,7 +11,7 @@ from mcap.writer import Writer
 
 from ffexp.errors import InputError
 from ffexp.recording import Recorder, load, recover
-from ffexp.recording.schema import FieldSpec, MessageSpec
+from ffexp.recording.schema import CDR_HEADER, FieldSpec, MessageSpec
 from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS, describe
 
 
@@ -237,3 +237,90 @@ def test_write_fields_takes_any_shape_of_the_same_numbers(tmp_path: Path) -> Non
     data = load(path).topic("/robot/measurement")
     np.testing.assert_array_equal(data["msr_cart_pos"][:3], [p.reshape(-1) for p in poses])
     assert data["seq"].tolist() == [0, 1, 2, 9]
+
+
+def test_an_abort_loses_nothing_held(tmp_path: Path) -> None:
+    """The recorder's writer holds a cycle's messages and frames many cycles at once;
+    a run that ends in an exception still has every message it wrote, in order, each
+    channel's sequence numbers counting from 0."""
+    from mcap.reader import make_reader
+
+    path = tmp_path / "run.mcap"
+    rec = Recorder(path, clock=lambda: 0.0)  # no flush by time
+    link = rec.layout("/robot/link")
+    with pytest.raises(RuntimeError), rec:
+        for k in range(300):
+            t = 1_700_000_000_000_000_000 + 5_000_000 * k
+            msgs = [("/robot/link", link.pack(CDR_HEADER, 0.5, 0.0, 0.0, 0.0, k, 2, 3))]
+            if k % 4 == 0:
+                msgs.append(("/tf", rec.encode_transform(t, "base", "tool", np.eye(4).tolist())))
+            rec.write_batch(t, msgs)
+        raise RuntimeError("abort")
+    got = load(path)
+    assert got.complete
+    assert got.topics["/robot/link"]["miss_counter"].tolist() == list(range(300))
+    with path.open("rb") as f:
+        seen: dict[str, list[int]] = {}
+        for _, ch, m in make_reader(f).iter_messages(log_time_order=False):
+            seen.setdefault(ch.topic, []).append(m.sequence)
+    assert seen == {"/robot/link": list(range(300)), "/tf": list(range(75))}
+
+
+def test_rows_held_and_encoded_at_once_are_the_records_filled_row_by_row(
+        tmp_path: Path) -> None:
+    """``write_rows`` (a cycle's F/T samples, encoded with those of many cycles at
+    once) writes each row as the topic's record filled with that row (numpy's casts:
+    a sequence number beyond 32 bits wraps), in order among the cycle's other
+    messages; with a tap, the same messages at once."""
+    from mcap.reader import make_reader
+
+    expected: list[tuple[str, int, bytes]] = []
+    tapped: list[tuple[str, int, bytes]] = []
+    proto = CDR_TOPICS["/ft/raw"].spec.new_record()
+    paths = [tmp_path / "held.mcap", tmp_path / "tapped.mcap"]
+    for path in paths:
+        rng = np.random.default_rng(5)
+        with Recorder(path, clock=lambda: 0.0, chunk_size=4096) as rec:
+            if path.name == "tapped.mcap":
+                rec.taps.append(lambda topic, t, data: tapped.append((topic, t, data)))
+            link = rec.layout("/robot/link")
+            seq = 2**32 - 7
+            for k in range(400):
+                t = 1_700_000_000_000_000_000 + 5_000_000 * k
+                n = int(rng.integers(0, 6))
+                times = [t - 4_000_000 + 1_000_000 * j for j in range(n)]
+                wrench = rng.normal(size=(n, 6))
+                seqs = np.arange(seq, seq + n, dtype=np.int64)
+                seq += n
+                status = rng.integers(0, 3, size=n).astype(np.uint32)
+                rec.write_rows("/ft/raw", times, {"wrench": wrench, "seq": seqs,
+                                                  "status": status})
+                wrench[:] = 0.0  # written: the recording keeps the values given
+                rec.write_batch(t, [("/robot/link", link.pack(CDR_HEADER, 0.5, 0.0, 0.0, 0.0,
+                                                              k, 2, 3))])
+                if k == 200:
+                    rec.flush()
+    with paths[0].open("rb") as f:
+        held = [(ch.topic, m.log_time, m.data)
+                for _, ch, m in make_reader(f).iter_messages(log_time_order=False)]
+    with paths[1].open("rb") as f:
+        direct = [(ch.topic, m.log_time, m.data)
+                  for _, ch, m in make_reader(f).iter_messages(log_time_order=False)]
+    assert held == direct == tapped
+    # each /ft/raw message is the record of its row
+    rng = np.random.default_rng(5)
+    seq = 2**32 - 7
+    for k in range(400):
+        n = int(rng.integers(0, 6))
+        wrench = rng.normal(size=(n, 6))
+        status = rng.integers(0, 3, size=n).astype(np.uint32)
+        for j in range(n):
+            r = proto.copy()
+            r["wrench"] = wrench[j]
+            r["seq"] = (seq + j) & 0xFFFFFFFF
+            r["status"] = status[j]
+            expected.append(("/ft/raw", 1_700_000_000_000_000_000 + 5_000_000 * k
+                             - 4_000_000 + 1_000_000 * j, r.tobytes()))
+        seq += n
+    assert [m for m in held if m[0] == "/ft/raw"] == expected
+    assert len(expected) > 500

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from itertools import chain
 
 import mujoco
 import numpy as np
@@ -163,8 +164,7 @@ class ToolContact:
                 return np.zeros(6), False
         geom = d.contact.geom
         if ncon <= 16:  # a few contacts (the target's pads): plain ints are cheaper
-            tool = self._tool_geoms
-            if not any(g in tool for g in geom.ravel().tolist()):
+            if self._tool_geoms.isdisjoint(chain.from_iterable(geom.tolist())):
                 return np.zeros(6), False
         elif not self._is_tool_geom[geom].any():
             return np.zeros(6), False

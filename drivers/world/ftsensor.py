@@ -277,6 +277,7 @@ class FtSteps:
         self._raw3 = self.raw.reshape(substeps, 2, 3)  # the same memory
         self._rows = tuple(self.raw[i] for i in range(substeps))
         self._now = data.sensordata[adr:adr + 6]
+        self._history = data.history  # a view of MuJoCo's buffer (fixed for the data's life)
         self._hist = self._history_view()
 
     def _history_view(self) -> tuple[F64, int] | None:
@@ -339,7 +340,7 @@ class FtSteps:
         t_start = d.time
         mujoco.mj_step(m, d, self._n)
         view, cursor = hist
-        history = d.history
+        history = self._history
         oldest = int(history[cursor]) + 1
         if oldest == self._n:
             oldest = 0

@@ -6,6 +6,10 @@ chunk index, message index, statistics) with one ``struct.pack`` per message
 instead of mcap's field-by-field record writer, and hands a whole chunk's
 messages to mcap's chunk builder at once; :meth:`FastWriter.add_fixed` frames a
 run of same-sized messages of one channel (numpy records) in one numpy array.
+:meth:`FastWriter.add_at` and :meth:`FastWriter.add_series` (what the
+:class:`~ffexp.recording.Recorder` uses) hold a cycle's messages and frame those of
+many cycles at once (their heads in one numpy array, their sequence numbers and index
+entries per channel by numpy): the same bytes again.
 A full zstd chunk is compressed in a worker thread while the next one fills. It
 uses the ``Writer``'s private chunk builder, statistics and record builder; if a
 future mcap lacks them, it falls
@@ -17,9 +21,12 @@ from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from functools import cache
 from itertools import chain
+from operator import itemgetter
 from typing import IO, Any
 
 import numpy as np
@@ -29,7 +36,7 @@ from mcap.records import Chunk, ChunkIndex, MessageIndex
 from mcap.writer import CompressionType, IndexType, Writer
 from numpy.typing import NDArray
 
-__all__ = ["FastWriter"]
+__all__ = ["FastWriter", "encode_rows"]
 
 #: An MCAP Message record's head: opcode, record length, channel id, sequence,
 #: log time, publish time (the MCAP specification's field order, little endian).
@@ -40,15 +47,20 @@ _NO_TIME = 1 << 64  # above every log time (uint64)
 #: A Message Index record's head: opcode, record length, channel id, entries' length.
 _INDEX_HEAD = struct.Struct("<BQHI")
 _OPCODE_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
+#: :data:`_MESSAGE_HEAD` as a packed numpy record (a held batch's heads in one array)
+_HEAD_DTYPE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
+                        ("sequence", "<u4"), ("log_time", "<u8"), ("publish_time", "<u8")])
+_HEAD_BYTES = struct.Struct(f"{_MESSAGE_HEAD.size}s")  # iter_unpack: the heads one by one
+_first = itemgetter(0)
+#: held messages drained into the chunk at the latest at this count
+HELD_MESSAGES = 4096
 
 
 @cache
 def _record_dtype(data_size: int) -> np.dtype[Any]:
     """A whole Message record with ``data_size`` bytes of data, as a packed numpy record
     (the fields of :data:`_MESSAGE_HEAD`, then the data)."""
-    return np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
-                     ("sequence", "<u4"), ("log_time", "<u8"), ("publish_time", "<u8"),
-                     ("data", f"V{data_size}")])
+    return np.dtype([*_HEAD_DTYPE.descr, ("data", f"V{data_size}")])
 
 
 def _compress(data: bytes, crcs: bool) -> tuple[bytes, int]:
@@ -56,15 +68,38 @@ def _compress(data: bytes, crcs: bool) -> tuple[bytes, int]:
     return zstandard.compress(data), (zlib.crc32(data) if crcs else 0)
 
 
+def encode_rows(template: NDArray[Any], blocks: list[Mapping[str, NDArray[Any]]],
+                n: int) -> list[bytes]:
+    """Each of the ``n`` rows' bytes: ``template`` repeated, each block's columns assigned
+    to their fields (numpy's casts), one message a row."""
+    rec = np.repeat(template, n)
+    for name in blocks[0]:
+        rec[name] = np.concatenate([b[name] for b in blocks])
+    return list(map(_first, struct.Struct(f"{rec.dtype.itemsize}s").iter_unpack(
+        rec.tobytes())))
+
+
+@dataclass
 class _MessageIndex(MessageIndex):
-    """mcap's ``MessageIndex`` written with two ``struct.pack`` calls (the same bytes as
-    its own field-by-field ``write``)."""
+    """mcap's ``MessageIndex`` whose entries are kept packed, 16 bytes each (log time,
+    offset; :meth:`add`), and written with them (the same bytes as its own
+    field-by-field ``write``; ``records`` stays empty)."""
+
+    packed: list[bytes] = field(default_factory=list)
+
+    def add(self, entries: list[tuple[int, int]] | NDArray[np.uint64]) -> None:
+        """Entries ``(log time, offset)``: a list, or a ``(k, 2)`` little-endian uint64 array."""
+        if isinstance(entries, np.ndarray):
+            self.packed.append(entries.tobytes())
+        else:
+            self.packed.append(struct.pack(f"<{2 * len(entries)}Q",
+                                           *chain.from_iterable(entries)))
 
     def write(self, stream: Any) -> None:
-        n = len(self.records)
-        stream.write(_INDEX_HEAD.pack(_OPCODE_MESSAGE_INDEX, 6 + 16 * n, self.channel_id,
-                                      16 * n))
-        stream.write(struct.pack(f"<{2 * n}Q", *chain.from_iterable(self.records)))
+        data = b"".join(self.packed)
+        stream.write(_INDEX_HEAD.pack(_OPCODE_MESSAGE_INDEX, 6 + len(data), self.channel_id,
+                                      len(data)))
+        stream.write(data)
 
 
 class FastWriter(Writer):
@@ -109,13 +144,27 @@ class FastWriter(Writer):
         self._closing: tuple[Any, ...] | None = None  # the chunk being compressed
         # the pending batch: record bytes, per channel [(log time, offset)], counts
         self._parts: list[bytes] = []
-        self._index: dict[int, list[tuple[int, int]]] = {}  # its length: the channel's count
+        # per channel its (log time, offset) entries: a list, or a (k, 2) array (_drain)
+        self._index: dict[int, Any] = {}  # their lengths: the channels' counts
         self._size = 0  # the chunk's size with the pending records
         self._t_min = 0
         self._t_max = 0
+        # messages held for a time-batched framing (add_at, add_series): in order, their
+        # channels, log times and data; their records' size; what the chunk takes first
+        self._held_cids: list[int] = []
+        self._held_times: list[int] = []
+        self._held_datas: list[bytes] = []
+        self._held_size = 0
+        self._held_room = 0
+        # rows encoded at the drain, per template: [(where in _held_datas, how many, columns)]
+        self._held_rows: dict[int, tuple[NDArray[Any], list[tuple[
+            int, int, Mapping[str, NDArray[Any]]]]]] = {}
+        self._counts: dict[int, int] = {}  # per channel: sequence numbers handed out
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
+        if self._held_cids:
+            self._drain()
         if not self.fast:
             super().add_message(channel_id, log_time, data, publish_time, sequence)
             return
@@ -145,6 +194,8 @@ class FastWriter(Writer):
                      sequences: list[int]) -> None:
         """:meth:`add_message` for several messages (publish time = log time), in order:
         the same bytes, one call."""
+        if self._held_cids:
+            self._drain()
         if not self.fast:
             for cid, t, data, seq in zip(channel_ids, log_times, datas, sequences, strict=True):
                 super().add_message(cid, t, data, t, seq)
@@ -182,6 +233,8 @@ class FastWriter(Writer):
                         sequences: list[int]) -> None:
         """:meth:`add_messages` of messages all at one log time (a cycle's topics): the
         same bytes, without a time per message."""
+        if self._held_cids:
+            self._drain()
         if not self.fast:
             for cid, data, seq in zip(channel_ids, datas, sequences, strict=True):
                 super().add_message(cid, log_time, data, log_time, seq)
@@ -223,6 +276,8 @@ class FastWriter(Writer):
         rows of a numpy record array, e.g. a cycle's F/T samples; publish time = log time,
         sequences counting up from ``first_sequence``): the same bytes, their records built
         in one numpy array instead of a ``struct.pack`` each."""
+        if self._held_cids:
+            self._drain()
         n = len(log_times)
         size_each = datas.dtype.itemsize
         blob = np.ascontiguousarray(datas).tobytes()
@@ -267,7 +322,166 @@ class FastWriter(Writer):
                 self._commit()
                 self._close_chunk()
 
+    # -- time-batched: messages held, framed many cycles at once -------------------------
+    def add_at(self, channel_ids: Sequence[int], log_time: int, datas: Sequence[bytes]) -> None:
+        """Messages of several channels at one log time (a cycle's topics; publish time =
+        log time), each channel's sequence numbers counting up from 0 (:meth:`reserve`).
+
+        Held, and framed with the next cycles' at once (:meth:`_drain`) when the chunk is
+        full, before any other call (a channel, :meth:`flush`, ...) or at
+        :data:`HELD_MESSAGES`: the file is byte for byte mcap's own writer's."""
+        if not self.fast:
+            for cid, data in zip(channel_ids, datas, strict=True):
+                super().add_message(cid, log_time, data, log_time, self._next_seq(cid))
+            return
+        self._hold(channel_ids, [log_time] * len(datas), datas,
+                   sum(map(len, datas)) + len(datas) * _MESSAGE_HEAD.size)
+
+    def add_series(self, channel_id: int, log_times: Sequence[int],
+                   datas: Sequence[bytes]) -> None:
+        """Messages of one channel at their own log times (a cycle's F/T samples), held
+        as :meth:`add_at`'s."""
+        k = len(datas)
+        if not self.fast:
+            for t, data in zip(log_times, datas, strict=True):
+                self.add_at((channel_id,), t, (data,))
+            return
+        self._hold([channel_id] * k, log_times, datas,
+                   sum(map(len, datas)) + k * _MESSAGE_HEAD.size)
+
+    def add_rows(self, channel_id: int, log_times: list[int], template: NDArray[Any],
+                 columns: Mapping[str, NDArray[Any]]) -> None:
+        """Messages of one channel at their own log times whose data are the rows of a
+        numpy record array (``template``, one record, repeated; then each of
+        ``columns`` assigned to its field, as numpy assigns), held as :meth:`add_at`'s
+        and encoded at the drain for all held cycles at once. The column arrays must
+        not change afterwards (give copies)."""
+        k = len(log_times)
+        if not self.fast:
+            self.add_series(channel_id, log_times, encode_rows(template, [columns], k))
+            return
+        group = self._held_rows.get(id(template))
+        if group is None:
+            group = self._held_rows[id(template)] = (template, [])
+        group[1].append((len(self._held_datas), k, columns))
+        self._hold([channel_id] * k, log_times, [b""] * k,  # encoded at the drain
+                   k * (template.dtype.itemsize + _MESSAGE_HEAD.size))
+
+    def _hold(self, cids: Sequence[int], times: Sequence[int], datas: Sequence[bytes],
+              size: int) -> None:
+        """Hold messages (their records' ``size``); drained when the chunk they go into
+        is full, or at :data:`HELD_MESSAGES`."""
+        if not self._held_cids:
+            self._held_room = self._chunk_size - (
+                self._size if self._parts else self._chunks.record_writer._buffer.tell())
+        self._held_cids += cids
+        self._held_times += times
+        self._held_datas += datas
+        self._held_size += size
+        if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
+            self._drain()
+
+    def _encode_held_rows(self, datas: list[bytes]) -> None:
+        """The held rows' messages into their places in ``datas``: one record array for
+        the rows of each template."""
+        groups = self._held_rows
+        self._held_rows = {}
+        for template, blocks in groups.values():
+            encoded = encode_rows(template, [b[2] for b in blocks],
+                                  sum([b[1] for b in blocks]))
+            j = 0
+            for pos, k, _ in blocks:
+                datas[pos:pos + k] = encoded[j:j + k]
+                j += k
+
+    def reserve(self, channel_id: int, n: int) -> int:
+        """The next ``n`` sequence numbers of a channel (its first), for messages given
+        otherwise (:meth:`add_fixed`), after the held ones."""
+        self._drain()
+        return self._next_seq(channel_id, n)
+
+    def _next_seq(self, channel_id: int, n: int = 1) -> int:
+        seq = self._counts.get(channel_id, 0)
+        self._counts[channel_id] = seq + n
+        return seq
+
+    def _drain(self) -> None:
+        """Frame the held messages into the chunk: their heads in one numpy array, their
+        sequence numbers and index entries per channel by numpy, the chunk closed after
+        the very message mcap's writer would close it after."""
+        cids = self._held_cids
+        n = len(cids)
+        if not n:
+            return
+        times, datas = self._held_times, self._held_datas
+        self._held_cids, self._held_times, self._held_datas = [], [], []
+        if self._held_rows:
+            self._encode_held_rows(datas)
+        self._held_size = 0
+        self._commit_parts()  # what was given before them
+        c = np.array(cids, dtype=np.uint16)  # MCAP's channel ids (numpy's radix sort)
+        t = np.array(times, dtype=np.uint64)
+        sizes = np.fromiter(map(len, datas), dtype=np.int64, count=n)
+        # sequences: the channel's count so far plus the rank among its held messages
+        order = np.argsort(c, kind="stable")
+        sc = c[order]
+        starts = np.flatnonzero(np.concatenate(([True], sc[1:] != sc[:-1])))
+        counts = np.diff(np.append(starts, n))
+        held = self._counts
+        base = []
+        for cid, k in zip(sc[starts].tolist(), counts.tolist(), strict=True):
+            b = held.get(cid, 0)
+            base.append(b)
+            held[cid] = b + k
+        seq = np.empty(n, dtype=np.int64)
+        seq[order] = np.arange(n) - np.repeat(starts - np.asarray(base, dtype=np.int64), counts)
+        heads = np.empty(n, dtype=_HEAD_DTYPE)
+        heads["op"] = _OPCODE_MESSAGE
+        heads["length"] = sizes + _MESSAGE_FIXED
+        heads["channel"] = c
+        heads["sequence"] = seq
+        heads["log_time"] = t
+        heads["publish_time"] = t
+        parts = [b""] * (2 * n)  # each message's head, then its data
+        parts[0::2] = map(_first, _HEAD_BYTES.iter_unpack(heads.tobytes()))
+        parts[1::2] = datas
+        records = sizes + _MESSAGE_HEAD.size
+        done = 0
+        while done < n:
+            start = self._chunks.record_writer._buffer.tell()
+            ends = np.cumsum(records[done:]) + start
+            over = np.flatnonzero(ends > self._chunk_size)  # mcap's rule, after a message
+            m = int(over[0]) + 1 if over.size else n - done
+            seg = slice(done, done + m)
+            offsets = ends[:m] - records[seg]
+            # per channel (in order of first message) its (log time, offset) entries
+            sc_seg = c[seg]
+            o = np.argsort(sc_seg, kind="stable")
+            s_sorted = sc_seg[o]
+            first = np.flatnonzero(np.concatenate(([True], s_sorted[1:] != s_sorted[:-1])))
+            entries = np.empty((m, 2), dtype="<u8")  # the index entries, by channel
+            entries[:, 0] = t[seg][o]
+            entries[:, 1] = offsets[o]
+            bounds = [*first.tolist(), m]
+            groups = sorted(zip(o[first].tolist(), s_sorted[first].tolist(), bounds[:-1],
+                                bounds[1:], strict=True))
+            self._index = {cid: entries[a:b] for _, cid, a, b in groups}
+            tseg = t[seg]
+            self._t_min, self._t_max = int(tseg.min()), int(tseg.max())
+            self._parts = parts[2 * done:2 * (done + m)]
+            self._size = int(ends[m - 1])
+            done += m
+            self._commit_parts()
+            if over.size:
+                self._close_chunk()
+
     def _commit(self) -> None:
+        """The held messages (:meth:`_drain`), then the pending batch, into the chunk."""
+        if self._held_cids:
+            self._drain()
+        self._commit_parts()
+
+    def _commit_parts(self) -> None:
         """Hand the pending batch to mcap's chunk builder and statistics."""
         parts = self._parts
         if not parts:
@@ -292,7 +506,7 @@ class FastWriter(Writer):
             index = indices.get(cid)
             if index is None:
                 index = indices[cid] = _MessageIndex(channel_id=cid, records=[])
-            index.records.extend(records)
+            index.add(records)
         cb.num_messages += n
         cb.record_writer._buffer.write(b"".join(parts))
         self._parts = []

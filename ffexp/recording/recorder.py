@@ -31,7 +31,7 @@ from mcap.writer import CompressionType
 from drivers.base.types import NS_PER_S
 from ffexp.errors import InputError
 from ffexp.recording.encode import FieldsEncoder
-from ffexp.recording.mcap_writer import FastWriter
+from ffexp.recording.mcap_writer import FastWriter, encode_rows
 from ffexp.recording.topics import CDR_TOPICS, JSON_TOPICS, LOG_LEVELS
 
 CHUNK_SIZE_BYTES = 1 << 20
@@ -121,13 +121,16 @@ class Recorder:
         self._clock = clock
         self._flush_interval_s = flush_interval_s
         self._last_flush = clock()
-        self._channels: dict[str, list[int]] = {}  # topic: [channel id, next sequence]
+        self._channels: dict[str, int] = {}  # topic: channel id
+        self._cids: dict[tuple[str, ...], list[int]] = {}  # a cycle's topics: their channels
         self._records: dict[str, np.ndarray] = {}
         self._names: dict[str, tuple[str, ...]] = {}
         self._layouts: dict[str, struct.Struct] = {}
-        self._add_message = self._writer.add_message
         self._plans: dict[tuple[str, type], tuple[tuple[str, np.ndarray], ...]] = {}
         self._encoders: dict[str, FieldsEncoder] = {}
+        self._row_templates: dict[str, np.ndarray] = {}  # write_rows: an empty record each
+        # a subclass that watches write_series sees write_rows' messages there, encoded now
+        self._series_watched = type(self).write_series is not Recorder.write_series
         self._frames: dict[tuple[str, str], str] = {}
         self.message_count = 0
         self.finished = False
@@ -136,8 +139,8 @@ class Recorder:
         (a live viewer); they must return at once. Empty: no cost."""
 
     # -- channels -------------------------------------------------------------
-    def _channel(self, topic: str) -> list[int]:
-        """``[channel id, next sequence number]`` of ``topic``, registered on first use."""
+    def _channel(self, topic: str) -> int:
+        """The channel id of ``topic``, registered on first use."""
         ch = self._channels.get(topic)
         if ch is not None:
             return ch
@@ -151,8 +154,8 @@ class Recorder:
             cid = self._writer.register_channel(topic, "json", sid)
         else:
             raise KeyError(f"unknown topic {topic!r}: add it to ffexp/recording/topics/__init__.py")
-        ch = self._channels[topic] = [cid, 0]
-        return ch
+        self._channels[topic] = cid
+        return int(cid)
 
     def record(self, topic: str) -> np.ndarray:
         """The preallocated one-element record of a CDR topic (fill, then :meth:`write`)."""
@@ -174,15 +177,18 @@ class Recorder:
 
     # -- writing --------------------------------------------------------------
     def write_bytes(self, topic: str, time_ns: int, data: bytes) -> None:
-        """Write one encoded message (every write of the recorder goes through here)."""
+        """Write one encoded message.
+
+        Every message's sequence number counts its channel's messages from 0. The
+        writer frames messages many cycles at once (:meth:`FastWriter.add_at
+        <ffexp.recording.mcap_writer.FastWriter.add_at>`); :meth:`flush` and
+        :meth:`finish` write every message given."""
         if time_ns < 0:
             raise ValueError(f"{topic}: negative log time {time_ns} ns")
         ch = self._channels.get(topic)
         if ch is None:
             ch = self._channel(topic)
-        seq = ch[1]
-        ch[1] = seq + 1
-        self._add_message(ch[0], time_ns, data, time_ns, seq)
+        self._writer.add_at((ch,), time_ns, (data,))
         self.message_count += 1
         if self.taps:
             for tap in self.taps:
@@ -193,18 +199,15 @@ class Recorder:
     def write_batch(self, time_ns: int, messages: list[tuple[str, bytes]]) -> None:
         """Write encoded messages of several topics at one log time, in order (a
         cycle's topics): :meth:`write_bytes` for each, in one call."""
+        if not messages:
+            return
         if time_ns < 0:
             raise ValueError(f"{messages[0][0]}: negative log time {time_ns} ns")
-        channels, cids, seqs, datas = self._channels, [], [], []
-        for topic, data in messages:
-            ch = channels.get(topic)
-            if ch is None:
-                ch = self._channel(topic)
-            cids.append(ch[0])
-            seqs.append(ch[1])
-            ch[1] += 1
-            datas.append(data)
-        self._writer.add_messages_at(cids, time_ns, datas, seqs)
+        topics, datas = zip(*messages, strict=True)
+        cids = self._cids.get(topics)
+        if cids is None:  # a new mix of topics: their channels, registered in order
+            cids = self._cids[topics] = [self._channel(topic) for topic in topics]
+        self._writer.add_at(cids, time_ns, datas)
         self.message_count += len(datas)
         if self.taps:
             for topic, data in messages:
@@ -224,14 +227,43 @@ class Recorder:
         if ch is None:
             ch = self._channel(topic)
         n = len(times_ns)
-        seq = ch[1]
-        ch[1] = seq + n
-        self._writer.add_messages([ch[0]] * n, times_ns, datas, list(range(seq, seq + n)))
+        self._writer.add_series(ch, times_ns, datas)
         self.message_count += n
         if self.taps:
             for t, data in zip(times_ns, datas, strict=True):
                 for tap in self.taps:
                     tap(topic, t, data)
+        if self._clock() - self._last_flush >= self._flush_interval_s:
+            self.flush()
+
+    def write_rows(self, topic: str, times_ns: list[int], columns: Mapping[str, np.ndarray]
+                   ) -> None:
+        """Write messages of one CDR topic at their own log times (e.g. a cycle's F/T
+        samples) whose fields are given as columns, a row a message (``wrench`` of shape
+        ``(n, 6)``, ``seq`` of ``n``, ...; fields not given keep their zeros): the bytes
+        of :meth:`record` filled row by row, numpy converting as it does. The writer
+        encodes the rows of many cycles at once (:meth:`FastWriter.add_rows
+        <ffexp.recording.mcap_writer.FastWriter.add_rows>`); writeable columns are
+        copied now. With a tap, or in a subclass that overrides :meth:`write_series`,
+        the rows are encoded now and written through :meth:`write_series`."""
+        if not times_ns:
+            return
+        if min(times_ns) < 0:
+            raise ValueError(f"{topic}: negative log time {min(times_ns)} ns")
+        ch = self._channels.get(topic)
+        if ch is None:
+            ch = self._channel(topic)
+        template = self._row_templates.get(topic)
+        if template is None:  # zeros, the CDR header set
+            template = self._row_templates[topic] = CDR_TOPICS[topic].spec.new_record()
+        if self.taps or self._series_watched:  # a live viewer, or a subclass watching
+            self.write_series(topic, times_ns,  # now
+                              encode_rows(template, [columns], len(times_ns)))
+            return
+        columns = {name: value.copy() if value.flags.writeable else value
+                   for name, value in columns.items()}
+        self._writer.add_rows(ch, times_ns, template, columns)
+        self.message_count += len(times_ns)
         if self._clock() - self._last_flush >= self._flush_interval_s:
             self.flush()
 
@@ -314,9 +346,7 @@ class Recorder:
         ch = self._channels.get(topic)
         if ch is None:
             ch = self._channel(topic)
-        seq = ch[1]
-        ch[1] = seq + n
-        self._writer.add_fixed(ch[0], times, seq, records)
+        self._writer.add_fixed(ch, times, self._writer.reserve(ch, n), records)
         self.message_count += n
         if self.taps:
             blob, size = records.tobytes(), records.dtype.itemsize

@@ -27,7 +27,6 @@ command, and the remote sees the same measurement for the same world state.
 
 from __future__ import annotations
 
-import copy
 import math
 from collections import deque
 from collections.abc import Sequence
@@ -234,12 +233,15 @@ _ARM_ARRAYS: Final = tuple(f.name for f in fields(ArmCommand) if f.name != "mode
 
 
 def _owned(arm: ArmCommand) -> ArmCommand:
-    """``arm`` with arrays of its own."""
-    out = copy.copy(arm)
+    """``arm`` with arrays of its own (``copy.copy`` and a copy of each array, without
+    the copy module's protocol: one dictionary copied)."""
+    d = arm.__dict__.copy()
     for name in _ARM_ARRAYS:
-        v = getattr(arm, name)
+        v = d[name]
         if v is not None:
-            setattr(out, name, np.array(v))
+            d[name] = np.array(v)
+    out = _new(type(arm))
+    out.__dict__ = d
     return out
 
 

@@ -115,6 +115,9 @@ class FciServer:
         self._cmd_rec: np.void = np.frombuffer(self._cmd, dtype=codec.ROBOT_COMMAND,
                                                count=1)[0]
         self._tcp_pending = True  # the client's TCP connection may have bytes to read
+        # what the cycle's select watches: the UDP socket, or it and the TCP connection
+        self._watch_udp: list[int] = []
+        self._watch_both: list[int] = []
         self._cost_ns = np.zeros(COST_WINDOW, dtype=np.int64)
         self._costs = 0
 
@@ -199,6 +202,11 @@ class FciServer:
             return
         conn.setblocking(False)
         self._conn, self._client = conn, (peer[0], int(req["udp_port"]))
+        # the states go to the client's port only, and only its datagrams come back (a
+        # connected socket: no address to pass or return every cycle)
+        self._udp.connect(self._client)
+        self._watch_udp = [self._udp.fileno()]
+        self._watch_both = [self._udp.fileno(), conn.fileno()]
         self._tcp_pending = True
 
     def _silent(self, conn: socket.socket) -> None:
@@ -275,8 +283,10 @@ class FciServer:
 
     # ------------------------------------------------------------ UDP
     def _send_state(self) -> None:
-        assert self._client is not None
-        self._udp.sendto(self.controller.state().data, self._client)  # the record's own bytes
+        try:
+            self._udp.send(self.controller.state().data)  # the record's own bytes
+        except OSError:  # the client's port closed (its ICMP answer): the TCP link tells
+            self.counters["udp_errors"] += 1
         self.counters["states"] += 1
 
     def _take_commands(self, timeout_s: float) -> np.void | None:
@@ -286,21 +296,25 @@ class FciServer:
         at the next cycle's start (not every cycle looks)."""
         end = time.monotonic() + timeout_s
         want = self.controller.message_id
-        watch = [self._udp] if self._tcp_pending or self._conn is None else \
-            [self._udp, self._conn]
+        watch = self._watch_udp if self._tcp_pending or self._conn is None else \
+            self._watch_both
+        udp = self._udp
         while True:
             ready, _, _ = select.select(watch, [], [], max(0.0, end - time.monotonic()))
-            if len(watch) > 1 and self._conn in ready:
+            if len(ready) > 1 or (ready and ready[0] is not watch[0]):  # the TCP link's bytes
                 self._tcp_pending = True
-                watch = [self._udp]
-                if self._udp not in ready:
+                watch = self._watch_udp
+                if len(ready) == 1:
                     continue
             if not ready:
                 return None
             while True:
                 try:
-                    n, _addr = self._udp.recvfrom_into(self._cmd)
-                except BlockingIOError:
+                    n = udp.recv_into(self._cmd)
+                except (BlockingIOError, InterruptedError):
+                    break
+                except OSError:  # the client's port closed (its ICMP answer)
+                    self.counters["udp_errors"] += 1
                     break
                 if n != codec.ROBOT_COMMAND.itemsize:
                     self.counters["malformed"] += 1

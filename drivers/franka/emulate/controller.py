@@ -52,9 +52,13 @@ def flange_to_tcp(world: SimWorld) -> F64:
 
 
 class Fr3SimController:
-    """The FR3's controller on ``world`` (module docstring)."""
+    """The FR3's controller on ``world`` (module docstring).
 
-    def __init__(self, world: SimWorld) -> None:
+    ``lean``: the world stepped through :class:`~drivers.world.torque_step.TorqueStepper`
+    where it can be (:func:`~drivers.world.torque_step.unfit`), the same physics with less
+    work; ``False``: through ``SimWorld.advance`` always."""
+
+    def __init__(self, world: SimWorld, lean: bool = True) -> None:
         self.world = world
         desc = world.scene.arm.description
         # the limits as plain floats, compared value by value
@@ -91,10 +95,13 @@ class Fr3SimController:
         self._tau_written: F64 | None = None
         self._wrench_o = np.zeros(6)
         self._wrench_written = True  # the record's wrench fields may be nonzero
-        why = unfit(world)
-        self._lean = TorqueStepper(world) if why is None else None
-        """The world stepped lean (``None``: through ``SimWorld.advance``)."""
+        self._lean = TorqueStepper(world) if lean and unfit(world) is None else None
         self.steps = 0
+
+    @property
+    def lean(self) -> TorqueStepper | None:
+        """What steps the world lean (``None``: ``SimWorld.advance`` does)."""
+        return self._lean
 
     @property
     def success_rate(self) -> float:

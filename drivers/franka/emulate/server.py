@@ -58,6 +58,8 @@ from drivers.world.world import SimWorld
 __all__ = ["FciFaults", "FciServer"]
 
 _CYCLE_S = 0.001
+#: The end of a real-time cycle's wait spent spinning (a sleep wakes up that late).
+_SPIN_S = 0.0002
 _POLL_S = 0.05
 _MESSAGE_ID = struct.Struct("<Q")  # a command's first field
 #: Cycles whose CPU cost is kept (the last ones; a preallocated ring).
@@ -372,15 +374,49 @@ class FciServer:
                 self._cost(cpu0)
                 _sleep_until(t0 + _CYCLE_S)
                 return
-        else:
+        elif c.moving:
             cmd = self._take_commands(max(0.0, due + _CYCLE_S * 0.9 - time.monotonic()))
+        else:  # no motion: no command to wait for (one that comes is seen in the pause)
+            cmd = None
         if c.moving:
             self.counters["answered" if cmd is not None else "missed"] += 1
         c.step(cmd)
         self._motion_events()
         self._cost(cpu0)
         if self.pacing == "realtime":
-            _sleep_until(self._next)  # a short cycle makes up for a long one
+            self._pause_until(self._next)  # a short cycle makes up for a long one
+
+    def _pause_until(self, deadline: float) -> None:
+        """Real time: wait for ``deadline`` (monotonic; its last :data:`_SPIN_S` spinning),
+        watching the client's TCP connection (bytes there are read at the next cycle's
+        start) and, while no motion runs, its UDP socket (a command then answers no state:
+        counted late)."""
+        watch = [] if self._tcp_pending or self._conn is None else self._watch_both[1:]
+        if not self.controller.moving:
+            watch = watch + self._watch_udp
+        while (left := deadline - _SPIN_S - time.monotonic()) > 0.0:
+            if not watch:
+                time.sleep(left)
+                break
+            ready, _, _ = select.select(watch, [], [], left)
+            if not ready:
+                break
+            for fd in ready:
+                watch.remove(fd)
+                if fd in self._watch_udp:
+                    self._drain_late()
+                else:
+                    self._tcp_pending = True
+        _sleep_until(deadline)
+
+    def _drain_late(self) -> None:
+        """Every command waiting on the UDP socket, counted late (no state awaits it)."""
+        while True:
+            try:
+                n = self._udp.recv_into(self._cmd)
+            except OSError:  # none left (or the client's port closed)
+                return
+            self.counters["late" if n == codec.ROBOT_COMMAND.itemsize else "malformed"] += 1
 
     def _motion_events(self) -> None:
         c = self.controller
@@ -415,7 +451,7 @@ def _recv_exact(conn: socket.socket, n: int) -> bytes:
     return data
 
 
-def _sleep_until(deadline: float, spin_s: float = 0.0002) -> None:
+def _sleep_until(deadline: float, spin_s: float = _SPIN_S) -> None:
     """Sleep until ``deadline`` (monotonic): the last ``spin_s`` spinning."""
     left = deadline - time.monotonic()
     if left > spin_s:

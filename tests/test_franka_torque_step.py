@@ -15,6 +15,7 @@ import pytest
 
 from drivers.description.scene import load_scene
 from drivers.franka import codec
+from drivers.errors import SimulationError
 from drivers.franka.emulate.controller import Fr3SimController
 from drivers.world.torque_step import TorqueStepper, unfit
 from drivers.world.world import SimWorld
@@ -125,6 +126,15 @@ def test_a_world_the_lean_path_cannot_step_is_stepped_by_the_world() -> None:
     for _ in range(5):
         c.step(command(c, np.zeros(7)))
     assert world.cycle == 5 and c.success_rate == 1.0
+
+
+def test_a_diverging_lean_world_raises() -> None:
+    c = Fr3SimController(SimWorld(load_scene(FR3), seed=0))
+    c.start_motion()
+    c.step(command(c, np.zeros(7)))
+    c.world.data.qvel[2] = np.nan  # a joint's speed gone bad between cycles
+    with pytest.raises(SimulationError, match="physics diverged"):
+        c.step(command(c, np.zeros(7)))
 
 
 def test_the_torque_loops_fields_are_read_where_the_layout_puts_them() -> None:

@@ -136,6 +136,7 @@ class TorqueStepper:
         self._frictionloss = m.dof_frictionloss[va]
         self._friction = JointFriction.of_arm(world.scene.arm)
         self._warn_number = d.warning.number
+        self._warn_quiet = self._warn_number.tolist()  # primed: quiet_divergence
         tool = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "tool")
         self._tool_geoms = frozenset(g for g in range(m.ngeom)
                                      if m.geom_bodyid[g] == tool and m.geom_contype[g] != 0)
@@ -180,6 +181,8 @@ class TorqueStepper:
         """The wrench the environment exerts on the tool, TCF at the TCP [N, N m]."""
         self._started = False
         self._seen = (b"", b"")
+        self.q_list: list[float] = self.qpos.tolist()
+        """The arm's joint positions at the end state, plain floats."""
 
     # ------------------------------------------------------------ commands
     def command(self, mode: ArmMode | None = None, jnt_pos_rad: F64 | None = None,
@@ -298,10 +301,13 @@ class TorqueStepper:
         # the next cycle's first stage: the end state's kinematics, mass matrix and bias
         self._stage1()
         np.subtract(self._bias_arm, self._gravcomp_arm, out=self._applied_arm)
-        check_divergence(d, self._warn_number)
+        warnings = self._warn_number.tolist()
+        if warnings != self._warn_quiet:  # MuJoCo warned: a bad state raises
+            check_divergence(d, self._warn_number)
+            self._warn_quiet = warnings  # another warning, counted: not a divergence
         w.cycle += 1
         w._kin_ok = w._pose_ok = w._m_ok = False
-        ql = self.qpos.tolist()
+        self.q_list = ql = self.qpos.tolist()
         for qi, q0 in zip(ql, self._inertia_ql, strict=True):
             if abs(qi - q0) > INERTIA_REUSE_RAD:  # the joint inertia the damping uses
                 self._m_diag = self._m_sparse[self._m_diag_idx]

@@ -93,6 +93,7 @@ class Fr3SimController:
         self._modes_of: tuple[object, ...] = ()
         self._q_d_written: F64 | None = self._zeros
         self._tau_written: F64 | None = None
+        self._answered_written = -1
         self._wrench_o = np.zeros(6)
         self._wrench_written = True  # the record's wrench fields may be nonzero
         self._lean = TorqueStepper(world) if lean and unfit(world) is None else None
@@ -193,7 +194,7 @@ class Fr3SimController:
         self.message_id += 1
         if self.moving:
             w = self.world
-            q = w.arm_qpos.tolist()
+            q = w.arm_qpos.tolist() if self._lean is None else self._lean.q_list
             names = []
             if any(map(_le, q, self._lower)) or any(map(_ge, q, self._upper)):
                 names.append("joint_position_limits_violation")
@@ -284,7 +285,9 @@ class Fr3SimController:
         if modes != self._modes_of:
             self._write_modes(v)
             self._modes_of = modes
-        v.success_rate[()] = self._answered / WINDOW
+        if self._answered != self._answered_written:
+            v.success_rate[()] = self._answered / WINDOW
+            self._answered_written = self._answered
         return self._state
 
     def _write_modes(self, v: _StateViews) -> None:

@@ -120,7 +120,7 @@ class FciServer:
         # what the cycle's select watches: the UDP socket, or it and the TCP connection
         self._watch_udp: list[int] = []
         self._watch_both: list[int] = []
-        self._cost_ns = np.zeros(COST_WINDOW, dtype=np.int64)
+        self._cost_ns = [0] * COST_WINDOW  # a plain list: one store a cycle
         self._costs = 0
 
     @property
@@ -331,7 +331,7 @@ class FciServer:
         """The serving thread's CPU time per cycle with a client (the last
         :data:`COST_WINDOW` cycles; waits for the command and the pacing's sleep left
         out) [us]: p50, p99, max; empty before the first cycle."""
-        costs = self._cost_ns[:min(self._costs, COST_WINDOW)] / 1e3
+        costs = np.array(self._cost_ns[:min(self._costs, COST_WINDOW)]) / 1e3
         if not costs.size:
             return {}
         p50, p99 = np.percentile(costs, (50, 99))

@@ -94,6 +94,7 @@ class Fr3SimController:
         self._q_d_written: F64 | None = self._zeros
         self._tau_written: F64 | None = None
         self._answered_written = -1
+        self._measured_at = -1  # the step whose end state the measured fields hold
         self._wrench_o = np.zeros(6)
         self._wrench_written = True  # the record's wrench fields may be nonzero
         self._lean = TorqueStepper(world) if lean and unfit(world) is None else None
@@ -188,6 +189,10 @@ class Fr3SimController:
                 self.finish_motion()
         if self._lean is not None:
             self._advance_lean(external)
+            # the measured fields of the next state now, while the step's data are in the
+            # cache (a cycle begins after a sleep in which other processes ran)
+            self._measured_lean(self._views)
+            self._measured_at = self.steps + 1
         else:
             self._advance_world(external)
         self.steps += 1
@@ -265,7 +270,10 @@ class Fr3SimController:
         v = self._views
         v.message_id[()] = self.message_id
         if self._lean is not None:
-            q = self._measured_lean(v)
+            if self._measured_at != self.steps:  # not written by the last step()
+                self._measured_lean(v)
+                self._measured_at = self.steps
+            q = v.q
         else:
             q = self._measured_world(v)
         if self.moving:
@@ -303,10 +311,9 @@ class Fr3SimController:
             v.errors[codec.ERROR_NAMES.index(name)] = 1
         v.reflex_reason[:] = v.errors
 
-    def _measured_lean(self, v: _StateViews) -> np.ndarray:
+    def _measured_lean(self, v: _StateViews) -> None:
         """What the robot measures, from the lean path's end state (the pose and the
-        joints written to both of their fields at once); the joints' positions in float32
-        (the record's)."""
+        joints written to both of their fields at once)."""
         lean = self._lean
         assert lean is not None
         v.poses_rot[...] = lean.tcp_xmat.reshape(3, 3)  # O_T_EE and O_T_EE_d, column-major
@@ -318,7 +325,6 @@ class Fr3SimController:
             v.tau_ext[:] = lean.tau_ext
             self._write_wrench(v, lean.contact, lean.tcp_xmat.reshape(3, 3))
             self._wrench_written = lean.touching
-        return v.q
 
     def _measured_world(self, v: _StateViews) -> np.ndarray:
         """What the robot measures, from the world's state (``SimWorld.last_state``)."""

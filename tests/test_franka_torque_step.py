@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from drivers.description.scene import load_scene
-from drivers.franka import codec
 from drivers.errors import SimulationError
+from drivers.franka import codec
 from drivers.franka.emulate.controller import Fr3SimController
 from drivers.world.torque_step import TorqueStepper, unfit
 from drivers.world.world import SimWorld

@@ -16,7 +16,8 @@ reported state against ``SimWorld.advance``), and less work:
   reader wants, so they are computed once, not once for the state and again inside the
   next ``mj_step``;
 * the model's sensors disabled (only the F/T sensor reads, and its samples have no
-  reader here: the generator is not drawn from); the tool's contact wrench comes from
+  reader here: the generator is not drawn from; the world's F/T samples stop); the
+  tool's contact wrench comes from
   :class:`~drivers.world.contact.ToolContact`, which computes the body forces itself
   when the tool touches;
 * the actuators written only when what they hold changes (a mode, a set-point, a
@@ -31,7 +32,8 @@ last cycle run here, :attr:`~drivers.world.world.SimWorld.cycle` and ``time`` co
 them. What a world with a moving base or a rendered target needs is not done here:
 :func:`unfit` says why such a world must be stepped by ``SimWorld.advance``. Once a
 world is stepped here, it is stepped here only (its Cartesian inertia and F/T sensor
-are left as they were).
+are left as they were). Positions or velocities set between cycles (a target's
+velocity given) are seen: the step's first stage is run again at them.
 
 The few places this reaches into :class:`~drivers.world.world.SimWorld`'s own
 bookkeeping (the latched joint set-point and mode its state reports, its cache flags)
@@ -62,7 +64,7 @@ __all__ = ["WORLD_FIELDS", "TorqueStepper", "unfit"]
 #: contact; the flags of its per-cycle caches; where its joint inertia was taken).
 WORLD_FIELDS: Final = ("mode", "_jnt_pos", "_jnt_trq", "_jnt_stiff", "_jnt_damp", "_cart_pos",
                        "_warning", "_contact", "_touching", "_kin_ok", "_pose_ok", "_m_ok",
-                       "_m_diag", "_inertia_ql", "_let_go", "_ft_pending", "_qa", "_va")
+                       "_m_diag", "_inertia_ql", "_let_go", "_qa", "_va")
 
 _JOINT_MODES = (ArmMode.JOINT_POSITION, ArmMode.JOINT_IMPEDANCE)
 #: The contact wrench of a cycle without contact (shared by all of them: read-only).

@@ -166,3 +166,37 @@ def test_a_command_read_in_place_is_copied_when_kept(scene, controller) -> None:
     rec["q_c"] = q0 - 1e-2
     assert kept["tau_J_d"].tolist() == c.state()["tau_J_d"].tolist()
     assert kept["q_d"].tolist() == c.state()["q_d"].tolist()
+
+
+def test_in_real_time_a_command_while_no_motion_runs_is_counted_late(scene) -> None:  # type: ignore[no-untyped-def]
+    """No motion: the server waits for no command (the world holds every millisecond) and
+    a command that comes anyway answers no state: counted late, the arm still held."""
+    import socket
+
+    server = FciServer(SimWorld(scene, seed=0), "127.0.0.46", 0).start()
+    udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        udp.bind(("127.0.0.46", 0))
+        udp.settimeout(5.0)
+        tcp = socket.create_connection(server.address, timeout=5.0,
+                                       source_address=("127.0.0.46", 0))
+        tcp.sendall(codec.message(codec.CONNECT_REQUEST, codec.Command.CONNECT, 1,
+                                  version=codec.VERSION, udp_port=udp.getsockname()[1]))
+        answer = codec.decode(codec.CONNECT_RESPONSE, tcp.recv(codec.CONNECT_RESPONSE.itemsize))
+        assert int(answer["status"]) == codec.ConnectStatus.SUCCESS
+        data, robot = udp.recvfrom(4096)
+        first = codec.decode(codec.ROBOT_STATE, data)
+        cmd = np.zeros((), dtype=codec.ROBOT_COMMAND)
+        cmd["message_id"] = int(first["message_id"]) + 1
+        cmd["tau_J_d"] = np.full(7, 1.0)
+        udp.sendto(cmd.tobytes(), robot)
+        for _ in range(50):  # 50 more states: 50 ms served
+            last = codec.decode(codec.ROBOT_STATE, udp.recv(4096))
+        tcp.close()
+    finally:
+        udp.close()
+        server.close()
+    assert server.counters["late"] == 1 and "answered" not in server.counters
+    assert int(last["message_id"]) >= int(first["message_id"]) + 50
+    assert int(last["robot_mode"]) == codec.RobotMode.IDLE
+    assert last["tau_J_d"].tolist() == [0.0] * 7  # the torques were not taken

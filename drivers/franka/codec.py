@@ -22,14 +22,15 @@ The byte offsets are the layout's: ``tests/test_franka_codec.py`` checks them.
 
 from __future__ import annotations
 
+import struct
 from enum import IntEnum
 from typing import Final
 
 import numpy as np
 
 __all__ = [
-    "COMMAND_PORT", "CONNECT_REQUEST", "CONNECT_RESPONSE", "ERROR_NAMES", "HEADER",
-    "MOVE_REQUEST", "MOVE_RESPONSE", "ROBOT_COMMAND", "ROBOT_STATE", "STATUS_RESPONSE",
+    "COMMAND_PORT", "COMMAND_TORQUES", "CONNECT_REQUEST", "CONNECT_RESPONSE", "ERROR_NAMES",
+    "HEADER", "MOVE_REQUEST", "MOVE_RESPONSE", "ROBOT_COMMAND", "ROBOT_STATE", "STATUS_RESPONSE",
     "VERSION", "Command", "ConnectStatus", "ControllerMode", "MotionGeneratorMode",
     "MoveControllerMode", "MoveMotionGeneratorMode", "MoveStatus", "RobotMode",
     "decode", "error_names", "header_of", "message",
@@ -198,6 +199,10 @@ ROBOT_COMMAND: Final = np.dtype([
     ("elbow_c", _F8, 2), ("valid_elbow", _U8), ("motion_generation_finished", _U8),
     ("tau_J_d", _F8, 7), ("torque_command_finished", _U8),
 ])
+
+#: What a torque loop's cycle reads of a ``RobotCommand``, in one unpacking: ``message_id``,
+#: ``motion_generation_finished``, the seven ``tau_J_d``, ``torque_command_finished``.
+COMMAND_TORQUES: Final = struct.Struct("<Q305xB7dB")
 
 CONNECT_REQUEST: Final = np.dtype([("header", HEADER), ("version", "<u2"), ("udp_port", "<u2")])
 CONNECT_RESPONSE: Final = np.dtype([("header", HEADER), ("status", _U8), ("version", "<u2")])

@@ -58,6 +58,8 @@ from drivers.world.world import SimWorld
 __all__ = ["FciFaults", "FciServer"]
 
 _CYCLE_S = 0.001
+#: The end of a real-time cycle's wait spent spinning (a sleep wakes up that late).
+_SPIN_S = 0.0002
 _POLL_S = 0.05
 _MESSAGE_ID = struct.Struct("<Q")  # a command's first field
 #: Cycles whose CPU cost is kept (the last ones; a preallocated ring).
@@ -115,7 +117,10 @@ class FciServer:
         self._cmd_rec: np.void = np.frombuffer(self._cmd, dtype=codec.ROBOT_COMMAND,
                                                count=1)[0]
         self._tcp_pending = True  # the client's TCP connection may have bytes to read
-        self._cost_ns = np.zeros(COST_WINDOW, dtype=np.int64)
+        # what the cycle's select watches: the UDP socket, or it and the TCP connection
+        self._watch_udp: list[int] = []
+        self._watch_both: list[int] = []
+        self._cost_ns = [0] * COST_WINDOW  # a plain list: one store a cycle
         self._costs = 0
 
     @property
@@ -199,6 +204,11 @@ class FciServer:
             return
         conn.setblocking(False)
         self._conn, self._client = conn, (peer[0], int(req["udp_port"]))
+        # the states go to the client's port only, and only its datagrams come back (a
+        # connected socket: no address to pass or return every cycle)
+        self._udp.connect(self._client)
+        self._watch_udp = [self._udp.fileno()]
+        self._watch_both = [self._udp.fileno(), conn.fileno()]
         self._tcp_pending = True
 
     def _silent(self, conn: socket.socket) -> None:
@@ -275,8 +285,10 @@ class FciServer:
 
     # ------------------------------------------------------------ UDP
     def _send_state(self) -> None:
-        assert self._client is not None
-        self._udp.sendto(self.controller.state().data, self._client)  # the record's own bytes
+        try:
+            self._udp.send(self.controller.state().data)  # the record's own bytes
+        except OSError:  # the client's port closed (its ICMP answer): the TCP link tells
+            self.counters["udp_errors"] += 1
         self.counters["states"] += 1
 
     def _take_commands(self, timeout_s: float) -> np.void | None:
@@ -286,21 +298,25 @@ class FciServer:
         at the next cycle's start (not every cycle looks)."""
         end = time.monotonic() + timeout_s
         want = self.controller.message_id
-        watch = [self._udp] if self._tcp_pending or self._conn is None else \
-            [self._udp, self._conn]
+        watch = self._watch_udp if self._tcp_pending or self._conn is None else \
+            self._watch_both
+        udp = self._udp
         while True:
             ready, _, _ = select.select(watch, [], [], max(0.0, end - time.monotonic()))
-            if len(watch) > 1 and self._conn in ready:
+            if len(ready) > 1 or (ready and ready[0] is not watch[0]):  # the TCP link's bytes
                 self._tcp_pending = True
-                watch = [self._udp]
-                if self._udp not in ready:
+                watch = self._watch_udp
+                if len(ready) == 1:
                     continue
             if not ready:
                 return None
             while True:
                 try:
-                    n, _addr = self._udp.recvfrom_into(self._cmd)
-                except BlockingIOError:
+                    n = udp.recv_into(self._cmd)
+                except (BlockingIOError, InterruptedError):
+                    break
+                except OSError:  # the client's port closed (its ICMP answer)
+                    self.counters["udp_errors"] += 1
                     break
                 if n != codec.ROBOT_COMMAND.itemsize:
                     self.counters["malformed"] += 1
@@ -315,7 +331,7 @@ class FciServer:
         """The serving thread's CPU time per cycle with a client (the last
         :data:`COST_WINDOW` cycles; waits for the command and the pacing's sleep left
         out) [us]: p50, p99, max; empty before the first cycle."""
-        costs = self._cost_ns[:min(self._costs, COST_WINDOW)] / 1e3
+        costs = np.array(self._cost_ns[:min(self._costs, COST_WINDOW)]) / 1e3
         if not costs.size:
             return {}
         p50, p99 = np.percentile(costs, (50, 99))
@@ -358,15 +374,49 @@ class FciServer:
                 self._cost(cpu0)
                 _sleep_until(t0 + _CYCLE_S)
                 return
-        else:
+        elif c.moving:
             cmd = self._take_commands(max(0.0, due + _CYCLE_S * 0.9 - time.monotonic()))
+        else:  # no motion: no command to wait for (one that comes is seen in the pause)
+            cmd = None
         if c.moving:
             self.counters["answered" if cmd is not None else "missed"] += 1
         c.step(cmd)
         self._motion_events()
         self._cost(cpu0)
         if self.pacing == "realtime":
-            _sleep_until(self._next)  # a short cycle makes up for a long one
+            self._pause_until(self._next)  # a short cycle makes up for a long one
+
+    def _pause_until(self, deadline: float) -> None:
+        """Real time: wait for ``deadline`` (monotonic; its last :data:`_SPIN_S` spinning),
+        watching the client's TCP connection (bytes there are read at the next cycle's
+        start) and, while no motion runs, its UDP socket (a command then answers no state:
+        counted late)."""
+        watch = [] if self._tcp_pending or self._conn is None else self._watch_both[1:]
+        if not self.controller.moving:
+            watch = watch + self._watch_udp
+        while (left := deadline - _SPIN_S - time.monotonic()) > 0.0:
+            if not watch:
+                time.sleep(left)
+                break
+            ready, _, _ = select.select(watch, [], [], left)
+            if not ready:
+                break
+            for fd in ready:
+                watch.remove(fd)
+                if fd in self._watch_udp:
+                    self._drain_late()
+                else:
+                    self._tcp_pending = True
+        _sleep_until(deadline)
+
+    def _drain_late(self) -> None:
+        """Every command waiting on the UDP socket, counted late (no state awaits it)."""
+        while True:
+            try:
+                n = self._udp.recv_into(self._cmd)
+            except OSError:  # none left (or the client's port closed)
+                return
+            self.counters["late" if n == codec.ROBOT_COMMAND.itemsize else "malformed"] += 1
 
     def _motion_events(self) -> None:
         c = self.controller
@@ -401,7 +451,7 @@ def _recv_exact(conn: socket.socket, n: int) -> bytes:
     return data
 
 
-def _sleep_until(deadline: float, spin_s: float = 0.0002) -> None:
+def _sleep_until(deadline: float, spin_s: float = _SPIN_S) -> None:
     """Sleep until ``deadline`` (monotonic): the last ``spin_s`` spinning."""
     left = deadline - time.monotonic()
     if left > spin_s:

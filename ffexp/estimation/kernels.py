@@ -33,9 +33,10 @@ from __future__ import annotations
 import ctypes
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-from llvmlite import ir
+from llvmlite import ir  # type: ignore[import-untyped]
 from numba import njit, types
 from numba.extending import intrinsic
 from numpy.typing import NDArray
@@ -55,8 +56,7 @@ CC_ON, CC_OFF, CC_HOLD_ON, CC_HOLD_OFF, CC_FZ = 0, 1, 2, 3, 4
 CC_SIZE = 5
 
 
-@intrinsic
-def _fma(typingctx, a, b, c):  # type: ignore[no-untyped-def]
+def _fma_typing(typingctx, a, b, c):  # type: ignore[no-untyped-def]
     """``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``)."""
     sig = types.float64(types.float64, types.float64, types.float64)
 
@@ -68,20 +68,22 @@ def _fma(typingctx, a, b, c):  # type: ignore[no-untyped-def]
     return sig, codegen
 
 
+_fma: Any = intrinsic(_fma_typing)
+
+
 @njit(cache=True)
 def dot3(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
     """``a . b`` as OpenBLAS's ``ddot``, ``dgemm`` and transposed ``dgemv`` make it."""
-    return _fma(a2, b2, _fma(a1, b1, a0 * b0))  # type: ignore[no-any-return]
+    return float(_fma(a2, b2, _fma(a1, b1, a0 * b0)))
 
 
 @njit(cache=True)
 def dot3_n(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
     """``a . b`` as OpenBLAS's ``dgemv`` (not transposed) makes a row of ``A x``."""
-    return _fma(a2, b2, _fma(a0, b0, a1 * b1))  # type: ignore[no-any-return]
+    return float(_fma(a2, b2, _fma(a0, b0, a1 * b1)))
 
 
-@intrinsic
-def _call_mat2quat(typingctx, addr, quat, mat):  # type: ignore[no-untyped-def]
+def _call_mat2quat_typing(typingctx, addr, quat, mat):  # type: ignore[no-untyped-def]
     """``mju_mat2Quat(quat, mat)`` at the address ``addr`` (MuJoCo's own function)."""
     sig = types.void(types.int64, quat, mat)
 
@@ -96,8 +98,10 @@ def _call_mat2quat(typingctx, addr, quat, mat):  # type: ignore[no-untyped-def]
     return sig, codegen
 
 
-@intrinsic
-def _call_quat2vel(typingctx, addr, vel, quat, dt):  # type: ignore[no-untyped-def]
+_call_mat2quat: Any = intrinsic(_call_mat2quat_typing)
+
+
+def _call_quat2vel_typing(typingctx, addr, vel, quat, dt):  # type: ignore[no-untyped-def]
     """``mju_quat2Vel(vel, quat, dt)`` at the address ``addr`` (MuJoCo's own function)."""
     sig = types.void(types.int64, vel, quat, types.float64)
 
@@ -111,6 +115,9 @@ def _call_quat2vel(typingctx, addr, vel, quat, dt):  # type: ignore[no-untyped-d
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+_call_quat2vel: Any = intrinsic(_call_quat2vel_typing)
 
 
 def mujoco_functions() -> NDArray[np.int64]:

@@ -53,10 +53,12 @@ class MotionFilter:
     equals an earlier one bit for bit, every later covariance and gain is the
     one computed that many cycles before, so they are taken from that cycle
     instead of computed (exact: the same bits as computing them). So the runs of
-    a batch, which share the filter's settings and cycle, share one gain; each
-    run's state is its own six rows (one array of ``6 N`` rows: a single run's
-    arrays and operations are the single filter's), and a run's numbers are those
-    it gets alone (``tests/test_estimation.py``).
+    a batch, which share the filter's settings and cycle and start together, share
+    one gain; each run's state is its own six rows (one array of ``6 N`` rows), its
+    last rotation and its rotation vector, stepped by the compiled
+    :func:`ffexp.estimation.kernels.motion_step` (the estimator's own, which calls
+    MuJoCo's ``mju_mat2Quat`` and ``mju_quat2Vel``), and a run's numbers are those it
+    gets alone (``tests/test_estimation.py``).
     """
 
     def __init__(self, config: MotionFilterConfig, cycle_s: float, runs: int = 1) -> None:

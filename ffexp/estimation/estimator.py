@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from drivers.base.types import F64, FtSamples, FtStatus, RobotState
+from drivers.base.types import F64, FtSamples, RobotState
 from ffexp.estimation.config import Estimate, Estimation
 from ffexp.estimation.contact import ContactDetector, ContactEvent, contact_settings
 from ffexp.estimation.motion_filter import MotionFilter, kernels
@@ -16,7 +16,6 @@ from ffexp.estimation.tool_load import skew
 from ffexp.estimation.wrench_filter import wrench_noise
 
 I64 = NDArray[np.int64]
-_SATURATION = int(FtStatus.SATURATION)
 _KINDS = (None, "made", "broken")
 
 
@@ -64,33 +63,29 @@ class Estimator:
         self.motion_filter = MotionFilter(configs[0].motion, cycle_s, runs)
         self.detector = ContactDetector(configs[0].contact)
         self.detectors = [self.detector, *(ContactDetector(c.contact) for c in configs[1:])]
-        self._wf = np.zeros((runs, k.WF_SIZE))
-        self._wf[:, k.WF_P_FF:k.WF_P_FF + 6] = 100.0  # the prior before the tare
-        self._wf[:, k.WF_P_BB:k.WF_P_BB + 6] = 100.0
-        self._wq = np.stack([wrench_noise(c.wrench, cycle_s) for c in configs])
-        self._cd = np.array([[0, k.NONE_NS, k.NONE_NS]] * runs, dtype=np.int64)
-        self._cc = np.stack([contact_settings(c.contact) for c in configs])
-        load = np.zeros((runs, k.LD_SIZE))
+        cfg = np.zeros((runs, k.CF_SIZE))
+        fs = np.zeros((runs, k.FS_SIZE))
+        fs[:, k.WF_P_FF:k.WF_P_FF + 6] = 100.0  # the wrench filter's prior before the tare
+        fs[:, k.WF_P_BB:k.WF_P_BB + 6] = 100.0
+        ist = np.zeros((runs, k.IS_SIZE), dtype=np.int64)
+        ist[:, k.IS_CD + k.CD_PENDING] = ist[:, k.IS_CD + k.CD_SINCE] = k.NONE_NS
+        ist[:, k.ST_FIRST] = ist[:, k.ST_LAST] = k.NONE_NS
+        ist[:, k.ST_TARE_NS] = [round(t * 1e9) for t in tares]
+        ist[:, k.IS_COMMANDING] = 1
         for i, c in enumerate(configs):
+            cfg[i, k.CF_WQ:k.CF_CC] = wrench_noise(c.wrench, cycle_s)
+            cfg[i, k.CF_CC:k.CF_LD] = contact_settings(c.contact)
+            ld = cfg[i, k.CF_LD:]
             tl = c.tool_load
-            load[i, k.LD_MASS] = tl.mass_kg
-            load[i, k.LD_COMPENSATE] = tl.mass_kg > 0.0
-            load[i, k.LD_INERTIAL] = c.inertial_compensation
-            load[i, k.LD_GRAVITY:k.LD_GRAVITY + 3] = tl.gravity_base()
-            load[i, k.LD_SKEW:k.LD_SKEW + 9] = skew(np.asarray(tl.com_m, dtype=np.float64)).ravel()
-        self._load = load
-        st = np.zeros((runs, k.ST_SIZE), dtype=np.int64)
-        st[:, k.ST_FIRST] = st[:, k.ST_LAST] = k.NONE_NS
-        st[:, k.ST_TARE_NS] = [round(t * 1e9) for t in tares]
-        self._st = st
-        self._tare_sum = np.zeros((runs, 6))
+            ld[k.LD_MASS] = tl.mass_kg
+            ld[k.LD_COMPENSATE] = tl.mass_kg > 0.0
+            ld[k.LD_INERTIAL] = c.inertial_compensation
+            ld[k.LD_GRAVITY:k.LD_GRAVITY + 3] = tl.gravity_base()
+            ld[k.LD_SKEW:k.LD_SKEW + 9] = skew(np.asarray(tl.com_m, dtype=np.float64)).ravel()
+        self._cfg, self._fs, self._ist = cfg, fs, ist
         self._of = np.zeros((runs, k.OF_SIZE))
         self._oi = np.zeros((runs, k.OI_SIZE), dtype=np.int64)
-        # a single run's inputs as a batch of one
-        self._offsets = np.zeros(runs + 1, dtype=np.int64)
-        self._commanding = np.ones(runs, dtype=np.bool_)
-        self._t_ns = np.zeros(runs, dtype=np.int64)
-        self._t0_ns = np.zeros(runs, dtype=np.int64)
+        self._offsets = np.zeros(runs + 1, dtype=np.int64)  # a single run's
         self._started = False
         self.out = Estimate()
         self.batch = EstimateBatch(self._of, self._oi)
@@ -104,8 +99,12 @@ class Estimator:
         ``t_ns`` (the cycle's run time) and ``t0_ns`` (the robot time of the run's start)
         per run. Returns the runs' outputs (:class:`EstimateBatch`); the contact events go
         to each run's :attr:`detectors` entry too."""
-        self._cycle(poses, wrench, time_ns, status, offsets, commanding, t_ns, t0_ns)
         k = self._k
+        ist = self._ist
+        ist[:, k.IS_COMMANDING] = commanding
+        ist[:, k.IS_T_NS] = t_ns
+        ist[:, k.IS_T0_NS] = t0_ns
+        self._cycle(poses, wrench, time_ns, status, offsets)
         ev = self._oi[:, k.OI_EVENT]
         if ev.any():
             for i in np.flatnonzero(ev).tolist():
@@ -113,14 +112,13 @@ class Estimator:
         return self.batch
 
     def _cycle(self, poses: F64, wrench: F64, time_ns: I64, status: NDArray[np.uint32],
-               offsets: I64, commanding: NDArray[np.bool_], t_ns: I64, t0_ns: I64) -> None:
+               offsets: I64) -> None:
         mf = self.motion_filter
         started = self._started
         self._started = True
         self._k.estimator_cycle(
-            self._wf, self._wq, self._cd, self._cc, self._load, self._st, self._tare_sum,
-            mf._x, mf._rot, mf._theta, started, mf.next_gain(), mf._f1_t, mf._mju,
-            wrench, time_ns, status, offsets, poses, commanding, t_ns, t0_ns, _SATURATION,
+            self._cfg, self._fs, self._ist, mf._x, mf._rot, mf._theta, started,
+            mf.next_gain(), mf._f1_t, mf._mju, wrench, time_ns, status, offsets, poses,
             self._of, self._oi)
 
     def _event(self, i: int, ints: list[int]) -> ContactEvent:
@@ -142,13 +140,12 @@ class Estimator:
                              "update_batch")
         n = len(ft)
         self._offsets[1] = n
-        self._commanding[0] = state.link.commanding
-        self._t_ns[0] = t_ns
-        self._t0_ns[0] = t0_ns
-        pose = state.tcp_pose_m
-        self._cycle(pose[None], ft.wrench, ft.time_ns, ft.status, self._offsets,
-                    self._commanding, self._t_ns, self._t0_ns)
         k = self._k
+        ist = self._ist[0]
+        ist[k.IS_COMMANDING] = state.link.commanding
+        ist[k.IS_T_NS] = t_ns
+        ist[k.IS_T0_NS] = t0_ns
+        self._cycle(state.tcp_pose_m[None], ft.wrench, ft.time_ns, ft.status, self._offsets)
         out = self.out
         f = self._of[0].copy()
         (_, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,

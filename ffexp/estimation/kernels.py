@@ -16,14 +16,18 @@ with FMA (``dgemm``, ``dgemv`` transposed and ``ddot``) accumulate ``a0 b0``, th
 checks both against numpy's own products on random inputs, so a numpy whose BLAS sums
 otherwise shows there, not as a changed recording.
 
-Layouts, per run ``i`` (the leading axis is the run):
+Layouts of one run's rows (the estimator's arrays have the run first; a filter used
+on its own keeps one run's):
 
-* the wrench filter, ``wf[i]`` of :data:`WF_SIZE`: ``x_f``, ``x_b``, ``p_ff``, ``p_fb``,
-  ``p_bb`` (six each, per TCF axis);
-* its noise, ``wq[i]`` of :data:`WQ_SIZE`: ``r``, ``q_f dt``, ``q_b dt``;
-* the contact detector, ``cd[i]``: :data:`CD_IN_CONTACT`, :data:`CD_PENDING`,
-  :data:`CD_SINCE` (``NONE_NS`` for none) and its settings ``cc[i]``: thresholds,
-  debounces, the signal (0: force norm, 1: ``f_z``);
+* the wrench filter, ``WF_*``: ``x_f``, ``x_b``, ``p_ff``, ``p_fb``, ``p_bb`` (six each,
+  per TCF axis), and its noise, ``WQ_*``: ``r``, ``q_f dt``, ``q_b dt``;
+* the contact detector, ``CD_*``: in contact, the pending crossing's start, the state's
+  start (``NONE_NS`` for none), and its settings ``CC_*``: thresholds, debounces, the
+  signal (0: force norm, 1: ``f_z``);
+* the estimator's: the settings ``cfg`` (``CF_*``: the noise, the detector's settings,
+  the tool load ``LD_*``), the float state ``fs`` (``FS_*``: the wrench filter, the
+  tare's sum), the int state ``ist`` (``IS_*``: the detector, the tare's bookkeeping
+  ``ST_*``, the cycle's inputs), the outputs ``of`` (``OF_*``) and ``oi`` (``OI_*``);
 * the motion filter: six rows per run of ``x`` (value, rate, acceleration), the run's
   last rotation ``rot[i]`` and its accumulated rotation vector ``theta[i]``.
 """
@@ -41,8 +45,10 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numpy.typing import NDArray
 
-from drivers.base.types import F64
+from drivers.base.types import F64, FtStatus
 
+#: The status bit of a saturated F/T sample.
+SATURATION = int(FtStatus.SATURATION)
 #: "No time" in the int64 time fields.
 NONE_NS = np.iinfo(np.int64).min
 
@@ -287,12 +293,21 @@ def motion_batch(x: F64, rot: F64, theta: F64, started: bool, poses: F64, gain: 
 
 # ---------------------------------------------------------------- the estimator's cycle
 
-# per run, ``load[i]``: the tool load's settings
+# per run, ``cfg[i]``: the run's settings: the wrench filter's noise (``WQ_*``), the
+# contact detector's (``CC_*``) and the tool load's (``LD_*``)
+CF_WQ, CF_CC, CF_LD = 0, WQ_SIZE, WQ_SIZE + CC_SIZE
 LD_MASS, LD_COMPENSATE, LD_INERTIAL, LD_GRAVITY, LD_SKEW = 0, 1, 2, 3, 6
 LD_SIZE = 15
-# per run, ``st[i]`` (int64): the estimator's own state
-ST_TARED, ST_FIRST, ST_LAST, ST_COUNT, ST_TARE_NS, ST_TARE_SAMPLES = 0, 1, 2, 3, 4, 5
-ST_SIZE = 6
+CF_SIZE = CF_LD + LD_SIZE
+# per run, ``fs[i]``: the wrench filter (``WF_*``) and the sum of the tare's samples
+FS_TARE_SUM = WF_SIZE
+FS_SIZE = WF_SIZE + 6
+# per run, ``ist[i]`` (int64): the contact detector (``CD_*``), the estimator's own state
+# and the cycle's inputs (the link commanding, the cycle's run time, the run's start)
+IS_CD = 0
+ST_TARED, ST_FIRST, ST_LAST, ST_COUNT, ST_TARE_NS, ST_TARE_SAMPLES = 3, 4, 5, 6, 7, 8
+IS_COMMANDING, IS_T_NS, IS_T0_NS = 9, 10, 11
+IS_SIZE = 12
 # per run, the cycle's outputs: ``of[i]`` (float64) and ``oi[i]`` (int64)
 OF_WRENCH, OF_STD, OF_BIAS, OF_TWIST, OF_FZ, OF_PEAK_F, OF_PEAK_T = 0, 6, 12, 18, 24, 25, 26
 OF_SIZE = 27
@@ -315,14 +330,13 @@ def _peak(squares: F64, n: int) -> float:
 
 
 @njit(cache=True)
-def estimator_cycle(wf: F64, wq: F64, cd: np.ndarray, cc: F64, load: F64, st: np.ndarray,
-                    tare_sum: F64, x: F64, rot: F64, theta: F64, started: bool, gain: F64,
-                    f1_t: F64, mju: NDArray[np.int64],
-                    wrench: F64, time_ns: np.ndarray, status: np.ndarray,
-                    offsets: np.ndarray, poses: F64, commanding: np.ndarray,
-                    t_ns: np.ndarray, t0_ns: np.ndarray, saturation: int, of: F64,
-                    oi: np.ndarray) -> None:
+def estimator_cycle(cfg: F64, fs: F64, ist: np.ndarray, x: F64, rot: F64, theta: F64,
+                    started: bool, gain: F64, f1_t: F64, mju: NDArray[np.int64], wrench: F64,
+                    time_ns: np.ndarray, status: np.ndarray, offsets: np.ndarray, poses: F64,
+                    of: F64, oi: np.ndarray) -> None:
     """One cycle of every run's estimator (see :mod:`ffexp.estimation`): run ``i``'s
+    settings ``cfg[i]``, its state ``fs[i]`` and ``ist[i]`` (with this cycle's link state
+    and times), its motion filter's rows of ``x``, ``rot[i]`` and ``theta[i]``; its
     samples are ``wrench[offsets[i]:offsets[i + 1]]`` (with their times and status
     words), its pose ``poses[i]``. Outputs into ``of[i]``, ``oi[i]``."""
     comp = np.empty((wrench.shape[0], 6))
@@ -332,7 +346,10 @@ def estimator_cycle(wf: F64, wq: F64, cd: np.ndarray, cc: F64, load: F64, st: np
     for i in range(poses.shape[0]):
         lo, hi = offsets[i], offsets[i + 1]
         n = hi - lo
-        w, wfi, ldi, sti, ofi, oii = wrench[lo:hi], wf[i], load[i], st[i], of[i], oi[i]
+        w, ofi, oii, sti = wrench[lo:hi], of[i], oi[i], ist[i]
+        wfi, tare_sum = fs[i, :WF_SIZE], fs[i, FS_TARE_SUM:FS_SIZE]
+        wq, cc, ldi = cfg[i, CF_WQ:CF_CC], cfg[i, CF_CC:CF_LD], cfg[i, CF_LD:CF_SIZE]
+        cd, t0_ns = sti[IS_CD:IS_CD + CD_SIZE], sti[IS_T0_NS]
         xi, pose = x[6 * i:6 * i + 6], poses[i]
         rows = comp[lo:hi]
         # tool-load compensation (the acceleration the motion filter had last cycle)
@@ -363,10 +380,10 @@ def estimator_cycle(wf: F64, wq: F64, cd: np.ndarray, cc: F64, load: F64, st: np
         oii[OI_TARED_NOW] = 0
         # the peaks (bias removed once tared) and the saturation bit
         if n:
-            sti[ST_LAST] = time_ns[hi - 1] - t0_ns[i]
+            sti[ST_LAST] = time_ns[hi - 1] - t0_ns
             sat = 0
             for j in range(lo, hi):
-                if status[j] & saturation:
+                if status[j] & SATURATION:
                     sat = 1
             oii[OI_SATURATED] = sat
             sq = squares[:, lo:hi]
@@ -394,34 +411,33 @@ def estimator_cycle(wf: F64, wq: F64, cd: np.ndarray, cc: F64, load: F64, st: np
         # the tare, then the wrench filter and the contact detector
         if not tared:
             if n:
-                total = tare_sum[i]
                 for j in range(n):
                     for k in range(6):
                         if sti[ST_COUNT] == 0 and j == 0:
-                            total[k] = rows[j, k]
+                            tare_sum[k] = rows[j, k]
                         else:
-                            total[k] += rows[j, k]
+                            tare_sum[k] += rows[j, k]
                 sti[ST_COUNT] += n
                 if sti[ST_FIRST] == NONE_NS:
-                    sti[ST_FIRST] = time_ns[lo] - t0_ns[i]
+                    sti[ST_FIRST] = time_ns[lo] - t0_ns
             first, last, count = sti[ST_FIRST], sti[ST_LAST], sti[ST_COUNT]
-            if first != NONE_NS and last != NONE_NS and commanding[i]:
+            if first != NONE_NS and last != NONE_NS and sti[IS_COMMANDING] != 0:
                 # the samples cover [first, last] plus one sample period
                 period_ns = (last - first) / max(count - 1, 1)
                 if not last - first + period_ns < sti[ST_TARE_NS]:
-                    wrench_tare(wfi, wq[i], tare_sum[i], count)
+                    wrench_tare(wfi, wq, tare_sum, count)
                     sti[ST_TARED] = 1
                     sti[ST_TARE_SAMPLES] = count
                     oii[OI_TARED_NOW] = 1
         else:
-            wrench_update(wfi, wq[i], rows)
+            wrench_update(wfi, wq, rows)
         if sti[ST_TARED] != 0 and oii[OI_TARED_NOW] == 0:
-            sig = contact_signal(cc[i], wfi[WF_X_F], wfi[WF_X_F + 1], wfi[WF_X_F + 2])
-            if contact_update(cd[i], cc[i], t_ns[i], sig, event):
+            sig = contact_signal(cc, wfi[WF_X_F], wfi[WF_X_F + 1], wfi[WF_X_F + 2])
+            if contact_update(cd, cc, sti[IS_T_NS], sig, event):
                 oii[OI_EVENT] = event[0]
                 oii[OI_EVENT + 1] = event[1]
                 oii[OI_EVENT + 2] = event[2]
-        oii[OI_IN_CONTACT] = cd[i, CD_IN_CONTACT]
+        oii[OI_IN_CONTACT] = cd[CD_IN_CONTACT]
         oii[OI_TARED] = sti[ST_TARED]
         oii[OI_TARE_SAMPLES] = sti[ST_TARE_SAMPLES]
         oii[OI_LAST] = sti[ST_LAST]

@@ -159,9 +159,12 @@ def test_a_batch_needs_one_motion_setting_and_a_setting_per_run() -> None:
 
 
 def test_compiled_sums_of_products_are_numpys() -> None:
-    """The compiled cycle sums three products as this machine's numpy does (through its
-    BLAS): vector times matrix, matrix times vector, matrix times matrix, ``dot``. A
-    numpy whose BLAS sums otherwise fails here rather than in a recording."""
+    """The compiled cycle sums three products as numpy does through its BLAS (numpy's
+    wheels' OpenBLAS, FMA kernels): vector times matrix, matrix times vector, matrix times
+    matrix, ``dot``, so recordings made with the numpy form replay bit for bit. A numpy
+    whose BLAS sums otherwise fails here, rather than unnoticed in a comparison of
+    recordings (the compiled form itself gives the same bits on every machine: the test
+    below)."""
     from ffexp.estimation import kernels as k
 
     rng = np.random.default_rng(11)
@@ -177,3 +180,22 @@ def test_compiled_sums_of_products_are_numpys() -> None:
         assert [k.dot3(*x[i], *a[:, j]) for i in range(6) for j in range(3)] == \
             want_mm.tolist()
         assert k.dot3(*g, *g) == float(g.dot(g))
+
+
+def test_compiled_sums_of_products_round_as_documented() -> None:
+    """``dot3`` is ``fma(a2, b2, fma(a1, b1, a0 b0))`` and ``dot3_n`` is ``fma(a2, b2,
+    fma(a0, b0, a1 b1))``, each step rounded once: checked against exact rational
+    arithmetic rounded to the nearest double (the same on every machine)."""
+    from fractions import Fraction
+
+    from ffexp.estimation import kernels as k
+
+    def fma(a: float, b: float, c: float) -> float:
+        return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+    rng = np.random.default_rng(12)
+    for _ in range(2000):
+        a0, a1, a2, b0, b1, b2 = (rng.normal(size=6) * rng.choice([1e-8, 1.0, 1e8], size=6)
+                                  ).tolist()
+        assert k.dot3(a0, a1, a2, b0, b1, b2) == fma(a2, b2, fma(a1, b1, a0 * b0))
+        assert k.dot3_n(a0, a1, a2, b0, b1, b2) == fma(a2, b2, fma(a0, b0, a1 * b1))

@@ -3,7 +3,9 @@
 Its parts, one module each (pure: no I/O): :mod:`ffexp.estimation.wrench_filter`
 and :mod:`ffexp.estimation.motion_filter` (Kalman filters, filterpy),
 :mod:`ffexp.estimation.tool_load` (the tool's weight and inertia and their
-identification) and :mod:`ffexp.estimation.contact` (the contact detector).
+identification) and :mod:`ffexp.estimation.contact` (the contact detector);
+:mod:`ffexp.estimation.estimator` steps N runs at once (a single run is a batch of
+one) through one compiled cycle, :mod:`ffexp.estimation.kernels`.
 
 Per cycle, from the robot state and the F/T samples that arrived since the
 last cycle (pure: no I/O, no clock):

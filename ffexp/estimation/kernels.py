@@ -9,12 +9,14 @@ compiles them once (a few seconds), later processes load them.
 Bit for bit the numbers of the numpy form they replace: the same IEEE operations in the
 same order, no fast-math (so no contraction of ``a * b + c`` into a fused multiply-add),
 and where the numpy form went through BLAS (3-vectors times 3x3 matrices, ``dot``) the
-sums of three products are made as that BLAS makes them: OpenBLAS's kernels on x86-64
-with FMA (``dgemm``, ``dgemv`` transposed and ``ddot``) accumulate ``a0 b0``, then fuse
-``a1 b1`` and ``a2 b2`` in turn (:func:`dot3`); its ``dgemv`` not transposed fuses
-``a0 b0`` into ``a1 b1`` first (:func:`dot3_n`). ``tests/test_estimation_kernels.py``
-checks both against numpy's own products on random inputs, so a numpy whose BLAS sums
-otherwise shows there, not as a changed recording.
+sums of three products are made as that BLAS makes them (measured with numpy 2.4's
+wheels, OpenBLAS with FMA kernels on x86-64): ``dgemm``, transposed ``dgemv`` and
+``ddot`` take ``a0 b0``, then fuse ``a1 b1`` and ``a2 b2`` in turn (:func:`dot3`);
+``dgemv`` not transposed fuses ``a0 b0`` into ``a1 b1`` first (:func:`dot3_n`).
+``tests/test_estimation_batch.py`` checks both against numpy's own products on random
+inputs, so a numpy whose BLAS sums otherwise shows there, not as a changed recording;
+the compiled form itself gives the same bits on every machine (``llvm.fma`` rounds
+once, in hardware or in software).
 
 Layouts of one run's rows (the estimator's arrays have the run first; a filter used
 on its own keeps one run's):

@@ -86,7 +86,7 @@ class Estimator:
         self._of = np.zeros((runs, k.OF_SIZE))
         self._oi = np.zeros((runs, k.OI_SIZE), dtype=np.int64)
         self._offsets = np.zeros(runs + 1, dtype=np.int64)  # a single run's
-        self._started = False
+        self._ist0 = ist[0]  # the first run's row (a view, made once)
         self.out = Estimate()
         self.batch = EstimateBatch(self._of, self._oi)
 
@@ -114,8 +114,8 @@ class Estimator:
     def _cycle(self, poses: F64, wrench: F64, time_ns: I64, status: NDArray[np.uint32],
                offsets: I64) -> None:
         mf = self.motion_filter
-        started = self._started
-        self._started = True
+        started = mf._started
+        mf._started = True
         self._k.estimator_cycle(
             self._cfg, self._fs, self._ist, mf._x, mf._rot, mf._theta, started,
             mf.next_gain(), mf._f1_t, mf._mju, wrench, time_ns, status, offsets, poses,
@@ -141,13 +141,13 @@ class Estimator:
         n = len(ft)
         self._offsets[1] = n
         k = self._k
-        ist = self._ist[0]
+        ist = self._ist0
         ist[k.IS_COMMANDING] = state.link.commanding
         ist[k.IS_T_NS] = t_ns
         ist[k.IS_T0_NS] = t0_ns
         self._cycle(state.tcp_pose_m[None], ft.wrench, ft.time_ns, ft.status, self._offsets)
         out = self.out
-        f = self._of[0].copy()
+        f = self._of[0].copy()  # the columns: kernels.OF_*, OI_*
         (_, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
          last) = ints = self._oi[0].tolist()
         out.wrench = f[0:6]

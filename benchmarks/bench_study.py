@@ -2,6 +2,7 @@
 
     python benchmarks/bench_study.py [--runs R] [--seconds S] [--workers N] [--repeats K]
     python benchmarks/bench_study.py --recording [--runs R]
+    python benchmarks/bench_study.py --estimator [--runs R]
 
 The study: R runs of the paper's methods (Method I case I and II, Method II,
 Method III; the protocols in turn, one noise seed each), ``run.timeout_s=S``.
@@ -34,6 +35,15 @@ end (0 when the replay is the runs' physics bit for bit, as it is here).
 on a paper run's own messages: the fixed-layout topics encoded one run at a time
 against :class:`ffexp.recording.batch.BatchEncoder` for the batch at once, and each
 run's cycle written to its own file, all topics or a lean recording's.
+
+``--estimator`` measures only the estimator's cost per run and cycle, on a paper run's
+own inputs (its poses, F/T samples, link state and times, captured once): R runs each
+stepped alone (an :class:`~ffexp.estimation.Estimator` each, a batch of one, as a run
+today) against one estimator of the R runs (``update_batch``, the runs' inputs packed
+into its arrays each cycle, the packing counted), the runs offset in the paper run
+and with different tool loads; then the compiled cycle's costs of a fresh process:
+importing numba, compiling (an empty cache) and loading the compiled code from the
+on-disk cache.
 """
 
 from __future__ import annotations
@@ -48,6 +58,8 @@ from concurrent.futures import Executor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import mujoco
 import mujoco.batch
@@ -339,6 +351,109 @@ def recording_costs(runs: int, cycles: int, tmp: Path) -> None:
     print(f"  written, lean ({n_lean} messages)                 {write_us[True]:6.1f} us")
 
 
+def capture_estimator_inputs(tmp: Path, seconds: float = 4.0) -> list[tuple[Any, ...]]:
+    """A paper run's estimator inputs (Method I case I), per cycle: the pose, the F/T
+    samples, the link's commanding, ``t_ns`` and ``t0_ns``."""
+    from ffexp.estimation import Estimator
+
+    cycles: list[tuple[Any, ...]] = []
+    bare = Estimator.update
+
+    def update(self: Estimator, state: Any, ft: Any, t_ns: int, t0_ns: int) -> Any:
+        cycles.append((state.tcp_pose_m.copy(), ft, state.link.commanding, t_ns, t0_ns))
+        return bare(self, state, ft, t_ns, t0_ns)
+
+    Estimator.update = update  # type: ignore[method-assign]
+    try:
+        run_file(ROOT / "protocols/method1_case1.toml",
+                 [f"run.timeout_s={seconds}", "run.stop_hold_s=0"], out_dir=tmp)
+    finally:
+        Estimator.update = bare  # type: ignore[method-assign]
+    return cycles
+
+
+_COMPILE = """
+import time
+t0 = time.perf_counter()
+import numba
+t1 = time.perf_counter()
+import numpy as np
+from drivers.base.types import FtSamples, RobotState
+from ffexp.estimation import Estimation, Estimator, ToolLoad
+est = Estimator(Estimation(tool_load=ToolLoad(mass_kg=0.25)), 0.005, 0.1)
+t2 = time.perf_counter()
+ft = FtSamples(time_ns=np.arange(5, dtype=np.int64), seq=np.arange(5),
+               wrench=np.zeros((5, 6)), status=np.zeros(5, dtype=np.uint32))
+est.update(RobotState(), ft, 0, 0)
+est.update(RobotState(), ft, 5_000_000, 0)
+t3 = time.perf_counter()
+print(t1 - t0, t3 - t2)
+"""
+
+
+def estimator_costs(runs: int, tmp: Path) -> None:
+    """Per run and cycle: R runs' estimators stepped one by one against one estimator of
+    the R runs; thread CPU time. Then import, compile and cache-load times."""
+    import subprocess
+    import sys
+
+    from ffexp.estimation import Estimation, Estimator, ToolLoad
+
+    recorded = capture_estimator_inputs(tmp / "capture")
+    cycles = len(recorded)
+    configs = [Estimation(tool_load=ToolLoad(mass_kg=0.2 + 0.01 * (i % 10))) for i in range(runs)]
+    # run i follows the paper run from cycle (7 i) mod cycles on, wrapping round
+    order: list[list[tuple[Any, ...]]] = [
+        [recorded[(k + 7 * i) % cycles] for i in range(runs)] for k in range(cycles)]
+    clock = time.thread_time_ns
+    alone = [Estimator(c, 0.005, 0.1) for c in configs]
+    states = [SimpleNamespace(tcp_pose_m=None, link=SimpleNamespace(commanding=True))
+              for _ in range(runs)]
+    t0 = clock()
+    for row in order:
+        for est, st, (pose, ft, commanding, t_ns, t0_ns) in zip(alone, states, row,
+                                                                strict=True):
+            st.tcp_pose_m = pose
+            st.link.commanding = commanding
+            est.update(st, ft, t_ns, t0_ns)  # type: ignore[arg-type]  # duck-typed state
+    alone_us = (clock() - t0) / 1e3 / (cycles * runs)
+    def pack(row: list[tuple[Any, ...]]) -> tuple[Any, ...]:
+        fts = [r[1] for r in row]
+        offsets = np.zeros(runs + 1, dtype=np.int64)
+        np.cumsum([len(ft) for ft in fts], out=offsets[1:])
+        return (np.stack([r[0] for r in row]), np.concatenate([ft.wrench for ft in fts]),
+                np.concatenate([ft.time_ns for ft in fts]),
+                np.concatenate([ft.status for ft in fts]), offsets,
+                np.array([r[2] for r in row]), np.array([r[3] for r in row], dtype=np.int64),
+                np.array([r[4] for r in row], dtype=np.int64))
+
+    batch = Estimator(configs, 0.005, 0.1)
+    t0 = clock()
+    for row in order:
+        batch.update_batch(*pack(row))
+    batch_us = (clock() - t0) / 1e3 / (cycles * runs)
+    packed = [pack(row) for row in order]
+    batch = Estimator(configs, 0.005, 0.1)
+    t0 = clock()
+    for inputs in packed:
+        batch.update_batch(*inputs)
+    packed_us = (clock() - t0) / 1e3 / (cycles * runs)
+    print(f"estimator per run and cycle ({runs} runs, {cycles} cycles of a paper run; "
+          f"thread CPU time):")
+    print(f"  each run alone (a batch of one each)         {alone_us:6.2f} us")
+    print(f"  one estimator of the {runs} runs (update_batch)  {batch_us:6.2f} us")
+    print(f"    of which the cycle, the inputs in arrays     {packed_us:6.2f} us")
+    # a fresh process with an empty cache of its own (NUMBA_CACHE_DIR): it compiles and
+    # writes the cache; the next one loads from it
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "numba-cache")}
+    cold, warm = (subprocess.run([sys.executable, "-c", _COMPILE], capture_output=True,
+                                 text=True, env=env, check=True, cwd=ROOT).stdout.split()
+                  for _ in range(2))
+    print(f"  import numba {float(warm[0]):.2f} s; the first cycle compiling "
+          f"{float(cold[1]):.2f} s, loading the compiled code from the cache "
+          f"{float(warm[1]):.2f} s")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=64)
@@ -347,7 +462,13 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--recording", action="store_true",
                     help="only the recording's cost per run and cycle, alone and batched")
+    ap.add_argument("--estimator", action="store_true",
+                    help="only the estimator's cost per run and cycle, alone and batched")
     args = ap.parse_args()
+    if args.estimator:
+        with tempfile.TemporaryDirectory(prefix="bench_study_") as tmp_name:
+            estimator_costs(args.runs, Path(tmp_name))
+        return
     if args.recording:
         with tempfile.TemporaryDirectory(prefix="bench_study_") as tmp_name:
             recording_costs(args.runs, 400, Path(tmp_name))

@@ -112,16 +112,30 @@ def test_motion_filter_equals_the_18_state_filterpy_filter() -> None:
                                rtol=1e-6, atol=1e-9)
 
 
-def test_estimator_tool_load_equals_the_model() -> None:
+def test_estimator_removes_the_tool_load_of_the_model() -> None:
+    """A tool at rest in different orientations with a sensor bias: the tare finds the
+    bias alone (shrunk by the prior, ``n/r / (1/100 + n/r)``), the compensation having
+    removed :meth:`ToolLoad.wrench` from every sample."""
+    from drivers.base.types import FtSamples, RobotState
     from ffexp.estimation import Estimation, Estimator, ToolLoad
 
     load = ToolLoad(mass_kg=0.35, com_m=(0.01, -0.02, 0.04))
-    est = Estimator(Estimation(tool_load=load), CYCLE_S, 0.1)
+    bias = np.array([0.3, -0.2, 0.5, 0.01, -0.02, 0.005])
     for seed in range(5):
         r = Rotation.random(random_state=seed).as_matrix()
-        accel = np.random.default_rng(seed).normal(size=3)
-        np.testing.assert_allclose(est._tool_load(r, accel), load.wrench(r, accel), atol=1e-14)
-        np.testing.assert_allclose(est._tool_load(r, None), load.wrench(r), atol=1e-14)
+        pose = np.eye(4)
+        pose[:3, :3] = r
+        est = Estimator(Estimation(tool_load=load), CYCLE_S, 0.1)
+        reading = np.tile(load.wrench(r) + bias, (5, 1))
+        for k in range(30):
+            ft = FtSamples(time_ns=np.arange(5, dtype=np.int64) * 1_000_000 + k * 5_000_000,
+                           seq=np.arange(5), wrench=reading, status=np.zeros(5, np.uint32))
+            out = est.update(RobotState(tcp_pose_m=pose), ft, k * 5_000_000, 0)
+        assert out.tared
+        info = out.tare_samples / np.square(np.asarray(Estimation().wrench.noise_std))
+        np.testing.assert_allclose(out.bias, bias * info / (1.0 / 100.0 + info), rtol=0,
+                                   atol=1e-10)  # the load: about 3 N, summed 100 times
+        np.testing.assert_allclose(out.wrench, 0.0, atol=1e-6)  # the shrinkage's rest
 
 
 def _array_wrench_filter_step(st: dict[str, np.ndarray], r: np.ndarray, q_f: np.ndarray,
@@ -166,18 +180,35 @@ def test_wrench_filter_floats_are_bit_identical_to_the_array_form() -> None:
 
 
 def test_estimator_peaks_are_numpys() -> None:
-    """The cycle's peak force and torque on floats equal the array form's bits."""
-    from ffexp.estimation import peaks
+    """The cycle's peak force and torque have the bits of numpy's
+    ``sqrt(max((w[:, :3]**2).sum(axis=1)))`` of the raw samples before the tare and of
+    the samples less the bias after it; a NaN among them is the peak."""
+    from drivers.base.types import FtSamples, RobotState
+    from ffexp.estimation import Estimation, Estimator
+
+    def peaks(w: np.ndarray) -> tuple[float, float]:
+        sq = w * w
+        return (float(np.sqrt(sq[:, :3].sum(axis=1).max())),
+                float(np.sqrt(sq[:, 3:].sum(axis=1).max())))
 
     rng = np.random.default_rng(9)
-    for k in range(3000):
+    est = Estimator(Estimation(), CYCLE_S, 0.05)
+    for k in range(600):
         w = rng.normal(size=(1 + k % 12, 6)) * rng.uniform(0.01, 200.0)
-        sq = w * w
-        want = (float(np.sqrt(sq[:, :3].sum(axis=1).max())),
-                float(np.sqrt(sq[:, 3:].sum(axis=1).max())))
-        assert peaks(w.tolist()) == want, k
-    w[0, 1] = np.nan
-    assert all(np.isnan(peaks(w.tolist())[:1]))
+        if k == 599:
+            w[0, 4] = np.nan
+        n = w.shape[0]
+        ft = FtSamples(time_ns=np.arange(n, dtype=np.int64) * 400_000 + k * 5_000_000,
+                       seq=np.arange(n), wrench=w, status=np.zeros(n, np.uint32))
+        tared = est.out.tared
+        bias = est.out.bias.copy()
+        out = est.update(RobotState(), ft, k * 5_000_000, 0)
+        want = peaks(w - bias if tared else w)
+        if k == 599:
+            assert out.peak_force_n == want[0] and math.isnan(out.peak_torque_nm)
+        else:
+            assert (out.peak_force_n, out.peak_torque_nm) == want, k
+    assert est.out.tared
 
 
 def test_motion_filter_repeated_gains_are_bit_identical_to_computing_them(
@@ -210,17 +241,3 @@ def test_contact_detector_signal_is_numpys_norm() -> None:
     rng = np.random.default_rng(3)
     for w in rng.normal(size=(2000, 6)) * rng.choice([1e-4, 1.0, 1e3], size=(2000, 1)):
         assert det.signal(w) == float(np.linalg.norm(w[:3]))
-
-
-def test_unbiased_peaks_are_the_peaks_of_the_differences() -> None:
-    """The one-pass peaks of rows minus a bias equal :func:`peaks` of the differences."""
-    from ffexp.estimation import _unbiased_peaks, peaks
-
-    rng = np.random.default_rng(5)
-    for k in range(2000):
-        w = (rng.normal(size=(1 + k % 9, 6)) * rng.uniform(0.01, 200.0)).tolist()
-        b = rng.normal(size=6).tolist()
-        diff = [[x - y for x, y in zip(row, b, strict=True)] for row in w]
-        assert _unbiased_peaks(w, b) == peaks(diff), k
-    w[0][4] = float("nan")
-    assert math.isnan(_unbiased_peaks(w, b)[1])

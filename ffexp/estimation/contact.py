@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -43,6 +42,15 @@ class ContactEvent:
     previous_s: float
 
 
+def contact_settings(config: ContactDetectorConfig) -> F64:
+    """One run's detector settings for :mod:`ffexp.estimation.kernels` (``CC_*``)."""
+    return np.array([config.on_threshold_n, config.off_threshold_n, config.debounce_on_s,
+                     config.debounce_off_s, float(config.signal == "fz")])
+
+
+_KINDS: tuple[Literal["made", "broken"], ...] = ("made", "broken")
+
+
 @dataclass
 class ContactDetector:
     """Contact state from the filtered wrench, with hysteresis and debounce.
@@ -50,48 +58,38 @@ class ContactDetector:
     Contact is declared once the signal has stayed above ``on_threshold_n``
     for ``debounce_on_s``, and lost once it has stayed below
     ``off_threshold_n`` for ``debounce_off_s``; the event carries the time the
-    crossing began, not the time it was confirmed.
+    crossing began, not the time it was confirmed. Its arithmetic is
+    :func:`ffexp.estimation.kernels.contact_update`, the estimator's own for every
+    run of a batch (the estimator keeps :attr:`in_contact` and :attr:`events` of
+    each run's detector).
     """
 
     config: ContactDetectorConfig
     in_contact: bool = False
     events: list[ContactEvent] = field(default_factory=list)
-    _pending_since_ns: int | None = None
-    _state_since_ns: int | None = None
+
+    def __post_init__(self) -> None:
+        from ffexp.estimation import kernels
+
+        self._k = kernels
+        self._cc = contact_settings(self.config)
+        self._cd = np.array([0, kernels.NONE_NS, kernels.NONE_NS], dtype=np.int64)
+        self._event = np.zeros(3, dtype=np.int64)
 
     def signal(self, wrench: F64) -> float:
-        """The scalar the thresholds apply to."""
-        if self.config.signal == "fz":
-            return float(-wrench[2])
-        if type(wrench) is np.ndarray and wrench.dtype == np.float64:
-            f = wrench[:3]  # np.linalg.norm's own sum of squares and root, without its checks
-            return math.sqrt(f.dot(f))
-        return float(np.linalg.norm(wrench[:3]))
+        """The scalar the thresholds apply to (the force's norm: numpy's bits)."""
+        w = np.asarray(wrench, dtype=np.float64)
+        return float(self._k.contact_signal(self._cc, w[0], w[1], w[2]))
 
     def update(self, time_ns: int, wrench: F64) -> ContactEvent | None:
         """Feed one filtered wrench; return the event this sample confirms, if any."""
-        if self._state_since_ns is None:
-            self._state_since_ns = time_ns
-        s = self.signal(wrench)
-        crossing = s < self.config.off_threshold_n if self.in_contact else (
-            s > self.config.on_threshold_n
-        )
-        if not crossing:
-            self._pending_since_ns = None
+        self._cd[0] = self.in_contact
+        if not self._k.contact_update(self._cd, self._cc, time_ns, self.signal(wrench),
+                                      self._event):
             return None
-        if self._pending_since_ns is None:
-            self._pending_since_ns = time_ns
-        hold_s = self.config.debounce_off_s if self.in_contact else self.config.debounce_on_s
-        if (time_ns - self._pending_since_ns) * 1e-9 + 1e-12 < hold_s:
-            return None
-        start = self._pending_since_ns
-        event = ContactEvent(
-            kind="broken" if self.in_contact else "made",
-            time_ns=start,
-            previous_s=(start - self._state_since_ns) * 1e-9,
-        )
+        kind, start, since = self._event.tolist()
+        event = ContactEvent(kind=_KINDS[kind - 1], time_ns=start,
+                             previous_s=(start - since) * 1e-9)
         self.in_contact = not self.in_contact
-        self._state_since_ns = start
-        self._pending_since_ns = None
         self.events.append(event)
         return event

@@ -7,7 +7,8 @@ per cycle. No I/O.
 
 from __future__ import annotations
 
-import mujoco
+from types import ModuleType
+
 import numpy as np
 from filterpy.common import Q_discrete_white_noise
 from pydantic import Field
@@ -22,6 +23,13 @@ class MotionFilterConfig(StrictModel):
     position_noise_m: float = Field(1e-5, gt=0)
     rotation_noise_rad: float = Field(1e-4, gt=0)
     accel_walk: float = Field(50.0, gt=0, description="Jerk noise spectral density [m/s^3].")
+
+
+def kernels() -> ModuleType:
+    """:mod:`ffexp.estimation.kernels`, imported on first use (numba's import is slow)."""
+    from ffexp.estimation import kernels as module
+
+    return module
 
 
 #: Cycles :class:`MotionFilter` looks for its covariance to repeat before it stops looking.
@@ -45,10 +53,12 @@ class MotionFilter:
     equals an earlier one bit for bit, every later covariance and gain is the
     one computed that many cycles before, so they are taken from that cycle
     instead of computed (exact: the same bits as computing them). So the runs of
-    a batch, which share the filter's settings and cycle, share one gain; each
-    run's state is its own six rows (one array of ``6 N`` rows: a single run's
-    arrays and operations are the single filter's), and a run's numbers are those
-    it gets alone (``tests/test_estimation.py``).
+    a batch, which share the filter's settings and cycle and start together, share
+    one gain; each run's state is its own six rows (one array of ``6 N`` rows), its
+    last rotation and its rotation vector, stepped by the compiled
+    :func:`ffexp.estimation.kernels.motion_step` (the estimator's own, which calls
+    MuJoCo's ``mju_mat2Quat`` and ``mju_quat2Vel``), and a run's numbers are those it
+    gets alone (``tests/test_estimation.py``).
     """
 
     def __init__(self, config: MotionFilterConfig, cycle_s: float, runs: int = 1) -> None:
@@ -67,16 +77,10 @@ class MotionFilter:
         # arrays are exactly the single filter's): value, rate, acceleration
         self._x = np.zeros((6 * runs, 3))
         self._p = np.tile(np.eye(3) * 1e-2, (6, 1, 1))  # shared by the runs
-        self._z = np.zeros(6 * runs)
-        self._z_rows = self._z.reshape(runs, 6)  # a view: a run's measurement per row
-        self._quat = np.zeros(4)
-        self._rotvec = np.zeros(3)
-        self._rot_prev = np.zeros((runs, 3, 3))  # each run's last rotation (once started)
+        self._rot = np.zeros((runs, 3, 3))  # each run's last rotation (once started)
+        self._theta = np.zeros((runs, 3))  # each run's accumulated rotation vector
+        self._work = np.zeros(16)
         self._started = False
-        self._theta = self._z_rows[:, 3:]  # the accumulated rotation vectors: z's own entries
-        # per run: views of its row (made once, not per cycle)
-        self._prev_rows = tuple(self._rot_prev)
-        self._theta_rows = tuple(self._theta)
         # the covariance and gain do not depend on the measurements: once the
         # covariance repeats bit for bit, its later values (and the gains) repeat too
         self._watch: dict[bytes, int] | None = {}  # covariance bytes: cycle seen
@@ -84,51 +88,33 @@ class MotionFilter:
         self._history: list[tuple[F64, F64]] = []  # (gain, covariance)
         self._cycle: list[tuple[F64, F64]] = []  # once found: its repeats
         self._at = 0  # the next cycle's place in it
+        self._kernels = k = kernels()
+        self._mju = k.mujoco_functions()
 
     def update(self, pose: F64) -> None:
         """One cycle of a single run with its measured 4x4 tool pose (base frame)."""
-        self._step(pose[:3, 3], (pose[:3, :3],))
+        self.update_batch(pose[None])
 
     def update_batch(self, poses: F64) -> None:
         """One cycle of every run, with the runs' measured 4x4 tool poses ``(N, 4, 4)``
         (base frame)."""
-        self._step(poses[:, :3, 3], tuple(poses[:, :3, :3]))
+        started = self._started
+        self._started = True
+        self._kernels.motion_batch(self._x, self._rot, self._theta, started, poses,
+                                   self.next_gain(), self._f1_t, self._mju, self._work)
 
-    def _step(self, positions: F64, rotations: tuple[F64, ...]) -> None:
-        """One cycle of every run: the tool positions ``(N, 3)`` (a single run's ``(3,)``)
-        and rotations (N 3x3)."""
-        z = self._z
-        prev = self._prev_rows
-        if not self._started:
-            self._started = True
-            self._x[:] = 0.0
-            values = self._x[:, 0].reshape(self.runs, 6)  # a view
-            values[:, :3] = positions
-            values[:, 3:] = self._theta
-        else:
-            # accumulate each run's incremental rotation, in the base frame (into z[:, 3:])
-            quat, rotvec = self._quat, self._rotvec
-            for r, p, theta in zip(rotations, prev, self._theta_rows, strict=True):
-                mujoco.mju_mat2Quat(quat, (p.T @ r).ravel())
-                mujoco.mju_quat2Vel(rotvec, quat, 1.0)  # its rotation vector
-                theta += p @ rotvec
-        for r, p in zip(rotations, prev, strict=True):
-            p[...] = r
-        self._z_rows[:, :3] = positions
-        # predict
-        x = self._x @ self._f1_t
+    def next_gain(self) -> F64:
+        """The gain of the next cycle (6, 3), shared by the runs; the covariance moves on
+        to that cycle's (:meth:`update_batch` calls it; a caller that steps the runs'
+        states itself, as :class:`~ffexp.estimation.Estimator`, calls it once a cycle)."""
         cycle = self._cycle
         if cycle:  # the covariance repeats: its gain and covariance as computed before
             k, p_next = cycle[self._at]
             self._at = (self._at + 1) % len(cycle)
         else:
             k, p_next = self._gain()
-        if self.runs > 1:  # the shared gain, for every run's rows
-            k = np.tile(k, (self.runs, 1))
-        # update with the value of each axis
-        x += k * (z - x[:, 0])[:, None]
-        self._x = x
         self._p = p_next
+        return k
 
     def _gain(self) -> tuple[F64, F64]:
         """The gain of this cycle and the covariance after its update, computed; once
@@ -183,19 +169,14 @@ class MotionFilter:
 
     def twist_tcf(self, pose: F64) -> F64:
         """The twist expressed in the tool frame of ``pose`` (a single run: the first)."""
-        r = pose[:3, :3]
-        v = self._x[:6, 1]
         out = np.empty(6)
-        out[:3] = v[:3] @ r
-        out[3:] = v[3:] @ r
+        self._kernels.twist_tcf(self._x, pose, out)
         return out
 
     def twist_tcf_batch(self, poses: F64) -> F64:
-        """Each run's twist in the tool frame of its pose, ``(N, 6)``: per run the
-        products of :meth:`twist_tcf` (the same bits)."""
-        r = poses[:, :3, :3]
-        v = self._x[:, 1].reshape(self.runs, 1, 6)
+        """Each run's twist in the tool frame of its pose, ``(N, 6)``."""
         out = np.empty((self.runs, 6))
-        out[:, :3] = np.matmul(v[:, :, :3], r)[:, 0]
-        out[:, 3:] = np.matmul(v[:, :, 3:], r)[:, 0]
+        tw = self._kernels.twist_tcf
+        for i in range(self.runs):
+            tw(self._x[6 * i:6 * i + 6], poses[i], out[i])
         return out

@@ -13,7 +13,6 @@ with their mean and the covariance divided by their number. No I/O.
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -49,37 +48,37 @@ class WrenchFilterConfig(StrictModel):
         return self
 
 
+def wrench_noise(config: WrenchFilterConfig, dt_s: float) -> F64:
+    """One run's noise for :mod:`ffexp.estimation.kernels`: ``r``, ``q_f dt``, ``q_b dt``."""
+    r = np.square(np.asarray(config.noise_std, dtype=np.float64))
+    q_f = np.square(np.asarray(config.wrench_walk_std, dtype=np.float64))
+    q_b = np.square(np.asarray(config.bias_walk_std, dtype=np.float64))
+    return np.concatenate([r, q_f * dt_s, q_b * dt_s])
+
+
 class WrenchFilter:
-    """Kalman filter of the measured wrench with a per-axis bias state.
+    """Kalman filter of the measured wrench with a per-axis bias state, one run.
 
     The model is separable per axis (``F = I``, ``H = [I I]``, diagonal
     ``Q`` and ``R``, and a tare that leaves ``P`` block-diagonal), so the
-    12-state filter is run as six 2-state filters side by side on arrays of
-    six: the same equations as a :class:`filterpy.kalman.KalmanFilter` over
-    the 12 states (``tests/test_speed_estimation.py`` checks that), at a
-    fraction of its per-cycle cost (no 12x12 products or inverse).
+    12-state filter is run as six 2-state filters side by side: the same
+    equations as a :class:`filterpy.kalman.KalmanFilter` over the 12 states
+    (``tests/test_speed_estimation.py`` checks that), at a fraction of its
+    per-cycle cost (no 12x12 products or inverse). Its arithmetic is
+    :func:`ffexp.estimation.kernels.wrench_update` and ``wrench_tare``, the
+    estimator's own for every run of a batch.
     """
 
     def __init__(self, config: WrenchFilterConfig) -> None:
+        from ffexp.estimation import kernels
+
         self.config = config
-        r = np.square(np.asarray(config.noise_std, dtype=np.float64))
-        self._r_arr = r
-        # per axis as floats (the elementwise arithmetic of arrays of six, done on the
-        # floats: the same IEEE operations, without a numpy call per operation)
-        self._r: list[float] = r.tolist()
-        self._q_f: list[float] = np.square(
-            np.asarray(config.wrench_walk_std, dtype=np.float64)).tolist()
-        self._q_b: list[float] = np.square(
-            np.asarray(config.bias_walk_std, dtype=np.float64)).tolist()
-        self._q_dt = math.nan  # the dt_s of _qdt_f, _qdt_b
-        self._qdt_f: list[float] = []
-        self._qdt_b: list[float] = []
-        self._x_f = [0.0] * 6
-        self._x_b = [0.0] * 6
-        # covariance per axis: P = [[p_ff, p_fb], [p_fb, p_bb]]
-        self._p_ff = [100.0] * 6
-        self._p_fb = [0.0] * 6
-        self._p_bb = [100.0] * 6
+        self._k = kernels
+        self._dt_s = math.nan
+        self._wq = wrench_noise(config, 0.0)
+        self._wf = np.zeros(kernels.WF_SIZE)
+        self._wf[kernels.WF_P_FF:kernels.WF_P_FF + 6] = 100.0
+        self._wf[kernels.WF_P_BB:kernels.WF_P_BB + 6] = 100.0
         self.tared = False
 
     def tare(self, samples: F64) -> None:
@@ -95,13 +94,7 @@ class WrenchFilter:
         n = samples.shape[0]
         if n == 0:
             raise ValueError("tare needs at least one sample")
-        r = self._r_arr
-        p_b = 1.0 / (1.0 / 100.0 + n / r)
-        self._x_b = (p_b * samples.sum(axis=0) / r).tolist()
-        self._x_f = [0.0] * 6
-        self._p_ff = list(self._r)
-        self._p_fb = [0.0] * 6
-        self._p_bb = p_b.tolist()
+        self._k.wrench_tare(self._wf, self._wq, samples.sum(axis=0), n)
         self.tared = True
 
     def update(self, samples: F64, dt_s: float) -> None:
@@ -109,69 +102,40 @@ class WrenchFilter:
 
         With no samples the filter only predicts (its covariance grows).
         """
-        self.update_rows(np.asarray(samples, dtype=np.float64).reshape(-1, 6).tolist(), dt_s)
+        if dt_s != self._dt_s:
+            self._dt_s = dt_s
+            self._wq = wrench_noise(self.config, dt_s)
+        rows = np.ascontiguousarray(samples, dtype=np.float64).reshape(-1, 6)
+        self._k.wrench_update(self._wf, self._wq, rows)
 
     def update_rows(self, rows: list[list[float]], dt_s: float) -> None:
         """:meth:`update` with the samples as rows of six floats."""
-        if dt_s != self._q_dt:  # the process noise over dt_s (q dt), kept for the next cycle
-            self._q_dt = dt_s
-            self._qdt_f = [q * dt_s for q in self._q_f]
-            self._qdt_b = [q * dt_s for q in self._q_b]
-        p_ff = self._p_ff = [p + q for p, q in zip(self._p_ff, self._qdt_f, strict=True)]
-        p_bb = self._p_bb = [p + q for p, q in zip(self._p_bb, self._qdt_b, strict=True)]
-        p_fb, x_f, x_b = self._p_fb, self._x_f, self._x_b
-        n = len(rows)
-        if not n:
-            return
-        if n > 1:  # the mean, summed row after row as numpy's reduce over axis 0 does
-            a0, a1, a2, a3, a4, a5 = rows[0]
-            for r0, r1, r2, r3, r4, r5 in itertools.islice(rows, 1, None):
-                a0 += r0
-                a1 += r1
-                a2 += r2
-                a3 += r3
-                a4 += r4
-                a5 += r5
-            z = [a0 / n, a1 / n, a2 / n, a3 / n, a4 / n, a5 / n]
-        else:
-            z = rows[0]
-        r = self._r
-        for k in range(6):
-            ff, fb, bb = p_ff[k], p_fb[k], p_bb[k]
-            s = ff + 2.0 * fb + bb + r[k] / n
-            k_f = (ff + fb) / s
-            k_b = (fb + bb) / s
-            y = z[k] - x_f[k] - x_b[k]
-            x_f[k] += k_f * y
-            x_b[k] += k_b * y
-            # P - K S K^T, per axis
-            p_ff[k] = ff - k_f * k_f * s
-            p_fb[k] = fb - k_f * k_b * s
-            p_bb[k] = bb - k_b * k_b * s
+        self.update(np.array(rows, dtype=np.float64).reshape(-1, 6), dt_s)
+
+    def _part(self, at: int) -> F64:
+        return self._wf[at:at + 6].copy()
 
     @property
     def wrench(self) -> F64:
         """Filtered wrench (bias removed), TCF."""
-        return np.array(self._x_f)
+        return self._part(self._k.WF_X_F)
 
     @property
     def bias(self) -> F64:
         """Estimated sensor bias, TCF."""
-        return np.array(self._x_b)
+        return self._part(self._k.WF_X_B)
 
     @property
     def wrench_std(self) -> F64:
         """1-sigma uncertainty of :attr:`wrench`."""
-        return np.array([math.sqrt(v) for v in self._p_ff])
+        return np.sqrt(self._part(self._k.WF_P_FF))
 
     @property
     def wrench_list(self) -> list[float]:
-        """:attr:`wrench` as floats (the filter's own list: do not modify)."""
-        return self._x_f
+        """:attr:`wrench` as floats."""
+        return self.wrench.tolist()  # type: ignore[no-any-return]
 
     @property
     def bias_list(self) -> list[float]:
-        """:attr:`bias` as floats (the filter's own list: do not modify)."""
-        return self._x_b
-
-
+        """:attr:`bias` as floats."""
+        return self.bias.tolist()  # type: ignore[no-any-return]

@@ -1,0 +1,166 @@
+"""The estimator for N runs at once (a single run is a batch of one). No I/O."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from drivers.base.types import F64, FtSamples, RobotState
+from ffexp.estimation.config import Estimate, Estimation
+from ffexp.estimation.contact import ContactDetector, ContactEvent, contact_settings
+from ffexp.estimation.motion_filter import MotionFilter, kernels
+from ffexp.estimation.tool_load import skew
+from ffexp.estimation.wrench_filter import wrench_noise
+
+I64 = NDArray[np.int64]
+_KINDS = (None, "made", "broken")
+
+
+@dataclass
+class EstimateBatch:
+    """Every run's outputs of a cycle, one row per run (arrays the estimator reuses:
+    copy what is kept). Columns: :mod:`ffexp.estimation.kernels`' ``OF_*`` and ``OI_*``
+    (wrench, its 1-sigma, bias, twist in the TCF, ``f_z``, the peaks; the sample count,
+    contact, event (kind, start, previous start), saturation, tare, newest sample)."""
+
+    floats: F64
+    ints: I64
+
+
+class Estimator:
+    """Compensation, tare, wrench and motion filters, contact detection, for ``N`` runs.
+
+    Args:
+        config: the protocol's ``[estimation]``, or one per run (they may differ in
+            everything but the motion filter's settings, which the runs share).
+        cycle_s: the robot's control cycle (shared).
+        tare_s: sensor time the tare needs (the protocol's ``run.tare_s``), or one per run.
+
+    :meth:`update` steps a single run (``N = 1``) with the loop's inputs and returns its
+    :class:`Estimate`; :meth:`update_batch` steps every run from arrays with the run
+    first. Both go through one compiled cycle (:func:`kernels.estimator_cycle`).
+    """
+
+    def __init__(self, config: Estimation | Sequence[Estimation], cycle_s: float,
+                 tare_s: float | Sequence[float]) -> None:
+        configs = [config] if isinstance(config, Estimation) else list(config)
+        runs = len(configs)
+        tares = [tare_s] * runs if isinstance(tare_s, (int, float)) else list(tare_s)
+        if runs < 1 or len(tares) != runs:
+            raise ValueError(f"{runs} estimation settings and {len(tares)} tare times: "
+                             "one of each per run")
+        if any(c.motion != configs[0].motion for c in configs):
+            raise ValueError("the runs of a batch share the motion filter's settings")
+        self.config = configs[0]
+        self.configs = configs
+        self.runs = runs
+        self.cycle_s = cycle_s
+        self.tare_ns = round(tares[0] * 1e9)
+        self._k = k = kernels()
+        self.motion_filter = MotionFilter(configs[0].motion, cycle_s, runs)
+        self.detector = ContactDetector(configs[0].contact)
+        self.detectors = [self.detector, *(ContactDetector(c.contact) for c in configs[1:])]
+        cfg = np.zeros((runs, k.CF_SIZE))
+        fs = np.zeros((runs, k.FS_SIZE))
+        fs[:, k.WF_P_FF:k.WF_P_FF + 6] = 100.0  # the wrench filter's prior before the tare
+        fs[:, k.WF_P_BB:k.WF_P_BB + 6] = 100.0
+        ist = np.zeros((runs, k.IS_SIZE), dtype=np.int64)
+        ist[:, k.IS_CD + k.CD_PENDING] = ist[:, k.IS_CD + k.CD_SINCE] = k.NONE_NS
+        ist[:, k.ST_FIRST] = ist[:, k.ST_LAST] = k.NONE_NS
+        ist[:, k.ST_TARE_NS] = [round(t * 1e9) for t in tares]
+        ist[:, k.IS_COMMANDING] = 1
+        for i, c in enumerate(configs):
+            cfg[i, k.CF_WQ:k.CF_CC] = wrench_noise(c.wrench, cycle_s)
+            cfg[i, k.CF_CC:k.CF_LD] = contact_settings(c.contact)
+            ld = cfg[i, k.CF_LD:]
+            tl = c.tool_load
+            ld[k.LD_MASS] = tl.mass_kg
+            ld[k.LD_COMPENSATE] = tl.mass_kg > 0.0
+            ld[k.LD_INERTIAL] = c.inertial_compensation
+            ld[k.LD_GRAVITY:k.LD_GRAVITY + 3] = tl.gravity_base()
+            ld[k.LD_SKEW:k.LD_SKEW + 9] = skew(np.asarray(tl.com_m, dtype=np.float64)).ravel()
+        self._cfg, self._fs, self._ist = cfg, fs, ist
+        self._of = np.zeros((runs, k.OF_SIZE))
+        self._oi = np.zeros((runs, k.OI_SIZE), dtype=np.int64)
+        self._offsets = np.zeros(runs + 1, dtype=np.int64)  # a single run's
+        self._ist0 = ist[0]  # the first run's row (a view, made once)
+        self.out = Estimate()
+        self.batch = EstimateBatch(self._of, self._oi)
+
+    def update_batch(self, poses: F64, wrench: F64, time_ns: I64, status: NDArray[np.uint32],
+                     offsets: I64, commanding: NDArray[np.bool_], t_ns: I64,
+                     t0_ns: I64) -> EstimateBatch:
+        """One cycle of every run: ``poses`` (N, 4, 4) the tool poses; the runs' F/T
+        samples one after the other (``wrench`` (S, 6), ``time_ns``, ``status`` (S,)), run
+        ``i``'s from ``offsets[i]`` to ``offsets[i + 1]`` (none: equal); ``commanding``,
+        ``t_ns`` (the cycle's run time) and ``t0_ns`` (the robot time of the run's start)
+        per run. Returns the runs' outputs (:class:`EstimateBatch`); the contact events go
+        to each run's :attr:`detectors` entry too."""
+        k = self._k
+        ist = self._ist
+        ist[:, k.IS_COMMANDING] = commanding
+        ist[:, k.IS_T_NS] = t_ns
+        ist[:, k.IS_T0_NS] = t0_ns
+        self._cycle(poses, wrench, time_ns, status, offsets)
+        ev = self._oi[:, k.OI_EVENT]
+        if ev.any():
+            for i in np.flatnonzero(ev).tolist():
+                self._event(i, self._oi[i].tolist())
+        return self.batch
+
+    def _cycle(self, poses: F64, wrench: F64, time_ns: I64, status: NDArray[np.uint32],
+               offsets: I64) -> None:
+        mf = self.motion_filter
+        started = mf._started
+        mf._started = True
+        self._k.estimator_cycle(
+            self._cfg, self._fs, self._ist, mf._x, mf._rot, mf._theta, started,
+            mf.next_gain(), mf._f1_t, mf._mju, wrench, time_ns, status, offsets, poses,
+            self._of, self._oi)
+
+    def _event(self, i: int, ints: list[int]) -> ContactEvent:
+        k = self._k
+        kind, start, since = ints[k.OI_EVENT:k.OI_EVENT + 3]
+        event = ContactEvent(kind=_KINDS[kind], time_ns=start,  # type: ignore[arg-type]
+                             previous_s=(start - since) * 1e-9)
+        det = self.detectors[i]
+        det.events.append(event)
+        det.in_contact = kind == 1
+        return event
+
+    def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int) -> Estimate:
+        """One cycle of a single run (the batch of one). ``t_ns`` is the run time of the
+        cycle, ``t0_ns`` the robot time of the run's start (sample times are on the
+        robot's clock)."""
+        if self.runs != 1:
+            raise ValueError(f"update steps a single run; this estimator has {self.runs}: "
+                             "update_batch")
+        n = len(ft)
+        self._offsets[1] = n
+        k = self._k
+        ist = self._ist0
+        ist[k.IS_COMMANDING] = state.link.commanding
+        ist[k.IS_T_NS] = t_ns
+        ist[k.IS_T0_NS] = t0_ns
+        self._cycle(state.tcp_pose_m[None], ft.wrench, ft.time_ns, ft.status, self._offsets)
+        out = self.out
+        f = self._of[0].copy()  # the columns: kernels.OF_*, OI_*
+        (_, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
+         last) = ints = self._oi[0].tolist()
+        out.wrench = f[0:6]
+        out.wrench_std = f[6:12]
+        out.bias = f[12:18]
+        out.twist_tcf = f[18:24]
+        out.f_z, out.peak_force_n, out.peak_torque_nm = f[24:27].tolist()
+        out.n_samples = n
+        out.event = self._event(0, ints) if event else None
+        out.in_contact = in_contact == 1
+        out.saturated = saturated == 1
+        out.tared = tared == 1
+        out.tared_now = tared_now == 1
+        out.tare_samples = tare_samples
+        out.last_sample_ns = None if last == k.NONE_NS else last
+        return out

@@ -1,0 +1,450 @@
+"""The estimator's arithmetic for N runs at once, compiled (numba): one code path for a
+batch and for a single run (a batch of one). Pure: no I/O, no clock.
+
+Imported only when an estimator or one of its filters is made (numba's import costs
+about 0.4 s; ``ffexp --help`` and completion never import it). Compiled functions are
+cached on disk next to this module (``cache=True``): the first run on a fresh checkout
+compiles them once (a few seconds), later processes load them.
+
+Bit for bit the numbers of the numpy form they replace: the same IEEE operations in the
+same order, no fast-math (so no contraction of ``a * b + c`` into a fused multiply-add),
+and where the numpy form went through BLAS (3-vectors times 3x3 matrices, ``dot``) the
+sums of three products are made as that BLAS makes them (measured with numpy 2.4's
+wheels, OpenBLAS with FMA kernels on x86-64): ``dgemm``, transposed ``dgemv`` and
+``ddot`` take ``a0 b0``, then fuse ``a1 b1`` and ``a2 b2`` in turn (:func:`dot3`);
+``dgemv`` not transposed fuses ``a0 b0`` into ``a1 b1`` first (:func:`dot3_n`).
+``tests/test_estimation_batch.py`` checks both against numpy's own products on random
+inputs, so a numpy whose BLAS sums otherwise shows there, not as a changed recording;
+the compiled form itself gives the same bits on every machine (``llvm.fma`` rounds
+once, in hardware or in software).
+
+Layouts of one run's rows (the estimator's arrays have the run first; a filter used
+on its own keeps one run's):
+
+* the wrench filter, ``WF_*``: ``x_f``, ``x_b``, ``p_ff``, ``p_fb``, ``p_bb`` (six each,
+  per TCF axis), and its noise, ``WQ_*``: ``r``, ``q_f dt``, ``q_b dt``;
+* the contact detector, ``CD_*``: in contact, the pending crossing's start, the state's
+  start (``NONE_NS`` for none), and its settings ``CC_*``: thresholds, debounces, the
+  signal (0: force norm, 1: ``f_z``);
+* the estimator's: the settings ``cfg`` (``CF_*``: the noise, the detector's settings,
+  the tool load ``LD_*``), the float state ``fs`` (``FS_*``: the wrench filter, the
+  tare's sum), the int state ``ist`` (``IS_*``: the detector, the tare's bookkeeping
+  ``ST_*``, the cycle's inputs), the outputs ``of`` (``OF_*``) and ``oi`` (``OI_*``);
+* the motion filter: six rows per run of ``x`` (value, rate, acceleration), the run's
+  last rotation ``rot[i]`` and its accumulated rotation vector ``theta[i]``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from llvmlite import ir  # type: ignore[import-untyped]
+from numba import njit, types
+from numba.extending import intrinsic
+from numpy.typing import NDArray
+
+from drivers.base.types import F64, FtStatus
+
+#: The status bit of a saturated F/T sample.
+SATURATION = int(FtStatus.SATURATION)
+#: "No time" in the int64 time fields.
+NONE_NS = np.iinfo(np.int64).min
+
+WF_X_F, WF_X_B, WF_P_FF, WF_P_FB, WF_P_BB = 0, 6, 12, 18, 24
+WF_SIZE = 30
+WQ_R, WQ_F, WQ_B = 0, 6, 12
+WQ_SIZE = 18
+CD_IN_CONTACT, CD_PENDING, CD_SINCE = 0, 1, 2
+CD_SIZE = 3
+CC_ON, CC_OFF, CC_HOLD_ON, CC_HOLD_OFF, CC_FZ = 0, 1, 2, 3, 4
+CC_SIZE = 5
+
+
+def _fma_typing(typingctx, a, b, c):  # type: ignore[no-untyped-def]
+    """``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+_fma: Any = intrinsic(_fma_typing)
+
+
+@njit(cache=True)
+def dot3(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
+    """``a . b`` as OpenBLAS's ``ddot``, ``dgemm`` and transposed ``dgemv`` make it."""
+    return float(_fma(a2, b2, _fma(a1, b1, a0 * b0)))
+
+
+@njit(cache=True)
+def dot3_n(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
+    """``a . b`` as OpenBLAS's ``dgemv`` (not transposed) makes a row of ``A x``."""
+    return float(_fma(a2, b2, _fma(a0, b0, a1 * b1)))
+
+
+def _call_mat2quat_typing(typingctx, addr, quat, mat):  # type: ignore[no-untyped-def]
+    """``mju_mat2Quat(quat, mat)`` at the address ``addr`` (MuJoCo's own function)."""
+    sig = types.void(types.int64, quat, mat)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        q = context.make_array(signature.args[1])(context, builder, args[1]).data
+        m = context.make_array(signature.args[2])(context, builder, args[2]).data
+        d = ir.DoubleType().as_pointer()
+        fn = builder.inttoptr(args[0], ir.FunctionType(ir.VoidType(), [d, d]).as_pointer())
+        builder.call(fn, [q, m])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+_call_mat2quat: Any = intrinsic(_call_mat2quat_typing)
+
+
+def _call_quat2vel_typing(typingctx, addr, vel, quat, dt):  # type: ignore[no-untyped-def]
+    """``mju_quat2Vel(vel, quat, dt)`` at the address ``addr`` (MuJoCo's own function)."""
+    sig = types.void(types.int64, vel, quat, types.float64)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        v = context.make_array(signature.args[1])(context, builder, args[1]).data
+        q = context.make_array(signature.args[2])(context, builder, args[2]).data
+        d = ir.DoubleType()
+        fnty = ir.FunctionType(ir.VoidType(), [d.as_pointer(), d.as_pointer(), d])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [v, q, args[3]])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+_call_quat2vel: Any = intrinsic(_call_quat2vel_typing)
+
+
+def mujoco_functions() -> NDArray[np.int64]:
+    """The addresses of MuJoCo's ``mju_mat2Quat`` and ``mju_quat2Vel`` in its shared
+    library (the one the ``mujoco`` package loaded): the motion filter calls MuJoCo's
+    own rotation functions from compiled code, so its numbers are MuJoCo's bits
+    whatever MuJoCo's version (an own copy of them would have to follow MuJoCo's
+    arithmetic to the last ulp, near-orthonormal matrices included)."""
+    import mujoco
+
+    here = Path(mujoco.__file__).parent
+    names = ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
+    found = sorted(p for pattern in names for p in here.glob(pattern))
+    if not found:
+        raise RuntimeError(f"no MuJoCo shared library in {here}")
+    lib = ctypes.CDLL(str(found[0]))
+    return np.array([ctypes.cast(lib.mju_mat2Quat, ctypes.c_void_p).value,
+                     ctypes.cast(lib.mju_quat2Vel, ctypes.c_void_p).value], dtype=np.int64)
+
+
+# ---------------------------------------------------------------- the wrench filter
+
+
+@njit(cache=True)
+def wrench_tare(wf: F64, wq: F64, total: F64, n: int) -> None:
+    """The tare of one run's filter from the sum of ``n`` free-space samples (the
+    bias-only Kalman filter's closed form, ``1/P = 1/100 + n/r``, ``b = P sum / r``)."""
+    for k in range(6):
+        r = wq[WQ_R + k]
+        p_b = 1.0 / (1.0 / 100.0 + n / r)
+        wf[WF_X_B + k] = p_b * total[k] / r
+        wf[WF_X_F + k] = 0.0
+        wf[WF_P_FF + k] = r
+        wf[WF_P_FB + k] = 0.0
+        wf[WF_P_BB + k] = p_b
+
+
+@njit(cache=True)
+def wrench_update(wf: F64, wq: F64, rows: F64) -> None:
+    """Predict one run's filter over a cycle and update it with the mean of ``rows``
+    ``(n, 6)`` (summed row after row, as numpy's reduce over axis 0); ``n = 0``:
+    predict only."""
+    for k in range(6):
+        wf[WF_P_FF + k] += wq[WQ_F + k]
+        wf[WF_P_BB + k] += wq[WQ_B + k]
+    n = rows.shape[0]
+    if n == 0:
+        return
+    for k in range(6):
+        z = rows[0, k]
+        if n > 1:
+            for j in range(1, n):
+                z += rows[j, k]
+            z /= n
+        ff, fb, bb = wf[WF_P_FF + k], wf[WF_P_FB + k], wf[WF_P_BB + k]
+        s = ff + 2.0 * fb + bb + wq[WQ_R + k] / n
+        k_f = (ff + fb) / s
+        k_b = (fb + bb) / s
+        y = z - wf[WF_X_F + k] - wf[WF_X_B + k]
+        wf[WF_X_F + k] += k_f * y
+        wf[WF_X_B + k] += k_b * y
+        wf[WF_P_FF + k] = ff - k_f * k_f * s
+        wf[WF_P_FB + k] = fb - k_f * k_b * s
+        wf[WF_P_BB + k] = bb - k_b * k_b * s
+
+
+# ---------------------------------------------------------------- the contact detector
+
+
+@njit(cache=True)
+def contact_signal(cc: F64, w0: float, w1: float, w2: float) -> float:
+    """The scalar the thresholds apply to: ``-f_z`` or the force's norm (numpy's)."""
+    if cc[CC_FZ] != 0.0:
+        return -w2
+    return math.sqrt(dot3(w0, w1, w2, w0, w1, w2))
+
+
+@njit(cache=True)
+def contact_update(cd: np.ndarray, cc: F64, time_ns: int, signal: float,
+                   event: np.ndarray) -> bool:
+    """One filtered value of one run's detector; an event it confirms goes into
+    ``event`` (kind 1 made, 2 broken; the crossing's start; the previous state's start)
+    and the result is True."""
+    if cd[CD_SINCE] == NONE_NS:
+        cd[CD_SINCE] = time_ns
+    in_contact = cd[CD_IN_CONTACT] != 0
+    crossing = signal < cc[CC_OFF] if in_contact else signal > cc[CC_ON]
+    if not crossing:
+        cd[CD_PENDING] = NONE_NS
+        return False
+    if cd[CD_PENDING] == NONE_NS:
+        cd[CD_PENDING] = time_ns
+    hold_s = cc[CC_HOLD_OFF] if in_contact else cc[CC_HOLD_ON]
+    if (time_ns - cd[CD_PENDING]) * 1e-9 + 1e-12 < hold_s:
+        return False
+    start = cd[CD_PENDING]
+    event[0] = 2 if in_contact else 1
+    event[1] = start
+    event[2] = cd[CD_SINCE]
+    cd[CD_IN_CONTACT] = 0 if in_contact else 1
+    cd[CD_SINCE] = start
+    cd[CD_PENDING] = NONE_NS
+    return True
+
+
+# ---------------------------------------------------------------- the motion filter
+
+
+@njit(cache=True)
+def motion_step(x: F64, rot: F64, theta: F64, started: bool, pose: F64, gain: F64,
+                f1_t: F64, mju: NDArray[np.int64], work: F64) -> None:
+    """One cycle of one run's motion filter: ``x`` its six rows (value, rate,
+    acceleration per axis), ``rot`` its last rotation, ``theta`` its accumulated rotation
+    vector (the rotation's measurement), ``pose`` its 4x4 tool pose, ``gain`` (6, 3) the
+    cycle's gain (shared by the runs), ``mju`` :func:`mujoco_functions`, ``work`` 16
+    floats of scratch. The rotation since the last pose (``rot^T R``, dgemm's sums) as a
+    rotation vector (MuJoCo's quaternion and its velocity) is added to ``theta`` in the
+    base frame (``rot @ v``, dgemv's sums); then predict (``x @ F1^T``) and update."""
+    if not started:
+        for a in range(6):
+            x[a, 0] = pose[a, 3] if a < 3 else theta[a - 3]
+            x[a, 1] = 0.0
+            x[a, 2] = 0.0
+    else:
+        m = work[0:9]
+        for i in range(3):
+            for j in range(3):
+                m[3 * i + j] = dot3(rot[0, i], rot[1, i], rot[2, i],
+                                    pose[0, j], pose[1, j], pose[2, j])
+        q = work[9:13]
+        v = work[13:16]
+        _call_mat2quat(mju[0], q, m)
+        _call_quat2vel(mju[1], v, q, 1.0)
+        for i in range(3):
+            theta[i] += dot3_n(rot[i, 0], rot[i, 1], rot[i, 2], v[0], v[1], v[2])
+    for i in range(3):
+        for j in range(3):
+            rot[i, j] = pose[i, j]
+    for a in range(6):
+        z = pose[a, 3] if a < 3 else theta[a - 3]
+        p0 = dot3(x[a, 0], x[a, 1], x[a, 2], f1_t[0, 0], f1_t[1, 0], f1_t[2, 0])
+        p1 = dot3(x[a, 0], x[a, 1], x[a, 2], f1_t[0, 1], f1_t[1, 1], f1_t[2, 1])
+        p2 = dot3(x[a, 0], x[a, 1], x[a, 2], f1_t[0, 2], f1_t[1, 2], f1_t[2, 2])
+        y = z - p0
+        x[a, 0] = p0 + gain[a, 0] * y
+        x[a, 1] = p1 + gain[a, 1] * y
+        x[a, 2] = p2 + gain[a, 2] * y
+
+
+@njit(cache=True)
+def twist_tcf(x: F64, pose: F64, out: F64) -> None:
+    """One run's twist in the tool frame of ``pose`` (``v @ R`` per half, dgemv's sums)."""
+    for j in range(3):
+        out[j] = dot3(x[0, 1], x[1, 1], x[2, 1], pose[0, j], pose[1, j], pose[2, j])
+        out[3 + j] = dot3(x[3, 1], x[4, 1], x[5, 1], pose[0, j], pose[1, j], pose[2, j])
+
+
+@njit(cache=True)
+def motion_batch(x: F64, rot: F64, theta: F64, started: bool, poses: F64, gain: F64,
+                 f1_t: F64, mju: NDArray[np.int64], work: F64) -> None:
+    """:func:`motion_step` for every run: ``x`` (6 N, 3), ``rot`` (N, 3, 3), ``theta``
+    (N, 3), ``poses`` (N, 4, 4)."""
+    for i in range(poses.shape[0]):
+        motion_step(x[6 * i:6 * i + 6], rot[i], theta[i], started, poses[i], gain, f1_t,
+                    mju, work)
+
+
+# ---------------------------------------------------------------- the estimator's cycle
+
+# per run, ``cfg[i]``: the run's settings: the wrench filter's noise (``WQ_*``), the
+# contact detector's (``CC_*``) and the tool load's (``LD_*``)
+CF_WQ, CF_CC, CF_LD = 0, WQ_SIZE, WQ_SIZE + CC_SIZE
+LD_MASS, LD_COMPENSATE, LD_INERTIAL, LD_GRAVITY, LD_SKEW = 0, 1, 2, 3, 6
+LD_SIZE = 15
+CF_SIZE = CF_LD + LD_SIZE
+# per run, ``fs[i]``: the wrench filter (``WF_*``) and the sum of the tare's samples
+FS_TARE_SUM = WF_SIZE
+FS_SIZE = WF_SIZE + 6
+# per run, ``ist[i]`` (int64): the contact detector (``CD_*``), the estimator's own state
+# and the cycle's inputs (the link commanding, the cycle's run time, the run's start)
+IS_CD = 0
+ST_TARED, ST_FIRST, ST_LAST, ST_COUNT, ST_TARE_NS, ST_TARE_SAMPLES = 3, 4, 5, 6, 7, 8
+IS_COMMANDING, IS_T_NS, IS_T0_NS = 9, 10, 11
+IS_SIZE = 12
+# per run, the cycle's outputs: ``of[i]`` (float64) and ``oi[i]`` (int64)
+OF_WRENCH, OF_STD, OF_BIAS, OF_TWIST, OF_FZ, OF_PEAK_F, OF_PEAK_T = 0, 6, 12, 18, 24, 25, 26
+OF_SIZE = 27
+OI_N, OI_IN_CONTACT, OI_EVENT, OI_SATURATED, OI_TARED, OI_TARED_NOW = 0, 1, 2, 5, 6, 7
+OI_TARE_SAMPLES, OI_LAST = 8, 9
+OI_SIZE = 10
+
+
+@njit(cache=True)
+def _peak(squares: F64, n: int) -> float:
+    """``sqrt(max(squares))``, NaN when one is."""
+    top = 0.0
+    for j in range(n):
+        s = squares[j]
+        if s != s:
+            return math.nan
+        if j == 0 or s > top:
+            top = s
+    return math.sqrt(top)
+
+
+@njit(cache=True)
+def estimator_cycle(cfg: F64, fs: F64, ist: np.ndarray, x: F64, rot: F64, theta: F64,
+                    started: bool, gain: F64, f1_t: F64, mju: NDArray[np.int64], wrench: F64,
+                    time_ns: np.ndarray, status: np.ndarray, offsets: np.ndarray, poses: F64,
+                    of: F64, oi: np.ndarray) -> None:
+    """One cycle of every run's estimator (see :mod:`ffexp.estimation`): run ``i``'s
+    settings ``cfg[i]``, its state ``fs[i]`` and ``ist[i]`` (with this cycle's link state
+    and times), its motion filter's rows of ``x``, ``rot[i]`` and ``theta[i]``; its
+    samples are ``wrench[offsets[i]:offsets[i + 1]]`` (with their times and status
+    words), its pose ``poses[i]``. Outputs into ``of[i]``, ``oi[i]``."""
+    comp = np.empty((wrench.shape[0], 6))
+    squares = np.empty((2, wrench.shape[0]))
+    event = np.zeros(3, dtype=np.int64)
+    work = np.empty(16)
+    for i in range(poses.shape[0]):
+        lo, hi = offsets[i], offsets[i + 1]
+        n = hi - lo
+        w, ofi, oii, sti = wrench[lo:hi], of[i], oi[i], ist[i]
+        wfi, tare_sum = fs[i, :WF_SIZE], fs[i, FS_TARE_SUM:FS_SIZE]
+        wq, cc, ldi = cfg[i, CF_WQ:CF_CC], cfg[i, CF_CC:CF_LD], cfg[i, CF_LD:CF_SIZE]
+        cd, t0_ns = sti[IS_CD:IS_CD + CD_SIZE], sti[IS_T0_NS]
+        xi, pose = x[6 * i:6 * i + 6], poses[i]
+        rows = comp[lo:hi]
+        # tool-load compensation (the acceleration the motion filter had last cycle)
+        if ldi[LD_COMPENSATE] != 0.0 and n:
+            g0, g1, g2 = ldi[LD_GRAVITY], ldi[LD_GRAVITY + 1], ldi[LD_GRAVITY + 2]
+            if ldi[LD_INERTIAL] != 0.0:
+                g0, g1, g2 = g0 - xi[0, 2], g1 - xi[1, 2], g2 - xi[2, 2]
+            m = ldi[LD_MASS]
+            f0 = m * dot3(g0, g1, g2, pose[0, 0], pose[1, 0], pose[2, 0])
+            f1 = m * dot3(g0, g1, g2, pose[0, 1], pose[1, 1], pose[2, 1])
+            f2 = m * dot3(g0, g1, g2, pose[0, 2], pose[1, 2], pose[2, 2])
+            sk = ldi[LD_SKEW:LD_SKEW + 9]
+            t0 = dot3_n(sk[0], sk[1], sk[2], f0, f1, f2)
+            t1 = dot3_n(sk[3], sk[4], sk[5], f0, f1, f2)
+            t2 = dot3_n(sk[6], sk[7], sk[8], f0, f1, f2)
+            for j in range(n):
+                rows[j, 0] = w[j, 0] - f0
+                rows[j, 1] = w[j, 1] - f1
+                rows[j, 2] = w[j, 2] - f2
+                rows[j, 3] = w[j, 3] - t0
+                rows[j, 4] = w[j, 4] - t1
+                rows[j, 5] = w[j, 5] - t2
+        else:
+            rows[:] = w
+        tared = sti[ST_TARED] != 0
+        oii[OI_N] = n
+        oii[OI_EVENT] = 0
+        oii[OI_TARED_NOW] = 0
+        # the peaks (bias removed once tared) and the saturation bit
+        if n:
+            sti[ST_LAST] = time_ns[hi - 1] - t0_ns
+            sat = 0
+            for j in range(lo, hi):
+                if status[j] & SATURATION:
+                    sat = 1
+            oii[OI_SATURATED] = sat
+            sq = squares[:, lo:hi]
+            for j in range(n):
+                if tared:
+                    s0 = rows[j, 0] - wfi[WF_X_B]
+                    s1 = rows[j, 1] - wfi[WF_X_B + 1]
+                    s2 = rows[j, 2] - wfi[WF_X_B + 2]
+                    s3 = rows[j, 3] - wfi[WF_X_B + 3]
+                    s4 = rows[j, 4] - wfi[WF_X_B + 4]
+                    s5 = rows[j, 5] - wfi[WF_X_B + 5]
+                else:
+                    s0, s1, s2, s3, s4, s5 = w[j, 0], w[j, 1], w[j, 2], w[j, 3], w[j, 4], w[j, 5]
+                sq[0, j] = s0 * s0 + s1 * s1 + s2 * s2
+                sq[1, j] = s3 * s3 + s4 * s4 + s5 * s5
+            ofi[OF_PEAK_F] = _peak(sq[0], n)
+            ofi[OF_PEAK_T] = _peak(sq[1], n)
+        else:
+            oii[OI_SATURATED] = 0
+            ofi[OF_PEAK_F] = 0.0
+            ofi[OF_PEAK_T] = 0.0
+        # the tool's motion and twist
+        motion_step(xi, rot[i], theta[i], started, pose, gain, f1_t, mju, work)
+        twist_tcf(xi, pose, ofi[OF_TWIST:OF_TWIST + 6])
+        # the tare, then the wrench filter and the contact detector
+        if not tared:
+            if n:
+                for j in range(n):
+                    for k in range(6):
+                        if sti[ST_COUNT] == 0 and j == 0:
+                            tare_sum[k] = rows[j, k]
+                        else:
+                            tare_sum[k] += rows[j, k]
+                sti[ST_COUNT] += n
+                if sti[ST_FIRST] == NONE_NS:
+                    sti[ST_FIRST] = time_ns[lo] - t0_ns
+            first, last, count = sti[ST_FIRST], sti[ST_LAST], sti[ST_COUNT]
+            if first != NONE_NS and last != NONE_NS and sti[IS_COMMANDING] != 0:
+                # the samples cover [first, last] plus one sample period
+                period_ns = (last - first) / max(count - 1, 1)
+                if not last - first + period_ns < sti[ST_TARE_NS]:
+                    wrench_tare(wfi, wq, tare_sum, count)
+                    sti[ST_TARED] = 1
+                    sti[ST_TARE_SAMPLES] = count
+                    oii[OI_TARED_NOW] = 1
+        else:
+            wrench_update(wfi, wq, rows)
+        if sti[ST_TARED] != 0 and oii[OI_TARED_NOW] == 0:
+            sig = contact_signal(cc, wfi[WF_X_F], wfi[WF_X_F + 1], wfi[WF_X_F + 2])
+            if contact_update(cd, cc, sti[IS_T_NS], sig, event):
+                oii[OI_EVENT] = event[0]
+                oii[OI_EVENT + 1] = event[1]
+                oii[OI_EVENT + 2] = event[2]
+        oii[OI_IN_CONTACT] = cd[CD_IN_CONTACT]
+        oii[OI_TARED] = sti[ST_TARED]
+        oii[OI_TARE_SAMPLES] = sti[ST_TARE_SAMPLES]
+        oii[OI_LAST] = sti[ST_LAST]
+        for k in range(6):
+            ofi[OF_WRENCH + k] = wfi[WF_X_F + k]
+            ofi[OF_STD + k] = math.sqrt(wfi[WF_P_FF + k])
+            ofi[OF_BIAS + k] = wfi[WF_X_B + k]
+        ofi[OF_FZ] = -wfi[WF_X_F + 2]

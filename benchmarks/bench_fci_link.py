@@ -17,7 +17,9 @@ then a 0.2 N m step on joint 1 for its last 5 % (at 10 s about 0.1 rad: a longer
 the joint into its speed limits, a reflex). Printed, as JSON, per run: the load average
 (1 min) before and after; per phase the states read, the cycles missed as the client
 counts them (the state's time advancing more than 1 ms from one read to the next: the
-sum of the excess), their share, the period between reads (p50, p99, p99.9, max: the
+sum of the excess), their share, how many of them fell in stalls (``missed_in_stalls``:
+reads more than ``--stall-ms``, default 5, apart: five cycles in which neither process
+read or answered, longer than either one's worst cycle of work), the period between reads (p50, p99, p99.9, max: the
 worst stall), how far the robot's clock fell behind the wall's (``clock_lag_pct``: the
 state's time advanced that much less than the wall clock, from cycles the emulator began
 more than a cycle late, which the client cannot count as missed) and, in the loop, the
@@ -47,6 +49,7 @@ CLIENT = r"""
 import gc, json, os, sys, time
 import pylibfranka as plf
 host, seconds, cpu, rt = sys.argv[1], float(sys.argv[2]), int(sys.argv[3]), sys.argv[4] == "1"
+STALL_MS = float(sys.argv[5])
 got = []
 if cpu >= 0:
     os.sched_setaffinity(0, {cpu})
@@ -70,6 +73,9 @@ def summary(ids, stamps, work=None):
            "period_ms": {k: round(float(np.percentile(per, q)), 3) for k, q in
                          (("p50", 50), ("p99", 99), ("p99.9", 99.9), ("max", 100))},
            "clock_lag_pct": round(100.0 * (1.0 - (ids[-1] - ids[0]) / wall_ms), 2)}
+    stalled = per > STALL_MS
+    out["missed_in_stalls"] = int(np.sum(np.maximum(gaps - 1, 0)[stalled]))
+    out["stalls"] = int(np.sum(stalled))
     if work:
         w = np.array(work) * 1e3
         out["read_to_write_ms"] = {k: round(float(np.percentile(w, q)), 4) for k, q in
@@ -161,7 +167,8 @@ def one_run(args: argparse.Namespace) -> dict[str, object]:
     steal0 = steal_ticks()
     client_rt = args.rt == "on" and args.client_rt == "on"
     res = subprocess.run([sys.executable, "-c", CLIENT, args.host, str(args.seconds),
-                          "1" if args.pin else "-1", "1" if client_rt else "0"],
+                          "1" if args.pin else "-1", "1" if client_rt else "0",
+                          str(args.stall_ms)],
                          capture_output=True, text=True)
     faults1 = faults(emu.pid)
     steal1 = steal_ticks()
@@ -193,6 +200,7 @@ def main() -> None:
     ap.add_argument("--pin", action="store_true")
     ap.add_argument("--runs", type=int, default=1)
     ap.add_argument("--host", default="127.0.0.61")
+    ap.add_argument("--stall-ms", type=float, default=5.0)
     args = ap.parse_args()
     runs = []
     for _ in range(args.runs):
@@ -201,9 +209,10 @@ def main() -> None:
     if args.runs > 1:
         print(json.dumps({"cpus": os.cpu_count(), "runs": [
             {"load1": r["load1_before"], **{ph: {k: r[ph][k] for k in  # type: ignore[index]
-             ("missed_pct", "clock_lag_pct")} | {"max_ms": r[ph]["period_ms"]["max"]}  # type: ignore[index]
+             ("missed_pct", "missed_in_stalls", "clock_lag_pct")} | {"max_ms": r[ph]["period_ms"]["max"]}  # type: ignore[index]
              for ph in ("read", "torque_loop")},
-             "cycle_cpu_us": r["emulator_cycle_cpu_us"]} for r in runs]}, indent=1))
+             "cycle_cpu_us": r["emulator_cycle_cpu_us"],
+             "steal_ms_per_cpu": r["steal_ms_per_cpu"]} for r in runs]}, indent=1))
 
 
 if __name__ == "__main__":

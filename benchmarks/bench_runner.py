@@ -92,9 +92,8 @@ def run_once(ppath: Path, seconds: float, out: Path) -> tuple[float, dict[str, f
 PARTS = (
     ("step", "ffexp.loop", "Cycle", "step"),
     ("  estimator", "ffexp.estimation", "Estimator", "update"),
-    ("    motion filter", "ffexp.estimation", "MotionFilter", "update"),
-    ("    wrench filter", "ffexp.estimation", "WrenchFilter", "update_rows"),
-    ("    contact detector", "ffexp.estimation", "ContactDetector", "update"),
+    ("    compiled cycle", "ffexp.estimation.estimator", "Estimator",
+     "_cycle"),
     ("  safety", "ffexp.safety", "SafetyMonitor", "check"),
     ("  task", "ffexp.task", "Task", "step"),
     ("  approach law", "ffexp.controllers.base", "Approach", "command"),

@@ -13,22 +13,22 @@ loops: ``--client-rt off`` leaves the client at normal priority with its collect
 
 The client reads the state for ``--seconds`` (no commands), then runs libfranka's torque
 loop (``start_torque_control``, ``readOnce``/``writeOnce``) for as long: zero torque,
-then a 0.2 N m step on joint 1 for its last 5 % (at 10 s about 0.1 rad: a longer step runs
-the joint into its speed limits, a reflex). Printed, as JSON, per run: the load average
-(1 min) before and after; per phase the states read, the cycles missed as the client
-counts them (the state's time advancing more than 1 ms from one read to the next: the
-sum of the excess), their share, how many of them fell in stalls (``missed_in_stalls``:
-reads more than ``--stall-ms``, default 5, apart: five cycles in which neither process
-read or answered, longer than either one's worst cycle of work), the period between reads (p50, p99, p99.9, max: the
-worst stall), how far the robot's clock fell behind the wall's (``clock_lag_pct``: the
-state's time advanced that much less than the wall clock, from cycles the emulator began
-more than a cycle late, which the client cannot count as missed) and, in the loop, the
-time from a state's read to its torques written; the robot's
-``control_command_success_rate`` at the end; the emulator's counters (answered, missed
-and late commands and overruns as it counts them), its serving thread's CPU time per
-cycle (``cycle_cpu_us``: p50, p99, max) and its page faults while the client ran; the
-time a hypervisor took each CPU meanwhile (``steal_ms_per_cpu``: a stall no setting in
-the guest prevents); and what ``--rt`` obtained on either side.
+then a 0.2 N m step on joint 1 for its last 5 % (at 10 s about 0.1 rad: a longer step
+runs the joint into its speed limits, a reflex). Printed, as JSON, per run: the load
+average (1 min) before and after; per phase the states read, the cycles missed as the
+client counts them (the state's time advancing more than 1 ms from one read to the next:
+the sum of the excess), their share, how many of them fell in stalls
+(``missed_in_stalls``: reads more than ``--stall-ms``, default 5, apart: at least five
+cycles in which the client read nothing), the period between reads (p50, p99, p99.9,
+max: the worst stall), how far the robot's clock fell behind the wall's
+(``clock_lag_pct``: the state's time advanced that much less than the wall clock, from
+cycles the emulator began more than a cycle late, which the client cannot count as
+missed) and, in the loop, the time from a state's read to its torques written; the
+robot's ``control_command_success_rate`` at the end; the emulator's counters (answered,
+missed and late commands and overruns as it counts them), its serving thread's CPU time
+per cycle (``cycle_cpu_us``: p50, p99, max) and its page faults while the client ran;
+the time a hypervisor took each CPU meanwhile (``steal_ms_per_cpu``: a stall no setting
+in the guest prevents); and what ``--rt`` obtained on either side.
 Nothing here is asserted: these are measurements of this machine, as it is loaded.
 """
 
@@ -209,7 +209,8 @@ def main() -> None:
     if args.runs > 1:
         print(json.dumps({"cpus": os.cpu_count(), "runs": [
             {"load1": r["load1_before"], **{ph: {k: r[ph][k] for k in  # type: ignore[index]
-             ("missed_pct", "missed_in_stalls", "clock_lag_pct")} | {"max_ms": r[ph]["period_ms"]["max"]}  # type: ignore[index]
+             ("missed_pct", "missed_in_stalls", "clock_lag_pct")}
+             | {"max_ms": r[ph]["period_ms"]["max"]}  # type: ignore[index]
              for ph in ("read", "torque_loop")},
              "cycle_cpu_us": r["emulator_cycle_cpu_us"],
              "steal_ms_per_cpu": r["steal_ms_per_cpu"]} for r in runs]}, indent=1))

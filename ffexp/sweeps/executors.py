@@ -32,6 +32,7 @@ OPTION = "--executor"
 #: Imported once by the fork server; every worker forked from it has them (a worker
 #: that imported them itself took seconds on a loaded two-core machine).
 PRELOAD = ("ffexp.sweeps.worker", "ffexp.experiment", "ffexp.analysis", "ffexp.recording",
+           "ffexp.estimation.kernels",
            "drivers.world.world", "drivers.fri.emulate.lockstep")
 #: Seconds to wait for a TCP answer from a Ray address before calling it unreachable.
 CONNECT_TIMEOUT_S = 3.0

@@ -34,6 +34,8 @@ OPTION = "--executor"
 PRELOAD = ("ffexp.sweeps.worker", "ffexp.experiment", "ffexp.analysis", "ffexp.recording",
            "ffexp.estimation.kernels",
            "drivers.world.world", "drivers.fri.emulate.lockstep")
+#: Seconds :func:`end_workers` waits for a process pool's manager thread to end.
+END_WORKERS_JOIN_S = 5.0
 #: Seconds to wait for a TCP answer from a Ray address before calling it unreachable.
 CONNECT_TIMEOUT_S = 3.0
 
@@ -186,6 +188,12 @@ def end_workers(executor: Executor) -> None:
     for proc in list(processes.values()):
         proc.kill()
     executor.shutdown(wait=False, cancel_futures=True)
+    # The pool's manager thread sees its workers gone and closes its wake-up pipe; let it
+    # finish (bounded) before the interpreter's exit hook writes to that pipe: on
+    # Python 3.11 the two race, and the loser prints "OSError: Bad file descriptor".
+    manager = getattr(executor, "_executor_manager_thread", None)
+    if manager is not None:
+        manager.join(END_WORKERS_JOIN_S)
 
 
 def start_forkserver() -> None:

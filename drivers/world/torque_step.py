@@ -42,7 +42,6 @@ are the attributes named in :data:`WORLD_FIELDS`, checked when a stepper is made
 
 from __future__ import annotations
 
-import math
 from typing import Final
 
 import mujoco
@@ -51,10 +50,11 @@ import numpy as np
 from drivers.base.impedance import normalized_damping
 from drivers.base.types import F64
 from drivers.errors import InvalidCommandError
-from drivers.world.arm import ArmMode
+from drivers.world.arm import ArmCommand, ArmMode
 from drivers.world.contact import ToolContact
 from drivers.world.divergence import check_divergence
 from drivers.world.friction import JointFriction
+from drivers.world.latch import take
 from drivers.world.world import INERTIA_REUSE_RAD, SimWorld
 
 __all__ = ["WORLD_FIELDS", "TorqueStepper", "unfit"]
@@ -70,7 +70,6 @@ _JOINT_MODES = (ArmMode.JOINT_POSITION, ArmMode.JOINT_IMPEDANCE)
 #: The contact wrench of a cycle without contact (shared by all of them: read-only).
 _NO_CONTACT = np.zeros(6)
 _NO_CONTACT.flags.writeable = False
-_isfinite = math.isfinite
 
 
 def unfit(world: SimWorld) -> str | None:
@@ -103,10 +102,6 @@ class TorqueStepper:
         n = self._n = world.scene.arm.description.joints
         qa, va = w._qa, w._va
         ctl = world.scene.controller
-        desc = world.scene.arm.description
-        self._lower = np.radians(desc.lower_limits_deg)
-        self._upper = np.radians(desc.position_limits_deg)
-        self._stiffness_max = ctl.jnt_stiffness_max
         self._position_k = np.full(n, ctl.jnt_position_stiffness)
         self._position_d = np.full(n, ctl.jnt_position_damping)
         # the actuators: the arm's joints first, then six Cartesian, then six wrench ones
@@ -200,27 +195,12 @@ class TorqueStepper:
         """
         w = self.world
         self._dirty = True
-        if mode is not None and mode != w.mode:
-            if mode not in _JOINT_MODES:
-                raise InvalidCommandError(f"control mode {mode!r}: joint modes only here")
-            w.mode = ArmMode(mode)
-            w._cart_pos = w.tcp_pose.copy()
-            w._jnt_pos = self.qpos.copy()
-        _joint_mode(w.mode)
-        w._warning = 0
-        if jnt_pos_rad is not None:
-            w._jnt_pos = np.clip(_finite(jnt_pos_rad, self._n, "jnt_pos"),
-                                 self._lower, self._upper)
-        if jnt_trq_nm is not None:
-            w._jnt_trq = _finite(jnt_trq_nm, self._n, "add_jnt_trq")
-        if jnt_stiffness_nmprad is not None:
-            k = _finite(jnt_stiffness_nmprad, self._n, "jnt_stiffness")
-            w._jnt_stiff = np.clip(k, 0.0, self._stiffness_max)
-            if np.any(w._jnt_stiff != k):
-                w._warning |= 0x0001  # ArmWarning.STIFFNESS_CLIPPED
-        if jnt_damping_ratio is not None:
-            w._jnt_damp = np.clip(_finite(jnt_damping_ratio, self._n, "jnt_damping"),
-                                  0.0, 1.0)
+        if mode is not None and mode not in _JOINT_MODES:
+            raise InvalidCommandError(f"control mode {mode!r}: joint modes only here")
+        _joint_mode(w.mode if mode is None else mode)
+        take(w, ArmCommand(mode=mode, jnt_pos_rad=jnt_pos_rad, jnt_trq_nm=jnt_trq_nm,
+                           jnt_stiffness_nmprad=jnt_stiffness_nmprad,
+                           jnt_damping_ratio=jnt_damping_ratio))
 
     def torque(self, jnt_trq_nm: F64) -> None:
         """Latch the joint torques only, into the actuators now: ``jnt_trq_nm`` is kept as
@@ -342,9 +322,3 @@ def _joint_mode(mode: ArmMode) -> None:
     if mode not in _JOINT_MODES:
         raise InvalidCommandError(f"a joint mode first: the world is in {ArmMode(mode).name}")
 
-
-def _finite(v: F64, n: int, name: str) -> F64:
-    a = np.array(v, dtype=np.float64)
-    if a.shape != (n,) or not all(map(_isfinite, a.tolist())):
-        raise InvalidCommandError(f"{name} must be {n} finite values")
-    return a

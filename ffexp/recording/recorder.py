@@ -157,6 +157,14 @@ class Recorder:
         self._channels[topic] = cid
         return int(cid)
 
+    def _series_channel(self, topic: str, times_ns: list[int]) -> int:
+        """The channel of a series of ``topic``'s messages at ``times_ns`` (not empty),
+        after checking that no time is negative."""
+        if min(times_ns) < 0:
+            raise ValueError(f"{topic}: negative log time {min(times_ns)} ns")
+        ch = self._channels.get(topic)
+        return self._channel(topic) if ch is None else ch
+
     def record(self, topic: str) -> np.ndarray:
         """The preallocated one-element record of a CDR topic (fill, then :meth:`write`)."""
         rec = self._records.get(topic)
@@ -221,11 +229,7 @@ class Recorder:
         F/T samples): :meth:`write_bytes` for each, in one call."""
         if not times_ns:
             return
-        if min(times_ns) < 0:
-            raise ValueError(f"{topic}: negative log time {min(times_ns)} ns")
-        ch = self._channels.get(topic)
-        if ch is None:
-            ch = self._channel(topic)
+        ch = self._series_channel(topic, times_ns)
         n = len(times_ns)
         self._writer.add_series(ch, times_ns, datas)
         self.message_count += n
@@ -248,11 +252,7 @@ class Recorder:
         the rows are encoded now and written through :meth:`write_series`."""
         if not times_ns:
             return
-        if min(times_ns) < 0:
-            raise ValueError(f"{topic}: negative log time {min(times_ns)} ns")
-        ch = self._channels.get(topic)
-        if ch is None:
-            ch = self._channel(topic)
+        ch = self._series_channel(topic, times_ns)
         template = self._row_templates.get(topic)
         if template is None:  # zeros, the CDR header set
             template = self._row_templates[topic] = CDR_TOPICS[topic].spec.new_record()

@@ -35,18 +35,20 @@ import numpy as np
 from drivers.description.funnel import capsule_tool_cone, tool_cone_spheres
 from drivers.description.scene import FunnelGeometry, Scene
 
-__all__ = ["target_funnel_geoms", "tool_funnel_geoms"]
+__all__ = ["mjcf_num", "mjcf_vec", "target_funnel_geoms", "tool_funnel_geoms"]
 
 _TOOL = 'contype="1" conaffinity="2"'
 _TARGET = 'contype="2" conaffinity="1"'
 
 
-def _f(v: float) -> str:
+def mjcf_num(v: float) -> str:
+    """A number as the scene's MJCF writes it (9 significant digits)."""
     return f"{v:.9g}"
 
 
-def _vec(v: object) -> str:
-    return " ".join(_f(float(x)) for x in v)  # type: ignore[attr-defined]
+def mjcf_vec(v: object) -> str:
+    """Numbers as the scene's MJCF writes them, separated by spaces."""
+    return " ".join(mjcf_num(float(x)) for x in v)  # type: ignore[attr-defined]
 
 
 # ----------------------------------------------------------------- the tool
@@ -59,7 +61,8 @@ def tool_funnel_geoms(scene: Scene, tip_z: float, funnel_class: str) -> str:
     for k, (a, rho) in enumerate(tool_cone_spheres(scene)):
         name = "tool_nose" if k == 0 else f"tool_sphere{k}"
         out.append(
-            f'<geom name="{name}" type="sphere" size="{_f(rho)}" pos="0 0 {_f(tip_z - a)}" '
+            f'<geom name="{name}" type="sphere" size="{mjcf_num(rho)}" '
+            f'pos="0 0 {mjcf_num(tip_z - a)}" '
             f'{_TOOL} class="{funnel_class}"/>'
         )
     return "\n".join(out)
@@ -72,15 +75,15 @@ def _tool_capsules(scene: Scene, tip_z: float, funnel_class: str) -> str:
     z1 = tip_z - nose
     z2 = tip_z - f.depth
     out = [
-        f'<geom name="tool_nose" type="sphere" size="{_f(nose)}" pos="0 0 {_f(z1)}" '
+        f'<geom name="tool_nose" type="sphere" size="{mjcf_num(nose)}" pos="0 0 {mjcf_num(z1)}" '
         f'{_TOOL} class="{funnel_class}"/>'
     ]
     for k in range(f.generators):
         phi = (k + 0.5) * 2.0 * math.pi / f.generators
         c, s = math.cos(phi), math.sin(phi)
         out.append(
-            f'<geom name="tool_gen{k}" type="capsule" size="{_f(f.capsule_radius)}" '
-            f'fromto="{_f(a1 * c)} {_f(a1 * s)} {_f(z1)} {_f(a2 * c)} {_f(a2 * s)} {_f(z2)}" '
+            f'<geom name="tool_gen{k}" type="capsule" size="{mjcf_num(f.capsule_radius)}" '
+            f'fromto="{mjcf_vec((a1 * c, a1 * s, z1, a2 * c, a2 * s, z2))}" '
             f'{_TOOL} class="{funnel_class}"/>'
         )
     return "\n".join(out)
@@ -108,8 +111,8 @@ def target_funnel_geoms(f: FunnelGeometry, funnel_class: str) -> str:
         centre = np.array([f.depth / 2.0, 0.0, 0.0]) + r_mid * e_r + half_thick * outward
         out.append(
             f'<geom name="target_panel{k}" type="box" '
-            f'size="{_f(half_len)} {_f(half_width)} {_f(half_thick)}" pos="{_vec(centre)}" '
-            f'xyaxes="{_vec(along)} {_vec(e_phi)}" {_TARGET} class="{funnel_class}"/>'
+            f'size="{mjcf_vec((half_len, half_width, half_thick))}" pos="{mjcf_vec(centre)}" '
+            f'xyaxes="{mjcf_vec(along)} {mjcf_vec(e_phi)}" {_TARGET} class="{funnel_class}"/>'
         )
     return "\n".join(out)
 
@@ -124,8 +127,8 @@ def _target_capsules(f: FunnelGeometry, funnel_class: str) -> str:
         phi = k * 2.0 * math.pi / f.generators
         c, s = math.cos(phi), math.sin(phi)
         out.append(
-            f'<geom name="target_gen{k}" type="capsule" size="{_f(r)}" '
-            f'fromto="0 {_f(r1 * c)} {_f(r1 * s)} {_f(f.depth)} {_f(r2 * c)} {_f(r2 * s)}" '
+            f'<geom name="target_gen{k}" type="capsule" size="{mjcf_num(r)}" '
+            f'fromto="0 {mjcf_vec((r1 * c, r1 * s, f.depth, r2 * c, r2 * s))}" '
             f'{_TARGET} class="{funnel_class}"/>'
         )
     return "\n".join(out)

@@ -36,6 +36,8 @@ from drivers.description.funnel import tool_tip_offset
 from drivers.description.layout import Layout
 from drivers.description.scene import ObjectSettings, Scene
 from drivers.world import funnels
+from drivers.world.funnels import mjcf_num as _f
+from drivers.world.funnels import mjcf_vec as _vec
 from drivers.world.rendered import flange_xml
 
 #: The arm's joint names (``a1`` .. ``a7``; the first six for a six-joint arm).
@@ -72,14 +74,6 @@ _GLASS = 'contype="8" conaffinity="4"'
 _VISUAL = 'contype="0" conaffinity="0"'
 # An object collides with the tool as the target's funnel does (drivers.world.funnels).
 _OBJECT = 'contype="2" conaffinity="1"'
-
-
-def _f(v: float) -> str:
-    return f"{v:.9g}"
-
-
-def _vec(v: object) -> str:
-    return " ".join(_f(float(x)) for x in v)  # type: ignore[attr-defined]
 
 
 def arm_xml(scene: Scene) -> str:

@@ -159,13 +159,15 @@ SPEC = CDR_TOPICS[TOPIC].spec
 
 def write_file(path: Path, times: list[int], *,
                compression: CompressionType = CompressionType.ZSTD,
-               index_types: IndexType = IndexType.ALL, chunk_size: int = 600) -> None:
+               index_types: IndexType = IndexType.ALL, chunk_size: int = 600,
+               chunked: bool = True) -> None:
     """A file of /ft/raw records at ``times`` (in that order), a JSON topic beside it,
     a topic of a nested schema and one of an unknown encoding, metadata and an
     attachment; small chunks."""
     rng = np.random.default_rng(len(times))
     with path.open("wb") as fh:
-        w = Writer(fh, chunk_size=chunk_size, compression=compression, index_types=index_types)
+        w = Writer(fh, chunk_size=chunk_size, compression=compression, index_types=index_types,
+                   use_chunking=chunked)
         w.start()
         ft = w.register_channel(TOPIC, "cdr", w.register_schema(
             SPEC.name, "ros2msg", SPEC.ros2msg.encode()))
@@ -193,11 +195,14 @@ TIMES = [50, 10, 30, 10, 20, 90, 30, 30, 5, 70, 60, 10, 45, 45, 80, 15, 30, 100,
 
 
 @pytest.mark.parametrize("compression", list(CompressionType))
-@pytest.mark.parametrize("index_types", [IndexType.ALL, IndexType.CHUNK])
+@pytest.mark.parametrize(("index_types", "chunked"), [
+    (IndexType.ALL, True), (IndexType.CHUNK, True),  # without message indexes
+    (IndexType.NONE, True), (IndexType.ALL, False),  # no chunk index: mcap reads from the start
+])
 def test_any_compression_index_and_order(tmp_path: Path, compression: CompressionType,
-                                         index_types: IndexType) -> None:
+                                         index_types: IndexType, chunked: bool) -> None:
     path = tmp_path / "x.mcap"
-    write_file(path, TIMES, compression=compression, index_types=index_types)
+    write_file(path, TIMES, compression=compression, index_types=index_types, chunked=chunked)
     rec = load(path)
     assert_same(rec, load_with_mcap(path))
     assert rec.topics[TOPIC].log_time_ns.tolist() == sorted(TIMES)

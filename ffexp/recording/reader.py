@@ -155,7 +155,7 @@ def _finished_messages(
             out.schemas = dict(summary.schemas)
             if topics is not None:
                 out.channels = {k: c for k, c in out.channels.items() if c.topic in topics}
-            if fast:
+            if fast and summary.chunk_indexes:  # else mcap reads the file from its start
                 ids = None if topics is None else set(out.channels)
                 out.columns = read_messages(fh, summary, ids, start_ns, end_ns)
             else:

@@ -252,7 +252,9 @@ def _load(path: Path, topics: Iterable[str] | None, start_ns: int | None,
         ]
     if stream.columns is not None:
         decode_channels(rec, stream.channels, stream.schemas, stream.columns)
-    _decode_into(rec, stream)
+    else:
+        _decode_into(rec, stream)
+    _records_into(rec, stream)
     if start_ns is not None:  # the attached frames were written at the run's start
         fixed = [c.topic for c in stream.channels.values() if attached.is_attached(c.topic)
                  and not len(rec.json.get(c.topic, ()))]
@@ -307,11 +309,11 @@ def _check_run_end(rec: Recording) -> None:
 
 
 def _decode_into(rec: Recording, stream: _Stream) -> None:
-    """The stream's messages (mcap's objects), metadata and attachments into ``rec``."""
+    """The stream's messages (mcap's objects) into ``rec``."""
     by_channel: dict[int, list[Message]] = {}
     for m in stream.messages:
         by_channel.setdefault(m.channel_id, []).append(m)
-    for cid, channel in stream.channels.items() if stream.columns is None else ():
+    for cid, channel in stream.channels.items():
         msgs = by_channel.get(cid, [])
         schema = stream.schemas.get(channel.schema_id)
         times = np.fromiter((m.log_time for m in msgs), dtype=np.int64, count=len(msgs))
@@ -345,6 +347,10 @@ def _decode_into(rec: Recording, stream: _Stream) -> None:
             rec.warnings.append(
                 f"{rec.path}: {channel.topic}: encoding {channel.message_encoding!r} skipped"
             )
+
+
+def _records_into(rec: Recording, stream: _Stream) -> None:
+    """The stream's metadata and attachments into ``rec``."""
     for md in stream.metadata:
         rec.metadata[md.name] = dict(md.metadata)
     for att in stream.attachments:

@@ -2,10 +2,13 @@
 ``Recording.frame``), and recovery of files whose writer never finished.
 
 A finished file is read through its summary: topic and time-range selection
-use the chunk index (``SeekingReader.iter_messages``), so only the chunks that
-hold the wanted topics and times are decompressed. An unfinished file (killed
-run) has no footer; it is read record by record from the start, keeping every
-complete chunk, until the stream ends (``EndOfFile``) or breaks off in the
+use the chunk index, so only the chunks that hold the wanted topics and times are
+read; their messages are found and decoded a topic at once, with no Python object
+per message (:mod:`ffexp.recording.chunks`, :mod:`ffexp.recording.columns`).
+:func:`load_with_mcap` reads the same through mcap's ``iter_messages`` (an object
+per message), the reference ``load`` is tested and measured against. An unfinished
+file (killed run) has no footer; it is read record by record from the start, keeping
+every complete chunk, until the stream ends (``EndOfFile``) or breaks off in the
 middle of a record (``struct.error``). Chunk CRCs are checked: a finished file with
 a corrupt chunk is an :class:`InputError` naming the file and pointing to
 ``ffexp recover``, which rewrites every chunk but the corrupt ones.
@@ -14,12 +17,11 @@ a corrupt chunk is an :class:`InputError` naming the file and pointing to
 from __future__ import annotations
 
 import json
-import re
 import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from mcap.exceptions import EndOfFile, McapError
@@ -32,113 +34,21 @@ from zstandard import ZstdError
 from drivers.config import not_regular
 from ffexp.errors import InputError
 from ffexp.recording import attached
-from ffexp.recording.schema import FieldSpec, MessageSpec
-from ffexp.recording.topics import CDR_TOPICS
+from ffexp.recording.chunks import ChannelMessages, read_messages
+from ffexp.recording.columns import decode_channels
+from ffexp.recording.data import JsonData, Recording, TopicData, spec_from_schema
 
-if TYPE_CHECKING:
-    import pandas as pd
+__all__ = [
+    "RECOVERY_METADATA", "RUN_END_TOPIC", "Contents", "JsonData", "Recording", "RecoverResult",
+    "TopicData", "check_file", "contents", "load", "load_with_mcap", "recover", "run_seconds",
+    "spec_from_schema",
+]
 
 MAGIC = b"\x89MCAP0\r\n"
 # OSError: a file shorter than a footer cannot even be seeked to its summary
 _READ_ERRORS = (EndOfFile, McapError, struct.error, ValueError, MemoryError, OSError)
 # a chunk whose data cannot be decompressed, or whose CRC does not match (a ValueError)
 _CHUNK_ERRORS = (ZstdError, McapError, struct.error, ValueError, MemoryError)
-
-
-@dataclass
-class TopicData:
-    """One CDR topic: log times and one array per field (first axis = message)."""
-
-    log_time_ns: np.ndarray
-    fields: dict[str, np.ndarray]
-
-    def __len__(self) -> int:
-        return int(self.log_time_ns.shape[0])
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        return self.fields[name]
-
-
-@dataclass
-class JsonData:
-    """One JSON topic: log times and the decoded messages."""
-
-    log_time_ns: np.ndarray
-    messages: list[dict[str, Any]]
-
-    def __len__(self) -> int:
-        return len(self.messages)
-
-
-@dataclass
-class Recording:
-    """What :func:`load` returns."""
-
-    path: Path
-    topics: dict[str, TopicData] = field(default_factory=dict)
-    json: dict[str, JsonData] = field(default_factory=dict)
-    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
-    attachments: dict[str, bytes] = field(default_factory=dict)
-    complete: bool = True
-    """False when the file was not finished (read up to its last complete chunk), or when
-    a run's recording lacks the run's end (a killed run's file, even once recovered)."""
-    warnings: list[str] = field(default_factory=list)
-
-    def topic(self, name: str) -> TopicData:
-        """A CDR topic; an :class:`InputError` naming the file if it is absent."""
-        try:
-            return self.topics[name]
-        except KeyError:
-            raise InputError(f"{self.path}: no topic {name} in this recording") from None
-
-    @property
-    def run_start_ns(self) -> int:
-        """Log time of the run's start (run time 0): the first ``/robot/state`` message
-        (the first cycle), else the first ``/control/command``, else the earliest
-        message loaded, else 0."""
-        for name in ("/robot/state", "/control/command"):
-            data = self.topics.get(name)
-            if data is not None and len(data):
-                return int(data.log_time_ns[0])
-        firsts = [int(d.log_time_ns[0]) for d in self.topics.values() if len(d)]
-        firsts += [int(d.log_time_ns[0]) for d in self.json.values() if len(d)]
-        return min(firsts, default=0)
-
-    def frame(self, name: str) -> pd.DataFrame:
-        """One topic as a pandas frame: ``t_s`` (seconds from :attr:`run_start_ns`),
-        ``log_time_ns`` and one column per field, array fields split into ``name_0 ..
-        name_k`` (:mod:`ffexp.recording.frames`)."""
-        from ffexp.recording.frames import frame
-
-        return frame(self, name)
-
-    def frames(self) -> dict[str, pd.DataFrame]:
-        """Every topic as a frame (:meth:`frame`), by topic name."""
-        return {name: self.frame(name) for name in (*self.topics, *self.json)}
-
-
-_LINE = re.compile(r"^\s*([a-z0-9]+)(?:\[(\d+)\])?\s+([A-Za-z_][A-Za-z0-9_]*)\s*(?:#.*)?$")
-
-
-def spec_from_schema(schema: Schema) -> MessageSpec | None:
-    """A flat fixed-size ros2msg schema as a :class:`MessageSpec`, else None."""
-    known = {t.spec.name: t.spec for t in CDR_TOPICS.values()}
-    if schema.name in known and schema.data.decode(errors="replace") == known[schema.name].ros2msg:
-        return known[schema.name]
-    fields = []
-    for raw in schema.data.decode(errors="replace").splitlines():
-        if not raw.strip() or raw.lstrip().startswith("#"):
-            continue
-        if raw.startswith("====="):
-            return None  # nested message definitions: not a flat message
-        m = _LINE.match(raw)
-        if m is None:
-            return None
-        try:
-            fields.append(FieldSpec(m.group(3), m.group(1), int(m.group(2) or 1)))
-        except ValueError:
-            return None
-    return MessageSpec(schema.name, tuple(fields)) if fields else None
 
 
 def check_file(path: Path) -> None:
@@ -179,6 +89,8 @@ class _Stream:
     error: str = ""
     corrupt: list[int] = field(default_factory=list)
     """Numbers (from 1) of the chunks left out: their data is corrupt."""
+    columns: dict[int, ChannelMessages] | None = None
+    """The messages by channel, read chunk by chunk (then ``messages`` is empty)."""
 
 
 def _records(reader: StreamReader, out: _Stream) -> Iterator[Any]:
@@ -222,11 +134,12 @@ def _read_stream(path: Path) -> _Stream:
 
 def _finished_messages(
     path: Path, topics: list[str] | None, start_ns: int | None, end_ns: int | None,
-    extra: list[str],
+    extra: list[str], fast: bool,
 ) -> tuple[_Stream, bool]:
     """Read a finished file through its index; (stream, False) if it has none. ``topics``
     gets the topics its attached frames need (:func:`attached.helpers`), also in
-    ``extra``."""
+    ``extra``. ``fast``: the messages as columns (:func:`read_messages`), else as mcap's
+    ``Message`` objects."""
     out = _Stream(complete=True)
     summary = None
     with path.open("rb") as fh:
@@ -238,18 +151,22 @@ def _finished_messages(
             if topics is not None:
                 extra += attached.helpers(topics, (c.topic for c in summary.channels.values()))
                 topics += extra
-            # file order is cheaper than the reader's merge by time; each topic
-            # is sorted by log time when it is decoded
-            kwargs: dict[str, Any] = {"topics": topics, "log_time_order": False}
-            if start_ns is not None:
-                kwargs["starting_at"] = start_ns
-            if end_ns is not None:
-                kwargs["ending_before"] = end_ns
-            out.messages = [message for _s, _c, message in reader.iter_messages(**kwargs)]
             out.channels = dict(summary.channels)
             out.schemas = dict(summary.schemas)
             if topics is not None:
                 out.channels = {k: c for k, c in out.channels.items() if c.topic in topics}
+            if fast and summary.chunk_indexes:  # else mcap reads the file from its start
+                ids = None if topics is None else set(out.channels)
+                out.columns = read_messages(fh, summary, ids, start_ns, end_ns)
+            else:
+                # file order is cheaper than the reader's merge by time; each topic
+                # is sorted by log time when it is decoded
+                kwargs: dict[str, Any] = {"topics": topics, "log_time_order": False}
+                if start_ns is not None:
+                    kwargs["starting_at"] = start_ns
+                if end_ns is not None:
+                    kwargs["ending_before"] = end_ns
+                out.messages = [message for _s, _c, message in reader.iter_messages(**kwargs)]
             out.metadata = [
                 Metadata(name=m.name, metadata=m.metadata) for m in reader.iter_metadata()
             ]
@@ -289,12 +206,29 @@ def load(
     An unfinished file loads what it holds, with ``complete = False`` and a
     warning. Raises :class:`InputError` for a missing, empty or non-MCAP file.
     """
-    path = Path(path)
+    return _load(Path(path), topics, start_ns, end_ns, fast=True)
+
+
+def load_with_mcap(
+    path: Path | str,
+    topics: Iterable[str] | None = None,
+    start_ns: int | None = None,
+    end_ns: int | None = None,
+) -> Recording:
+    """:func:`load` with a finished file's messages read through mcap's own
+    ``SeekingReader.iter_messages`` (a ``Message`` object per message, decoded from
+    those): how ``load`` read before it read chunks itself, kept as the reference
+    its tests and ``benchmarks/bench_load.py`` compare it with."""
+    return _load(Path(path), topics, start_ns, end_ns, fast=False)
+
+
+def _load(path: Path, topics: Iterable[str] | None, start_ns: int | None,
+          end_ns: int | None, fast: bool) -> Recording:
     _check_magic(path)
     asked = None if topics is None else list(topics)
     wanted = None if asked is None else list(asked)
     extra: list[str] = []
-    stream, indexed = _finished_messages(path, wanted, start_ns, end_ns, extra)
+    stream, indexed = _finished_messages(path, wanted, start_ns, end_ns, extra, fast)
     rec = Recording(path=path)
     cut = ""
     if not indexed:
@@ -316,12 +250,16 @@ def load(
             and (start_ns is None or m.log_time >= start_ns)
             and (end_ns is None or m.log_time < end_ns)
         ]
-    _decode_into(rec, stream)
+    if stream.columns is not None:
+        decode_channels(rec, stream.channels, stream.schemas, stream.columns)
+    else:
+        _decode_into(rec, stream)
+    _records_into(rec, stream)
     if start_ns is not None:  # the attached frames were written at the run's start
         fixed = [c.topic for c in stream.channels.values() if attached.is_attached(c.topic)
                  and not len(rec.json.get(c.topic, ()))]
         if fixed:
-            rec.json.update(load(path, fixed).json)
+            rec.json.update(_load(path, fixed, None, None, fast).json)
     attached.resolve(rec, extra)
     if cut:  # times in the run's seconds (its first cycle is 0), as everywhere else
         upto = "" if last is None else f" up to {run_seconds(rec, last):.3f} s of the run"
@@ -371,6 +309,7 @@ def _check_run_end(rec: Recording) -> None:
 
 
 def _decode_into(rec: Recording, stream: _Stream) -> None:
+    """The stream's messages (mcap's objects) into ``rec``."""
     by_channel: dict[int, list[Message]] = {}
     for m in stream.messages:
         by_channel.setdefault(m.channel_id, []).append(m)
@@ -408,6 +347,10 @@ def _decode_into(rec: Recording, stream: _Stream) -> None:
             rec.warnings.append(
                 f"{rec.path}: {channel.topic}: encoding {channel.message_encoding!r} skipped"
             )
+
+
+def _records_into(rec: Recording, stream: _Stream) -> None:
+    """The stream's metadata and attachments into ``rec``."""
     for md in stream.metadata:
         rec.metadata[md.name] = dict(md.metadata)
     for att in stream.attachments:

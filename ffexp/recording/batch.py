@@ -104,7 +104,7 @@ def missing_topic(path: object, metadata: Mapping[str, Mapping[str, str]],
     for topic in needed:
         if topic not in have:
             return (f"{path}: a lean recording (the topics the metrics read): it has no "
-                    f"{topic}; run it again without --lean for a full recording")
+                    f"{topic} (run it again recording full: without --lean, or with --full)")
     return None
 
 

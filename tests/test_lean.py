@@ -56,6 +56,8 @@ def test_a_lean_runs_row_is_the_full_runs_row(tmp_path: Path, name: str,
     row_full, row_lean = flat_metrics(metrics(full)), flat_metrics(metrics(lean))
     assert row_lean == row_full
     assert row_full["first_contact_s"] is not None  # each case reaches contact
+    if name.startswith("method") and not any(o.startswith("limits.") for o in overrides):
+        assert row_full["mean_fz_align_n"] is not None  # and ALIGN
     if any(o.startswith("limits.") for o in overrides):
         assert row_full["aborted"] and "workspace limit" in row_full["aborted"]
     # the file says what it is; a full file is as before (no such metadata)

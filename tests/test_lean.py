@@ -121,6 +121,15 @@ def test_a_lean_run_log_builds_no_message_it_does_not_keep(
     assert calls["transform"] > 0  # the same counter sees a full run's /tf
 
 
+def test_lean_keeps_the_metrics_topics_and_every_scenarios_measures() -> None:
+    for topic in ("/estimator/state", "/control/terms", "/robot/state", "/runner/phase",
+                  "/robot/link", "/task/funnel", "/task/docking6"):
+        assert lean_topic(topic), topic
+    for topic in ("/ft/raw", "/control/command", "/robot/measurement", "/robot/command",
+                  "/scene/rig"):
+        assert not lean_topic(topic, "/sim"), topic
+
+
 def test_serves_full_always_lean_only_for_lean() -> None:
     lean_job, full_job = (Job("a", "p.toml", (), "out", lean=True), Job("a", "p.toml", (), "out"))
     assert serves({"recording": "full"}, lean_job) and serves({"recording": "full"}, full_job)

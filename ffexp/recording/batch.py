@@ -56,17 +56,24 @@ LEAN_TOPICS: frozenset[str] = frozenset({
 })
 
 
-@cache
 def lean_topics() -> frozenset[str]:
-    """Every topic a lean recording keeps but the truth's: :data:`LEAN_TOPICS` and the
+    """Every topic a lean recording keeps but the truth's: :data:`LEAN_TOPICS`, the
     back-ends' link topics the metrics read (the link statistics of
     :func:`drivers.registry.link_stats`, the link-fault counters of
     :func:`ffexp.linkcheck.fault_topics`: FRI ``/robot/link``, a UR's ``/robot/ur``,
-    ...), so that a lean run's metrics are the full run's."""
+    ...), so that a lean run's metrics are the full run's, and every registered
+    scenario's own measures (:func:`ffexp.scenarios.scenario_topics`: ``/task/funnel``,
+    ``/task/docking6``)."""
     from drivers import registry
+    from ffexp.scenarios import scenario_topics
 
     links = {s.topic for s in registry.link_stats()} | {c.topic for c in registry.link_faults()}
-    return LEAN_TOPICS | frozenset(links)
+    return LEAN_TOPICS | frozenset(links) | _task_topics(scenario_topics())
+
+
+@cache
+def _task_topics(topics: tuple[Any, ...]) -> frozenset[str]:
+    return frozenset(t.topic for t in topics)
 
 
 def lean_topic(topic: str, truth_prefix: str | None = None) -> bool:
@@ -180,6 +187,7 @@ class BatchRecorder:
         self.recorders: list[Recorder | None] = list(recorders)
         self.lean = lean
         self.truth_prefix = truth_prefix
+        self._kept: dict[str, bool] = {}
         for rec in recorders:
             rec.metadata(RECORDING_METADATA, lean_metadata(lean, truth_prefix))
 
@@ -194,7 +202,12 @@ class BatchRecorder:
 
     def keeps(self, topic: str) -> bool:
         """Whether this batch's recordings write ``topic``."""
-        return not self.lean or lean_topic(topic, self.truth_prefix)
+        if not self.lean:
+            return True
+        kept = self._kept.get(topic)
+        if kept is None:
+            kept = self._kept[topic] = lean_topic(topic, self.truth_prefix)
+        return kept
 
     def encoder(self, topic: str) -> BatchEncoder:
         """A new :class:`BatchEncoder` of ``topic`` for this batch's runs."""

@@ -7,8 +7,8 @@
 on the results page, docs/results/). Every run's metrics are computed again from
 its recording (``ffexp analyze``), so the page follows the analysis of today's
 code; lean sweeps (``ffexp sweep --lean``) serve it as well as full ones (a lean
-file holds every topic the metrics read). Prints one markdown table per question and writes one figure per question
-(PNG) into ``FIGURES_DIR``.
+file holds every topic the metrics read). Prints one markdown table per question
+and writes one figure per question (PNG) into ``FIGURES_DIR``.
 """
 
 from __future__ import annotations

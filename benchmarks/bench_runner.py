@@ -1,6 +1,7 @@
 """One paper experiment in lockstep, against bare physics and the bare world, in the same run.
 
     python benchmarks/bench_runner.py [--protocol P] [--seconds S] [--repeats R] [--zero-g P6]
+                                      [--lean-only]
 
 Runs the protocol (default Method I case I) for ``S`` seconds of simulated
 time through ``ffexp.experiment.run_file`` on the built-in sim rig: the
@@ -27,6 +28,13 @@ step's and the recording's parts in microseconds per cycle. That clock is the
 calling thread's CPU time (``time.thread_time_ns``), not the wall clock: on
 this shared two-core machine a cycle preempted by another process would
 otherwise charge the wait to whichever part it was in.
+
+Last, lean against full (a study's recording, ``run_file(lean=True)``), measured in
+turn in the same session: the recording's thread CPU time per cycle (the run log's
+``samples`` and ``cycle`` calls, what they frame included; instrumented runs, medians
+of the repeats), the loop's own wall-clock part "recording" of runs not instrumented,
+and the analysis of the file (``analysis.metrics(load(path))``, wall
+time per run, the median of five reads of each file).
 """
 
 from __future__ import annotations
@@ -47,8 +55,10 @@ from drivers.fri.emulate.lockstep import open_sim
 from drivers.world.arm import ArmCommand, ArmMode
 from drivers.world.world import SimWorld
 from ffexp import loop
+from ffexp.analysis import metrics
 from ffexp.experiment import run_file
 from ffexp.protocol import load_run_protocol, scene_path
+from ffexp.recording import load
 from ffexp.runlog import RunLog
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -183,6 +193,52 @@ def zero_g_ratio(ppath: Path, seconds: float, repeats: int) -> float:
     return statistics.median(ratios)
 
 
+#: The run log's calls that make a cycle's recording (the rest of PARTS is inside them).
+RECORDING = ("recording: F/T samples", "recording: cycle")
+
+
+def lean_against_full(ppath: Path, seconds: float, repeats: int) -> None:
+    """Per cycle, the recording's thread CPU time and, per run, the analysis of the file:
+    full and lean in turn, ``repeats`` times each; medians and their ratios."""
+    cost: dict[bool, list[float]] = {False: [], True: []}
+    wall: dict[bool, list[float]] = {False: [], True: []}
+    analysis: dict[bool, list[float]] = {False: [], True: []}
+    sizes: dict[bool, int] = {}
+    cycles = 1
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeats):
+            for lean in (False, True):
+                with timed_parts() as acc:
+                    result = run_file(ppath, [f"run.timeout_s={seconds}", "run.stop_hold_s=0"],
+                                      out_dir=Path(tmp) / f"{lean}{i}", lean=lean)
+                cycles = max(1, result.outcome.cycles)
+                cost[lean].append(sum(acc[k][0] for k in RECORDING) / 1e3 / cycles)
+                timings: dict[str, float] = {}  # and not instrumented: the loop's own clock
+                run_file(ppath, [f"run.timeout_s={seconds}", "run.stop_hold_s=0"],
+                         out_dir=Path(tmp) / f"{lean}{i}w", lean=lean, timings=timings)
+                wall[lean].append(timings["recording"] * 1e6 / cycles)
+                sizes[lean] = result.path.stat().st_size
+                reads = []
+                for _ in range(5):
+                    t0 = time.perf_counter()
+                    metrics(load(result.path))
+                    reads.append(time.perf_counter() - t0)
+                analysis[lean].append(statistics.median(reads))
+    c_full, c_lean = statistics.median(cost[False]), statistics.median(cost[True])
+    w_full, w_lean = statistics.median(wall[False]), statistics.median(wall[True])
+    a_full, a_lean = statistics.median(analysis[False]), statistics.median(analysis[True])
+    print(f"lean against full ({ppath.name}, {cycles} cycles, {repeats} repeats, medians):")
+    print(f"  recording, thread CPU per cycle   full {c_full:7.1f} us   lean {c_lean:7.1f} us   "
+          f"lean/full {c_lean / c_full:.2f}")
+    print(f"  recording, loop's wall per cycle  full {w_full:7.1f} us   lean {w_lean:7.1f} us   "
+          f"lean/full {w_lean / w_full:.2f}  (not instrumented)")
+    print(f"  analysis (metrics(load(path)))    full {a_full * 1e3:7.1f} ms   lean "
+          f"{a_lean * 1e3:7.1f} ms   lean/full {a_lean / a_full:.2f}  "
+          f"({a_full / cycles * 1e6:.0f} / {a_lean / cycles * 1e6:.0f} us per cycle)")
+    print(f"  file size                         full {sizes[False] / 1e6:7.2f} MB   lean "
+          f"{sizes[True] / 1e6:7.2f} MB   lean/full {sizes[True] / sizes[False]:.2f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--protocol", type=Path, default=ROOT / "protocols/method1_case1.toml")
@@ -190,7 +246,12 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--zero-g", type=Path, default=ROOT / "protocols/sixdof_method1.toml",
                     help="a 6-DOF protocol on the zero-g scene: its ratio beside the first's")
+    ap.add_argument("--lean-only", action="store_true",
+                    help="only the lean-against-full comparison")
     args = ap.parse_args()
+    if args.lean_only:
+        lean_against_full(args.protocol, args.seconds, args.repeats)
+        return
     walls, unrec, bares, parts = [], [], [], []
     sim_s = args.seconds
     with tempfile.TemporaryDirectory() as tmp:
@@ -238,6 +299,7 @@ def main() -> None:
           f"us per cycle of {cycles}; calls per cycle):")
     for label, (ns, calls) in acc.items():
         print(f"  {label:<36} {ns / 1e3 / cycles:7.1f} us  {calls / cycles:5.2f}")
+    lean_against_full(args.protocol, args.seconds, args.repeats)
 
 
 if __name__ == "__main__":

@@ -164,6 +164,7 @@ def run_file(
     notice: Callable[[str], None] | None = None,
     timings: dict[str, float] | None = None,
     live: LiveOptions | LiveServer | None = None,
+    lean: bool = False,
 ) -> RunResult:
     """Run one protocol file on a rig and record it; the recording is finished even on errors.
 
@@ -173,6 +174,10 @@ def run_file(
     runs; the server stops with the run (a started :class:`~ffexp.live.LiveServer`
     given instead is fed and left to the caller to close). The recording holds the rig's 3-D scene
     (:mod:`ffexp.scene3d`).
+
+    ``lean``: record only the topics the metrics read (:class:`~ffexp.runlog.RunLog`'s
+    lean log: no F/T samples, commands, wire topics, ``/tf`` or 3-D scene; the file
+    says so in its ``recording`` metadata). Its metrics are the full recording's.
     """
     protocol = load_run_protocol(protocol_path, overrides)
     revision = _revision_beside()
@@ -231,8 +236,9 @@ def run_file(
                     rec.attach(name, data, "application/toml", start_ns)
                 if server is not None:
                     rec.taps.append(server.tap)
-                log = RunLog(rec, start_ns, protocol.run.tf_period_s)
-                writer = _scene_writer(rec, protocol_path, protocol, devices, notice)
+                log = RunLog(rec, start_ns, protocol.run.tf_period_s, lean=lean)
+                writer = None if lean else _scene_writer(rec, protocol_path, protocol,
+                                                         devices, notice)
                 if writer is not None:
                     log.sinks.append(writer)
                 outcome = loop.run(

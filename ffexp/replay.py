@@ -64,6 +64,7 @@ from ffexp.errors import InputError
 from ffexp.loop import Cycle
 from ffexp.protocol import RunProtocol, load_run_protocol, run_protocol_from
 from ffexp.recording import Recorder, Recording, TopicData, load
+from ffexp.recording.batch import missing_topic
 from ffexp.recording.reader import contents
 
 #: The tolerance of "the same command": float rounding, not a physical threshold.
@@ -369,6 +370,9 @@ def replay(
     parts = [row["topic"] for row in contents(src).rows
              if str(row["topic"]).startswith(TRUTH_PART_PREFIXES)]
     rec = load(src, (*INPUT_TOPICS, *parts))
+    lean = missing_topic(src, rec.metadata, rec.topics, ("/ft/raw", "/control/command"))
+    if lean is not None:  # a lean recording has no F/T samples to replay
+        raise InputError(lean)
     protocol = (load_run_protocol(protocol_path, list(overrides)) if protocol_path is not None
                 else recorded_protocol(rec, overrides))
     inputs = Inputs(rec)

@@ -15,6 +15,15 @@ observation (``/target/pose``, and ``/tf`` frame ``target_tracked``) and,
 every ``tf_period_s``, ``/tf``. Verdict notes of the task go to
 ``/alignment/verdict``.
 
+A lean run log (``lean=True``: a study's runs, ``ffexp run --lean``) keeps only the
+topics the metrics read (:func:`ffexp.recording.batch.lean_topic`: the estimate, the
+control terms, the robot state, the back-end's link topics, the truth, the scenario's
+measures, the tracker's ``/target/pose`` and the JSON notes) and builds no message of
+the others: no ``/ft/raw``, ``/control/command``, method topic, back-end wire topics
+(``/robot/measurement``, ``/robot/command``), ``/tf``, nor its sinks' (the 3-D
+scene). The file says so in its ``recording`` metadata
+(:func:`~ffexp.recording.batch.lean_metadata`); a full run log writes none.
+
 Without a :class:`~ffexp.recording.Recorder` (tests, benchmarks) only the
 events are kept, in :attr:`RunLog.events`.
 """
@@ -40,6 +49,7 @@ from ffexp.contracts import Phase, StopReason
 from ffexp.controllers import Controller
 from ffexp.estimation import Estimate
 from ffexp.recording import Recorder
+from ffexp.recording.batch import RECORDING_METADATA, lean_metadata, lean_topic
 from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import STATE_JOINTS
 from ffexp.recording.topics.target import TRACKED_FRAME
@@ -81,10 +91,19 @@ class RunLog:
         recorder: the open recording, or ``None``.
         start_utc_ns: log-time origin (run start in UTC).
         tf_period_s: period of ``/tf``.
+        lean: keep only the topics the metrics read (the module's doc).
+        truth_prefix: the ground truth's topic prefix a lean log keeps.
     """
 
-    def __init__(self, recorder: Recorder | None, start_utc_ns: int, tf_period_s: float) -> None:
+    def __init__(self, recorder: Recorder | None, start_utc_ns: int, tf_period_s: float, *,
+                 lean: bool = False, truth_prefix: str = GroundTruth.topic_prefix) -> None:
         self.rec = recorder
+        self.lean = lean
+        """Only the topics the metrics read are built and written."""
+        self.truth_prefix = truth_prefix
+        self._kept: dict[str, bool] = {}
+        if recorder is not None and lean:
+            recorder.metadata(RECORDING_METADATA, lean_metadata(True, truth_prefix))
         self.start_utc_ns = start_utc_ns
         self.tf_period_ns = round(tf_period_s * NS_PER_S)
         self.events: list[tuple[float, str, str]] = []
@@ -100,6 +119,15 @@ class RunLog:
         self.cycles = 0
         """Cycles written so far."""
         self._attached: object = None  # the truth's attached frames last written
+
+    def keeps(self, topic: str) -> bool:
+        """Whether this log writes ``topic`` (all of them unless :attr:`lean`)."""
+        if not self.lean:
+            return True
+        kept = self._kept.get(topic)
+        if kept is None:
+            kept = self._kept[topic] = lean_topic(topic, self.truth_prefix)
+        return kept
 
     def note(self, t_ns: int, note: Note) -> None:
         """An event, or a phase change (``/runner/phase`` and an event)."""
@@ -150,7 +178,7 @@ class RunLog:
         :meth:`cycle`, so the recording stays in log-time order."""
         rec = self.rec
         n = len(ft)
-        if rec is None or not n:
+        if rec is None or not n or self.lean:  # a lean log keeps no F/T sample
             return
         times = (ft.time_ns + (self.start_utc_ns - t0_ns)).tolist()
         # the numpy record filled row by row (seq modulo 2^32: numpy's cast into uint32),
@@ -187,10 +215,12 @@ class RunLog:
         lay = self._layouts
         if lay is None:
             lay = self._layouts = {topic: rec.layout(topic) for topic in _PACKED}
+        lean = self.lean  # then each topic's message is built only when kept
         msgs = [("/robot/state", self._state(lay["/robot/state"], state))]
         if state.extras is not None:
             for topic in state.extras.topics():
-                msgs.append((topic, rec.encode_fields(topic, state.extras)))
+                if not lean or self.keeps(topic):
+                    msgs.append((topic, rec.encode_fields(topic, state.extras)))
         msgs.append(("/estimator/state", lay["/estimator/state"].pack(
             CDR_HEADER, *est.wrench.tolist(), *est.wrench_std.tolist(), *est.bias.tolist(),
             *est.twist_tcf.tolist(), est.f_z, len(ft), int(est.in_contact))))
@@ -213,25 +243,36 @@ class RunLog:
         msgs.append(("/control/terms", lay["/control/terms"].pack(*values)))
         if phase == Phase.ALIGN and controller.topic is not None:
             topic = controller.topic.topic
-            msgs.append((topic, rec.encode_fields(topic, controller.extra)))
+            if not lean or self.keeps(topic):
+                msgs.append((topic, rec.encode_fields(topic, controller.extra)))
 
-        msgs.append(("/control/command", self._command(lay["/control/command"], intent,
-                                                       applied)))
+        if not lean or self.keeps("/control/command"):
+            msgs.append(("/control/command", self._command(lay["/control/command"], intent,
+                                                           applied)))
         if applied.extras is not None:
             for topic in applied.extras.topics():
-                msgs.append((topic, rec.encode_fields(topic, applied.extras)))
+                if not lean or self.keeps(topic):
+                    msgs.append((topic, rec.encode_fields(topic, applied.extras)))
         truth = state.truth
         if truth is not None:
             if truth.attached is not self._attached:  # once a run: frames fixed on a body
                 self._attached = truth.attached
                 fixed = truth.attached_message()
-                if fixed is not None:
+                if fixed is not None and (not lean or self.keeps(fixed[0])):
                     msgs.append((fixed[0], rec.encode_json(fixed[1])))
             for topic, source in truth.messages():
-                msgs.append((topic, rec.encode_fields(topic, source)))
+                if not lean or self.keeps(topic):
+                    msgs.append((topic, rec.encode_fields(topic, source)))
         if scenario is not None:
             for topic, source in scenario.messages():
-                msgs.append((topic, rec.encode_fields(topic, source)))
+                if not lean or self.keeps(topic):
+                    msgs.append((topic, rec.encode_fields(topic, source)))
+        if lean:
+            if target is not None and (target.frames != self._target_frames
+                                       or target.valid != self._target_valid):
+                self._target(log_ns, state, target, msgs)
+            rec.write_batch(log_ns, msgs)  # no /tf, no sink: the metrics read neither
+            return
         if t_ns >= self._next_tf_ns:
             self._next_tf_ns = t_ns + self.tf_period_ns
             msgs.append(("/tf", rec.encode_transform(log_ns, "base", "tool",
@@ -272,7 +313,7 @@ class RunLog:
         r["frames"] = target.frames & 0xFFFFFFFF
         r["age_s"] = (state.time_ns - target.time_ns) / NS_PER_S
         msgs.append(("/target/pose", r.tobytes()))
-        if target.valid:
+        if target.valid and not self.lean:
             msgs.append(("/tf", self.rec.encode_transform(log_ns, "base", TRACKED_FRAME,
                                                           target.pose_m.tolist())))
 

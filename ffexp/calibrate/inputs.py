@@ -35,6 +35,7 @@ from drivers.description.scene import Scene
 from drivers.rig import validate_rig
 from ffexp.errors import InputError
 from ffexp.recording import Recording, load
+from ffexp.recording.batch import missing_topic
 from ffexp.sweeps.keys import toml_text
 
 #: Topics read from a recording besides the applied commands' (its robot's back-end names
@@ -207,6 +208,9 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
     replay = sim.replay
     assert replay is not None  # (what registry.replayer finds)
     cmd_fields = replay.commands
+    lean = missing_topic(path, rec.metadata, rec.topics, (cmd_fields.topic, "/ft/raw"))
+    if lean is not None:  # calibration replays the commands and compares the F/T samples
+        raise InputError(lean)
     _need(rec, "/robot/state", "the measured states are what the replay is compared with")
     _need(rec, cmd_fields.topic, "a recording without the applied commands cannot be "
           f"replayed (the {sim.rig_type} robot replays them from there)")

@@ -38,6 +38,9 @@ if TYPE_CHECKING:
 
 RIG_HELP = "Rig file (rigs/*.toml): the robot and F/T back-ends and every hardware number."
 RIG_SET_HELP = "Override a rig field, e.g. --rig-set robot.port=49939 (repeatable)."
+LEAN_HELP = ("Record lean: only the topics the metrics read (no F/T samples, commands, "
+             "wire topics, /tf or 3-D scene; the metrics are the same). The file says so "
+             "in its 'recording' metadata; report, figures, replay and diff need a full one.")
 DRIVER_HELP = (f"Without --rig: the built-in rig of {', '.join(DRIVERS)} (default: sim; "
                "not with --rig).")
 WIDE_HELP = "Show every table column (default: as many as fit the terminal)."
@@ -66,7 +69,7 @@ def outcome_exit_code(outcome: RunOutcome) -> int:
 def _one(
     steps: Steps, protocol: Path, set_: Sequence[str], rig: RigChoice, out: Path,
     flag: StopFlag, label: str, rt: bool = False, cpus: Sequence[int] = (),
-    live: LiveServer | None = None, timeout_s: float | None = None,
+    live: LiveServer | None = None, timeout_s: float | None = None, lean: bool = False,
 ) -> RunResult:
     with steps.step(f"{label}: loading the protocol and the rig"):
         from ffexp.experiment import run_file
@@ -81,7 +84,7 @@ def _one(
         with steps.run(label, timeout_s) as show:
             result = run_file(
                 protocol, list(set_), rig=rig, out_dir=out, progress=show,
-                stop_requested=flag, notice=steps.note, live=live,
+                stop_requested=flag, notice=steps.note, live=live, lean=lean,
             )
     o = result.outcome
     from ffexp.contracts import StopReason
@@ -161,6 +164,7 @@ def run(
     live_address: str = typer.Option("", "--live-address", metavar="HOST:PORT",
                                      help=LIVE_ADDRESS_HELP),
     wide: bool = typer.Option(False, "--wide", help=WIDE_HELP),
+    lean: bool = typer.Option(False, "--lean", help=LEAN_HELP),
 ) -> None:
     """Run one experiment; print a summary and the path of its recording.
 
@@ -175,7 +179,7 @@ def run(
     with stop_signals(StopFlag()) as flag, live_view(live_options) as server:
         with Steps() as steps:
             result = _one(steps, protocol, set_, choice, out, flag, protocol.stem, rt, cpu,
-                          server)
+                          server, lean=lean)
             recs = []
             if _measured(result):  # a robot that never answered: the file has only events
                 with steps.step("loading the recording"):

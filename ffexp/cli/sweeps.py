@@ -41,6 +41,12 @@ OUT_HELP = (
     "again. With Ray it must be a path every worker sees (shared storage)."
 )
 SEEDS_HELP = "Noise seeds per point: the protocol's seed and the next N-1."
+RECORDING_HELP = (
+    "How the runs record: --lean only the topics the metrics read (a third of the cost "
+    "per cycle; report, figures, replay and diff need a full file), --full every topic. "
+    "The rows are the same either way; a run done before counts when its recording "
+    "serves (a full one always, a lean one for --lean); a lean one is run again for "
+    "--full. The row's 'recording' column and the study's JSON say which.")
 
 
 def _check_out(out: Path) -> None:
@@ -51,13 +57,14 @@ def _check_out(out: Path) -> None:
 
 
 @contextmanager
-def _session(out: Path, spec: ExecutorSpec, label: str) -> Iterator[tuple[Runner, Display]]:
+def _session(out: Path, spec: ExecutorSpec, label: str,
+             lean: bool = False) -> Iterator[tuple[Runner, Display]]:
     from ffexp.sweeps.engine import Stopped
     from ffexp.sweeps.session import session
 
     with stop_signals(StopFlag()) as flag:
         try:
-            with session(out, spec, label, flag) as (runner, display):
+            with session(out, spec, label, flag, lean=lean) as (runner, display):
                 yield runner, display
         except Stopped:
             pass
@@ -139,6 +146,8 @@ def sweep(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>."),
     as_json: bool = typer.Option(False, "--json", help="Print one JSON row per run on stdout."),
     draw: bool = typer.Option(True, "--figures/--no-figures", help="Heat maps / line plots."),
+    lean: bool = typer.Option(False, "--lean/--full", help=RECORDING_HELP + " Default: full "
+                              "(a sweep's runs are opened one by one)."),
 ) -> None:
     """Run a protocol over a grid (--vary) or a Latin-hypercube sample (--sample, --range).
 
@@ -146,7 +155,8 @@ def sweep(
     row go into OUT/runs/<id>/, and a run already there is not run again (kill
     the sweep, start it again: nothing is lost, nothing is run twice). Writes
     OUT/results.csv and OUT/results.parquet (one row per run) and heat maps
-    (two varied keys) or line plots (one) in OUT/figures/. Exit code: 0 when
+    (two varied keys) or line plots (one) in OUT/figures/. --lean records only
+    what the metrics read (the same rows, cheaper runs). Exit code: 0 when
     every run has its row (failed runs included), 2 bad input (before any run),
     128+N on signal N.
     """
@@ -155,6 +165,7 @@ def sweep(
     from ffexp.sweeps.executors import parse_executor
     from ffexp.sweeps.grid import execute, prepare
     from ffexp.sweeps.session import spinner
+    from ffexp.sweeps.table import recordings_note
 
     count("--seeds", seeds)
     count("--sample", sample)
@@ -165,7 +176,7 @@ def sweep(
     with spinner(sys.stderr.isatty(), "checking every point against the protocol and scene"):
         prep = prepare(protocol, vary=vary, ranges=ranges, sample=sample,
                        sample_seed=sample_seed, seeds=seeds, fixed=set_)
-    with _session(out, spec, f"sweep {prep.target.label}") as (runner, _display):
+    with _session(out, spec, f"sweep {prep.target.label}", lean) as (runner, _display):
         result = execute(prep, runner, figures=draw)
     rows = result["rows"]
     if as_json:
@@ -176,7 +187,8 @@ def sweep(
         _print_summary(f"{prep.target.label}: {len(rows)} runs", rows, keys)
     failed = sum(1 for r in rows if r.get("error"))
     err = as_json
-    typer.echo(f"{len(rows)} runs ({failed} failed) in {out}", err=err)
+    typer.echo(f"{len(rows)} runs ({failed} failed) in {out}, {recordings_note(rows)}",
+               err=err)
     for p in result["tables"] + result["figures"]:
         typer.echo(f"wrote {p}", err=err)
 
@@ -203,6 +215,8 @@ def limits(
     out: Path | None = typer.Option(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>-limits."),
     as_json: bool = typer.Option(False, "--json", help="Print the limits as JSON lines."),
+    lean: bool = typer.Option(True, "--lean/--full", help=RECORDING_HELP + " Default: lean "
+                              "(the search reads only its runs' rows)."),
 ) -> None:
     """The limits of a gain (or f_ref) between "aligns" and "does not", by the outcome rule.
 
@@ -215,7 +229,8 @@ def limits(
     plots the outcome against the key (OUT/figures/limits.png). With --key
     twice: the boundary in the plane, by bisection along rays from the centre.
     Runs are cached by id in OUT: the same call twice gives the same answer.
-    Exit code: 0 done, 2 bad input (before any run), 128+N on signal N.
+    The runs record lean unless --full. Exit code: 0 done, 2 bad input (before
+    any run), 128+N on signal N.
     """
     set_ = with_scene_sets(set_, scene_set)
     import json
@@ -228,6 +243,8 @@ def limits(
     from ffexp.sweeps.plan import Target, seeds_of
     from ffexp.sweeps.reproduce import search_budget
     from ffexp.sweeps.searches import LimitSearch
+    from ffexp.sweeps.table import recordings_note
+    from ffexp.sweeps.worker import recording_kind
 
     for option, n in (("--seeds", seeds), ("--coarse", coarse), ("--rays", n_rays)):
         count(option, n)
@@ -251,7 +268,7 @@ def limits(
     search = LimitSearch(target, keys, spans, seeds_of(target, seeds), list(res), coarse,
                          n_rays, max_breaks=max_breaks)
     search.check()
-    with _session(out, spec, f"limits {target.label}") as (runner, _display):
+    with _session(out, spec, f"limits {target.label}", lean) as (runner, _display):
         runner.plan(search_budget(search))  # the time left counts the bisection's runs
         search.run(runner)
         runner.plan(0)
@@ -260,7 +277,7 @@ def limits(
         (runner.out_dir / "limits.json").write_text(json.dumps({
             "kind": "limits", "protocol": str(protocol), "keys": key, "ranges": spans,
             "resolution": search.resolution, "seeds": search.seeds, "max_breaks": max_breaks,
-            "limits": found,
+            "limits": found, "recording": recording_kind(lean),
         }, indent=2) + "\n")
         names = [k.text for k in keys]
         fig = plots.limits_figure(
@@ -272,8 +289,8 @@ def limits(
             typer.echo(json_line(row))
     else:
         _print_limits(target.label, found, names, search.resolution)
-    typer.echo(f"{len(search.rows)} runs looked at; table and limits.json in {out}; "
-               f"figure {fig}", err=as_json)
+    typer.echo(f"{len(search.rows)} runs looked at ({recordings_note(search.rows)}); table "
+               f"and limits.json in {out}; figure {fig}", err=as_json)
 
 
 def _print_limits(
@@ -312,6 +329,9 @@ def reproduce(
     out: Path | None = typer.Option(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<config name>."),
     as_json: bool = typer.Option(False, "--json", help="Print the claim summary as JSON lines."),
+    lean: bool | None = typer.Option(None, "--lean/--full", help=RECORDING_HELP + " Default: "
+                                     "the config's recording (lean unless it says full).",
+                                     show_default=False),
 ) -> None:
     """The paper check: each claim the simulator can test, over scenes of uncertain rig
     parameters, as the fraction of scenes where it holds beside the paper's statement.
@@ -319,7 +339,8 @@ def reproduce(
     Writes OUT/scenes.csv (per scene and seed: each run's outcome and each claim),
     OUT/claims.csv (the summary), OUT/limits.csv (limits at the nominal scene),
     OUT/results.csv/.parquet (every run) and OUT/figures/claims.png. Runs are
-    cached by id in OUT (run it again: nothing is run twice). Exit code: 0 done,
+    cached by id in OUT (run it again: nothing is run twice). The runs record
+    lean unless the config says recording = "full" (or --full). Exit code: 0 done,
     2 bad input (before any run), 128+N on signal N.
     """
     set_ = with_scene_sets(set_, scene_set)
@@ -327,6 +348,7 @@ def reproduce(
     from ffexp.sweeps import reproduce as study_mod
     from ffexp.sweeps.executors import parse_executor
     from ffexp.sweeps.session import spinner
+    from ffexp.sweeps.table import recordings_note
 
     spec = parse_executor(executor)
     with spinner(sys.stderr.isatty(), f"checking {config}: every scene of every paper run"):
@@ -334,7 +356,9 @@ def reproduce(
     out = out if out is not None else Path("runs") / "sweeps" / study.config.name
     _check_out(out)
     n_runs = len(study.scenes) * len(study.targets) * len(study.config.seeds)
-    with _session(out, spec, f"reproduce {study.config.name}") as (runner, display):
+    if lean is None:
+        lean = study.config.recording == "lean"
+    with _session(out, spec, f"reproduce {study.config.name}", lean) as (runner, display):
         display.note(f"{len(study.scenes)} scenes x {len(study.targets)} paper runs x "
                      f"{len(study.config.seeds)} seed(s) = {n_runs} runs, and "
                      f"{len(study.searches)} limit search(es) at the nominal scene")
@@ -350,7 +374,8 @@ def reproduce(
                 f"{f['outcome']} {f['flips']}/{f['pairs']}" for f in result["flips"]))
         for r in result.get("regions", []):
             typer.echo(_region_line(r))
-    typer.echo(f"wrote {', '.join(p.name for p in paths)} in {out}", err=as_json)
+    typer.echo(f"wrote {', '.join(p.name for p in paths)} in {out} "
+               f"({recordings_note(result['rows'])})", err=as_json)
 
 
 def _region_line(r: dict[str, Any]) -> str:

@@ -15,14 +15,18 @@ own :class:`~ffexp.recording.Recorder`, in the order given, as one
 same order, as the run made alone). A run that leaves the batch (aligned, aborted,
 failed) is finished alone (:meth:`BatchRecorder.finish_run`); the others go on.
 
-A study may ask for lean recordings: only :data:`LEAN_TOPICS` (what the metrics,
+A study may ask for lean recordings: only :func:`lean_topics` (what the metrics,
 the outcome and the tables read) and the ground truth's topics are written, and
-every file says so in its ``recording`` metadata (``lean``, ``topics``).
+every file says so in its ``recording`` metadata (``lean``, ``topics``:
+:func:`lean_metadata`). A single run records lean the same way
+(:class:`ffexp.runlog.RunLog` with ``lean``; ``ffexp run --lean``, ``ffexp sweep
+--lean``). A file without that metadata is a full recording.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -32,25 +36,83 @@ from ffexp.recording.recorder import Recorder
 from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import CDR_TOPICS
 
-__all__ = ["LEAN_TOPICS", "BatchEncoder", "BatchRecorder", "lean_topic"]
+__all__ = ["LEAN_TOPICS", "RECORDING_METADATA", "BatchEncoder", "BatchRecorder", "is_lean",
+           "lean_metadata", "lean_topic", "lean_topics", "missing_topic"]
+
+#: The metadata record that says what a recording keeps (``lean``, ``topics``).
+RECORDING_METADATA = "recording"
 
 #: The topics a lean recording keeps: the per-cycle series of
 #: :func:`ffexp.analysis.series`, the robot's state and the scenario's measures, beside
 #: the low-rate JSON topics (events, phases, verdicts, tracker observations). A lean
-#: recording also keeps the ground truth's topics, whichever back-end writes them (the
-#: topics under its ``GroundTruth.topic_prefix``). Left out: the F/T samples, the
-#: back-end's wire messages, the commands, ``/tf`` and the 3-D scene.
+#: recording also keeps the back-ends' link topics (:func:`lean_topics`) and the ground
+#: truth's topics, whichever back-end writes them (the topics under its
+#: ``GroundTruth.topic_prefix``). Left out: the F/T samples, the back-end's wire
+#: messages (``/robot/measurement``, ``/robot/command``), the commands
+#: (``/control/command``, a method's own topic), ``/tf`` and the 3-D scene.
 LEAN_TOPICS: frozenset[str] = frozenset({
     "/estimator/state", "/control/terms", "/robot/state", "/task/funnel", "/events",
     "/runner/phase", "/alignment/verdict", "/target/pose",
 })
 
 
+def lean_topics() -> frozenset[str]:
+    """Every topic a lean recording keeps but the truth's: :data:`LEAN_TOPICS`, the
+    back-ends' link topics the metrics read (the link statistics of
+    :func:`drivers.registry.link_stats`, the link-fault counters of
+    :func:`ffexp.linkcheck.fault_topics`: FRI ``/robot/link``, a UR's ``/robot/ur``,
+    ...), so that a lean run's metrics are the full run's, and every registered
+    scenario's own measures (:func:`ffexp.scenarios.scenario_topics`: ``/task/funnel``,
+    ``/task/docking6``)."""
+    from drivers import registry
+    from ffexp.scenarios import scenario_topics
+
+    links = {s.topic for s in registry.link_stats()} | {c.topic for c in registry.link_faults()}
+    return LEAN_TOPICS | frozenset(links) | _task_topics(scenario_topics())
+
+
+@cache
+def _task_topics(topics: tuple[Any, ...]) -> frozenset[str]:
+    return frozenset(t.topic for t in topics)
+
+
 def lean_topic(topic: str, truth_prefix: str | None = None) -> bool:
-    """Whether a lean recording keeps ``topic`` (:data:`LEAN_TOPICS`, and the ground
+    """Whether a lean recording keeps ``topic`` (:func:`lean_topics`, and the ground
     truth's topics under ``truth_prefix`` when the runs have a truth)."""
-    return topic in LEAN_TOPICS or (truth_prefix is not None
-                                    and topic.startswith(truth_prefix.rstrip("/") + "/"))
+    return topic in lean_topics() or (truth_prefix is not None
+                                      and topic.startswith(truth_prefix.rstrip("/") + "/"))
+
+
+def lean_metadata(lean: bool, truth_prefix: str | None = None) -> dict[str, str]:
+    """The ``recording`` metadata of a file: ``lean`` (``true``/``false``) and ``topics``
+    (what it keeps, comma-separated: ``*`` for all, ``<prefix>/*`` for the truth's)."""
+    if not lean:
+        return {"lean": "false", "topics": "*"}
+    kept = sorted(lean_topics())
+    if truth_prefix:
+        kept.append(f"{truth_prefix.rstrip('/')}/*")
+    return {"lean": "true", "topics": ",".join(kept)}
+
+
+def is_lean(metadata: Mapping[str, Mapping[str, str]]) -> bool:
+    """Whether a recording's metadata (``Recording.metadata``) says it is lean."""
+    return metadata.get(RECORDING_METADATA, {}).get("lean") == "true"
+
+
+def missing_topic(path: object, metadata: Mapping[str, Mapping[str, str]],
+                  topics: Iterable[str], needed: Iterable[str]) -> str | None:
+    """Why a recording cannot give what a command needs: for a lean recording (its
+    ``metadata``) that lacks one of ``needed`` (its ``topics`` are those it has), one
+    line naming the file and the topic; ``None`` when it has them all or is full (a
+    full file without a topic never had it: the command's own rules apply)."""
+    if not is_lean(metadata):
+        return None
+    have = set(topics)
+    for topic in needed:
+        if topic not in have:
+            return (f"{path}: a lean recording (the topics the metrics read): it has no "
+                    f"{topic} (run it again recording full: without --lean, or with --full)")
+    return None
 
 
 class BatchEncoder:
@@ -114,7 +176,7 @@ class BatchRecorder:
 
     Args:
         recorders: each run's open recording, in the batch's run order.
-        lean: write only :data:`LEAN_TOPICS` and the truth's topics (said in each
+        lean: write only :func:`lean_topics` and the truth's topics (said in each
             file's ``recording`` metadata).
         truth_prefix: the ground truth's topic prefix (``GroundTruth.topic_prefix``)
             when the runs have a truth.
@@ -125,11 +187,9 @@ class BatchRecorder:
         self.recorders: list[Recorder | None] = list(recorders)
         self.lean = lean
         self.truth_prefix = truth_prefix
-        kept = [*sorted(LEAN_TOPICS), *([f"{truth_prefix.rstrip('/')}/*"] if truth_prefix
-                                        else [])] if lean else ["*"]
+        self._kept: dict[str, bool] = {}
         for rec in recorders:
-            rec.metadata("recording", {"lean": "true" if lean else "false",
-                                       "topics": ",".join(kept)})
+            rec.metadata(RECORDING_METADATA, lean_metadata(lean, truth_prefix))
 
     @property
     def runs(self) -> int:
@@ -142,7 +202,12 @@ class BatchRecorder:
 
     def keeps(self, topic: str) -> bool:
         """Whether this batch's recordings write ``topic``."""
-        return not self.lean or lean_topic(topic, self.truth_prefix)
+        if not self.lean:
+            return True
+        kept = self._kept.get(topic)
+        if kept is None:
+            kept = self._kept[topic] = lean_topic(topic, self.truth_prefix)
+        return kept
 
     def encoder(self, topic: str) -> BatchEncoder:
         """A new :class:`BatchEncoder` of ``topic`` for this batch's runs."""

@@ -11,10 +11,16 @@ sweep out of it):
 :meth:`Runner.run_batch` is thread-safe: ``ffexp limits`` and ``ffexp
 reproduce`` run several searches at once through one Runner. A job whose id
 is done is not submitted; a job whose id is already running is joined.
+
+The Runner records its runs lean or full (``lean``: every job is run with it, whatever
+it says): a done run counts only when its recording serves the Runner's
+(:func:`~ffexp.sweeps.worker.serves`: a full one always, a lean one for a lean Runner);
+a lean run in a full Runner is run again, full.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import shutil
 import threading
@@ -26,7 +32,15 @@ from pathlib import Path
 from typing import Any
 
 from ffexp.errors import ConfigError
-from ffexp.sweeps.worker import INPUTS_DIR, RUNS_DIR, TMP_PREFIX, Job, read_row, run_one
+from ffexp.sweeps.worker import (
+    INPUTS_DIR,
+    RUNS_DIR,
+    TMP_PREFIX,
+    Job,
+    read_row,
+    run_one,
+    serves,
+)
 
 #: How often a waiting batch wakes up to look at the stop flag (s).
 POLL_S = 0.25
@@ -72,8 +86,11 @@ class Runner:
         on_change: Callable[[Counts], None] | None = None,
         stop_requested: Callable[[], bool] = lambda: False,
         notice: Callable[[str], None] | None = None,
+        lean: bool = False,
     ) -> None:
         self.out_dir = out_dir.resolve()
+        self.lean = lean
+        """Record the runs lean (the topics the metrics read)."""
         self._executor = executor
         self.slots = max(1, slots)
         self.counts = Counts(slots=self.slots)
@@ -193,12 +210,14 @@ class Runner:
         """
         rows: dict[str, dict[str, Any]] = {}
         waiting: dict[str, Future[dict[str, Any]]] = {}
+        jobs = [job if job.lean == self.lean else dataclasses.replace(job, lean=self.lean)
+                for job in jobs]
         with self._lock:
             for job in jobs:
                 if job.run_id in rows or job.run_id in waiting:
                     continue
                 done = read_row(self.out_dir, job.run_id)
-                if done is not None:
+                if done is not None and serves(done, job):
                     rows[job.run_id] = done
                     self.counts.total += 1
                     self.counts.done += 1

@@ -19,7 +19,7 @@ from ffexp.errors import ConfigError
 from ffexp.sweeps.engine import Runner
 from ffexp.sweeps.keys import Key, Value, parse_assignment, parse_range
 from ffexp.sweeps.plan import Point, Target, grid, latin_hypercube, seeds_of
-from ffexp.sweeps.worker import INPUTS_DIR, Job
+from ffexp.sweeps.worker import INPUTS_DIR, Job, recording_kind
 
 
 @dataclass
@@ -75,7 +75,8 @@ def prepare(
 
 
 def execute(prep: Prepared, runner: Runner, figures: bool = True) -> dict[str, Any]:
-    """Run the sweep; write ``results.csv``/``.parquet``, figures and ``sweep.json``.
+    """Run the sweep; write ``results.csv``/``.parquet``, figures and ``sweep.json``
+    (``recording``: how the runs were asked to record, :attr:`Runner.lean`).
 
     Returns a summary: rows, table paths, figure paths, counts.
     """
@@ -87,6 +88,7 @@ def execute(prep: Prepared, runner: Runner, figures: bool = True) -> dict[str, A
         "protocol_id": prep.target.ident, "fixed": list(prep.target.fixed),
         "keys": [k.text for k in prep.keys], "points": len(prep.points),
         "seeds": prep.seeds, "runs": [j.run_id for j in jobs], "command": prep.command,
+        "recording": recording_kind(runner.lean),
     }, indent=2) + "\n")
     rows = runner.run_batch(jobs)
     df = table.frame(rows)

@@ -16,7 +16,7 @@ from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
@@ -27,6 +27,7 @@ from ffexp.sweeps.engine import Runner
 from ffexp.sweeps.keys import Key, Value, current_value, parse_key
 from ffexp.sweeps.plan import Point, Target, grid, latin_hypercube
 from ffexp.sweeps.searches import LimitSearch
+from ffexp.sweeps.worker import recording_kind
 
 
 class RunRole(StrictModel):
@@ -112,6 +113,10 @@ class ReproduceConfig(StrictModel):
     min_f_ref: tuple[str, str] | None = Field(
         None, description="Names of the two f_ref limit searches: with and without inertia "
         "reduction (the minimum-f_ref claim).")
+    recording: Literal["lean", "full"] = Field(
+        "lean", description="The runs' recordings: lean (the topics the metrics read; the "
+        "study reads only its rows) or full (every topic, to open in report, figures, "
+        "replay or Foxglove). ffexp reproduce --full/--lean overrides it.")
 
     @model_validator(mode="after")
     def _check(self) -> ReproduceConfig:
@@ -251,7 +256,7 @@ def run(study: Study, runner: Runner) -> dict[str, Any]:
         runner.plan(0)  # all ran: the runs made are the plan (the estimate is done with)
     finally:  # on an interrupt, do not wait here for the runs (the session ends them)
         pool.shutdown(wait=False, cancel_futures=True)
-    return evaluate(study, rows)
+    return {**evaluate(study, rows), "recording": recording_kind(runner.lean)}
 
 
 def evaluate(study: Study, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
@@ -395,7 +400,7 @@ def write(study: Study, result: Mapping[str, Any], out_dir: Path) -> list[Path]:
         "kind": "reproduce", "config": str(study.path), "config_json":
         study.config.model_dump(mode="json"), "summary": result["summary"],
         "limits": result["limits"], "flips": result["flips"],
-        "regions": result.get("regions", []),
+        "regions": result.get("regions", []), "recording": result.get("recording", "full"),
     }, indent=2, default=str) + "\n")
     paths.append(out_dir / "reproduce.json")
     paths.append(plots.claims_figure(result["summary"], f"{study.config.name}: "

@@ -125,22 +125,22 @@ def spinner(tty: bool, text: str) -> Iterator[None]:
 @contextmanager
 def session(
     out_dir: Path, spec: ExecutorSpec, label: str, stop_requested: Callable[[], bool],
-    display: Display | None = None,
+    display: Display | None = None, lean: bool = False,
 ) -> Iterator[tuple[Runner, Display]]:
     """Executor + Runner + Display; everything is closed at the end, workers ended on a
-    second interrupt."""
+    second interrupt. ``lean``: the runs record lean (:class:`Runner`)."""
     shown = display or Display(label)
     runner: Runner
     if spec.kind == "ray":  # connect first: an unreachable cluster is one error line
         with spinner(shown.tty, f"{label}: connecting to Ray ({spec.address})"):
             executor, slots = make_executor(spec)
         runner = Runner(out_dir, executor, slots, on_change=shown.update,
-                        stop_requested=stop_requested, notice=shown.note)
+                        stop_requested=stop_requested, notice=shown.note, lean=lean)
     else:  # a process pool starts on the first run that is not done yet
         start_forkserver()  # here, in the main thread: it ignores a process group's SIGTERM
         runner = Runner(out_dir, lambda: make_executor(spec)[0], spec.workers,
                         on_change=shown.update, stop_requested=stop_requested,
-                        notice=shown.note)
+                        notice=shown.note, lean=lean)
     shown.start()
     try:
         try:

@@ -6,8 +6,9 @@
 ``<question>-<method>`` (``mass-method1``, ``base-method2``, ...: the commands are
 on the results page, docs/results/). Every run's metrics are computed again from
 its recording (``ffexp analyze``), so the page follows the analysis of today's
-code. Prints one markdown table per question and writes one figure per question
-(PNG) into ``FIGURES_DIR``.
+code; lean sweeps (``ffexp sweep --lean``) serve it as well as full ones (a lean
+file holds every topic the metrics read). Prints one markdown table per question
+and writes one figure per question (PNG) into ``FIGURES_DIR``.
 """
 
 from __future__ import annotations

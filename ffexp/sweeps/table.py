@@ -2,8 +2,9 @@
 
 Columns: ``run_id``, ``target`` (the protocol or the paper run), the varied
 keys, ``seed``, every metric of ``ffexp analyze --json`` (six-vectors one
-column per axis, the link summary ``link_*``), ``error``, ``wall_s`` and
-``path`` (relative to the sweep directory). Numbers are numeric columns
+column per axis, the link summary ``link_*``), ``error``, ``wall_s``,
+``path`` (relative to the sweep directory) and ``recording`` (``full`` or ``lean``:
+what the run's file holds, :mod:`ffexp.sweeps.worker`). Numbers are numeric columns
 (missing: NaN), flags boolean, the rest text.
 """
 
@@ -17,12 +18,12 @@ if TYPE_CHECKING:
     import pandas as pd
 
 #: Columns that come last, in this order.
-TAIL = ("error", "wall_s", "path")
+TAIL = ("error", "wall_s", "path", "recording")
 #: Text columns (an all-missing column of any other name is numeric: NaN).
 TEXT_COLUMNS = frozenset({
     "run_id", "target", "protocol", "method", "break_times_s", "aborted", "warnings", "error",
     "outcome", "outcome_note",
-    "path",
+    "path", "recording",
 })
 CSV_NAME = "results.csv"
 PARQUET_NAME = "results.parquet"
@@ -71,6 +72,17 @@ def write(df: pd.DataFrame, out_dir: Path) -> list[Path]:
         tmp.replace(final)
         paths.append(final)
     return paths
+
+
+def recordings_note(rows: Sequence[dict[str, Any]]) -> str:
+    """What the runs' files hold, in words: ``lean recordings``, ``full recordings``, or
+    how many of each (a lean study keeps full runs it found done before)."""
+    lean = sum(1 for r in rows if r.get("recording") == "lean")
+    if lean == len(rows):
+        return "lean recordings"
+    if not lean:
+        return "full recordings"
+    return f"{lean} lean and {len(rows) - lean} full recordings"
 
 
 def without_wall_time(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:

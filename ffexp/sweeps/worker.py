@@ -5,6 +5,13 @@ A run writes into its own temporary folder ``DIR/runs/.tmp-<id>-<host>-<pid>-<ra
 it finished, so a killed sweep leaves nothing that counts as done; the rename
 is atomic, so two workers that ran the same id keep exactly one result. A
 run that raises is a finished run too: its row carries the error.
+
+A run is recorded full or lean (:attr:`Job.lean`; :mod:`ffexp.runlog`); its row says
+which (``recording``: ``full`` or ``lean``; a row without it is from before lean
+recordings, full). The row's numbers are the same either way, so a run's id does not
+depend on it, but a done run counts as done only for a job its recording serves
+(:func:`serves`): a full one for any job, a lean one only for a lean job. A lean run
+asked for full is run again and its result replaced (:func:`run_one`).
 """
 
 from __future__ import annotations
@@ -39,6 +46,19 @@ class Job:
     out_dir: str
     columns: dict[str, Any] = field(default_factory=dict)
     """The sweep's own columns of the row (target, the varied keys, seed)."""
+    lean: bool = False
+    """Record only the topics the metrics read (the row's numbers are the same)."""
+
+
+def recording_kind(lean: bool) -> str:
+    """The ``recording`` column of a row: ``lean`` or ``full``."""
+    return "lean" if lean else "full"
+
+
+def serves(row: dict[str, Any], job: Job) -> bool:
+    """Whether a done run's ``row`` is a result for ``job``: a full recording serves any
+    job, a lean one only a lean job (rows from before lean recordings are full)."""
+    return job.lean or row.get("recording", "full") != "lean"
 
 
 def run_dir(out_dir: Path, rid: str) -> Path:
@@ -46,11 +66,13 @@ def run_dir(out_dir: Path, rid: str) -> Path:
 
 
 def read_row(out_dir: Path, rid: str) -> dict[str, Any] | None:
-    """The committed row of a run, or None when it is not done."""
+    """The committed row of a run, or None when it is not done (a row from before lean
+    recordings gets ``recording`` ``full``: every run was recorded full)."""
     try:
         data: dict[str, Any] = json.loads((run_dir(out_dir, rid) / ROW_FILE).read_text())
     except (FileNotFoundError, NotADirectoryError, json.JSONDecodeError):
         return None
+    data.setdefault("recording", "full")
     return data
 
 
@@ -76,10 +98,10 @@ def flat_metrics(m: Any) -> dict[str, Any]:
 
 
 def run_one(job: Job) -> dict[str, Any]:
-    """Run a job (unless it is already done) and return its row."""
+    """Run a job (unless it is already done, :func:`serves`) and return its row."""
     out_dir = Path(job.out_dir)
     done = read_row(out_dir, job.run_id)
-    if done is not None:
+    if done is not None and serves(done, job):
         return done
     tmp = out_dir / RUNS_DIR / (
         f"{TMP_PREFIX}{job.run_id}-{platform.node()}-{os.getpid()}-{uuid.uuid4().hex[:6]}"
@@ -96,14 +118,35 @@ def run_one(job: Job) -> dict[str, Any]:
         "run_id": job.run_id, **job.columns, **values, "error": error,
         "wall_s": time.perf_counter() - t0,
         "path": f"{RUNS_DIR}/{job.run_id}/{RUN_FILE}" if error is None else None,
+        "recording": recording_kind(job.lean),
     }
     (tmp / ROW_FILE).write_text(json.dumps(row, allow_nan=False) + "\n")
+    return _commit(out_dir, job, tmp, row)
+
+
+def _commit(out_dir: Path, job: Job, tmp: Path, row: dict[str, Any]) -> dict[str, Any]:
+    """Rename the finished run's folder ``tmp`` to the run's own; a done run there that
+    does not serve ``job`` (lean, this one full) is replaced (moved aside first: a
+    crash in between leaves the run not done, to be run again)."""
     final = run_dir(out_dir, job.run_id)
     try:
         tmp.rename(final)
-    except OSError:  # another worker committed the same run first: keep its result
+        return row
+    except OSError:
+        pass
+    there = read_row(out_dir, job.run_id)
+    if there is None or serves(there, job):  # another worker committed it first: keep it
+        shutil.rmtree(tmp, ignore_errors=True)
+        return there or row
+    old = final.with_name(f"{TMP_PREFIX}{job.run_id}-replaced-{uuid.uuid4().hex[:6]}")
+    try:
+        final.rename(old)
+        tmp.rename(final)
+    except OSError:  # another worker replaced it meanwhile: keep what is there
         shutil.rmtree(tmp, ignore_errors=True)
         return read_row(out_dir, job.run_id) or row
+    finally:  # (the lean run moved aside; a .tmp- folder: a sweep's start removes it too)
+        shutil.rmtree(old, ignore_errors=True)
     return row
 
 
@@ -112,7 +155,7 @@ def _run_and_analyse(job: Job, tmp: Path) -> dict[str, Any]:
     from ffexp.experiment import run_file
     from ffexp.recording import load
 
-    result = run_file(Path(job.protocol), list(job.overrides), out_dir=tmp)
+    result = run_file(Path(job.protocol), list(job.overrides), out_dir=tmp, lean=job.lean)
     path = result.path.rename(tmp / RUN_FILE)
     return flat_metrics(metrics(load(path)))
 

@@ -217,6 +217,9 @@ class Runner:
                 waiting[job.run_id] = fut
             self.counts.running = min(len(self._inflight), self.slots)
             self._changed()
+        flush = getattr(self.started, "flush", None)
+        if flush is not None:  # an executor that groups jobs (batch): these are all for now
+            flush()
         pending = set(waiting.values())
         while pending:
             _, pending = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)

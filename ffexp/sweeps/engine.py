@@ -166,6 +166,10 @@ class Runner:
                 else:
                     self.counts.run_s += float(fut.result().get("wall_s") or 0.0)
             self._changed()
+            if self._stop_requested():  # before an executor starts the next runs in turn
+                for other in list(self._inflight.values()):
+                    if not other.running():
+                        other.cancel()
             self._settled.notify_all()
 
     def settle(self, timeout_s: float) -> bool:

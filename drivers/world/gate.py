@@ -28,6 +28,7 @@ releases the GIL, so the shares run in parallel.
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -74,6 +75,8 @@ class GateStats:
     """Run-cycles stepped."""
     widths: dict[int, int] = field(default_factory=dict)
     """How many dispatches stepped how many runs."""
+    physics_s: float = 0.0
+    """Wall time in the dispatches (the physics of the runs, on all threads)."""
 
 
 class PhysicsGate:
@@ -152,6 +155,13 @@ class PhysicsGate:
         st.dispatches += 1
         st.stepped += len(calls)
         st.widths[len(calls)] = st.widths.get(len(calls), 0) + 1
+        t0 = time.perf_counter()
+        try:
+            self._step_all(calls)
+        finally:
+            st.physics_s += time.perf_counter() - t0
+
+    def _step_all(self, calls: list[_Call]) -> None:
         k = min(self.threads, len(calls))
         if k <= 1:
             _run(calls)

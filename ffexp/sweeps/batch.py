@@ -30,9 +30,12 @@ import threading
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ffexp.sweeps.worker import Job, run_one
+
+if TYPE_CHECKING:
+    from drivers.world.gate import PhysicsGate
 
 T = TypeVar("T")
 
@@ -41,12 +44,13 @@ T = TypeVar("T")
 Outcome = tuple[str, Any]
 
 
-def run_batch(jobs: tuple[Job, ...], threads: int = 1) -> list[Outcome]:
+def run_batch(jobs: tuple[Job, ...], threads: int = 1,
+              gate: PhysicsGate | None = None) -> list[Outcome]:
     """Run ``jobs`` together in this process: each :func:`run_one` as a run of one
     :class:`~drivers.world.gate.PhysicsGate` (their physics one dispatch a cycle).
 
-    ``threads``: the threads that share each cycle's physics dispatch.
-    Returns each job's outcome, in order.
+    ``threads``: the threads that share each cycle's physics dispatch (``gate``: the
+    gate to use instead, its statistics kept). Returns each job's outcome, in order.
     """
     from drivers.world.gate import PhysicsGate
 
@@ -58,7 +62,8 @@ def run_batch(jobs: tuple[Job, ...], threads: int = 1) -> list[Outcome]:
         except BaseException as exc:  # reported as the run's failure
             out[i] = ("failed", f"{type(exc).__name__}: {exc}".splitlines()[0])
 
-    PhysicsGate(threads).run([functools.partial(body, i, job) for i, job in enumerate(jobs)])
+    gate = gate or PhysicsGate(threads)
+    gate.run([functools.partial(body, i, job) for i, job in enumerate(jobs)])
     return out
 
 

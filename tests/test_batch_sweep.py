@@ -188,3 +188,36 @@ def test_bad_batch_executor_is_one_line_exit_2(tmp_path: Path, bad: str) -> None
     err = [x for x in res.output.splitlines() if x.strip()]
     assert len(err) == 1 and err[0].startswith("error: ") and bad in err[0], res.output
     assert not (tmp_path / "never").exists()
+
+
+class BrokenPool:
+    """A pool whose first batch dies with its process, and which then refuses work."""
+
+    def __init__(self) -> None:
+        self.broken = False
+
+    def submit(self, fn: Any, *args: Any) -> Future[Any]:
+        from concurrent.futures.process import BrokenProcessPool
+
+        if self.broken:
+            raise BrokenProcessPool("a process of the pool died")
+        self.broken = True
+        fut: Future[Any] = Future()
+        fut.set_exception(BrokenProcessPool("a process of the pool died"))
+        return fut
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        pass
+
+
+def test_a_dead_batch_process_fails_its_runs_uncommitted(tmp_path: Path) -> None:
+    ex = BatchExecutor(BrokenPool(), processes=1, batch=2)  # type: ignore[arg-type]
+    with engine.Runner(tmp_path, ex, 2) as r:
+        rows = r.run_batch(fake_jobs(5, tmp_path))
+    ex.shutdown()
+    # every run is a row of a failed worker (as a broken pool's), none committed: a
+    # later sweep runs them all
+    assert [row["run_id"] for row in rows] == [f"j{i}" for i in range(5)]
+    assert all(row["error"].startswith("worker failed: BrokenProcessPool") for row in rows)
+    assert r.counts.failed == 5
+    assert not list((tmp_path / RUNS_DIR).iterdir())

@@ -101,22 +101,26 @@ class BatchExecutor(Executor):
             if self._shutdown:
                 raise RuntimeError("cannot schedule new futures after shutdown")
             self._pending.append((args[0], fut))
-            if len(self._pending) >= self.batch:
-                self._dispatch(full_only=True)
+            failed = self._dispatch(full_only=True) if len(self._pending) >= self.batch else []
+        _fail(failed)
         return fut  # type: ignore[return-value]  # run_one's future
 
     def flush(self) -> None:
         """Send the jobs submitted so far (the engine submitted all it has for now)."""
         with self._cond:
-            self._dispatch(full_only=False)
+            failed = self._dispatch(full_only=False)
+        _fail(failed)
 
-    def _dispatch(self, full_only: bool) -> None:
-        """Batches to the free processes (the lock held)."""
+    def _dispatch(self, full_only: bool) -> list[tuple[Future[Any], BaseException]]:
+        """Batches to the free processes (the lock held). Returns the futures to fail
+        (outside the lock: their callbacks take the engine's) when the pool refuses work
+        (a process of it died, or it was shut down): the jobs taken and all still
+        queued, as a broken pool fails its own."""
         while self._inflight < self.processes and self._pending:
             free = self.processes - self._inflight
             size = min(self.batch, math.ceil(len(self._pending) / free))
             if full_only and size < self.batch:
-                return
+                break
             taken: list[tuple[Job, Future[dict[str, Any]]]] = []
             while self._pending and len(taken) < size:
                 job, fut = self._pending.popleft()
@@ -124,15 +128,15 @@ class BatchExecutor(Executor):
                     taken.append((job, fut))
             if not taken:
                 continue
-            self._inflight += 1
             try:
                 chunk = self._pool.submit(run_batch, tuple(j for j, _ in taken), self.threads)
-            except BaseException as exc:
-                self._inflight -= 1
-                for _, fut in taken:
-                    fut.set_exception(exc)
-                raise
+            except RuntimeError as exc:  # BrokenProcessPool, or the pool was shut down
+                rest = [f for _, f in self._pending if f.set_running_or_notify_cancel()]
+                self._pending.clear()
+                return [(f, exc) for f in [*(f for _, f in taken), *rest]]
+            self._inflight += 1
             chunk.add_done_callback(functools.partial(self._batch_done, taken=taken))
+        return []
 
     def _batch_done(self, chunk: Future[list[Outcome]],
                     taken: list[tuple[Job, Future[dict[str, Any]]]]) -> None:
@@ -148,31 +152,30 @@ class BatchExecutor(Executor):
                 fut.set_result(value)
             else:
                 fut.set_exception(RuntimeError(value))
-        dropped: list[Future[dict[str, Any]]] = []
         with self._cond:
             self._inflight -= 1
-            try:
-                self._dispatch(full_only=False)
-            except RuntimeError:  # the pool was shut down (its workers ended)
-                dropped = self._take_pending()
+            failed = self._dispatch(full_only=False)
             self._cond.notify_all()
-        for fut in dropped:  # outside the lock: a future's callbacks take the engine's
-            fut.cancel()
-
-    def _take_pending(self) -> list[Future[dict[str, Any]]]:
-        futs = [fut for _, fut in self._pending]
-        self._pending.clear()
-        return futs
+        _fail(failed)
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         with self._cond:
             self._shutdown = True
-            dropped = self._take_pending() if cancel_futures else []
+            dropped = [fut for _, fut in self._pending] if cancel_futures else []
+            if cancel_futures:
+                self._pending.clear()
         for fut in dropped:
             fut.cancel()
-        with self._cond:
-            if wait:
-                self._dispatch(full_only=False)
-                while self._pending or self._inflight:
+        if wait:  # the jobs submitted run first, as a pool's do
+            with self._cond:
+                failed = self._dispatch(full_only=False)
+            _fail(failed)
+            with self._cond:
+                while self._inflight:
                     self._cond.wait()
         self._pool.shutdown(wait=wait, cancel_futures=cancel_futures)
+
+
+def _fail(failed: list[tuple[Future[Any], BaseException]]) -> None:
+    for fut, exc in failed:
+        fut.set_exception(exc)

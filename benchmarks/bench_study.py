@@ -41,12 +41,7 @@ physics bit for bit, as it is here).
 Then, once, where a batch's time goes: B runs as one batch in this process
 (``run_batch``, one dispatch thread) against the same B runs one after the other
 (``run_one``), with the share of the batch's wall time its physics dispatches
-took; and the dispatch itself three ways over B captured runs' first cycles (the
-inputs written per run, as each run's world writes them): a loop of ``mj_step``
-on the gate's thread, the gate's dispatch on two threads, and a
-``mujoco.batch.Batch`` (``set_models``) with each run's full state
-(``mjSTATE_INTEGRATION``, the sensor history included) copied in and out around
-its ``step``.
+took (the dispatch's options: ``benchmarks/bench_gate.py``).
 
 ``--recording`` measures only the recording's cost per run and cycle for R runs,
 on a paper run's own messages: the fixed-layout topics encoded one run at a time
@@ -66,7 +61,6 @@ on-disk cache.
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import statistics
 import tempfile
@@ -330,88 +324,6 @@ def batch_profile(jobs: list[Job], tmp: Path) -> None:
           f"own Python, start-up and analysis included)")
 
 
-def dispatch_costs(caps: list[Capture], cycles: int = 400) -> None:
-    """A cycle's dispatch for the runs three ways (see the module doc); us per run-cycle."""
-    from drivers.world.gate import PhysicsGate
-
-
-    def inputs(c: Capture, d: mujoco.MjData, k: int) -> None:
-        d.ctrl[:] = c.ctrl[k]
-        d.qfrc_applied[:] = c.qfrc[k]
-        d.xfrc_applied[:] = c.xfrc[k]
-        d.mocap_pos[:] = c.mocap_pos[k]
-        d.mocap_quat[:] = c.mocap_quat[k]
-        c.model.dof_frictionloss[:] = c.frictionloss[k]
-        c.model.actuator_gainprm[:, 0] = c.gain[k]
-        c.model.actuator_biasprm[:, :3] = c.bias[k]
-
-    # each run from its first cycle on: its settling steps (one a call) replayed first
-    first = [next(k for k, n in enumerate(c.nstep) if n > 1) for c in caps]
-
-    def fresh() -> list[mujoco.MjData]:
-        datas = []
-        for c, k0 in zip(caps, first, strict=True):
-            d = mujoco.MjData(c.model)
-            mujoco.mj_setState(c.model, d, c.state0, FULL)
-            for k in range(k0):
-                inputs(c, d, k)
-                mujoco.mj_step(c.model, d, c.nstep[k])
-            datas.append(d)
-        return datas
-
-    ncall = min(cycles, *(len(c.nstep) - k0 for c, k0 in zip(caps, first, strict=True)))
-    n = max(caps[0].nstep)
-    # a loop on one thread
-    datas = fresh()
-    t0 = time.perf_counter()
-    for k in range(ncall):
-        for c, d, k0 in zip(caps, datas, first, strict=True):
-            inputs(c, d, k0 + k)
-            mujoco.mj_step(c.model, d, n)
-    loop_us = (time.perf_counter() - t0) / (ncall * len(caps)) * 1e6
-    # the gate, two threads: each run a body writing its inputs, then the gate's step
-    res = {}
-    for threads in (1, 2):
-        datas = fresh()
-        gate = PhysicsGate(threads)
-
-        def body(c: Capture, d: mujoco.MjData, k0: int, gate: PhysicsGate = gate) -> None:
-            for k in range(ncall):
-                inputs(c, d, k0 + k)
-                gate.step(c.model, d, n)
-
-        t0 = time.perf_counter()
-        gate.run([functools.partial(body, c, d, k0)
-                  for c, d, k0 in zip(caps, datas, first, strict=True)])
-        res[threads] = ((time.perf_counter() - t0) / (ncall * len(caps)) * 1e6,
-                        gate.stats.physics_s / (ncall * len(caps)) * 1e6)
-    # mujoco.batch.Batch, each run's full state copied in and out
-    datas = fresh()
-    b = mujoco.batch.Batch(caps[0].model, nsim=len(caps), nthread=2)
-    b.set_models([c.model for c in caps])
-    state = b.state
-    buf = np.empty(state.shape[1])
-    t0 = time.perf_counter()
-    for k in range(ncall):
-        for i, (c, d, k0) in enumerate(zip(caps, datas, first, strict=True)):
-            inputs(c, d, k0 + k)
-            mujoco.mj_getState(c.model, d, buf, FULL)
-            state[i] = buf
-        b.step(nstep=n)
-        for i, (c, d) in enumerate(zip(caps, datas, strict=True)):
-            buf[:] = state[i]
-            mujoco.mj_setState(c.model, d, buf, FULL)
-    batch_us = (time.perf_counter() - t0) / (ncall * len(caps)) * 1e6
-    print(f"a cycle's dispatch of {len(caps)} runs ({ncall} cycles of {n} steps), "
-          f"us per run-cycle:")
-    print(f"  loop of mj_step, one thread                  {loop_us:7.1f}")
-    for threads, (total, phys) in res.items():
-        print(f"  the gate, {threads} thread(s) (each run a greenlet)  {total:7.1f}  "
-              f"(dispatch {phys:.1f})")
-    print(f"  mujoco.batch.Batch, 2 threads, state in/out  {batch_us:7.1f}  "
-          f"(the derived quantities a world reads are not in the state: not a run's step)")
-
-
 def capture_cycles(tmp: Path, seconds: float = 3.0) -> list[list[tuple[str, bytes]]]:
     """A paper run's recorded cycles (Method I case I): per cycle its F/T samples'
     messages and then its topics', as the run log writes them."""
@@ -645,7 +557,6 @@ def main() -> None:
             times["batched"].append(replay_batched(caps, args.workers))
             times["loop"].append(replay_loop(caps))
         batch_profile(jobs[:args.batch], tmp / "profile")
-        dispatch_costs(caps[:args.batch])
     load1 = os.getloadavg()
     rate = {name: sim_s / statistics.median(t) for name, t in times.items()}
     print(f"{args.runs} runs ({', '.join(PROTOCOLS)}), timeout {args.seconds:g} s: "

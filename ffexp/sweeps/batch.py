@@ -41,11 +41,11 @@ T = TypeVar("T")
 
 #: A run's outcome from a batch process: ("row", row) or ("failed", error text) when
 #: its thread ended with an exception run_one does not turn into a row.
-Outcome = tuple[str, Any]
+BatchOutcome = tuple[str, Any]
 
 
 def run_batch(jobs: tuple[Job, ...], threads: int = 1,
-              gate: PhysicsGate | None = None) -> list[Outcome]:
+              gate: PhysicsGate | None = None) -> list[BatchOutcome]:
     """Run ``jobs`` together in this process: each :func:`run_one` as a run of one
     :class:`~drivers.world.gate.PhysicsGate` (their physics one dispatch a cycle).
 
@@ -54,7 +54,7 @@ def run_batch(jobs: tuple[Job, ...], threads: int = 1,
     """
     from drivers.world.gate import PhysicsGate
 
-    out: list[Outcome] = [("failed", "the run did not end")] * len(jobs)
+    out: list[BatchOutcome] = [("failed", "the run did not end")] * len(jobs)
 
     def body(i: int, job: Job) -> None:
         try:
@@ -138,7 +138,7 @@ class BatchExecutor(Executor):
             chunk.add_done_callback(functools.partial(self._batch_done, taken=taken))
         return []
 
-    def _batch_done(self, chunk: Future[list[Outcome]],
+    def _batch_done(self, chunk: Future[list[BatchOutcome]],
                     taken: list[tuple[Job, Future[dict[str, Any]]]]) -> None:
         exc = None if chunk.cancelled() else chunk.exception()
         if chunk.cancelled():

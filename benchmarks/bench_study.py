@@ -1,6 +1,7 @@
 """A study's throughput today against the bare batched physics of the very same runs.
 
     python benchmarks/bench_study.py [--runs R] [--seconds S] [--workers N] [--repeats K]
+                                     [--batch B]
     python benchmarks/bench_study.py --recording [--runs R]
     python benchmarks/bench_study.py --estimator [--runs R]
 
@@ -11,6 +12,11 @@ Measured in the same process, interleaved per repeat:
 * **today's pool**: the sweep engine on ``local:N`` (run, analyse, commit each
   run in a worker process, as ``ffexp sweep`` does); its workers' start-up is
   timed apart and not counted;
+* **batched study**: the same study through ``--executor local:N,batch:B``
+  (:mod:`ffexp.sweeps.batch`): N processes, each running batches of up to B runs
+  in lockstep, every run's own code unchanged (a greenlet each), the physics of
+  a batch's live runs one dispatch a cycle (:class:`drivers.world.gate.PhysicsGate`);
+  its workers' start-up is not counted either;
 * **bare batched physics** of the same runs: every run's own physics replayed
   with no controller and no recording. Each run is first made once in this
   process with ``mujoco.mj_step`` wrapped, which records the run's model, its
@@ -26,10 +32,16 @@ Measured in the same process, interleaved per repeat:
   one core gives without the batch), for scale.
 
 Throughput is simulated seconds per wall second over the whole study. Prints
-medians, the pool's throughput as a fraction of the bare batched physics (the
-issue's target for a batched pipeline is at least 0.7 of it), and the largest
-joint-position difference between a replayed run and the recorded one at its
-end (0 when the replay is the runs' physics bit for bit, as it is here).
+medians, each path's throughput as a fraction of the bare batched physics (the
+issue's target for a batched pipeline is at least 0.7 of it) and of today's pool
+(the target: at least 2), and the largest joint-position difference between a
+replayed run and the recorded one at its end (0 when the replay is the runs'
+physics bit for bit, as it is here).
+
+Then, once, where a batch's time goes: B runs as one batch in this process
+(``run_batch``, one dispatch thread) against the same B runs one after the other
+(``run_one``), with the share of the batch's wall time its physics dispatches
+took (the dispatch's options: ``benchmarks/bench_gate.py``).
 
 ``--recording`` measures only the recording's cost per run and cycle for R runs,
 on a paper run's own messages: the fixed-layout topics encoded one run at a time
@@ -261,6 +273,57 @@ def pool(workers: int) -> Callable[[Path, list[Job]], float]:
     return run
 
 
+def batched(processes: int, batch: int) -> Callable[[Path, list[Job]], float]:
+    """The study through ``--executor local:P,batch:B`` (same engine, same rows)."""
+    def run(out: Path, jobs: list[Job]) -> float:
+        jobs = [Job(j.run_id, j.protocol, j.overrides, str(out), j.columns) for j in jobs]
+        ex: Executor
+        ex, slots = make_executor(parse_executor(f"local:{processes},batch:{batch}"))
+        try:
+            for f in [ex.submit(warm_worker) for _ in range(2 * processes)]:
+                f.result()
+            t0 = time.perf_counter()
+            with engine.Runner(out, ex, slots) as r:
+                rows = r.run_batch(jobs)
+            wall = time.perf_counter() - t0
+        finally:
+            ex.shutdown(wait=True)
+        bad = [row["error"] for row in rows if row["error"]]
+        assert not bad, bad[0]
+        return wall
+    return run
+
+
+def batch_profile(jobs: list[Job], tmp: Path) -> None:
+    """One batch of the jobs in this process against the same runs one after the other:
+    wall time, the physics dispatches' share, per run-cycle."""
+    from drivers.world.gate import PhysicsGate
+    from ffexp.sweeps.batch import run_batch
+    from ffexp.sweeps.worker import run_one
+
+    def moved(tag: str) -> list[Job]:
+        return [Job(j.run_id, j.protocol, j.overrides, str(tmp / tag), j.columns) for j in jobs]
+
+    t0 = time.perf_counter()
+    for j in moved("alone"):
+        run_one(j)
+    alone = time.perf_counter() - t0
+    gate = PhysicsGate(1)
+    t0 = time.perf_counter()
+    out = run_batch(tuple(moved("batch")), gate=gate)
+    wall = time.perf_counter() - t0
+    assert all(kind == "row" and row["error"] is None for kind, row in out), out
+    st = gate.stats
+    print(f"one batch of {len(jobs)} runs in this process (one dispatch thread): "
+          f"{wall:.2f} s, the runs one after the other {alone:.2f} s "
+          f"(batch / alone {wall / alone:.2f}); {st.dispatches} dispatches of "
+          f"{st.stepped / max(1, st.dispatches):.1f} runs on average")
+    print(f"  per run-cycle: {wall / st.stepped * 1e6:.0f} us in all, of which the "
+          f"physics dispatch {st.physics_s / st.stepped * 1e6:.0f} us "
+          f"({st.physics_s / wall:.0%} of the batch's wall time; the rest is each run's "
+          f"own Python, start-up and analysis included)")
+
+
 def capture_cycles(tmp: Path, seconds: float = 3.0) -> list[list[tuple[str, bytes]]]:
     """A paper run's recorded cycles (Method I case I): per cycle its F/T samples'
     messages and then its topics', as the run log writes them."""
@@ -460,6 +523,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=8.0, help="run.timeout_s of each run")
     ap.add_argument("--workers", type=int, default=available_cpus())
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--batch", type=int, default=8, help="runs per batch of the batched study")
     ap.add_argument("--recording", action="store_true",
                     help="only the recording's cost per run and cycle, alone and batched")
     ap.add_argument("--estimator", action="store_true",
@@ -485,23 +549,28 @@ def main() -> None:
         sim_s = sum(c.sim_s for c in caps)
         steps = sum(c.steps for c in caps)
         run_pool = pool(args.workers)
-        times: dict[str, list[float]] = {"pool": [], "batched": [], "loop": []}
+        run_study = batched(args.workers, args.batch)
+        times: dict[str, list[float]] = {"pool": [], "study": [], "batched": [], "loop": []}
         for k in range(args.repeats):
             times["pool"].append(run_pool(tmp / f"pool{k}", jobs))
+            times["study"].append(run_study(tmp / f"study{k}", jobs))
             times["batched"].append(replay_batched(caps, args.workers))
             times["loop"].append(replay_loop(caps))
+        batch_profile(jobs[:args.batch], tmp / "profile")
     load1 = os.getloadavg()
     rate = {name: sim_s / statistics.median(t) for name, t in times.items()}
     print(f"{args.runs} runs ({', '.join(PROTOCOLS)}), timeout {args.seconds:g} s: "
           f"{sim_s:.1f} s simulated, {steps} steps; {args.repeats} repeats, medians; "
           f"{available_cpus()} CPUs, {args.workers} workers / threads")
     labels = {"pool": f"today's pool (local:{args.workers})",
+              "study": f"batched study (local:{args.workers},batch:{args.batch})",
               "batched": f"bare batched physics ({args.workers} threads)",
               "loop": "bare physics, one thread"}
-    print(f"{'path':40s} {'wall [s]':>9s} {'sim s / wall s':>15s} {'of batched':>11s}")
+    print(f"{'path':40s} {'wall [s]':>9s} {'sim s / wall s':>15s} {'of batched':>11s} "
+          f"{'of pool':>8s}")
     for name, label in labels.items():
         print(f"{label:40s} {statistics.median(times[name]):9.2f} {rate[name]:15.2f} "
-              f"{rate[name] / rate['batched']:11.2f}")
+              f"{rate[name] / rate['batched']:11.2f} {rate[name] / rate['pool']:8.2f}")
     print(f"replay vs recorded runs: largest |qpos| difference at a run's end "
           f"{max(REPLAY_DRIFT):.3g}")
     print("load average (1, 5, 15 min): before " + ", ".join(f"{x:.2f}" for x in load0)

@@ -64,6 +64,9 @@ FFEXP_EXCEPTIONS = {
     # ``ffexp emulate`` serves the emulated rig (drivers.emulate.session.EmulatedRig);
     # drivers.emulate is the combiner, not one back-end
     "ffexp/cli/emulate.py": frozenset({COMBINER}),
+    # a sweep's batch runs its runs through the simulated world's physics gate
+    # (drivers.world.gate: neutral, no back-end; a run alone never imports it)
+    "ffexp/sweeps/batch.py": frozenset({"world"}),
 }
 #: The strings ``ffexp`` code may hold although they name a back-end (file, string), and why.
 STRING_EXCEPTIONS: dict[tuple[str, str], str] = {}

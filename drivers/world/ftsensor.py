@@ -34,6 +34,7 @@ import numpy as np
 from drivers.base.types import F64, FtSamples, FtStatus
 from drivers.description.scene import FtSensorSettings
 from drivers.errors import SimulationError
+from drivers.world.gate import current_gate
 
 #: Samples' worth of Gaussian draws taken from the generator at once (12 per sample:
 #: 6 drift increments, 6 white noise values).
@@ -259,6 +260,10 @@ class FtSteps:
     ``sensordata`` after each step); otherwise one call per step, ``sensordata``
     copied after each.
 
+    Built while a :class:`~drivers.world.gate.PhysicsGate` is active (a run of a
+    batch), the steps go through that gate: the batch's runs are stepped together,
+    one dispatch a cycle, each exactly as alone.
+
     Args:
         model, data: the world's.
         force, torque: the sensor ids (3 values each; torque right after force).
@@ -279,6 +284,8 @@ class FtSteps:
         self._now = data.sensordata[adr:adr + 6]
         self._history = data.history  # a view of MuJoCo's buffer (fixed for the data's life)
         self._hist = self._history_view()
+        self._gate = current_gate()
+        """The batch's physics gate this world steps through (``None``: alone)."""
 
     def _history_view(self) -> tuple[F64, int] | None:
         """Both sensors' history buffers as one ``(substeps, 2, 3)`` view (sample,
@@ -330,15 +337,21 @@ class FtSteps:
         """
         m, d = self._m, self._d
         hist = self._hist
+        gate = self._gate
         if hist is None:
             now = self._now
-            step = mujoco.mj_step
             for row in self._rows:
-                step(m, d)
+                if gate is None:
+                    mujoco.mj_step(m, d)
+                else:
+                    gate.step(m, d, 1)
                 row[:] = now
             return
         t_start = d.time
-        mujoco.mj_step(m, d, self._n)
+        if gate is None:
+            mujoco.mj_step(m, d, self._n)
+        else:  # stepped with the batch's other runs, in one dispatch
+            gate.step(m, d, self._n)
         view, cursor = hist
         history = self._history
         oldest = int(history[cursor]) + 1

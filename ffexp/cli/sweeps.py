@@ -31,7 +31,9 @@ if TYPE_CHECKING:
     from ffexp.sweeps.session import Display
 
 EXECUTOR_HELP = (
-    "local[:WORKERS] (a process pool; default all CPUs), or Ray: ray (join the running "
+    "local[:WORKERS] (a process pool; default all CPUs); batch:N or local:WORKERS,batch:N "
+    "(each worker steps batches of up to N runs together, the same rows); or Ray: ray "
+    "(join the running "
     "cluster, else start one here, as ray.init()), ray:auto (only join; an error when none "
     "runs), ray:HOST:PORT (join that cluster), ray://HOST:PORT (client), ray:local (always "
     "start one here)."

@@ -183,6 +183,10 @@ class Runner:
                 else:
                     self.counts.run_s += float(fut.result().get("wall_s") or 0.0)
             self._changed()
+            if self._stop_requested():  # before an executor starts the next runs in turn
+                for other in list(self._inflight.values()):
+                    if not other.running():
+                        other.cancel()
             self._settled.notify_all()
 
     def settle(self, timeout_s: float) -> bool:
@@ -236,6 +240,9 @@ class Runner:
                 waiting[job.run_id] = fut
             self.counts.running = min(len(self._inflight), self.slots)
             self._changed()
+        flush = getattr(self.started, "flush", None)
+        if flush is not None:  # an executor that groups jobs (batch): these are all for now
+            flush()
         pending = set(waiting.values())
         while pending:
             _, pending = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)

@@ -5,6 +5,10 @@
   with N workers (default: the CPUs this process may use), forked by a
   ``forkserver`` that imported the simulator once (no fork of this process,
   which runs threads; no import per worker).
+- ``batch:N`` / ``local:W,batch:N``: W processes (default: the CPUs this process may
+  use), each stepping batches of up to N runs together in lockstep, their physics in
+  one dispatch a cycle (:mod:`ffexp.sweeps.batch`); the same rows as ``local``. Its
+  ``workers`` (the runs at once, the progress bar's slots) is ``W * N``.
 - ``ray``: as Ray's own ``ray.init()``: join the running cluster (``RAY_ADDRESS``,
   else the latest ``ray start`` on this machine), or else start a Ray instance
   here for this sweep; ``ray:auto`` only joins (an error when no cluster runs,
@@ -31,8 +35,8 @@ T = TypeVar("T")
 OPTION = "--executor"
 #: Imported once by the fork server; every worker forked from it has them (a worker
 #: that imported them itself took seconds on a loaded two-core machine).
-PRELOAD = ("ffexp.sweeps.worker", "ffexp.experiment", "ffexp.analysis", "ffexp.recording",
-           "ffexp.estimation.kernels",
+PRELOAD = ("ffexp.sweeps.worker", "ffexp.sweeps.batch", "ffexp.experiment", "ffexp.analysis",
+           "ffexp.recording", "ffexp.estimation.kernels", "drivers.world.gate",
            "drivers.world.world", "drivers.fri.emulate.lockstep")
 #: Seconds :func:`end_workers` waits for a process pool's manager thread to end.
 END_WORKERS_JOIN_S = 5.0
@@ -43,14 +47,21 @@ CONNECT_TIMEOUT_S = 3.0
 @dataclass(frozen=True)
 class ExecutorSpec:
     kind: str
-    """``local`` or ``ray``."""
+    """``local``, ``batch`` or ``ray``."""
     workers: int = 0
+    """Runs at once (``batch``: processes times runs per batch)."""
     address: str = ""
+    processes: int = 0
+    """``batch``: the batch processes."""
+    batch: int = 0
+    """``batch``: runs stepped together in one process, at most."""
 
     @property
     def label(self) -> str:
         if self.kind == "local":
             return f"local:{self.workers}"
+        if self.kind == "batch":
+            return f"local:{self.processes},batch:{self.batch}"
         return f"ray:{self.address}" if self.address else "ray"
 
 
@@ -61,8 +72,29 @@ def available_cpus() -> int:
         return os.cpu_count() or 1
 
 
+def _count(text: str, rest: str, what: str) -> int:
+    try:
+        n = int(rest)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise ConfigError(OPTION, text, f"expected {what} >= 1")
+    return n
+
+
 def parse_executor(text: str) -> ExecutorSpec:
-    """``local[:N]`` or ``ray[:ADDRESS]``; anything else is a ConfigError (exit 2)."""
+    """``local[:N]``, ``[local[:W],]batch:N`` or ``ray[:ADDRESS]``; anything else is a
+    ConfigError (exit 2)."""
+    first, comma, second = text.strip().partition(",")
+    if comma or first.startswith("batch"):
+        local, batch = (first, second) if comma else ("local", first)
+        kind, _, rest = batch.strip().partition(":")
+        lkind, _, lrest = local.strip().partition(":")
+        if kind != "batch" or lkind != "local" or not rest:
+            raise ConfigError(OPTION, text, "expected batch:N or local[:WORKERS],batch:N")
+        n = _count(text, rest, "batch:N with N runs per batch,")
+        w = _count(text, lrest, "local:W with W workers,") if lrest else available_cpus()
+        return ExecutorSpec("batch", w * n, processes=w, batch=n)
     kind, _, rest = text.strip().partition(":")
     if kind == "local":
         if not rest:
@@ -85,7 +117,8 @@ def parse_executor(text: str) -> ExecutorSpec:
                                   "ray:HOST:PORT or ray://HOST:PORT")
         return ExecutorSpec("ray", address=("ray:" + address) if address.startswith("//")
                             else address)
-    raise ConfigError(OPTION, text, "expected local[:WORKERS] or ray[:ADDRESS]")
+    raise ConfigError(OPTION, text,
+                      "expected local[:WORKERS], [local[:WORKERS],]batch:N or ray[:ADDRESS]")
 
 
 def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
@@ -94,14 +127,21 @@ def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
     Raises:
         ConfigError: Ray is not installed, or its address does not answer.
     """
-    if spec.kind == "local":
+    if spec.kind in ("local", "batch"):
         import multiprocessing
 
         ctx = multiprocessing.get_context("forkserver")
         start_forkserver()
-        pool = ProcessPoolExecutor(max_workers=spec.workers, mp_context=ctx,
+        processes = spec.processes if spec.kind == "batch" else spec.workers
+        pool = ProcessPoolExecutor(max_workers=processes, mp_context=ctx,
                                    initializer=init_worker)
-        return pool, spec.workers
+        if spec.kind == "local":
+            return pool, spec.workers
+        from ffexp.sweeps.batch import BatchExecutor
+
+        # the CPUs the processes leave share each batch's physics dispatch
+        threads = max(1, available_cpus() // processes)
+        return BatchExecutor(pool, processes, spec.batch, threads), spec.workers
     ex = RayExecutor.connect(spec.address)
     return ex, ex.slots
 

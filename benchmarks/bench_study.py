@@ -1,12 +1,13 @@
 """A study's throughput today against the bare batched physics of the very same runs.
 
     python benchmarks/bench_study.py [--runs R] [--seconds S] [--workers N] [--repeats K]
-                                     [--batch B]
+                                     [--batch B] [--lean]
     python benchmarks/bench_study.py --recording [--runs R]
     python benchmarks/bench_study.py --estimator [--runs R]
 
 The study: R runs of the paper's methods (Method I case I and II, Method II,
-Method III; the protocols in turn, one noise seed each), ``run.timeout_s=S``.
+Method III; the protocols in turn, one noise seed each), ``run.timeout_s=S``,
+recorded full (``--lean``: lean, as ``ffexp limits`` and ``reproduce`` record).
 Measured in the same process, interleaved per repeat:
 
 * **today's pool**: the sweep engine on ``local:N`` (run, analyse, commit each
@@ -68,7 +69,7 @@ import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -148,14 +149,15 @@ def capturing() -> Iterator[dict[int, Capture]]:
         mujoco.mj_step = real  # type: ignore[assignment]
 
 
-def make_jobs(out: Path, runs: int, seconds: float) -> list[Job]:
+def make_jobs(out: Path, runs: int, seconds: float, lean: bool = False) -> list[Job]:
     jobs = []
     for i in range(runs):
         name = PROTOCOLS[i % len(PROTOCOLS)]
         seed = i // len(PROTOCOLS)
         jobs.append(Job(run_id=f"{name}-s{seed}", protocol=str(ROOT / f"protocols/{name}.toml"),
                         overrides=(f"run.timeout_s={seconds}", f"seed={seed}"),
-                        out_dir=str(out), columns={"protocol": name, "seed": seed}))
+                        out_dir=str(out), columns={"protocol": name, "seed": seed},
+                        lean=lean))
     return jobs
 
 
@@ -255,7 +257,7 @@ def warm_worker() -> int:
 
 def pool(workers: int) -> Callable[[Path, list[Job]], float]:
     def run(out: Path, jobs: list[Job]) -> float:
-        jobs = [Job(j.run_id, j.protocol, j.overrides, str(out), j.columns) for j in jobs]
+        jobs = [replace(j, out_dir=str(out)) for j in jobs]
         ex: Executor
         ex, slots = make_executor(parse_executor(f"local:{workers}"))
         try:
@@ -276,7 +278,7 @@ def pool(workers: int) -> Callable[[Path, list[Job]], float]:
 def batched(processes: int, batch: int) -> Callable[[Path, list[Job]], float]:
     """The study through ``--executor local:P,batch:B`` (same engine, same rows)."""
     def run(out: Path, jobs: list[Job]) -> float:
-        jobs = [Job(j.run_id, j.protocol, j.overrides, str(out), j.columns) for j in jobs]
+        jobs = [replace(j, out_dir=str(out)) for j in jobs]
         ex: Executor
         ex, slots = make_executor(parse_executor(f"local:{processes},batch:{batch}"))
         try:
@@ -302,7 +304,7 @@ def batch_profile(jobs: list[Job], tmp: Path) -> None:
     from ffexp.sweeps.worker import run_one
 
     def moved(tag: str) -> list[Job]:
-        return [Job(j.run_id, j.protocol, j.overrides, str(tmp / tag), j.columns) for j in jobs]
+        return [replace(j, out_dir=str(tmp / tag)) for j in jobs]
 
     t0 = time.perf_counter()
     for j in moved("alone"):
@@ -524,6 +526,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=available_cpus())
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--batch", type=int, default=8, help="runs per batch of the batched study")
+    ap.add_argument("--lean", action="store_true",
+                    help="the study's runs record lean (as limits and reproduce do by default)")
     ap.add_argument("--recording", action="store_true",
                     help="only the recording's cost per run and cycle, alone and batched")
     ap.add_argument("--estimator", action="store_true",
@@ -541,7 +545,7 @@ def main() -> None:
     load0 = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="bench_study_") as tmp_name:
         tmp = Path(tmp_name)
-        jobs = make_jobs(tmp / "jobs", args.runs, args.seconds)
+        jobs = make_jobs(tmp / "jobs", args.runs, args.seconds, args.lean)
         t0 = time.perf_counter()
         caps = capture_runs(jobs, tmp)
         print(f"captured {len(caps)} runs' physics in {time.perf_counter() - t0:.1f} s "
@@ -560,7 +564,8 @@ def main() -> None:
     load1 = os.getloadavg()
     rate = {name: sim_s / statistics.median(t) for name, t in times.items()}
     print(f"{args.runs} runs ({', '.join(PROTOCOLS)}), timeout {args.seconds:g} s: "
-          f"{sim_s:.1f} s simulated, {steps} steps; {args.repeats} repeats, medians; "
+          f"{sim_s:.1f} s simulated, {steps} steps; recordings "
+          f"{'lean' if args.lean else 'full'}; {args.repeats} repeats, medians; "
           f"{available_cpus()} CPUs, {args.workers} workers / threads")
     labels = {"pool": f"today's pool (local:{args.workers})",
               "study": f"batched study (local:{args.workers},batch:{args.batch})",

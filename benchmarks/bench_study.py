@@ -255,13 +255,15 @@ def warm_worker() -> int:
     return os.getpid()
 
 
-def pool(workers: int) -> Callable[[Path, list[Job]], float]:
+def study(executor: str, warm: int) -> Callable[[Path, list[Job]], float]:
+    """The study through the sweep engine on ``--executor executor`` (``warm`` warm-up
+    tasks first, so every worker has imported what a run needs)."""
     def run(out: Path, jobs: list[Job]) -> float:
         jobs = [replace(j, out_dir=str(out)) for j in jobs]
         ex: Executor
-        ex, slots = make_executor(parse_executor(f"local:{workers}"))
+        ex, slots = make_executor(parse_executor(executor))
         try:
-            for f in [ex.submit(warm_worker) for _ in range(2 * slots)]:
+            for f in [ex.submit(warm_worker) for _ in range(warm)]:
                 f.result()
             t0 = time.perf_counter()
             with engine.Runner(out, ex, slots) as r:
@@ -273,27 +275,16 @@ def pool(workers: int) -> Callable[[Path, list[Job]], float]:
         assert not bad, bad[0]
         return wall
     return run
+
+
+def pool(workers: int) -> Callable[[Path, list[Job]], float]:
+    """Today's pool: ``--executor local:N``."""
+    return study(f"local:{workers}", 2 * workers)
 
 
 def batched(processes: int, batch: int) -> Callable[[Path, list[Job]], float]:
     """The study through ``--executor local:P,batch:B`` (same engine, same rows)."""
-    def run(out: Path, jobs: list[Job]) -> float:
-        jobs = [replace(j, out_dir=str(out)) for j in jobs]
-        ex: Executor
-        ex, slots = make_executor(parse_executor(f"local:{processes},batch:{batch}"))
-        try:
-            for f in [ex.submit(warm_worker) for _ in range(2 * processes)]:
-                f.result()
-            t0 = time.perf_counter()
-            with engine.Runner(out, ex, slots) as r:
-                rows = r.run_batch(jobs)
-            wall = time.perf_counter() - t0
-        finally:
-            ex.shutdown(wait=True)
-        bad = [row["error"] for row in rows if row["error"]]
-        assert not bad, bad[0]
-        return wall
-    return run
+    return study(f"local:{processes},batch:{batch}", 2 * processes)
 
 
 def batch_profile(jobs: list[Job], tmp: Path) -> None:

@@ -49,7 +49,7 @@ from ffexp.contracts import Phase, StopReason
 from ffexp.controllers import Controller
 from ffexp.estimation import Estimate
 from ffexp.recording import Recorder
-from ffexp.recording.batch import RECORDING_METADATA, lean_metadata, lean_topic
+from ffexp.recording.batch import RECORDING_METADATA, TopicFilter, lean_metadata
 from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import STATE_JOINTS
 from ffexp.recording.topics.target import TRACKED_FRAME
@@ -101,7 +101,7 @@ class RunLog:
         self.lean = lean
         """Only the topics the metrics read are built and written."""
         self.truth_prefix = truth_prefix
-        self._kept: dict[str, bool] = {}
+        self._filter = TopicFilter(lean, truth_prefix)
         if recorder is not None and lean:
             recorder.metadata(RECORDING_METADATA, lean_metadata(True, truth_prefix))
         self.start_utc_ns = start_utc_ns
@@ -122,12 +122,7 @@ class RunLog:
 
     def keeps(self, topic: str) -> bool:
         """Whether this log writes ``topic`` (all of them unless :attr:`lean`)."""
-        if not self.lean:
-            return True
-        kept = self._kept.get(topic)
-        if kept is None:
-            kept = self._kept[topic] = lean_topic(topic, self.truth_prefix)
-        return kept
+        return self._filter.keeps(topic)
 
     def note(self, t_ns: int, note: Note) -> None:
         """An event, or a phase change (``/runner/phase`` and an event)."""

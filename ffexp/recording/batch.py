@@ -36,8 +36,8 @@ from ffexp.recording.recorder import Recorder
 from ffexp.recording.schema import CDR_HEADER
 from ffexp.recording.topics import CDR_TOPICS
 
-__all__ = ["LEAN_TOPICS", "RECORDING_METADATA", "BatchEncoder", "BatchRecorder", "is_lean",
-           "lean_metadata", "lean_topic", "lean_topics", "missing_topic"]
+__all__ = ["LEAN_TOPICS", "RECORDING_METADATA", "BatchEncoder", "BatchRecorder", "TopicFilter",
+           "is_lean", "lean_metadata", "lean_topic", "lean_topics", "missing_topic"]
 
 #: The metadata record that says what a recording keeps (``lean``, ``topics``).
 RECORDING_METADATA = "recording"
@@ -81,6 +81,25 @@ def lean_topic(topic: str, truth_prefix: str | None = None) -> bool:
     truth's topics under ``truth_prefix`` when the runs have a truth)."""
     return topic in lean_topics() or (truth_prefix is not None
                                       and topic.startswith(truth_prefix.rstrip("/") + "/"))
+
+
+class TopicFilter:
+    """Which topics a recording writes: all of them, or a lean recording's
+    (:func:`lean_topic`, decided once per topic)."""
+
+    def __init__(self, lean: bool, truth_prefix: str | None = None) -> None:
+        self.lean = lean
+        self.truth_prefix = truth_prefix
+        self._kept: dict[str, bool] = {}
+
+    def keeps(self, topic: str) -> bool:
+        """Whether ``topic`` is written."""
+        if not self.lean:
+            return True
+        kept = self._kept.get(topic)
+        if kept is None:
+            kept = self._kept[topic] = lean_topic(topic, self.truth_prefix)
+        return kept
 
 
 def lean_metadata(lean: bool, truth_prefix: str | None = None) -> dict[str, str]:
@@ -187,7 +206,7 @@ class BatchRecorder:
         self.recorders: list[Recorder | None] = list(recorders)
         self.lean = lean
         self.truth_prefix = truth_prefix
-        self._kept: dict[str, bool] = {}
+        self._filter = TopicFilter(lean, truth_prefix)
         for rec in recorders:
             rec.metadata(RECORDING_METADATA, lean_metadata(lean, truth_prefix))
 
@@ -202,12 +221,7 @@ class BatchRecorder:
 
     def keeps(self, topic: str) -> bool:
         """Whether this batch's recordings write ``topic``."""
-        if not self.lean:
-            return True
-        kept = self._kept.get(topic)
-        if kept is None:
-            kept = self._kept[topic] = lean_topic(topic, self.truth_prefix)
-        return kept
+        return self._filter.keeps(topic)
 
     def encoder(self, topic: str) -> BatchEncoder:
         """A new :class:`BatchEncoder` of ``topic`` for this batch's runs."""

@@ -41,7 +41,7 @@ def test_parse_batch_executor() -> None:
         spec = parse_executor(text)
         assert (spec.processes, spec.batch, spec.workers) == (cpus, 4, 4 * cpus)
     for bad in ("batch", "batch:0", "batch:x", "local:0,batch:2", "local:2,batch",
-                "ray,batch:2", "local:2,batch:2,x", "batch:2,local:2"):
+                "ray:x,batch:2", "rays,batch:2", "local:2,batch:2,x", "batch:2,local:2"):
         with pytest.raises(ConfigError, match="--executor"):
             parse_executor(bad)
 

@@ -118,3 +118,23 @@ def test_cli_sweep_on_ray(ray_local: Any, tmp_path: Path) -> None:
     assert len(rows) == 2 and all((tmp_path / "s" / r["path"]).is_file() for r in rows)
     assert ray_local.is_initialized()  # a Ray this process started is left running
 
+
+
+def test_batches_shipped_to_ray_give_the_rows_of_local(ray_local: Any, tmp_path: Path) -> None:
+    """``ray:auto,batch:2``: each Ray task steps a batch of runs together; the rows are
+    the pool's, every recording committed."""
+    from ffexp.sweeps.batch import BatchExecutor
+
+    spec = parse_executor("ray:auto,batch:2")
+    assert (spec.kind, spec.over, spec.batch, spec.label) == ("batch", "ray", 2,
+                                                             "ray:auto,batch:2")
+    ex, slots = make_executor(spec)
+    assert isinstance(ex, BatchExecutor) and slots == 2 * 2  # the fixture's 2 CPUs
+    on_ray = _sweep(tmp_path / "ray", ex, slots)
+    pool, local_slots = make_executor(parse_executor("local:2"))
+    with pool:
+        local = _sweep(tmp_path / "local", pool, local_slots)
+    assert len(on_ray) == 4
+    assert table.without_wall_time(on_ray) == table.without_wall_time(local)
+    for row in on_ray:
+        assert (tmp_path / "ray" / row["path"]).is_file()

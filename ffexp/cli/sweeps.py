@@ -36,7 +36,8 @@ EXECUTOR_HELP = (
     "(join the running "
     "cluster, else start one here, as ray.init()), ray:auto (only join; an error when none "
     "runs), ray:HOST:PORT (join that cluster), ray://HOST:PORT (client), ray:local (always "
-    "start one here)."
+    "start one here); ray[:ADDRESS],batch:N (batches of up to N runs as Ray tasks, one CPU "
+    "each)."
 )
 OUT_HELP = (
     "Sweep directory (runs, results.csv/.parquet, figures). Runs already in it are not run "

@@ -29,7 +29,7 @@ import math
 import threading
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from concurrent.futures import Executor, Future
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from ffexp.sweeps.worker import Job, run_one
@@ -68,12 +68,13 @@ def run_batch(jobs: tuple[Job, ...], threads: int = 1,
 
 
 class BatchExecutor(Executor):
-    """Runs ``run_one`` jobs in batches of at most ``batch`` on ``processes`` processes.
+    """Runs ``run_one`` jobs in batches of at most ``batch`` on ``processes`` processes
+    (``pool``: a process pool of them, or Ray's tasks, ``processes`` the cluster's CPUs).
 
     Anything else submitted goes to the pool as it is (one call in one process).
     """
 
-    def __init__(self, pool: ProcessPoolExecutor, processes: int, batch: int,
+    def __init__(self, pool: Executor, processes: int, batch: int,
                  threads: int = 1) -> None:
         self._pool = pool
         self.processes = max(1, processes)

@@ -9,6 +9,9 @@
   use), each stepping batches of up to N runs together in lockstep, their physics in
   one dispatch a cycle (:mod:`ffexp.sweeps.batch`); the same rows as ``local``. Its
   ``workers`` (the runs at once, the progress bar's slots) is ``W * N``.
+- ``ray[:ADDRESS],batch:N``: the batches of ``batch:N`` as Ray tasks (one CPU each):
+  each task steps a batch of up to N runs on a worker of the cluster, as many
+  batches at once as the cluster has CPUs.
 - ``ray``: as Ray's own ``ray.init()``: join the running cluster (``RAY_ADDRESS``,
   else the latest ``ray start`` on this machine), or else start a Ray instance
   here for this sweep; ``ray:auto`` only joins (an error when no cluster runs,
@@ -51,6 +54,9 @@ class ExecutorSpec:
     workers: int = 0
     """Runs at once (``batch``: processes times runs per batch)."""
     address: str = ""
+    """``ray``, or ``batch`` over Ray (``over``): the Ray address (empty: Ray's default)."""
+    over: str = "local"
+    """``batch``: where the batches run, ``local`` (a process pool) or ``ray``."""
     processes: int = 0
     """``batch``: the batch processes."""
     batch: int = 0
@@ -60,9 +66,11 @@ class ExecutorSpec:
     def label(self) -> str:
         if self.kind == "local":
             return f"local:{self.workers}"
+        ray = f"ray:{self.address}" if self.address else "ray"
         if self.kind == "batch":
-            return f"local:{self.processes},batch:{self.batch}"
-        return f"ray:{self.address}" if self.address else "ray"
+            where = ray if self.over == "ray" else f"local:{self.processes}"
+            return f"{where},batch:{self.batch}"
+        return ray
 
 
 def available_cpus() -> int:
@@ -83,18 +91,27 @@ def _count(text: str, rest: str, what: str) -> int:
 
 
 def parse_executor(text: str) -> ExecutorSpec:
-    """``local[:N]``, ``[local[:W],]batch:N`` or ``ray[:ADDRESS]``; anything else is a
-    ConfigError (exit 2)."""
+    """``local[:N]``, ``[local[:W],]batch:N``, ``ray[:ADDRESS]`` or
+    ``ray[:ADDRESS],batch:N``; anything else is a ConfigError (exit 2)."""
     first, comma, second = text.strip().partition(",")
     if comma or first.startswith("batch"):
-        local, batch = (first, second) if comma else ("local", first)
+        where, batch = (first.strip(), second) if comma else ("local", first)
         kind, _, rest = batch.strip().partition(":")
-        lkind, _, lrest = local.strip().partition(":")
-        if kind != "batch" or lkind != "local" or not rest:
-            raise ConfigError(OPTION, text, "expected batch:N or local[:WORKERS],batch:N")
+        lkind, _, lrest = where.partition(":")
+        if kind != "batch" or lkind not in ("local", "ray") or not rest:
+            raise ConfigError(OPTION, text, "expected batch:N, local[:WORKERS],batch:N or "
+                              "ray[:ADDRESS],batch:N")
         n = _count(text, rest, "batch:N with N runs per batch,")
+        if lkind == "ray":  # the cluster's CPUs decide how many batches run at once
+            return ExecutorSpec("batch", 0, address=_ray_spec(text, where).address,
+                                over="ray", batch=n)
         w = _count(text, lrest, "local:W with W workers,") if lrest else available_cpus()
         return ExecutorSpec("batch", w * n, processes=w, batch=n)
+    return _ray_spec(text, text.strip()) if text.strip().startswith("ray") \
+        else _local_spec(text)
+
+
+def _local_spec(text: str) -> ExecutorSpec:
     kind, _, rest = text.strip().partition(":")
     if kind == "local":
         if not rest:
@@ -106,6 +123,13 @@ def parse_executor(text: str) -> ExecutorSpec:
         if n < 1:
             raise ConfigError(OPTION, text, "expected local or local:N with N >= 1 workers")
         return ExecutorSpec("local", n)
+    raise ConfigError(OPTION, text, "expected local[:WORKERS], [local[:WORKERS],]batch:N, "
+                      "ray[:ADDRESS] or ray[:ADDRESS],batch:N")
+
+
+def _ray_spec(text: str, ray: str) -> ExecutorSpec:
+    """``ray[:ADDRESS]`` (``text``: the whole option's value, for the error)."""
+    kind, _, rest = ray.partition(":")
     if kind == "ray":
         if not rest:
             return ExecutorSpec("ray", address="")  # join a running cluster, else start one
@@ -117,8 +141,8 @@ def parse_executor(text: str) -> ExecutorSpec:
                                   "ray:HOST:PORT or ray://HOST:PORT")
         return ExecutorSpec("ray", address=("ray:" + address) if address.startswith("//")
                             else address)
-    raise ConfigError(OPTION, text,
-                      "expected local[:WORKERS], [local[:WORKERS],]batch:N or ray[:ADDRESS]")
+    raise ConfigError(OPTION, text, "expected local[:WORKERS], [local[:WORKERS],]batch:N, "
+                      "ray[:ADDRESS] or ray[:ADDRESS],batch:N")
 
 
 def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
@@ -127,6 +151,11 @@ def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
     Raises:
         ConfigError: Ray is not installed, or its address does not answer.
     """
+    if spec.kind == "batch" and spec.over == "ray":
+        from ffexp.sweeps.batch import BatchExecutor
+
+        ray = RayExecutor.connect(spec.address)  # a batch a task, one CPU each
+        return BatchExecutor(ray, ray.slots, spec.batch, 1), ray.slots * spec.batch
     if spec.kind in ("local", "batch"):
         import multiprocessing
 

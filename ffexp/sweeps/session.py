@@ -131,7 +131,7 @@ def session(
     second interrupt. ``lean``: the runs record lean (:class:`Runner`)."""
     shown = display or Display(label)
     runner: Runner
-    if spec.kind == "ray":  # connect first: an unreachable cluster is one error line
+    if "ray" in (spec.kind, spec.over):  # connect first: unreachable is one error line
         with spinner(shown.tty, f"{label}: connecting to Ray ({spec.address})"):
             executor, slots = make_executor(spec)
         runner = Runner(out_dir, executor, slots, on_change=shown.update,

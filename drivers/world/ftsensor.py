@@ -81,7 +81,8 @@ class FtSensorModel:
         self._scale = np.concatenate([self._drift_step, self._noise])
         self._inv_res = 1.0 / self._res
         self._delay_n = round(settings.delay_s * settings.rate)
-        self._held: F64 | None = None  # the last _delay_n readings, not yet sampled
+        # the last _delay_n readings, not yet sampled, then the newest block: [held; raw]
+        self._delay_buf: F64 | None = None
         self.seq = 0
         self.last_wrench: F64 | None = None
         self._gauss = np.zeros((0, 12))  # scaled draws not used yet start at row _used
@@ -182,13 +183,18 @@ class FtSensorModel:
 
     def _delayed(self, raw: F64) -> F64:
         """The readings ``delay_s`` older than ``raw``'s (the sensor's path: its
-        conversion and filter); before the first, the first reading held."""
-        held = self._held
-        if held is None:
-            held = np.repeat(raw[:1], self._delay_n, axis=0)
-        full = np.concatenate((held, raw))
-        self._held = full[raw.shape[0]:]
-        return full[:raw.shape[0]]
+        conversion and filter); before the first, the first reading held. A view of a
+        buffer the next call overwrites."""
+        n, dn, buf = raw.shape[0], self._delay_n, self._delay_buf
+        if buf is not None and buf.shape[0] == dn + n:  # [held; raw] in place
+            buf[:dn] = buf[n:]  # the last call's newest dn rows (numpy handles the overlap)
+        else:  # the first call, or another block size
+            held = np.repeat(raw[:1], dn, axis=0) if buf is None else buf[buf.shape[0] - dn:]
+            buf = np.concatenate((held, raw))
+            self._delay_buf = buf
+            return buf[:n]
+        buf[dn:] = raw
+        return buf[:n]
 
     def process(self, raw_parent_on_child: F64, t0_ns: int) -> FtSamples:
         """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``.

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Callable
+from itertools import repeat
 
 import mujoco
 import numpy as np
@@ -66,6 +67,10 @@ INERTIA_REUSE_RAD = 1e-3
 # np.linalg.inv's LAPACK gufunc without its Python wrapper (the same values); the
 # module is private: without it, the public function
 _inv: Callable[..., F64] = getattr(getattr(np.linalg, "_umath_linalg", None), "inv", np.linalg.inv)
+
+
+_gt, _sub = float.__gt__, float.__sub__
+_REUSE = repeat(INERTIA_REUSE_RAD)  # endless: zipped with the joints by map
 
 
 def _no_state() -> LazyArmState | None:
@@ -380,12 +385,7 @@ class SimWorld:
 
     def _apply(self) -> None:
         """Write the held command into actuators, mocap and applied forces."""
-        m, d = self.model, self.data
-        gain = m.actuator_gainprm
-        bias = m.actuator_biasprm
-        ctrl = d.ctrl
-        cart = self._act_cart
-        jnt = self._act_jnt
+        # MuJoCo's arrays are looked up only where written (each lookup makes a view)
         if self.mode == ArmMode.CART_IMPEDANCE:
             # Each parameter is rewritten only when its inputs are other objects than
             # those last written (a given field is a new array; a repeated gain the same).
@@ -409,14 +409,16 @@ class SimWorld:
                     self._ctrl_ft[:] = self._tcp_ft
                     w["ft"] = self._tcp_ft
                 if w.get("jnt") is None:  # the joint gains of the joint modes off
-                    gain[jnt, 0] = 0.0
-                    bias[jnt, 1] = 0.0
-                    bias[jnt, 2] = 0.0
+                    jnt = self._act_jnt
+                    self.model.actuator_gainprm[jnt, 0] = 0.0
+                    self.model.actuator_biasprm[jnt, 1:3] = 0.0
                     w["jnt"] = True
                 if w.get("trq") is not self._jnt_trq:
                     self._jnt_trq_prm[:] = self._jnt_trq
                     w["trq"] = self._jnt_trq
         else:
+            m, ctrl, cart, jnt = self.model, self.data.ctrl, self._act_cart, self._act_jnt
+            gain, bias = m.actuator_gainprm, m.actuator_biasprm
             self._written.clear()  # joint modes write over all of it
             self._latched = True
             self._inertia_new = True  # the Cartesian damping is rewritten on return
@@ -541,10 +543,9 @@ class SimWorld:
         self.cycle += 1
         self._kin_ok = self._pose_ok = False
         # a joint moved more than INERTIA_REUSE_RAD (plain floats: one per joint)
-        for qi, q0 in zip(self._qpos_arm.tolist(), self._inertia_ql, strict=True):
-            if abs(qi - q0) > INERTIA_REUSE_RAD:
-                self._update_inertia()
-                break
+        if any(map(_gt, map(abs, map(_sub, self._qpos_arm.tolist(), self._inertia_ql)),
+                   _REUSE)):
+            self._update_inertia()
         hold = self.rendered.hold if self.rendered is not None else None
         if hold is not None and not self._hold_said:  # said once: the chaser's run stops
             self._hold_said = True

@@ -266,7 +266,7 @@ def study(executor: str, warm: int) -> Callable[[Path, list[Job]], float]:
             for f in [ex.submit(warm_worker) for _ in range(warm)]:
                 f.result()
             t0 = time.perf_counter()
-            with engine.Runner(out, ex, slots) as r:
+            with engine.Runner(out, ex, slots, lean=any(j.lean for j in jobs)) as r:
                 rows = r.run_batch(jobs)
             wall = time.perf_counter() - t0
         finally:

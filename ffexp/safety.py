@@ -53,33 +53,43 @@ class SafetyMonitor:
     def __init__(self, limits: Limits) -> None:
         self.limits = limits
         self._workspace: list[float] = np.asarray(limits.workspace_m, dtype=np.float64).tolist()
+        # the limits as plain floats, and the workspace's widths less a margin far above
+        # the rounding of the box's offset (see check)
+        self._max_force_n, self._max_torque_nm = limits.max_force_n, limits.max_torque_nm
+        self._max_speed_mps = limits.max_speed_mps
+        self._stale_ns = limits.stale_ft_s * NS_PER_S
+        margin = _MARGIN_M * max(1.0, *map(abs, self._workspace))
+        self._inner = [w - margin for w in self._workspace]
         self._bad_link_cycles = 0
         self._origin: F64 | None = None
         self._box: tuple[F64, F64] | None = None  # the origin's R^T and position (views)
+        self._box_floats: tuple[list[list[float]], list[float]] | None = None
 
     def set_origin(self, pose: F64) -> None:
         """The pose the workspace box is centred on (where the approach starts)."""
         o = self._origin = pose.copy()
         self._box = (o[:3, :3].T, o[:3, 3])  # views of the copy
+        self._box_floats = (o[:3, :3].T.tolist(), o[:3, 3].tolist())
 
     def check(self, t_ns: int, phase: Phase, state: RobotState, est: Estimate) -> Stop | None:
         """The first condition that holds this cycle, or ``None``."""
-        lim = self.limits
         if est.n_samples:
             if est.saturated:
                 return Stop(StopReason.FT_SATURATED, "F/T sensor saturated")
-            if est.peak_force_n > lim.max_force_n:
+            if est.peak_force_n > self._max_force_n:
                 return Stop(
                     StopReason.FORCE_LIMIT,
-                    f"force limit: |f| = {est.peak_force_n:.1f} N > {lim.max_force_n} N",
+                    f"force limit: |f| = {est.peak_force_n:.1f} N > {self.limits.max_force_n} N",
                 )
-            if est.peak_torque_nm > lim.max_torque_nm:
+            if est.peak_torque_nm > self._max_torque_nm:
                 return Stop(
                     StopReason.TORQUE_LIMIT,
-                    f"torque limit: |t| = {est.peak_torque_nm:.2f} N m > {lim.max_torque_nm} N m",
+                    f"torque limit: |t| = {est.peak_torque_nm:.2f} N m > "
+                    f"{self.limits.max_torque_nm} N m",
                 )
-        since_ns = t_ns - (est.last_sample_ns if est.last_sample_ns is not None else 0)
-        if since_ns > lim.stale_ft_s * NS_PER_S:
+        last = est.last_sample_ns
+        since_ns = t_ns - (last if last is not None else 0)
+        if since_ns > self._stale_ns:
             return Stop(
                 StopReason.FT_STALE,
                 f"stale F/T data: no sample for {since_ns / NS_PER_S * 1e3:.0f} ms",
@@ -87,26 +97,53 @@ class SafetyMonitor:
         link = state.link
         bad = not link.healthy or (phase != Phase.CONNECT and not link.commanding)
         self._bad_link_cycles = self._bad_link_cycles + 1 if bad else 0
-        if self._bad_link_cycles >= lim.link_lost_cycles:
+        if self._bad_link_cycles >= self.limits.link_lost_cycles:
             return Stop(
                 StopReason.LINK_BAD,
                 f"link lost: {'' if link.commanding else 'not commanding, '}"
                 f"{'healthy' if link.healthy else 'unhealthy'} for {self._bad_link_cycles} cycles",
             )
-        if phase in (Phase.APPROACH, Phase.ALIGN):
+        if phase is Phase.APPROACH or phase is Phase.ALIGN:
             v = est.twist_tcf[:3]  # np.linalg.norm's dot product and root, without its checks
             speed = math.sqrt(v.dot(v))
-            if speed > lim.max_speed_mps:
+            if speed > self._max_speed_mps:
                 return Stop(
                     StopReason.SPEED_LIMIT,
-                    f"speed limit: {speed:.3f} m/s > {lim.max_speed_mps} m/s",
+                    f"speed limit: {speed:.3f} m/s > {self.limits.max_speed_mps} m/s",
                 )
-            if self._box is not None:
-                rt, p = self._box
-                offset = rt @ (state.tcp_pose_m[:3, 3] - p)
-                if any(abs(v) > w for v, w in zip(offset.tolist(), self._workspace, strict=True)):
-                    return Stop(
-                        StopReason.WORKSPACE_LIMIT,
-                        f"workspace limit: offset {np.round(offset, 3).tolist()} m",
-                    )
+            if self._box_floats is not None and not self._inside(state.tcp_pose_m):
+                return self._workspace_stop(state.tcp_pose_m)
         return None
+
+    def _inside(self, pose: F64) -> bool:
+        """The tool well inside the box: the offset ``R^T (p - o)`` on floats, each
+        component at least :data:`_MARGIN_M` inside its half-width (its rounding, summed
+        in whatever order, is some 1e-15 m); ``False`` says only "near or outside": the
+        offset as numpy makes it then decides (:meth:`_workspace_stop`)."""
+        assert self._box_floats is not None
+        (r0, r1, r2), (o0, o1, o2) = self._box_floats
+        p0, p1, p2 = pose[:3, 3].tolist()
+        d0, d1, d2 = p0 - o0, p1 - o1, p2 - o2
+        w0, w1, w2 = self._inner
+        inside: bool = (abs(r0[0] * d0 + r0[1] * d1 + r0[2] * d2) <= w0
+                        and abs(r1[0] * d0 + r1[1] * d1 + r1[2] * d2) <= w1
+                        and abs(r2[0] * d0 + r2[1] * d1 + r2[2] * d2) <= w2)
+        return inside
+
+    def _workspace_stop(self, pose: F64) -> Stop | None:
+        """The workspace condition decided on the offset as numpy makes it."""
+        assert self._box is not None
+        rt, p = self._box
+        offset = rt @ (pose[:3, 3] - p)
+        if any(abs(v) > w for v, w in zip(offset.tolist(), self._workspace, strict=True)):
+            return Stop(
+                StopReason.WORKSPACE_LIMIT,
+                f"workspace limit: offset {np.round(offset, 3).tolist()} m",
+            )
+        return None
+
+
+#: How far inside the workspace box's faces (relative to its largest half-width above 1 m) the
+#: float check of :meth:`SafetyMonitor._inside`
+#: must find the tool to skip numpy's offset [m]: far above the rounding of a 3-term sum.
+_MARGIN_M = 1e-9

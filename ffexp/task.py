@@ -153,7 +153,7 @@ class Task:
                 scenario.start(state)
                 self._enter(t_ns, Phase.APPROACH, "sensor tared, robot commanding")
             return
-        if phase.ended:
+        if phase is Phase.DONE or phase is Phase.ABORT:  # phase.ended
             return
         scenario.observe(t_ns, state, est, target)
         self.observed = True

@@ -235,22 +235,27 @@ class ImpedanceConfig(StrictModel):
 
 def rotation_log(r: F64) -> F64:
     """Rotation vector (axis * angle) of a 3x3 rotation matrix."""
-    m = r.tolist()  # the trace and the differences on floats: the same operations
+    return np.array(_rotation_log_floats(r))
+
+
+def _rotation_log_floats(r: F64) -> list[float]:
+    """:func:`rotation_log` as three floats: the trace, the differences and the scaling
+    on floats (the same IEEE operations as on arrays), the arc cosine and sine numpy's."""
+    m = r.tolist()
     cos = _clip((m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0, -1.0, 1.0)
     angle = float(np.arccos(cos))
-    v = np.array([m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1]])
+    v = [m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1]]
     if angle < 1e-9:
-        small: F64 = 0.5 * v
-        return small
+        return [0.5 * v[0], 0.5 * v[1], 0.5 * v[2]]
     if np.pi - angle < 1e-6:
         # near pi: axis from the diagonal of (R + I) / 2
         b = (r + np.eye(3)) / 2.0
         k = int(np.argmax(np.diag(b)))
         axis = b[:, k] / np.sqrt(max(b[k, k], 1e-300))
-        near_pi: F64 = axis * angle
+        near_pi: list[float] = (axis * angle).tolist()
         return near_pi
-    general: F64 = v * (angle / (2.0 * np.sin(angle)))
-    return general
+    s = angle / (2.0 * float(np.sin(angle)))
+    return [v[0] * s, v[1] * s, v[2] * s]
 
 
 def pose_error_tcf(pose: F64, setpoint: F64) -> F64:
@@ -278,12 +283,16 @@ class ImpedanceController:
         # per axis as floats for the output (the array form's elementwise operations)
         self._axes = list(zip(self._k.tolist(), self._b.tolist(), (-self._lim).tolist(),
                               self._lim.tolist(), strict=True))
+        self._speed, self._distance = config.speed_mps, config.distance_m
         self._start: F64 | None = None
+        self._start_r = self._start_p = np.zeros(0)
         self.setpoint = np.eye(4)
 
     def start(self, pose: F64) -> None:
         """Anchor the line at the current tool pose (4x4, base frame)."""
-        self._start = pose.copy()
+        self._start = start = pose.copy()
+        self._start_r = start[:3, :3]  # views of the anchor (made once a line)
+        self._start_p = start[:3, 3]
         self.setpoint = pose.copy()
 
     def setpoint_at(self, elapsed_s: float) -> F64:
@@ -296,12 +305,25 @@ class ImpedanceController:
         return sp
 
     def update(self, pose: F64, twist_tcf: F64, elapsed_s: float) -> F64:
-        """Commanded wrench (TCF) for the tool pose and its twist in TCF."""
-        self.setpoint = self.setpoint_at(elapsed_s)
-        e = pose_error_tcf(pose, self.setpoint)
+        """Commanded wrench (TCF) for the tool pose and its twist in TCF.
+
+        :meth:`setpoint_at`, :func:`pose_error_tcf` and ``np.clip(K e - B twist, -lim,
+        lim)`` in one: the same products (BLAS on the same views), the set-point's
+        rotation taken as the anchor's (its copy's values), the rest on floats
+        (``tests/test_control.py`` checks it against that composition bit for bit).
+        """
+        start = self._start
+        if start is None:
+            raise RuntimeError("ImpedanceController.start() was not called")
+        travel = min(self._speed * max(elapsed_s, 0.0), self._distance)
+        sp = self.setpoint = start.copy()
+        sp[:3, 3] += self._start_r @ (self._dir * travel)
+        rt = pose[:3, :3].T
+        e = (rt @ (sp[:3, 3] - pose[:3, 3])).tolist()
+        e += _rotation_log_floats(rt @ self._start_r)
         # np.clip(K e - B twist, -lim, lim), per axis on floats (the same operations)
         return np.array([
             _clip(k * ek - b * vk, lo, hi)
-            for (k, b, lo, hi), ek, vk in zip(self._axes, e.tolist(),
+            for (k, b, lo, hi), ek, vk in zip(self._axes, e,
                                               np.asarray(twist_tcf, dtype=np.float64).tolist(),
                                               strict=True)])

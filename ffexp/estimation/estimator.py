@@ -87,6 +87,7 @@ class Estimator:
         self._oi = np.zeros((runs, k.OI_SIZE), dtype=np.int64)
         self._offsets = np.zeros(runs + 1, dtype=np.int64)  # a single run's
         self._ist0 = ist[0]  # the first run's row (a view, made once)
+        self._in_cols = (k.IS_COMMANDING, k.IS_T_NS, k.IS_T0_NS)
         self.out = Estimate()
         self.batch = EstimateBatch(self._of, self._oi)
 
@@ -138,13 +139,13 @@ class Estimator:
         if self.runs != 1:
             raise ValueError(f"update steps a single run; this estimator has {self.runs}: "
                              "update_batch")
-        n = len(ft)
+        n = ft.time_ns.shape[0]
         self._offsets[1] = n
-        k = self._k
         ist = self._ist0
-        ist[k.IS_COMMANDING] = state.link.commanding
-        ist[k.IS_T_NS] = t_ns
-        ist[k.IS_T0_NS] = t0_ns
+        i_cmd, i_t, i_t0 = self._in_cols
+        ist[i_cmd] = state.link.commanding
+        ist[i_t] = t_ns
+        ist[i_t0] = t0_ns
         self._cycle(state.tcp_pose_m[None], ft.wrench, ft.time_ns, ft.status, self._offsets)
         out = self.out
         f = self._of[0].copy()  # the columns: kernels.OF_*, OI_*
@@ -162,5 +163,5 @@ class Estimator:
         out.tared = tared == 1
         out.tared_now = tared_now == 1
         out.tare_samples = tare_samples
-        out.last_sample_ns = None if last == k.NONE_NS else last
+        out.last_sample_ns = None if last == self._k.NONE_NS else last
         return out

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from pydantic import Field
 
-from drivers.base.placement import Placement, placement, placement_at_mouth
+from drivers.base.placement import Placement, placement
 from drivers.base.topics import CdrTopic, FieldSpec, MessageSpec
 from drivers.base.types import NS_PER_S, GroundTruth, RobotState, TargetObservation
 from drivers.config import StrictModel
@@ -64,8 +64,7 @@ def truth_placement(truth: GroundTruth, tcp_pose: np.ndarray) -> Placement | Non
     mouth = truth.sites.get(MOUTH_SITE)
     if mouth is None:
         return None
-    tcp_pose = truth.sites.get(TCP_SITE, tcp_pose)
-    return placement_at_mouth(tcp_pose, mouth[:3, 3], mouth[:3, :3].reshape(9))
+    return placement(truth.sites.get(TCP_SITE, tcp_pose), mouth)
 
 
 class _PlacementRecord:
@@ -166,6 +165,8 @@ class FunnelAlignment(Scenario):
         self._target: TargetObservation | None = None
         self._truth_p: Placement | None = None
         """The truth's placement this cycle (``None``: no truth)."""
+        self._within_of: Placement | None = None  # the placement last judged, and how
+        self._within_is = False
 
     @property
     def hold_s(self) -> float:
@@ -174,11 +175,11 @@ class FunnelAlignment(Scenario):
     def start(self, state: RobotState) -> None:
         start_pose = state.tcp_pose_m.copy()
         self._start_z_axis = start_pose[:3, 2].copy()
-        self._start_z = float(self._start_z_axis @ start_pose[:3, 3])
+        self._start_z = float(self._start_z_axis.dot(start_pose[:3, 3]))
 
     def _advance(self, state: RobotState) -> float:
         """The tool's travel along the start TCF's Z since the tare [m]."""
-        return float(self._start_z_axis @ state.tcp_pose_m[:3, 3]) - self._start_z
+        return float(self._start_z_axis.dot(state.tcp_pose_m[:3, 3])) - self._start_z
 
     def _fresh(self, state: RobotState, target: TargetObservation | None) -> bool:
         if target is None or not target.valid:
@@ -244,7 +245,11 @@ class FunnelAlignment(Scenario):
         self._truth_since_ns = None
 
     def _within(self, p: Placement) -> bool:
-        return self.alignment.within(p)
+        """:meth:`Alignment.within`, asked once per placement (truth's: up to three
+        times a cycle)."""
+        if p is not self._within_of:
+            self._within_of, self._within_is = p, self.alignment.within(p)
+        return self._within_is
 
     def _shadow_truth(self, t_ns: int, state: RobotState) -> None:
         p = self._truth_p

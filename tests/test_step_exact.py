@@ -9,10 +9,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drivers.base.placement import placement, placement_at_mouth
-from drivers.base.types import LinkHealth, RobotState
+from drivers.base.placement import Placement, placement, placement_at_mouth, wrap_angle
+from drivers.base.types import GroundTruth, LinkHealth, RobotState
 from ffexp.contracts import Phase, StopReason
-from ffexp.controllers.laws import ImpedanceConfig, ImpedanceController, rotation_log
+from ffexp.controllers.laws import (
+    ForceControlConfig,
+    ForceController,
+    ImpedanceConfig,
+    ImpedanceController,
+    rotation_log,
+)
 from ffexp.estimation import Estimate
 from ffexp.safety import Limits, SafetyMonitor
 
@@ -167,3 +173,83 @@ def test_safety_check_reports_the_workspace_and_speed_limits() -> None:
     assert "0.15" in stop.message
     stop = mon.check(0, Phase.APPROACH, state, _estimate(0.3))
     assert stop is not None and stop.reason is StopReason.SPEED_LIMIT
+
+
+def _force_config(rng: np.random.Generator) -> ForceControlConfig:
+    sel = rng.random(6) < 0.5
+    sel[2] = True
+    return ForceControlConfig(
+        force_axes=tuple(bool(s) for s in sel),  # type: ignore[arg-type]
+        f_ref=tuple(float(v) if s else 0.0 for v, s in  # type: ignore[arg-type]
+                    zip(rng.normal(size=6), sel, strict=True)),
+        kp=tuple(float(v) if s else 0.0 for v, s in  # type: ignore[arg-type]
+                 zip(rng.uniform(0, 2, 6), sel, strict=True)),
+        ki=tuple(float(v) if s and v > 0.3 else 0.0 for v, s in  # type: ignore[arg-type]
+                 zip(rng.uniform(0, 3, 6), sel, strict=True)),
+        k_ri=tuple(0.0 if s else float(v) for v, s in  # type: ignore[arg-type]
+                   zip(rng.uniform(0, 1, 6), sel, strict=True)),
+        output_limit=tuple(rng.uniform(0.5, 5, 6)),  # type: ignore[arg-type]
+        integral_limit=tuple(rng.uniform(0.0, 2, 6)),  # type: ignore[arg-type]
+        contact_feedforward=bool(rng.random() < 0.7))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_force_law_compiled_matches_its_float_form(seed: int) -> None:
+    """Eq. (9) compiled against the same on Python floats, through saturation, the
+    integral's clamp and a NaN reading: every term, the integral and the flag."""
+    rng = np.random.default_rng(seed)
+    cfg = _force_config(rng)
+    fast, ref = ForceController(cfg, 0.005), ForceController(cfg, 0.005)
+    for i in range(400):
+        w = rng.normal(scale=rng.choice([0.1, 2.0, 40.0]), size=6)
+        if i == 250:
+            w[int(rng.integers(6))] = np.nan
+        a, b = fast.update(w), ref.update_floats(w)
+        for name in ("p", "i", "ri", "ff", "total"):
+            assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+        assert a.saturated == b.saturated
+        assert fast.integral.tobytes() == ref.integral.tobytes()
+        if i == 300:  # a NaN integral stays NaN in both: start again
+            fast.reset()
+            ref.reset()
+
+
+def test_funnel_geometry_matches_truth_placement_and_the_advance() -> None:
+    """The funnel's compiled geometry: the truth's placement (its own TCP frame or the
+    measured pose) and the advance along the start TCF's z, bit for bit."""
+    from ffexp.controllers.kernels import funnel_geometry
+    from ffexp.scenarios.funnel import MOUTH_SITE, TCP_SITE, truth_placement
+
+    rng = np.random.default_rng(8)
+    out = np.zeros(5)
+    for i in range(2000):
+        measured, mouth, tool = _pose(rng), _pose(rng), _pose(rng)
+        z_axis = _pose(rng)[:3, 2].copy()
+        sites = {MOUTH_SITE: mouth} if i % 2 else {MOUTH_SITE: mouth, TCP_SITE: tool}
+        truth = GroundTruth(sites=sites)
+        funnel_geometry(sites.get(TCP_SITE, measured), mouth, measured, z_axis, out)
+        x, y, z, heading, along = out.tolist()
+        assert Placement((x, y, z, wrap_angle(heading))) == truth_placement(truth, measured)
+        assert along == float(z_axis @ measured[:3, 3])
+
+
+def test_a_nan_takes_the_float_forms() -> None:
+    """A NaN in a pose, twist or wrench: the compiled kernels compute nothing and the
+    float forms answer (whose NaN comes out is the order of a sum's operands)."""
+    rng = np.random.default_rng(9)
+    law, ref = ImpedanceController(ImpedanceConfig()), ImpedanceController(ImpedanceConfig())
+    start = _pose(rng)
+    law.start(start)
+    ref.start(start)
+    pose, twist = start.copy(), rng.normal(size=6)
+    pose[0, 3] = np.nan
+    assert law.update(pose, twist, 1.0).tobytes() == ref.update_floats(pose, twist, 1.0).tobytes()
+    twist[4] = np.nan
+    assert law.update(start, twist, 1.0).tobytes() == \
+        ref.update_floats(start, twist, 1.0).tobytes()
+    assert law.setpoint.tobytes() == ref.setpoint.tobytes()
+
+    from ffexp.controllers.kernels import funnel_geometry
+    out = np.full(5, 7.0)
+    assert not funnel_geometry(pose, start, start, np.ones(3), out)
+    assert (out == 7.0).all()

@@ -20,12 +20,13 @@ where they have always been; its ``[task]`` table names only the scenario.
 from __future__ import annotations
 
 import math
+from types import ModuleType
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from pydantic import Field
 
-from drivers.base.placement import Placement, placement
+from drivers.base.placement import Placement, placement, wrap_angle
 from drivers.base.topics import CdrTopic, FieldSpec, MessageSpec
 from drivers.base.types import NS_PER_S, GroundTruth, RobotState, TargetObservation
 from drivers.config import StrictModel
@@ -56,6 +57,14 @@ PLACEMENT = MessageSpec(
     ),
     "The tool tip in the target funnel by the simulator's truth (funnel alignment).",
 )
+
+
+def kernels() -> ModuleType:
+    """:mod:`ffexp.controllers.kernels` (its :func:`funnel_geometry`), imported on first
+    use (numba's import is slow)."""
+    from ffexp.controllers import kernels as module
+
+    return module
 
 
 def truth_placement(truth: GroundTruth, tcp_pose: np.ndarray) -> Placement | None:
@@ -166,6 +175,8 @@ class FunnelAlignment(Scenario):
         self._truth_p: Placement | None = None
         """The truth's placement this cycle (``None``: no truth)."""
         self._within_of: Placement | None = None  # the placement last judged, and how
+        self._geo = np.zeros(5)  # funnel_geometry's output
+        self._kernels = kernels()
         self._within_is = False
 
     @property
@@ -228,9 +239,28 @@ class FunnelAlignment(Scenario):
         truth = state.truth
         if truth is not None and self.truth_aligned is None:
             self.truth_aligned = False  # the truth is there: it says "not aligned" until held
-        self._truth_p = None if truth is None else truth_placement(truth, state.tcp_pose_m)
+        # truth_placement and _advance in one compiled call (the same numbers; the
+        # functions themselves when a pose holds a NaN)
+        tcp = state.tcp_pose_m
+        mouth = None if truth is None else truth.sites.get(MOUTH_SITE)
+        geo = self._geo
+        if mouth is None:
+            self._truth_p = None
+            if self._kernels.funnel_geometry(tcp, tcp, tcp, self._start_z_axis, geo):
+                z = float(geo[4]) - self._start_z
+            else:
+                z = self._advance(state)
+        else:
+            assert truth is not None
+            if self._kernels.funnel_geometry(truth.sites.get(TCP_SITE, tcp), mouth, tcp,
+                                             self._start_z_axis, geo):
+                x, y, v, heading, along = geo.tolist()
+                self._truth_p = Placement((x, y, v, wrap_angle(heading)))
+                z = along - self._start_z
+            else:
+                self._truth_p = truth_placement(truth, tcp)
+                z = self._advance(state)
         self._place(state)
-        z = self._advance(state)
         if est.in_contact:
             self.observer.contact_made(z)
         w, tw = est.wrench, est.twist_tcf

@@ -88,8 +88,16 @@ class Estimator:
         self._offsets = np.zeros(runs + 1, dtype=np.int64)  # a single run's
         self._ist0 = ist[0]  # the first run's row (a view, made once)
         self._in_cols = (k.IS_COMMANDING, k.IS_T_NS, k.IS_T0_NS)
-        self.out = Estimate()
         self.batch = EstimateBatch(self._of, self._oi)
+        # a single run's outputs: views of the first row, made once (Estimate's arrays
+        # are reused between cycles)
+        f = self._of[0]
+        self.out = Estimate(wrench=f[k.OF_WRENCH:k.OF_WRENCH + 6],
+                            wrench_std=f[k.OF_STD:k.OF_STD + 6],
+                            bias=f[k.OF_BIAS:k.OF_BIAS + 6],
+                            twist_tcf=f[k.OF_TWIST:k.OF_TWIST + 6])
+        self._of_scalars = f[k.OF_FZ:k.OF_PEAK_T + 1]
+        self._oi0 = self._oi[0]
 
     def update_batch(self, poses: F64, wrench: F64, time_ns: I64, status: NDArray[np.uint32],
                      offsets: I64, commanding: NDArray[np.bool_], t_ns: I64,
@@ -147,15 +155,10 @@ class Estimator:
         ist[i_t] = t_ns
         ist[i_t0] = t0_ns
         self._cycle(state.tcp_pose_m[None], ft.wrench, ft.time_ns, ft.status, self._offsets)
-        out = self.out
-        f = self._of[0].copy()  # the columns: kernels.OF_*, OI_*
+        out = self.out  # its arrays are views of the outputs: the columns kernels.OF_*
         (_, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
-         last) = ints = self._oi[0].tolist()
-        out.wrench = f[0:6]
-        out.wrench_std = f[6:12]
-        out.bias = f[12:18]
-        out.twist_tcf = f[18:24]
-        out.f_z, out.peak_force_n, out.peak_torque_nm = f[24:27].tolist()
+         last) = ints = self._oi0.tolist()  # the columns kernels.OI_*
+        out.f_z, out.peak_force_n, out.peak_torque_nm = self._of_scalars.tolist()
         out.n_samples = n
         out.event = self._event(0, ints) if event else None
         out.in_contact = in_contact == 1

@@ -263,9 +263,9 @@ class FunnelAlignment(Scenario):
         self._place(state)
         if est.in_contact:
             self.observer.contact_made(z)
-        w, tw = est.wrench, est.twist_tcf
-        self.observer.update(t_ns, z, est.in_contact, est.f_z, float(w[1]), float(w[3]),
-                             float(tw[1]), float(tw[3]))
+        _, f_y, _, t_x, _, _ = est.wrench.tolist()
+        _, v_y, _, w_x, _, _ = est.twist_tcf.tolist()
+        self.observer.update(t_ns, z, est.in_contact, est.f_z, f_y, t_x, v_y, w_x)
 
     def contact(self, state: RobotState) -> None:
         if self._first_contact_z is None:

@@ -16,7 +16,7 @@ first that holds is the one reported):
 
 from __future__ import annotations
 
-import math
+from types import ModuleType
 
 import numpy as np
 from pydantic import Field
@@ -25,6 +25,14 @@ from drivers.base.types import F64, NS_PER_S, RobotState
 from drivers.config import StrictModel
 from ffexp.contracts import Phase, Stop, StopReason
 from ffexp.estimation import Estimate
+
+
+def kernels() -> ModuleType:
+    """:mod:`ffexp.controllers.kernels` (its :func:`safety_motion`), imported on first
+    use (numba's import is slow)."""
+    from ffexp.controllers import kernels as module
+
+    return module
 
 
 class Limits(StrictModel):
@@ -53,23 +61,22 @@ class SafetyMonitor:
     def __init__(self, limits: Limits) -> None:
         self.limits = limits
         self._workspace: list[float] = np.asarray(limits.workspace_m, dtype=np.float64).tolist()
-        # the limits as plain floats, and the workspace's widths less a margin far above
-        # the rounding of the box's offset (see check)
+        # the limits as plain floats, and what the compiled motion check takes
         self._max_force_n, self._max_torque_nm = limits.max_force_n, limits.max_torque_nm
         self._max_speed_mps = limits.max_speed_mps
         self._stale_ns = limits.stale_ft_s * NS_PER_S
-        margin = _MARGIN_M * max(1.0, *map(abs, self._workspace))
-        self._inner = [w - margin for w in self._workspace]
+        self._widths = np.asarray(self._workspace, dtype=np.float64)
+        self._no_origin = np.eye(4)
+        self._motion = np.zeros(4)  # speed, offset
+        self._kernels = kernels()
         self._bad_link_cycles = 0
         self._origin: F64 | None = None
         self._box: tuple[F64, F64] | None = None  # the origin's R^T and position (views)
-        self._box_floats: tuple[list[list[float]], list[float]] | None = None
 
     def set_origin(self, pose: F64) -> None:
         """The pose the workspace box is centred on (where the approach starts)."""
         o = self._origin = pose.copy()
         self._box = (o[:3, :3].T, o[:3, 3])  # views of the copy
-        self._box_floats = (o[:3, :3].T.tolist(), o[:3, 3].tolist())
 
     def check(self, t_ns: int, phase: Phase, state: RobotState, est: Estimate) -> Stop | None:
         """The first condition that holds this cycle, or ``None``."""
@@ -104,31 +111,22 @@ class SafetyMonitor:
                 f"{'healthy' if link.healthy else 'unhealthy'} for {self._bad_link_cycles} cycles",
             )
         if phase is Phase.APPROACH or phase is Phase.ALIGN:
-            v = est.twist_tcf[:3]  # np.linalg.norm's dot product and root, without its checks
-            speed = math.sqrt(v.dot(v))
-            if speed > self._max_speed_mps:
+            # speed and workspace box compiled (the same sums as np.linalg.norm's dot
+            # product and numpy's offset R^T (p - o); a workspace stop says numpy's)
+            k = self._kernels
+            origin = self._origin
+            crossed = k.safety_motion(est.twist_tcf, self._max_speed_mps, state.tcp_pose_m,
+                                      self._no_origin if origin is None else origin,
+                                      self._widths, origin is not None, self._motion)
+            if crossed == k.MOTION_SPEED:
+                speed = float(self._motion[0])
                 return Stop(
                     StopReason.SPEED_LIMIT,
                     f"speed limit: {speed:.3f} m/s > {self.limits.max_speed_mps} m/s",
                 )
-            if self._box_floats is not None and not self._inside(state.tcp_pose_m):
+            if crossed == k.MOTION_WORKSPACE:
                 return self._workspace_stop(state.tcp_pose_m)
         return None
-
-    def _inside(self, pose: F64) -> bool:
-        """The tool well inside the box: the offset ``R^T (p - o)`` on floats, each
-        component at least :data:`_MARGIN_M` inside its half-width (its rounding, summed
-        in whatever order, is some 1e-15 m); ``False`` says only "near or outside": the
-        offset as numpy makes it then decides (:meth:`_workspace_stop`)."""
-        assert self._box_floats is not None
-        (r0, r1, r2), (o0, o1, o2) = self._box_floats
-        p0, p1, p2 = pose[:3, 3].tolist()
-        d0, d1, d2 = p0 - o0, p1 - o1, p2 - o2
-        w0, w1, w2 = self._inner
-        inside: bool = (abs(r0[0] * d0 + r0[1] * d1 + r0[2] * d2) <= w0
-                        and abs(r1[0] * d0 + r1[1] * d1 + r1[2] * d2) <= w1
-                        and abs(r2[0] * d0 + r2[1] * d1 + r2[2] * d2) <= w2)
-        return inside
 
     def _workspace_stop(self, pose: F64) -> Stop | None:
         """The workspace condition decided on the offset as numpy makes it."""
@@ -141,9 +139,3 @@ class SafetyMonitor:
                 f"workspace limit: offset {np.round(offset, 3).tolist()} m",
             )
         return None
-
-
-#: How far inside the workspace box's faces (relative to its largest half-width above 1 m) the
-#: float check of :meth:`SafetyMonitor._inside`
-#: must find the tool to skip numpy's offset [m]: far above the rounding of a 3-term sum.
-_MARGIN_M = 1e-9

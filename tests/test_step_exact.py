@@ -128,25 +128,44 @@ def _workspace_reference(origin: np.ndarray, pose: np.ndarray, widths: list[floa
 
 @pytest.mark.parametrize("widths", [(0.05, 0.15, 0.35), (1e-12, 2.0, 0.0), (3e3, 1e-3, 40.0)])
 def test_workspace_check_decides_as_the_array_form(widths: tuple[float, float, float]) -> None:
-    """The float pre-check never lets pass a pose the array form stops, on and near the
-    box's faces too (poses placed on a face, then nudged by a few ulps either way)."""
+    """The compiled workspace check stops exactly the poses the array form stops, on and
+    near the box's faces too (poses placed on a face, then nudged by a few ulps)."""
     rng = np.random.default_rng(7)
     mon = SafetyMonitor(Limits(workspace_m=widths))
     origin = _pose(rng)
     mon.set_origin(origin)
     w = list(widths)
+    state = RobotState(time_ns=0, tcp_pose_m=origin.copy(), link=LinkHealth())
     for i in range(3000):
         local = rng.uniform(-1.5, 1.5, 3) * np.asarray(w)
         if i % 3 == 0:  # on a face, give or take an ulp or a few
             axis = int(rng.integers(3))
             local[axis] = np.copysign(w[axis], rng.normal())
             local[axis] = np.nextafter(local[axis], rng.normal() * np.inf)
-        pose = origin.copy()
+        pose = state.tcp_pose_m
         pose[:3, 3] = origin[:3, 3] + origin[:3, :3] @ local
         for _ in range(int(rng.integers(0, 4))):
             pose[:3, 3] = np.nextafter(pose[:3, 3], rng.normal(size=3) * np.inf)
-        stop = mon._workspace_stop(pose) if not mon._inside(pose) else None
+        stop = mon.check(0, Phase.APPROACH, state, _estimate(0.0))
         assert (stop is not None) == _workspace_reference(origin, pose, w)
+        assert stop is None or stop.reason is StopReason.WORKSPACE_LIMIT
+
+
+def test_speed_check_is_numpys_norm() -> None:
+    """The compiled speed is ``sqrt(v . v)`` as numpy's dot product makes it, bit for bit,
+    and the limit is crossed where it is crossed on that."""
+    from ffexp.controllers.kernels import MOTION_SPEED, safety_motion
+
+    rng = np.random.default_rng(10)
+    out = np.zeros(4)
+    for _ in range(3000):
+        twist = rng.normal(scale=rng.choice([1e-3, 0.1, 10.0]), size=6)
+        v = twist[:3]
+        speed = float(np.sqrt(v.dot(v)))
+        limit = float(speed if rng.random() < 0.3 else rng.uniform(0, 2) * speed)
+        got = safety_motion(twist, limit, np.eye(4), np.eye(4), np.ones(3), False, out)
+        assert out[0] == speed
+        assert (got == MOTION_SPEED) == (speed > limit)
 
 
 def _estimate(speed: float) -> Estimate:

@@ -174,3 +174,30 @@ def funnel_geometry(tool: F64, mouth: F64, measured: F64, z_axis: F64, out: F64)
     out[4] = dot3(z_axis[0], z_axis[1], z_axis[2], measured[0, 3], measured[1, 3],
                   measured[2, 3])
     return True
+
+
+#: :func:`safety_motion`'s answers: within the limits, too fast, out of the workspace box.
+MOTION_OK, MOTION_SPEED, MOTION_WORKSPACE = 0, 1, 2
+
+
+@njit(cache=True)
+def safety_motion(twist: F64, max_speed: float, pose: F64, origin: F64, widths: F64,
+                  box: bool, out: F64) -> int:
+    """The safety monitor's motion limits: the tool speed ``|twist[:3]|`` (into
+    ``out[0]``) against ``max_speed``, then (if ``box``) the offset ``R_o^T (p - p_o)``
+    of the tool from ``origin`` (into ``out[1:4]``) against the half-widths; which one
+    is crossed first (:data:`MOTION_OK` for none)."""
+    speed = math.sqrt(dot3(twist[0], twist[1], twist[2], twist[0], twist[1], twist[2]))
+    out[0] = speed
+    if speed > max_speed:
+        return MOTION_SPEED
+    if not box:
+        return MOTION_OK
+    d0, d1, d2 = pose[0, 3] - origin[0, 3], pose[1, 3] - origin[1, 3], pose[2, 3] - origin[2, 3]
+    crossed = False
+    for i in range(3):
+        v = dot3(origin[0, i], origin[1, i], origin[2, i], d0, d1, d2)
+        out[1 + i] = v
+        if abs(v) > widths[i]:
+            crossed = True
+    return MOTION_WORKSPACE if crossed else MOTION_OK

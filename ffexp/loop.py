@@ -313,9 +313,15 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
             # (and before the start's notes), any stamped after it (a sensor clock ahead
             # of the robot's) at the next cycle or the end
             to_log = ft if ahead is None else FtSamples.concat([ahead, ft])
-            split = _split_samples(to_log, state.time_ns)
-            log.samples(t0_ns, to_log if split is None else split[0])
-            ahead = None if split is None else split[1]
+            times = to_log.time_ns  # _split_samples' test, inline: none after the cycle?
+            if not times.size or times[-1] <= state.time_ns:
+                log.samples(t0_ns, to_log)
+                ahead = None
+            else:
+                split = _split_samples(to_log, state.time_ns)
+                assert split is not None
+                log.samples(t0_ns, split[0])
+                ahead = split[1]
             if cyc is None:
                 cyc = Cycle(protocol, state, log)
                 task = cyc.task

@@ -176,6 +176,7 @@ class FunnelAlignment(Scenario):
         """The truth's placement this cycle (``None``: no truth)."""
         self._within_of: Placement | None = None  # the placement last judged, and how
         self._geo = np.zeros(5)  # funnel_geometry's output
+        self._want = alignment.source
         self._kernels = kernels()
         self._within_is = False
 
@@ -204,10 +205,12 @@ class FunnelAlignment(Scenario):
         self._target = target
         if target is not None:
             self._tracker_seen = True
-        want = self.alignment.source
+        want = self._want
         src: Source
         if want == "auto":
             if state.truth is not None:
+                if self.source == "truth":  # as last cycle (the most common case)
+                    return None
                 src = "truth"
             elif self._tracker_seen:
                 src = "tracker" if self._fresh(state, target) else "observer"

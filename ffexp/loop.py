@@ -178,23 +178,28 @@ class Cycle:
         if stop is not None:
             task.end(t_ns, stop)
         task.step(t_ns, state, est, target)
-        self.flush_notes()
+        if task.notes:
+            self.flush_notes()
         phase, cmd = task.phase, self.cmd
         self.approach_wrench: np.ndarray | None = None
-        if phase == Phase.CONNECT:
+        if phase is Phase.CONNECT:
             self.total[...] = 0.0
             return None
         cmd.pose_m[...] = self.hold_pose
-        if phase.ended:
-            self._safe_stop(t_ns, cmd)
-        else:
+        if phase is Phase.APPROACH:
             cmd.stiffness_npm_nmprad[...] = self.cart_k
             cmd.damping_ratio[...] = self.cart_d
-            if phase == Phase.APPROACH:
-                self.approach_wrench = self.approach.command(t_ns, state.tcp_pose_m, est.twist_tcf)
-                cmd.wrench_n_nm[...] = self.approach_wrench
-            else:
-                self._align(t_ns, state, cmd)
+            w = self.approach_wrench = self.approach.command(t_ns, state.tcp_pose_m,
+                                                             est.twist_tcf)
+            cmd.wrench_n_nm[...] = w
+            self.total[...] = w
+            return cmd
+        if phase is Phase.ALIGN:
+            cmd.stiffness_npm_nmprad[...] = self.cart_k
+            cmd.damping_ratio[...] = self.cart_d
+            self._align(t_ns, state, cmd)
+        else:  # DONE, ABORT
+            self._safe_stop(t_ns, cmd)
         self.total[...] = cmd.wrench_n_nm
         return cmd
 
@@ -221,8 +226,8 @@ def _driver_stop(exc: DriverError) -> Stop:
 
 def _split_samples(ft: FtSamples, time_ns: int) -> tuple[FtSamples, FtSamples] | None:
     """``ft`` split at ``time_ns`` (up to it, after it); None when none is after it."""
-    n = len(ft)
-    if n == 0 or int(ft.time_ns[-1]) <= time_ns:
+    times = ft.time_ns
+    if not times.size or times[-1] <= time_ns:
         return None
     k = int(np.searchsorted(ft.time_ns, time_ns, side="right"))
     return (FtSamples(ft.time_ns[:k], ft.seq[:k], ft.wrench[:k], ft.status[:k]),
@@ -235,6 +240,7 @@ def _link_events(log: RunLog, t_ns: int, state: RobotState) -> None:
     if state.extras is not None:
         for _robot_ns, level, name, message in state.extras.take_events():
             log.event(t_ns, level, name, message)
+
 
 
 def _no_measurement(log: RunLog, message: str) -> RunOutcome:
@@ -286,6 +292,8 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
     tm = timings if timings is not None else {}
     for key in _PARTS:
         tm.setdefault(key, 0.0)
+    # the parts' sums as locals (added to ``tm`` at the end: once, not per cycle)
+    t_driver = t_sensor = t_step = t_send = t_recording = 0.0
     clock = time.perf_counter
     cycles, cyc, next_progress_ns = 0, None, 0
     ahead: FtSamples | None = None
@@ -305,34 +313,47 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
             # (and before the start's notes), any stamped after it (a sensor clock ahead
             # of the robot's) at the next cycle or the end
             to_log = ft if ahead is None else FtSamples.concat([ahead, ft])
-            split = _split_samples(to_log, state.time_ns)
-            log.samples(t0_ns, to_log if split is None else split[0])
-            ahead = None if split is None else split[1]
-            cyc = cyc or Cycle(protocol, state, log)
-            _link_events(log, state.time_ns - cyc.t0_ns, state)
+            times = to_log.time_ns  # _split_samples' test, inline: none after the cycle?
+            if not times.size or times[-1] <= state.time_ns:
+                log.samples(t0_ns, to_log)
+                ahead = None
+            else:
+                split = _split_samples(to_log, state.time_ns)
+                assert split is not None
+                log.samples(t0_ns, split[0])
+                ahead = split[1]
+            if cyc is None:
+                cyc = Cycle(protocol, state, log)
+                task = cyc.task
+            if state.extras is not None:
+                _link_events(log, state.time_ns - cyc.t0_ns, state)
             t_c2 = clock()
             cycles += 1
             if stop_requested():
-                cyc.task.end(state.time_ns - cyc.t0_ns,
-                             Stop(StopReason.STOP_REQUESTED, "stop requested (Ctrl-C / SIGTERM)"))
-            target = tracker.latest() if tracker is not None else None
-            intent = cyc.step(state, ft, target)
+                task.end(state.time_ns - cyc.t0_ns,
+                         Stop(StopReason.STOP_REQUESTED, "stop requested (Ctrl-C / SIGTERM)"))
+            intent = cyc.step(state, ft, tracker.latest() if tracker is not None else None)
             t_d = clock()
             applied = robot.send(intent)
             t_e = clock()
             cyc.record(state, ft, intent, applied)
             t_f = clock()
-            for key, dt in zip(_PARTS, (t_b - t_a, t_c - t_b, t_d - t_c2, t_e - t_d,
-                                        t_f - t_e + t_c2 - t_c), strict=True):
-                tm[key] += dt
-            if progress is not None and cyc.t_ns >= next_progress_ns:
-                next_progress_ns = cyc.t_ns + NS_PER_S // 10
-                progress(Progress(cyc.task.phase, cyc.t_ns / NS_PER_S, cyc.estimator.out.f_z,
-                                  cyc.task.contacts, cyc.task.breaks))
-            if cyc.task.finished(cyc.t_ns):
+            t_driver += t_b - t_a
+            t_sensor += t_c - t_b
+            t_step += t_d - t_c2
+            t_send += t_e - t_d
+            t_recording += t_f - t_e + t_c2 - t_c
+            t_ns = cyc.t_ns
+            if progress is not None and t_ns >= next_progress_ns:
+                next_progress_ns = t_ns + NS_PER_S // 10
+                progress(Progress(task.phase, t_ns / NS_PER_S, cyc.estimator.out.f_z,
+                                  task.contacts, task.breaks))
+            if task.end_ns is not None and t_ns >= task.end_ns:  # task.finished(t_ns)
                 break
-            cyc.task.check_timeout(cyc.t_ns)
-            cyc.flush_notes()
+            if t_ns >= task.timeout_ns:
+                task.check_timeout(t_ns)
+            if task.notes:
+                cyc.flush_notes()
             t_a = clock()
     except DriverError as exc:
         if cyc is None:  # a robot that never answered, however its link says so
@@ -347,6 +368,9 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
             raise
         cyc.stop(Stop(StopReason.STOP_REQUESTED, "interrupted"))
     finally:
+        for key, dt in zip(_PARTS, (t_driver, t_sensor, t_step, t_send, t_recording),
+                           strict=True):
+            tm[key] += dt
         try:
             if tracker is not None:
                 tracker.stop()

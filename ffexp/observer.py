@@ -100,6 +100,7 @@ class WrenchObserver:
     def __init__(self, limits: ObserverLimits) -> None:
         self.limits = limits
         self.state = ObserverState()
+        self._hold_ns = limits.hold_s * NS_PER_S
 
     def contact_made(self, z_m: float) -> None:
         """The first contact: the tool's position along its approach axis [m]."""
@@ -137,7 +138,7 @@ class WrenchObserver:
             if quiet else None
         s.loaded_since_ns = (s.loaded_since_ns if s.loaded_since_ns is not None else t_ns) \
             if on_wall or apart else None
-        hold_ns = lim.hold_s * NS_PER_S
+        hold_ns = self._hold_ns
         inserted = advance - s.travel_bound_m
         s.last = (advance, inserted, f_z, f_y, t_x, v_y, w_x, float(in_contact))
         quiet_held = s.quiet_since_ns is not None and t_ns - s.quiet_since_ns >= hold_ns

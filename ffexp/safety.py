@@ -16,7 +16,7 @@ first that holds is the one reported):
 
 from __future__ import annotations
 
-import math
+from types import ModuleType
 
 import numpy as np
 from pydantic import Field
@@ -25,6 +25,14 @@ from drivers.base.types import F64, NS_PER_S, RobotState
 from drivers.config import StrictModel
 from ffexp.contracts import Phase, Stop, StopReason
 from ffexp.estimation import Estimate
+
+
+def kernels() -> ModuleType:
+    """:mod:`ffexp.controllers.kernels` (its :func:`safety_motion`), imported on first
+    use (numba's import is slow)."""
+    from ffexp.controllers import kernels as module
+
+    return module
 
 
 class Limits(StrictModel):
@@ -53,6 +61,14 @@ class SafetyMonitor:
     def __init__(self, limits: Limits) -> None:
         self.limits = limits
         self._workspace: list[float] = np.asarray(limits.workspace_m, dtype=np.float64).tolist()
+        # the limits as plain floats, and what the compiled motion check takes
+        self._max_force_n, self._max_torque_nm = limits.max_force_n, limits.max_torque_nm
+        self._max_speed_mps = limits.max_speed_mps
+        self._stale_ns = limits.stale_ft_s * NS_PER_S
+        self._widths = np.asarray(self._workspace, dtype=np.float64)
+        self._no_origin = np.eye(4)
+        self._motion = np.zeros(4)  # speed, offset
+        self._kernels = kernels()
         self._bad_link_cycles = 0
         self._origin: F64 | None = None
         self._box: tuple[F64, F64] | None = None  # the origin's R^T and position (views)
@@ -64,22 +80,23 @@ class SafetyMonitor:
 
     def check(self, t_ns: int, phase: Phase, state: RobotState, est: Estimate) -> Stop | None:
         """The first condition that holds this cycle, or ``None``."""
-        lim = self.limits
         if est.n_samples:
             if est.saturated:
                 return Stop(StopReason.FT_SATURATED, "F/T sensor saturated")
-            if est.peak_force_n > lim.max_force_n:
+            if est.peak_force_n > self._max_force_n:
                 return Stop(
                     StopReason.FORCE_LIMIT,
-                    f"force limit: |f| = {est.peak_force_n:.1f} N > {lim.max_force_n} N",
+                    f"force limit: |f| = {est.peak_force_n:.1f} N > {self.limits.max_force_n} N",
                 )
-            if est.peak_torque_nm > lim.max_torque_nm:
+            if est.peak_torque_nm > self._max_torque_nm:
                 return Stop(
                     StopReason.TORQUE_LIMIT,
-                    f"torque limit: |t| = {est.peak_torque_nm:.2f} N m > {lim.max_torque_nm} N m",
+                    f"torque limit: |t| = {est.peak_torque_nm:.2f} N m > "
+                    f"{self.limits.max_torque_nm} N m",
                 )
-        since_ns = t_ns - (est.last_sample_ns if est.last_sample_ns is not None else 0)
-        if since_ns > lim.stale_ft_s * NS_PER_S:
+        last = est.last_sample_ns
+        since_ns = t_ns - (last if last is not None else 0)
+        if since_ns > self._stale_ns:
             return Stop(
                 StopReason.FT_STALE,
                 f"stale F/T data: no sample for {since_ns / NS_PER_S * 1e3:.0f} ms",
@@ -87,26 +104,38 @@ class SafetyMonitor:
         link = state.link
         bad = not link.healthy or (phase != Phase.CONNECT and not link.commanding)
         self._bad_link_cycles = self._bad_link_cycles + 1 if bad else 0
-        if self._bad_link_cycles >= lim.link_lost_cycles:
+        if self._bad_link_cycles >= self.limits.link_lost_cycles:
             return Stop(
                 StopReason.LINK_BAD,
                 f"link lost: {'' if link.commanding else 'not commanding, '}"
                 f"{'healthy' if link.healthy else 'unhealthy'} for {self._bad_link_cycles} cycles",
             )
-        if phase in (Phase.APPROACH, Phase.ALIGN):
-            v = est.twist_tcf[:3]  # np.linalg.norm's dot product and root, without its checks
-            speed = math.sqrt(v.dot(v))
-            if speed > lim.max_speed_mps:
+        if phase is Phase.APPROACH or phase is Phase.ALIGN:
+            # speed and workspace box compiled (the same sums as np.linalg.norm's dot
+            # product and numpy's offset R^T (p - o); a workspace stop says numpy's)
+            k = self._kernels
+            origin = self._origin
+            crossed = k.safety_motion(est.twist_tcf, self._max_speed_mps, state.tcp_pose_m,
+                                      self._no_origin if origin is None else origin,
+                                      self._widths, origin is not None, self._motion)
+            if crossed == k.MOTION_SPEED:
+                speed = float(self._motion[0])
                 return Stop(
                     StopReason.SPEED_LIMIT,
-                    f"speed limit: {speed:.3f} m/s > {lim.max_speed_mps} m/s",
+                    f"speed limit: {speed:.3f} m/s > {self.limits.max_speed_mps} m/s",
                 )
-            if self._box is not None:
-                rt, p = self._box
-                offset = rt @ (state.tcp_pose_m[:3, 3] - p)
-                if any(abs(v) > w for v, w in zip(offset.tolist(), self._workspace, strict=True)):
-                    return Stop(
-                        StopReason.WORKSPACE_LIMIT,
-                        f"workspace limit: offset {np.round(offset, 3).tolist()} m",
-                    )
+            if crossed == k.MOTION_WORKSPACE:
+                return self._workspace_stop(state.tcp_pose_m)
+        return None
+
+    def _workspace_stop(self, pose: F64) -> Stop | None:
+        """The workspace condition decided on the offset as numpy makes it."""
+        assert self._box is not None
+        rt, p = self._box
+        offset = rt @ (pose[:3, 3] - p)
+        if any(abs(v) > w for v, w in zip(offset.tolist(), self._workspace, strict=True)):
+            return Stop(
+                StopReason.WORKSPACE_LIMIT,
+                f"workspace limit: offset {np.round(offset, 3).tolist()} m",
+            )
         return None

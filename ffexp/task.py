@@ -137,14 +137,14 @@ class Task:
         elif event is not None:
             self.notes.append(Event("WARNING", "contact", "contact broken"))
         phase = self.phase
-        if phase != Phase.CONNECT:  # nothing is judged before the approach
+        if phase is not Phase.CONNECT:  # nothing is judged before the approach
             change = scenario.choose_source(state, target)
             if change is not None:
                 self._held_since_ns = None
                 self.notes.append(Event(change.level, "verdict_source", change.reason))
                 self.notes.append(Verdict("unverified", change.source, change.reason, {},
                                           scenario.truth_label()))
-        if phase == Phase.CONNECT:
+        if phase is Phase.CONNECT:
             if est.tared_now:
                 bias = np.round(est.bias, 3).tolist()
                 self.notes.append(
@@ -153,15 +153,15 @@ class Task:
                 scenario.start(state)
                 self._enter(t_ns, Phase.APPROACH, "sensor tared, robot commanding")
             return
-        if phase.ended:
+        if phase is Phase.DONE or phase is Phase.ABORT:  # phase.ended
             return
         scenario.observe(t_ns, state, est, target)
         self.observed = True
-        if phase == Phase.APPROACH:
+        if phase is Phase.APPROACH:
             if est.in_contact:
                 scenario.contact(state)
                 self._enter(t_ns, Phase.ALIGN, "contact")
-        elif phase == Phase.ALIGN:
+        elif phase is Phase.ALIGN:
             if not est.in_contact:
                 self.breaks += 1
                 self._held_since_ns = None

@@ -50,7 +50,11 @@ def placement(tcp_pose: F64, mouth_pose: F64) -> Placement:
     The yaw compares headings in the horizontal plane: the tool's z axis and
     the funnel's x axis, each projected on the base frame's x-y plane.
     """
-    return placement_at_mouth(tcp_pose, mouth_pose[:3, 3], mouth_pose[:3, :3].reshape(9))
+    d = (tcp_pose[:3, 3] - mouth_pose[:3, 3]) @ mouth_pose[:3, :3]
+    x, y, z = d.tolist()
+    yaw = wrap_angle(math.atan2(tcp_pose[1, 2], tcp_pose[0, 2])
+                     - math.atan2(mouth_pose[1, 0], mouth_pose[0, 0]))
+    return Placement((x, y, z, yaw))
 
 
 def placement_at_mouth(tcp_pose: F64, mouth_pos: F64, mouth_mat9: F64) -> Placement:

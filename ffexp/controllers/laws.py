@@ -34,6 +34,7 @@ opposite sign), with a set-point moving along a straight line.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import ModuleType
 from typing import Literal
 
 import numpy as np
@@ -43,6 +44,13 @@ from drivers.base.types import F64
 from drivers.config import StrictModel, Vec6
 
 AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+def kernels() -> ModuleType:
+    """:mod:`ffexp.controllers.kernels`, imported on first use (numba's import is slow)."""
+    from ffexp.controllers import kernels as module
+
+    return module
 
 
 class ForceControlConfig(StrictModel):
@@ -130,7 +138,9 @@ class ForceController:
         self._int_lim = np.asarray(config.integral_limit, dtype=np.float64)
         self._ff_sel = self._w_sel if config.contact_feedforward else np.zeros(6)
         self._integral = np.zeros(6)
-        self.terms = ForceControlTerms()
+        self._out = np.zeros((5, 6))  # the terms' rows (ForceControlTerms' arrays: views)
+        o = self._out
+        self.terms = ForceControlTerms(p=o[0], i=o[1], ri=o[2], ff=o[3], total=o[4])
         # per axis as floats, computed once as the array form computes them every cycle
         nz = self._ki != 0.0
         int_max = np.full(6, np.inf)
@@ -143,6 +153,9 @@ class ForceController:
             self._ki.tolist(), (-self._int_lim).tolist(), self._int_lim.tolist(),
             (-self._out_lim).tolist(), self._out_lim.tolist(), nz.tolist(),
             int_min.tolist(), int_max.tolist(), strict=True))
+        self._kernels = k = kernels()
+        self._gains = np.array(self._axes, dtype=np.float64).T.copy()  # k.G_* rows
+        assert self._gains.shape == (k.G_ROWS, 6)
 
     def reset(self) -> None:
         """Forget the integral (on entering the force-controlled phase)."""
@@ -156,11 +169,22 @@ class ForceController:
     def update(self, w: F64) -> ForceControlTerms:
         """One controller cycle from the measured wrench ``w`` (environment on tool).
 
-        Per axis on floats: the six axes are independent, and these are the same
-        IEEE operations in the same order as the array form (``np.clip`` is
-        :func:`_clip`'s rule), so the terms are bit for bit the same at a
-        fraction of the cost of a dozen numpy calls on 6-vectors.
+        Per axis, compiled (:func:`ffexp.controllers.kernels.force_update`): the six
+        axes are independent, and these are the same IEEE operations in the same order
+        as the array form (``np.clip`` is :func:`_clip`'s rule; :meth:`update_floats` is
+        the same on Python floats), so the terms are bit for bit the same.
         """
+        t = self.terms
+        saturated = self._kernels.force_update(
+            np.asarray(w, dtype=np.float64), self._integral, self._gains, self.cycle_s,
+            self._out)
+        if saturated == self._kernels.NAN:  # a NaN in: which one comes out is the floats'
+            return self.update_floats(w)
+        t.saturated = saturated == 1
+        return t
+
+    def update_floats(self, w: F64) -> ForceControlTerms:
+        """:meth:`update` on Python floats (the reference of the compiled form)."""
         t = self.terms
         dt = self.cycle_s
         p, i, ri, ff, total = [], [], [], [], []
@@ -235,22 +259,27 @@ class ImpedanceConfig(StrictModel):
 
 def rotation_log(r: F64) -> F64:
     """Rotation vector (axis * angle) of a 3x3 rotation matrix."""
-    m = r.tolist()  # the trace and the differences on floats: the same operations
+    return np.array(_rotation_log_floats(r))
+
+
+def _rotation_log_floats(r: F64) -> list[float]:
+    """:func:`rotation_log` as three floats: the trace, the differences and the scaling
+    on floats (the same IEEE operations as on arrays), the arc cosine and sine numpy's."""
+    m = r.tolist()
     cos = _clip((m[0][0] + m[1][1] + m[2][2] - 1.0) / 2.0, -1.0, 1.0)
     angle = float(np.arccos(cos))
-    v = np.array([m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1]])
+    v = [m[2][1] - m[1][2], m[0][2] - m[2][0], m[1][0] - m[0][1]]
     if angle < 1e-9:
-        small: F64 = 0.5 * v
-        return small
+        return [0.5 * v[0], 0.5 * v[1], 0.5 * v[2]]
     if np.pi - angle < 1e-6:
         # near pi: axis from the diagonal of (R + I) / 2
         b = (r + np.eye(3)) / 2.0
         k = int(np.argmax(np.diag(b)))
         axis = b[:, k] / np.sqrt(max(b[k, k], 1e-300))
-        near_pi: F64 = axis * angle
+        near_pi: list[float] = (axis * angle).tolist()
         return near_pi
-    general: F64 = v * (angle / (2.0 * np.sin(angle)))
-    return general
+    s = angle / (2.0 * float(np.sin(angle)))
+    return [v[0] * s, v[1] * s, v[2] * s]
 
 
 def pose_error_tcf(pose: F64, setpoint: F64) -> F64:
@@ -278,12 +307,19 @@ class ImpedanceController:
         # per axis as floats for the output (the array form's elementwise operations)
         self._axes = list(zip(self._k.tolist(), self._b.tolist(), (-self._lim).tolist(),
                               self._lim.tolist(), strict=True))
+        self._speed, self._distance = config.speed_mps, config.distance_m
+        self._imp_axes = np.array([self._k, self._b, -self._lim, self._lim])
+        self._work = np.zeros(7)  # kernels.W_*
+        self._kernels = kernels()
         self._start: F64 | None = None
+        self._start_r = self._start_p = np.zeros(0)
         self.setpoint = np.eye(4)
 
     def start(self, pose: F64) -> None:
         """Anchor the line at the current tool pose (4x4, base frame)."""
-        self._start = pose.copy()
+        self._start = start = pose.copy()
+        self._start_r = start[:3, :3]  # views of the anchor (made once a line)
+        self._start_p = start[:3, 3]
         self.setpoint = pose.copy()
 
     def setpoint_at(self, elapsed_s: float) -> F64:
@@ -296,12 +332,47 @@ class ImpedanceController:
         return sp
 
     def update(self, pose: F64, twist_tcf: F64, elapsed_s: float) -> F64:
-        """Commanded wrench (TCF) for the tool pose and its twist in TCF."""
-        self.setpoint = self.setpoint_at(elapsed_s)
-        e = pose_error_tcf(pose, self.setpoint)
+        """Commanded wrench (TCF) for the tool pose and its twist in TCF.
+
+        :meth:`setpoint_at`, :func:`pose_error_tcf` and ``np.clip(K e - B twist, -lim,
+        lim)`` in one, compiled (:func:`ffexp.controllers.kernels.approach_error` and
+        :func:`~ffexp.controllers.kernels.impedance_out`) but for numpy's arc cosine and
+        sine between them: the same operations (``tests/test_step_exact.py`` checks it
+        against that composition bit for bit).
+        """
+        start = self._start
+        if start is None:
+            raise RuntimeError("ImpedanceController.start() was not called")
+        k = self._kernels
+        travel = min(self._speed * max(elapsed_s, 0.0), self._distance)
+        sp = np.empty((4, 4))
+        work = self._work
+        twist = np.asarray(twist_tcf, dtype=np.float64)
+        if k.approach_error(pose, start, self._dir, travel, sp, work):
+            angle = float(np.arccos(work[k.W_COS]))
+            if angle < 1e-9:
+                scale = 0.5
+            elif np.pi - angle < 1e-6:  # near pi: rotation_log's own way, on the product
+                work[k.W_DIFF:k.W_DIFF + 3] = rotation_log(pose[:3, :3].T @ self._start_r)
+                scale = 1.0
+            else:
+                scale = angle / (2.0 * float(np.sin(angle)))
+            out = np.empty(6)
+            if k.impedance_out(work, scale, twist, self._imp_axes, out):
+                self.setpoint = sp
+                return out
+        return self.update_floats(pose, twist, elapsed_s)  # a NaN in
+
+    def update_floats(self, pose: F64, twist_tcf: F64, elapsed_s: float) -> F64:
+        """:meth:`update` with numpy's products and the rest on floats (its reference,
+        and its form when an input holds a NaN)."""
+        self.setpoint = sp = self.setpoint_at(elapsed_s)
+        rt = pose[:3, :3].T
+        e = (rt @ (sp[:3, 3] - pose[:3, 3])).tolist()
+        e += _rotation_log_floats(rt @ self._start_r)
         # np.clip(K e - B twist, -lim, lim), per axis on floats (the same operations)
         return np.array([
             _clip(k * ek - b * vk, lo, hi)
-            for (k, b, lo, hi), ek, vk in zip(self._axes, e.tolist(),
+            for (k, b, lo, hi), ek, vk in zip(self._axes, e,
                                               np.asarray(twist_tcf, dtype=np.float64).tolist(),
                                               strict=True)])

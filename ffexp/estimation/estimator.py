@@ -87,8 +87,17 @@ class Estimator:
         self._oi = np.zeros((runs, k.OI_SIZE), dtype=np.int64)
         self._offsets = np.zeros(runs + 1, dtype=np.int64)  # a single run's
         self._ist0 = ist[0]  # the first run's row (a view, made once)
-        self.out = Estimate()
+        self._in_cols = (k.IS_COMMANDING, k.IS_T_NS, k.IS_T0_NS)
         self.batch = EstimateBatch(self._of, self._oi)
+        # a single run's outputs: views of the first row, made once (Estimate's arrays
+        # are reused between cycles)
+        f = self._of[0]
+        self.out = Estimate(wrench=f[k.OF_WRENCH:k.OF_WRENCH + 6],
+                            wrench_std=f[k.OF_STD:k.OF_STD + 6],
+                            bias=f[k.OF_BIAS:k.OF_BIAS + 6],
+                            twist_tcf=f[k.OF_TWIST:k.OF_TWIST + 6])
+        self._of_scalars = f[k.OF_FZ:k.OF_PEAK_T + 1]
+        self._oi0 = self._oi[0]
 
     def update_batch(self, poses: F64, wrench: F64, time_ns: I64, status: NDArray[np.uint32],
                      offsets: I64, commanding: NDArray[np.bool_], t_ns: I64,
@@ -138,23 +147,18 @@ class Estimator:
         if self.runs != 1:
             raise ValueError(f"update steps a single run; this estimator has {self.runs}: "
                              "update_batch")
-        n = len(ft)
+        n = ft.time_ns.shape[0]
         self._offsets[1] = n
-        k = self._k
         ist = self._ist0
-        ist[k.IS_COMMANDING] = state.link.commanding
-        ist[k.IS_T_NS] = t_ns
-        ist[k.IS_T0_NS] = t0_ns
+        i_cmd, i_t, i_t0 = self._in_cols
+        ist[i_cmd] = state.link.commanding
+        ist[i_t] = t_ns
+        ist[i_t0] = t0_ns
         self._cycle(state.tcp_pose_m[None], ft.wrench, ft.time_ns, ft.status, self._offsets)
-        out = self.out
-        f = self._of[0].copy()  # the columns: kernels.OF_*, OI_*
+        out = self.out  # its arrays are views of the outputs: the columns kernels.OF_*
         (_, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
-         last) = ints = self._oi[0].tolist()
-        out.wrench = f[0:6]
-        out.wrench_std = f[6:12]
-        out.bias = f[12:18]
-        out.twist_tcf = f[18:24]
-        out.f_z, out.peak_force_n, out.peak_torque_nm = f[24:27].tolist()
+         last) = ints = self._oi0.tolist()  # the columns kernels.OI_*
+        out.f_z, out.peak_force_n, out.peak_torque_nm = self._of_scalars.tolist()
         out.n_samples = n
         out.event = self._event(0, ints) if event else None
         out.in_contact = in_contact == 1
@@ -162,5 +166,5 @@ class Estimator:
         out.tared = tared == 1
         out.tared_now = tared_now == 1
         out.tare_samples = tare_samples
-        out.last_sample_ns = None if last == k.NONE_NS else last
+        out.last_sample_ns = None if last == self._k.NONE_NS else last
         return out

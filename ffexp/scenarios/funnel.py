@@ -20,12 +20,13 @@ where they have always been; its ``[task]`` table names only the scenario.
 from __future__ import annotations
 
 import math
+from types import ModuleType
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from pydantic import Field
 
-from drivers.base.placement import Placement, placement, placement_at_mouth
+from drivers.base.placement import Placement, placement, wrap_angle
 from drivers.base.topics import CdrTopic, FieldSpec, MessageSpec
 from drivers.base.types import NS_PER_S, GroundTruth, RobotState, TargetObservation
 from drivers.config import StrictModel
@@ -58,14 +59,21 @@ PLACEMENT = MessageSpec(
 )
 
 
+def kernels() -> ModuleType:
+    """:mod:`ffexp.controllers.kernels` (its :func:`funnel_geometry`), imported on first
+    use (numba's import is slow)."""
+    from ffexp.controllers import kernels as module
+
+    return module
+
+
 def truth_placement(truth: GroundTruth, tcp_pose: np.ndarray) -> Placement | None:
     """The tool tip in the funnel from the simulator's truth (``None``: no funnel mouth); the
     truth's own TCP frame when it has one, else ``tcp_pose`` (the robot's measurement)."""
     mouth = truth.sites.get(MOUTH_SITE)
     if mouth is None:
         return None
-    tcp_pose = truth.sites.get(TCP_SITE, tcp_pose)
-    return placement_at_mouth(tcp_pose, mouth[:3, 3], mouth[:3, :3].reshape(9))
+    return placement(truth.sites.get(TCP_SITE, tcp_pose), mouth)
 
 
 class _PlacementRecord:
@@ -166,6 +174,11 @@ class FunnelAlignment(Scenario):
         self._target: TargetObservation | None = None
         self._truth_p: Placement | None = None
         """The truth's placement this cycle (``None``: no truth)."""
+        self._within_of: Placement | None = None  # the placement last judged, and how
+        self._geo = np.zeros(5)  # funnel_geometry's output
+        self._want = alignment.source
+        self._kernels = kernels()
+        self._within_is = False
 
     @property
     def hold_s(self) -> float:
@@ -174,11 +187,11 @@ class FunnelAlignment(Scenario):
     def start(self, state: RobotState) -> None:
         start_pose = state.tcp_pose_m.copy()
         self._start_z_axis = start_pose[:3, 2].copy()
-        self._start_z = float(self._start_z_axis @ start_pose[:3, 3])
+        self._start_z = float(self._start_z_axis.dot(start_pose[:3, 3]))
 
     def _advance(self, state: RobotState) -> float:
         """The tool's travel along the start TCF's Z since the tare [m]."""
-        return float(self._start_z_axis @ state.tcp_pose_m[:3, 3]) - self._start_z
+        return float(self._start_z_axis.dot(state.tcp_pose_m[:3, 3])) - self._start_z
 
     def _fresh(self, state: RobotState, target: TargetObservation | None) -> bool:
         if target is None or not target.valid:
@@ -192,10 +205,12 @@ class FunnelAlignment(Scenario):
         self._target = target
         if target is not None:
             self._tracker_seen = True
-        want = self.alignment.source
+        want = self._want
         src: Source
         if want == "auto":
             if state.truth is not None:
+                if self.source == "truth":  # as last cycle (the most common case)
+                    return None
                 src = "truth"
             elif self._tracker_seen:
                 src = "tracker" if self._fresh(state, target) else "observer"
@@ -227,14 +242,33 @@ class FunnelAlignment(Scenario):
         truth = state.truth
         if truth is not None and self.truth_aligned is None:
             self.truth_aligned = False  # the truth is there: it says "not aligned" until held
-        self._truth_p = None if truth is None else truth_placement(truth, state.tcp_pose_m)
+        # truth_placement and _advance in one compiled call (the same numbers; the
+        # functions themselves when a pose holds a NaN)
+        tcp = state.tcp_pose_m
+        mouth = None if truth is None else truth.sites.get(MOUTH_SITE)
+        geo = self._geo
+        if mouth is None:
+            self._truth_p = None
+            if self._kernels.funnel_geometry(tcp, tcp, tcp, self._start_z_axis, geo):
+                z = float(geo[4]) - self._start_z
+            else:
+                z = self._advance(state)
+        else:
+            assert truth is not None
+            if self._kernels.funnel_geometry(truth.sites.get(TCP_SITE, tcp), mouth, tcp,
+                                             self._start_z_axis, geo):
+                x, y, v, heading, along = geo.tolist()
+                self._truth_p = Placement((x, y, v, wrap_angle(heading)))
+                z = along - self._start_z
+            else:
+                self._truth_p = truth_placement(truth, tcp)
+                z = self._advance(state)
         self._place(state)
-        z = self._advance(state)
         if est.in_contact:
             self.observer.contact_made(z)
-        w, tw = est.wrench, est.twist_tcf
-        self.observer.update(t_ns, z, est.in_contact, est.f_z, float(w[1]), float(w[3]),
-                             float(tw[1]), float(tw[3]))
+        _, f_y, _, t_x, _, _ = est.wrench.tolist()
+        _, v_y, _, w_x, _, _ = est.twist_tcf.tolist()
+        self.observer.update(t_ns, z, est.in_contact, est.f_z, f_y, t_x, v_y, w_x)
 
     def contact(self, state: RobotState) -> None:
         if self._first_contact_z is None:
@@ -244,7 +278,11 @@ class FunnelAlignment(Scenario):
         self._truth_since_ns = None
 
     def _within(self, p: Placement) -> bool:
-        return self.alignment.within(p)
+        """:meth:`Alignment.within`, asked once per placement (truth's: up to three
+        times a cycle)."""
+        if p is not self._within_of:
+            self._within_of, self._within_is = p, self.alignment.within(p)
+        return self._within_is
 
     def _shadow_truth(self, t_ns: int, state: RobotState) -> None:
         p = self._truth_p

@@ -283,6 +283,10 @@ class KrcLink:
         self.fallbacks = 0
         self.error = 0
         """Latched error bits (:data:`ERROR_SOFTWARE_LIMIT`, ...); 0: none."""
+        self.changes = 0
+        """Counts the cycles and calls that may have changed what a measurement reports
+        of the link (state, quality, error, miss counter, the window's rates): while it
+        stays, they are what they were (an owner keeps what it built from them)."""
         if start_cycles == 0:
             self.window.fill()
             self.state = FriState.CMD
@@ -318,7 +322,10 @@ class KrcLink:
                     or p[2] != self.cycle_s):
                 p = self._prompt = (self.thresholds, self.timing, self.cycle_s, quality_of(
                     w, self.cycle_s, self.thresholds, timing=self.timing))
-            q = self.quality = p[3]
+            q = p[3]
+            if q is not self.quality:
+                self.quality = q
+                self.changes += 1
             if self.state == _CMD:
                 if q == _UNACCEPTABLE:  # (no miss: only the quality can end it)
                     self._to_mon()
@@ -326,12 +333,14 @@ class KrcLink:
             elif self.consecutive_ok >= self.start_cycles and q == _PERFECT and not self.error:
                 self.state = _CMD
                 self.starts += 1
+                self.changes += 1
                 return _START
             return _NONE
         return self._account(answered, latency_s)
 
     def _account(self, answered: bool, latency_s: float) -> LinkEvent:
         """:meth:`cycle` by the window's rule, every case (its fast path's reference)."""
+        self.changes += 1
         self.window.add(answered, latency_s)
         if answered:
             self.answered += 1
@@ -357,6 +366,7 @@ class KrcLink:
 
     def refuse(self) -> None:
         """The KRC refused a command (implausible values): back to MON, count from zero."""
+        self.changes += 1
         if self.state == FriState.CMD:
             self._to_mon()
         else:
@@ -368,6 +378,7 @@ class KrcLink:
         Returns :attr:`LinkEvent.FALLBACK` if this ended command mode.
         """
         self.error |= error
+        self.changes += 1
         if self.state == FriState.CMD:
             self._to_mon()
             return LinkEvent.FALLBACK
@@ -378,8 +389,10 @@ class KrcLink:
         """Clear the latched error (the operator acknowledged it); CMD may start again."""
         self.error = 0
         self.consecutive_ok = 0
+        self.changes += 1
 
     def _to_mon(self) -> None:
+        self.changes += 1
         self.fallbacks += 1
         self.consecutive_ok = 0
         self.state = FriState.MON

@@ -197,7 +197,7 @@ class SimRobot(RobotDriver):
         self._pending: ArmCommand | None = None  # the slot's arm command of the last send
         # the measurement's fields that are not the world's, while the link keeps them
         self._head: dict[str, object] = {}
-        self._head_key: tuple[object, ...] = ()
+        self._head_changes = -1  # link.changes when the head was built (-1: build it)
         self._state: ArmState = world.last_state
         self._gains: tuple[bytes, tuple[CartesianCommand, CartesianCommand] | None] | None = None
         self._next: RobotState | None = None
@@ -205,6 +205,7 @@ class SimRobot(RobotDriver):
 
     def _new_link(self) -> KrcLink:
         self._cycle_s = self.world.cycle_s  # the link's cycle, reported in every measurement
+        self._head_changes = -1  # a new link: a new head, and the watch sees it
         return KrcLink(
             self._cycle_s,
             start_cycles=self.start_cycles,
@@ -217,20 +218,17 @@ class SimRobot(RobotDriver):
         next), and the robot state of it that :meth:`measurements` yields next."""
         link = self.link
         self._state = state
-        # the window's rates (a new tuple whenever they may have changed; None: not yet)
-        key = (link.state, link.quality, link.error, link.missed, link.window.rates_cache,
-               self._cycle_s)
         head = self._head
-        if key != self._head_key:
+        changed = link.changes != self._head_changes
+        if changed:  # (the head's key: the link's count of changes, the link, the cycle)
             head = self._head = measurement_head(self._cycle_s, link.state, link.quality,
                                                  link.error, link.rates(), link.missed)
-            self._head_key = (*key[:4], link.window.rates_cache, key[5])
+            self._head_changes = link.changes
         m = measurement_of(head, state)
         if self.wire_precision:
             m = self._over_the_wire(m)
-        watch = self._watch
-        if m.state is not watch.state or m.quality is not watch.quality:
-            watch.see(m, m.link_events)  # state and quality changes, as the UDP driver
+        if changed:  # (else the state and quality are those the watch saw last)
+            self._watch.see(m, m.link_events)  # state and quality changes, as the UDP driver
         for listener in self._listeners:
             listener(m)
         self._msr = m

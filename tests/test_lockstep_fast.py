@@ -188,3 +188,22 @@ def test_lockstep_cycles_equal_the_plain_rules(delay: int) -> None:
                                 else None)[0]
         assert given[0] == _arm_view(expect), i
     assert commanded > 100  # (the run did command)
+
+
+def test_each_connect_reports_the_link_up_and_state_changes_once() -> None:
+    """The link watch runs only when the link changed: a new connect is a change, and a
+    start (MON -> CMD) is reported in the cycle it happens, once."""
+    world = SimWorld(load_scene(PAPER), seed=2)
+    robot = SimRobot(world, start_cycles=3)
+    for _ in range(2):
+        robot.connect()
+        states = robot.measurements()
+        events = []
+        for _ in range(110):
+            state = next(states)
+            assert state.extras is not None
+            events += [e[3] for e in state.extras.take_events()]
+            robot.send(None)
+        assert [e.split(" (")[0] for e in events] == [
+            "FRI link up: state MON, quality BAD", "FRI quality BAD -> OK",
+            "FRI state MON -> CMD", "FRI quality OK -> PERFECT"]

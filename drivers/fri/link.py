@@ -111,7 +111,9 @@ class LinkWindow:
         self.latency = np.zeros(size)
         self.n = 0
         self.i = 0
-        self._rates: tuple[float, float, float, float] | None = None
+        self.rates_cache: tuple[float, float, float, float] | None = None
+        """:meth:`rates` as last computed, ``None`` once the window changed (a new tuple
+        whenever they may differ: an owner compares it by identity)."""
         # running counts over the window (kept exact: integers)
         self._n_answered = 0
         self._n_latency = 0  # answered packets with a non-zero latency
@@ -136,7 +138,7 @@ class LinkWindow:
             old = float(self.latency[i])
             self._sum -= old
             self._sum2 -= old * old
-        self._rates = None
+        self.rates_cache = None
         self.answered[i] = answered
         self.latency[i] = lat
         self._n_answered += answered
@@ -157,7 +159,7 @@ class LinkWindow:
 
     def fill(self) -> None:
         """A full window of prompt answers (a link that is up already)."""
-        self._rates = None
+        self.rates_cache = None
         self.answered[:] = True
         self.latency[:] = 0.0
         self.n = self.size
@@ -168,7 +170,7 @@ class LinkWindow:
         self._adds = 0
 
     def reset(self) -> None:
-        self._rates = None
+        self.rates_cache = None
         self.n = 0
         self.i = 0
         self._n_answered = 0
@@ -181,9 +183,9 @@ class LinkWindow:
 
         Computed once per change of the window (the KRC rates and reports it every cycle).
         """
-        if self._rates is None:
-            self._rates = self._compute()
-        return self._rates
+        if self.rates_cache is None:
+            self.rates_cache = self._compute()
+        return self.rates_cache
 
     def _compute(self) -> tuple[float, float, float, float]:
         n = self.n
@@ -231,6 +233,14 @@ class LinkEvent(Enum):
     """CMD -> MON: the KRC stops (holds the measured pose) instead of taking the answer."""
 
 
+_CMD: Final = FriState.CMD
+_UNACCEPTABLE: Final = FriQuality.UNACCEPTABLE
+_PERFECT: Final = FriQuality.PERFECT
+_NONE: Final = LinkEvent.NONE
+_START: Final = LinkEvent.START
+_FALLBACK: Final = LinkEvent.FALLBACK
+
+
 class KrcLink:
     """The KRC's link state machine (module docstring).
 
@@ -261,6 +271,8 @@ class KrcLink:
         self.thresholds = thresholds if thresholds is not None else QualityThresholds()
         self.timing = timing
         self.window = LinkWindow()
+        # (thresholds, timing, cycle_s, the quality of a window full of prompt answers)
+        self._prompt: tuple[QualityThresholds, bool, float, FriQuality] | None = None
         self.state = FriState.MON
         self.quality = FriQuality.BAD
         self.consecutive_ok = 0
@@ -271,6 +283,10 @@ class KrcLink:
         self.fallbacks = 0
         self.error = 0
         """Latched error bits (:data:`ERROR_SOFTWARE_LIMIT`, ...); 0: none."""
+        self.changes = 0
+        """Counts the cycles and calls that may have changed what a measurement reports
+        of the link (state, quality, error, miss counter, the window's rates): while it
+        stays, they are what they were (an owner keeps what it built from them)."""
         if start_cycles == 0:
             self.window.fill()
             self.state = FriState.CMD
@@ -293,6 +309,38 @@ class KrcLink:
         taken; on :attr:`LinkEvent.FALLBACK` the state is MON and the answer
         is not taken (the KRC stops).
         """
+        w = self.window
+        if answered and latency_s == 0.0 and w._n_answered == w.size and not w._n_latency:
+            # a full window of prompt answers gets one more (every lockstep cycle): the
+            # window's contents, its rates and hence the quality stay what they are
+            w.i = (w.i + 1) % w.size
+            self.answered += 1
+            self.consecutive_ok += 1
+            self.consecutive_miss = 0
+            p = self._prompt
+            if (p is None or p[0] is not self.thresholds or p[1] is not self.timing
+                    or p[2] != self.cycle_s):
+                p = self._prompt = (self.thresholds, self.timing, self.cycle_s, quality_of(
+                    w, self.cycle_s, self.thresholds, timing=self.timing))
+            q = p[3]
+            if q is not self.quality:
+                self.quality = q
+                self.changes += 1
+            if self.state == _CMD:
+                if q == _UNACCEPTABLE:  # (no miss: only the quality can end it)
+                    self._to_mon()
+                    return _FALLBACK
+            elif self.consecutive_ok >= self.start_cycles and q == _PERFECT and not self.error:
+                self.state = _CMD
+                self.starts += 1
+                self.changes += 1
+                return _START
+            return _NONE
+        return self._account(answered, latency_s)
+
+    def _account(self, answered: bool, latency_s: float) -> LinkEvent:
+        """:meth:`cycle` by the window's rule, every case (its fast path's reference)."""
+        self.changes += 1
         self.window.add(answered, latency_s)
         if answered:
             self.answered += 1
@@ -318,6 +366,7 @@ class KrcLink:
 
     def refuse(self) -> None:
         """The KRC refused a command (implausible values): back to MON, count from zero."""
+        self.changes += 1
         if self.state == FriState.CMD:
             self._to_mon()
         else:
@@ -329,6 +378,7 @@ class KrcLink:
         Returns :attr:`LinkEvent.FALLBACK` if this ended command mode.
         """
         self.error |= error
+        self.changes += 1
         if self.state == FriState.CMD:
             self._to_mon()
             return LinkEvent.FALLBACK
@@ -339,8 +389,10 @@ class KrcLink:
         """Clear the latched error (the operator acknowledged it); CMD may start again."""
         self.error = 0
         self.consecutive_ok = 0
+        self.changes += 1
 
     def _to_mon(self) -> None:
+        self.changes += 1
         self.fallbacks += 1
         self.consecutive_ok = 0
         self.state = FriState.MON

@@ -10,7 +10,9 @@ command, and the remote sees the same measurement for the same world state.
 * :func:`stop_command`: what the KRC does when it leaves command mode: hold
   the measured pose, no superposed wrench or torque;
 * :func:`fri_measurement`: the ``tFriMsrData`` of a world state, with the
-  link's state, quality and statistics;
+  link's state, quality and statistics (:func:`measurement_head` and
+  :func:`measurement_of`: the same in two parts, the first kept while the link
+  does not change);
 * :func:`plausible_command`: values a KRC would take (beyond them it leaves
   command mode);
 * :func:`software_limit_error` and :func:`brake_command`: the software limit
@@ -68,6 +70,8 @@ __all__ = [
     "control_mode",
     "fri_measurement",
     "fri_warning",
+    "measurement_head",
+    "measurement_of",
     "plausible_command",
     "software_limit_error",
     "software_limits_rad",
@@ -108,6 +112,14 @@ _CONSTANT_FIELDS: Final = {
     )).items()
 }
 _new: Final = object.__new__
+#: The fields :func:`measurement_of` sets from the world state, each cycle.
+_STATE_FIELDS: Final = ("seq", "time_ns", "control", "warning", "msr_jnt_pos", "msr_cart_pos",
+                        "cmd_jnt_pos", "cmd_cart_pos", "msr_jnt_trq", "est_ext_jnt_trq",
+                        "est_ext_tcp_ft", "jacobian", "mass_matrix", "gravity", "link_events")
+#: :data:`_CONSTANT_FIELDS` with ``None`` in the fields of a state (not read: replaced;
+#: cheaper to replace than the defaults' own objects).
+_HEAD: Final = {name: None if name in _STATE_FIELDS else value
+                for name, value in _CONSTANT_FIELDS.items()}
 
 #: Hardware (mechanical) joint ranges of the LWR4+ A1..A7 [deg]: +-170/120
 #: (CentroEPiaggio kuka-lwr URDF; the KRC's rsidef7.dat as quoted by TUM's
@@ -208,23 +220,26 @@ class CommandDelay:
         if cycles < 0:
             raise ValueError(f"command delay must be >= 0 cycles, got {cycles}")
         self.cycles = cycles
-        self._queue: deque[tuple[ArmCommand | None, int | None]] = deque()
+        self.queue: deque[tuple[ArmCommand | None, int | None]] = deque()
+        """The commands in flight, oldest first, with their sequence numbers (always
+        ``cycles`` of them: :meth:`push` appends one and takes the oldest)."""
         self.clear()
 
     def clear(self) -> None:
         """Nothing in flight: the next ``cycles`` cycles act on no remote command."""
-        self._queue.clear()
-        self._queue.extend([(None, None)] * self.cycles)
+        self.queue.clear()
+        self.queue.extend([(None, None)] * self.cycles)
 
-    def push(self, arm: ArmCommand | None, seq: int | None = None
+    def push(self, arm: ArmCommand | None, seq: int | None = None, *, copy: bool = True
              ) -> tuple[ArmCommand | None, int | None]:
         """Hand in this cycle's answer (with its sequence number, if any); returns the
         one that acts in this cycle. A delayed command is copied (the caller's arrays
-        are reused by the next answer)."""
+        are reused by the next answer), unless ``copy`` is false: the caller then keeps
+        its arrays unchanged until the command has acted (``cycles`` cycles later)."""
         if not self.cycles:
             return arm, seq
-        queue = self._queue
-        queue.append((None if arm is None else _owned(arm), seq))
+        queue = self.queue
+        queue.append((_owned(arm) if copy and arm is not None else arm, seq))
         return queue.popleft()
 
 
@@ -289,6 +304,54 @@ def stop_command(state: ArmState) -> ArmCommand:
     )
 
 
+def measurement_head(cycle_s: float, state: FriState, quality: FriQuality, error: int = 0,
+                     rates: tuple[float, float, float, float] | None = None,
+                     miss_counter: int = 0) -> dict[str, object]:
+    """The fields of a measurement that do not come from the world state, by name in
+    field order: the constants, the link's ``state``, ``quality``, ``error`` and (when
+    given) its ``(answer_rate, latency_s, jitter_s, miss_rate)`` and ``miss_counter``,
+    the sample times. :func:`measurement_of` adds a world state's; a KRC whose link
+    did not change reuses it."""
+    d = _HEAD.copy()
+    d["state"] = state
+    d["quality"] = quality
+    d["msr_sample_time"] = cycle_s
+    d["cmd_sample_time"] = cycle_s
+    if rates is not None:
+        d["answer_rate"], d["latency_s"], d["jitter_s"], d["miss_rate"] = rates
+        d["miss_counter"] = miss_counter
+    d["error"] = error
+    return d
+
+
+def measurement_of(head: dict[str, object], s: ArmState) -> FriMeasurement:
+    """The measurement of world state ``s`` with the fields of ``head``
+    (:func:`measurement_head`; arrays shared with ``s``, not copied)."""
+    # built without the dataclass's __init__ (its 30 arguments): a copy of the head,
+    # then the fields of this cycle (the same field order and values; one by one is
+    # cheaper than an update from a zip)
+    d = head.copy()
+    d["seq"] = s.cycle
+    d["time_ns"] = s.time_ns
+    d["control"] = _TO_FRI[s.mode]
+    w = int(s.warning)
+    d["warning"] = _FRI_WARNINGS[w] if w < len(_FRI_WARNINGS) else _fri_warning(w)
+    d["msr_jnt_pos"] = s.jnt_pos_rad
+    d["msr_cart_pos"] = s.tcp_pose_m
+    d["cmd_jnt_pos"] = s.cmd_jnt_pos_rad
+    d["cmd_cart_pos"] = s.cmd_cart_pose_m
+    d["msr_jnt_trq"] = s.jnt_trq_nm
+    d["est_ext_jnt_trq"] = s.ext_jnt_trq_nm
+    d["est_ext_tcp_ft"] = s.ext_wrench_n_nm
+    d["jacobian"] = s.jacobian
+    d["mass_matrix"] = s.mass_matrix
+    d["gravity"] = s.gravity_nm
+    d["link_events"] = []
+    m: FriMeasurement = _new(FriMeasurement)
+    m.__dict__ = d
+    return m
+
+
 def fri_measurement(
     s: ArmState,
     cycle_s: float,
@@ -305,32 +368,7 @@ def fri_measurement(
     never changes (temperatures, FRI offsets, the KRL variables) are read-only
     arrays shared by every measurement.
     """
-    # built without the dataclass's __init__ (its 30 arguments): a copy of the
-    # constant fields, then those of this cycle (the same field order and values)
-    d = _CONSTANT_FIELDS.copy()
-    d["seq"] = s.cycle
-    d["time_ns"] = s.time_ns
-    d["state"] = state
-    d["quality"] = quality
-    d["control"] = _TO_FRI[s.mode]
-    d["msr_sample_time"] = cycle_s
-    d["cmd_sample_time"] = cycle_s
-    d["error"] = error
-    d["warning"] = fri_warning(s.warning)
-    d["msr_jnt_pos"] = s.jnt_pos_rad
-    d["msr_cart_pos"] = s.tcp_pose_m
-    d["cmd_jnt_pos"] = s.cmd_jnt_pos_rad
-    d["cmd_cart_pos"] = s.cmd_cart_pose_m
-    d["msr_jnt_trq"] = s.jnt_trq_nm
-    d["est_ext_jnt_trq"] = s.ext_jnt_trq_nm
-    d["est_ext_tcp_ft"] = s.ext_wrench_n_nm
-    d["jacobian"] = s.jacobian
-    d["mass_matrix"] = s.mass_matrix
-    d["gravity"] = s.gravity_nm
-    d["link_events"] = []
-    m: FriMeasurement = _new(FriMeasurement)
-    m.__dict__ = d
-    return m
+    return measurement_of(measurement_head(cycle_s, state, quality, error), s)
 
 
 #: Largest command values the emulated KRC takes (beyond them it leaves command mode).

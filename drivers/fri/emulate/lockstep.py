@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
+from typing import Final
 
 import numpy as np
 
@@ -42,7 +43,13 @@ from drivers.base.backend import OpenContext, OpenedRobot
 from drivers.base.guards import requires_open
 from drivers.base.impedance import clip_cart_stiffness
 from drivers.base.interfaces import RobotDriver
-from drivers.base.types import AppliedCommand, ApplyStatus, CartesianCommand, RobotState
+from drivers.base.types import (
+    AppliedCommand,
+    ApplyStatus,
+    CartesianCommand,
+    LinkHealth,
+    RobotState,
+)
 from drivers.description.scene import Scene, load_scene
 from drivers.errors import DriverError, NotConnectedError
 from drivers.fri.codec import (
@@ -55,7 +62,7 @@ from drivers.fri.codec import (
     new_cmd_buffer,
     new_msr_buffer,
 )
-from drivers.fri.command import applied_from_fri, robot_state_from_fri, to_fri_command
+from drivers.fri.command import robot_state_from_fri, to_fri_command
 from drivers.fri.config import SimRobotConfig
 from drivers.fri.convert import (
     arrays_to_command,
@@ -69,14 +76,22 @@ from drivers.fri.emulate.krc import (
     arm_command_from_fri,
     brake_command,
     control_mode,
-    fri_measurement,
+    measurement_head,
+    measurement_of,
     software_limit_error,
     software_limits_rad,
     stop_command,
 )
 from drivers.fri.link import KrcLink, LinkEvent
 from drivers.fri.stats import LinkWatch
-from drivers.fri.types import CmdFlags, ControlMode, FriCommand, FriMeasurement
+from drivers.fri.types import (
+    CmdFlags,
+    ControlMode,
+    FriCommand,
+    FriMeasurement,
+    FriQuality,
+    FriState,
+)
 from drivers.world.arm import ArmCommand, ArmMode, ArmState
 from drivers.world.ftstream import SimFtSensor
 from drivers.world.world import SimWorld
@@ -85,6 +100,41 @@ __all__ = ["SimRobot", "open_rig_robot", "open_sim"]
 
 _WHAT = "sim robot"
 _CARTSTIFF = int(CmdFlags.CARTSTIFF)  # ``int & IntFlag`` goes through the enum machinery
+_TCPFT = int(CmdFlags.TCPFT)
+_CMD = FriState.CMD
+_UNACCEPTABLE = FriQuality.UNACCEPTABLE
+_new: Final = object.__new__
+
+# The lockstep FRI command's arrays are views of one buffer (its fields in this order),
+# so that a delayed command is one copy (:meth:`SimRobot.send`) and its gains one
+# slice (the stiffness and the damping side by side: :data:`_GAINS`).
+_CMD_FIELDS: Final = (("cart_pos", (4, 4)), ("cart_stiffness", (6,)), ("cart_damping", (6,)),
+                      ("add_tcp_ft", (6,)), ("jnt_pos", (7,)), ("add_jnt_trq", (7,)),
+                      ("jnt_stiffness", (7,)), ("jnt_damping", (7,)))
+_GAINS: Final = slice(16, 28)
+#: The wrench of an applied command without TCPFT (read-only: shared).
+_NO_WRENCH: Final = np.zeros(6)
+_NO_WRENCH.flags.writeable = False
+
+
+def _views(obj: object, layout: tuple[tuple[str, tuple[int, ...]], ...]) -> np.ndarray:
+    """Make ``obj``'s arrays named in ``layout`` views of one new buffer, their values
+    kept; returns the buffer."""
+    buf = np.zeros(sum(int(np.prod(shape)) for _, shape in layout))
+    i = 0
+    for name, shape in layout:
+        n = int(np.prod(shape))
+        view = buf[i:i + n].reshape(shape)
+        view[...] = getattr(obj, name)
+        setattr(obj, name, view)
+        i += n
+    return buf
+
+
+def _buffered_command() -> tuple[np.ndarray, FriCommand]:
+    """A new ``FriCommand()`` whose arrays are views of one buffer (:data:`_CMD_FIELDS`)."""
+    fri = FriCommand()
+    return _views(fri, _CMD_FIELDS), fri
 
 
 class SimRobot(RobotDriver):
@@ -118,9 +168,9 @@ class SimRobot(RobotDriver):
         self.software_limits_rad = software_limits_rad(software_limits_deg)
         # no joint is within the smallest limit: none can be at its own (a cheap test)
         self._limit_min_rad = min(self.software_limits_rad.tolist())
-        # arm commands of the lockstep FRI command (its arrays shared), per
-        # (flags, control, arm mode): the same object while they do not change
-        self._arm_commands: dict[tuple[int, ControlMode, ArmMode], ArmCommand] = {}
+        # arm commands of the lockstep FRI command or a slot's (their arrays shared), per
+        # (slot or -1, flags, control, arm mode): the same object while they do not change
+        self._arm_commands: dict[tuple[int, CmdFlags, ControlMode, ArmMode], ArmCommand] = {}
         self._brake = False
         self._stopped: str | None = None
         self.max_cycles = max_cycles
@@ -131,14 +181,31 @@ class SimRobot(RobotDriver):
         self._watch = LinkWatch()
         self._open = False
         self._answered = False
-        self._fri = FriCommand()
-        self._applied = AppliedCommand()
+        self._fri_buf, self._fri = _buffered_command()
+        fri = self._fri
+        self._gain_values = self._fri_buf[_GAINS]
+        # what send() returns: its command the FRI command's own arrays (module _NO_WRENCH)
+        self._as_sent = CartesianCommand(fri.cart_pos, fri.cart_stiffness, fri.cart_damping,
+                                         fri.add_tcp_ft)
+        self._as_sent_no_wrench = CartesianCommand(fri.cart_pos, fri.cart_stiffness,
+                                                   fri.cart_damping, _NO_WRENCH)
+        self._applied = AppliedCommand(self._as_sent_no_wrench, ApplyStatus.APPLIED, fri)
+        # a delayed command waits in a slot of its own (delay + 1 of them, in turn)
+        self._slots = [_buffered_command() for _ in range(self.delay.cycles + 1)
+                       ] if self.delay.cycles else []
+        self._slot = 0
+        self._pending: ArmCommand | None = None  # the slot's arm command of the last send
+        # the measurement's fields that are not the world's, while the link keeps them
+        self._head: dict[str, object] = {}
+        self._head_changes = -1  # link.changes when the head was built (-1: build it)
         self._state: ArmState = world.last_state
-        self._gains: tuple[bytes, bytes, np.ndarray | None, np.ndarray | None] | None = None
-        self._msr = self._measurement(world.last_state)
+        self._gains: tuple[bytes, tuple[CartesianCommand, CartesianCommand] | None] | None = None
+        self._next: RobotState | None = None
+        self._measure(world.last_state)
 
     def _new_link(self) -> KrcLink:
         self._cycle_s = self.world.cycle_s  # the link's cycle, reported in every measurement
+        self._head_changes = -1  # a new link: a new head, and the watch sees it
         return KrcLink(
             self._cycle_s,
             start_cycles=self.start_cycles,
@@ -146,19 +213,43 @@ class SimRobot(RobotDriver):
             timing=False,
         )
 
-    def _measurement(self, state: ArmState) -> FriMeasurement:
-        """The measurement of ``state``, the world's last state (held: its truth is read next)."""
+    def _measure(self, state: ArmState) -> None:
+        """The measurement of ``state``, the world's last state (held: its truth is read
+        next), and the robot state of it that :meth:`measurements` yields next."""
         link = self.link
         self._state = state
-        m = fri_measurement(state, self._cycle_s, link.state, link.quality, link.error)
-        m.answer_rate, m.latency_s, m.jitter_s, m.miss_rate = link.rates()
-        m.miss_counter = link.missed
+        head = self._head
+        changed = link.changes != self._head_changes
+        if changed:  # (the head's key: the link's count of changes, the link, the cycle)
+            head = self._head = measurement_head(self._cycle_s, link.state, link.quality,
+                                                 link.error, link.rates(), link.missed)
+            self._head_changes = link.changes
+        m = measurement_of(head, state)
         if self.wire_precision:
             m = self._over_the_wire(m)
-        self._watch.see(m, m.link_events)  # state and quality changes, as the UDP driver
+        if changed:  # (else the state and quality are those the watch saw last)
+            self._watch.see(m, m.link_events)  # state and quality changes, as the UDP driver
         for listener in self._listeners:
             listener(m)
-        return m
+        self._msr = m
+        # robot_state_from_fri(m) with the world's truth, inline (the same fields in the
+        # same order; tests/test_lockstep_fast.py)
+        link_health = _new(LinkHealth)
+        link_health.commanding = m.state == _CMD
+        link_health.healthy = m.quality > _UNACCEPTABLE
+        link_health.cycle = m.seq
+        cycle_s = m.cmd_sample_time
+        link_health.cycle_s = cycle_s if cycle_s > 0.0 else m.msr_sample_time
+        rs: RobotState = _new(RobotState)
+        rs.time_ns = m.time_ns
+        rs.tcp_pose_m = m.msr_cart_pos
+        rs.joint_pos_rad = m.msr_jnt_pos
+        rs.link = link_health
+        rs.tcp_twist_mps_radps = None
+        rs.ext_wrench_n_nm = m.est_ext_tcp_ft
+        rs.truth = state.truth
+        rs.extras = m
+        self._next = rs
 
     def _over_the_wire(self, m: FriMeasurement) -> FriMeasurement:
         """``m`` as the UDP driver would decode it (a new measurement, own arrays)."""
@@ -182,9 +273,15 @@ class SimRobot(RobotDriver):
         self._listeners.append(callback)
 
     def _robot_state(self) -> RobotState:
-        state = robot_state_from_fri(self._msr)
-        state.truth = self._state.truth
-        return state
+        """The robot state of the current measurement: a new object each call (the one
+        :meth:`_measure` built, the first time)."""
+        rs = self._next
+        if rs is None:
+            rs = robot_state_from_fri(self._msr)
+            rs.truth = self._state.truth
+        else:
+            self._next = None
+        return rs
 
     # ------------------------------------------------------------ lifecycle
     def connect(self) -> None:
@@ -195,7 +292,7 @@ class SimRobot(RobotDriver):
         self._answered = False
         self._brake = False
         self._stopped = None
-        self._msr = self._measurement(self.world.last_state)
+        self._measure(self.world.last_state)
         self._open = True
 
     def close(self) -> None:
@@ -241,9 +338,16 @@ class SimRobot(RobotDriver):
         elif event is LinkEvent.FALLBACK:
             arm = stop_command(world.last_state)
             self.delay.clear()
-        else:  # the remote's answer, if the KRC takes it, acts command_delay_cycles later
-            taken = self._answered and link.commanding
-            arm = self.delay.push(self._arm_command(self._taken()) if taken else None)[0]
+        elif not (self._answered and link.state == _CMD):  # no answer, or not taken
+            arm = self.delay.push(None)[0]
+        elif self._slots and not self.wire_precision:  # it acts later (_delayed, inline)
+            # send() put the answer in the slot after the last one taken, and its arm command
+            self._slot = (self._slot + 1) % len(self._slots)
+            queue = self.delay.queue  # delay.push(arm, copy=False)[0], inline
+            queue.append((self._pending, None))
+            arm = queue.popleft()[0]
+        else:  # the KRC takes the answer (the wire's, or acting at once)
+            arm = self._delayed(self._taken())
         self._answered = False
         world.advance(arm)
         state = world.last_state
@@ -260,13 +364,23 @@ class SimRobot(RobotDriver):
                     link.fault(error)
                     self._brake = True
                     self._stopped = _stop_message(error, q, self.software_limits_rad)
-        self._msr = self._measurement(state)
+        self._measure(state)
 
-    def _arm_command(self, fri: FriCommand) -> ArmCommand:
-        """:func:`~drivers.fri.emulate.krc.arm_command_from_fri` of the command the KRC takes."""
-        if self.wire_precision:  # a new FriCommand each cycle
-            return arm_command_from_fri(fri, self.world.mode)
-        key = (int(fri.flags), fri.control, self.world.mode)
+    def _delayed(self, fri: FriCommand) -> ArmCommand | None:
+        """The arm command that acts this cycle when the KRC takes ``fri``: this one's,
+        or with a delay the one taken ``command_delay_cycles`` ago
+        (:class:`~drivers.fri.emulate.krc.CommandDelay`). With a delay, the lockstep
+        command waits in the next of ``delay + 1`` slots (a copy of its buffer, which no
+        command in flight holds): :meth:`_advance` does that inline."""
+        if self.wire_precision:  # a new FriCommand each cycle: its arrays are its own
+            return self.delay.push(arm_command_from_fri(fri, self.world.mode), copy=False)[0]
+        return self._arm_command(fri, -1)
+
+    def _arm_command(self, fri: FriCommand, slot: int) -> ArmCommand:
+        """:func:`~drivers.fri.emulate.krc.arm_command_from_fri` of ``fri``, the lockstep
+        command (``slot`` -1) or a slot's: the same object (its arrays shared) while the
+        flags, control and arm mode do not change."""
+        key = (slot, fri.flags, fri.control, self.world.mode)
         arm = self._arm_commands.get(key)
         if arm is None:
             arm = self._arm_commands[key] = arm_command_from_fri(fri, self.world.mode)
@@ -289,28 +403,53 @@ class SimRobot(RobotDriver):
         fri = self._fri
         status = to_fri_command(command, self._msr, fri)
         self._answered = True
-        applied = applied_from_fri(fri, status, self._applied)
-        if int(fri.flags) & _CARTSTIFF:
+        slots = self._slots
+        if slots and not self.wire_precision:
+            # with a delay, what the KRC takes if it takes this answer (_advance): a copy
+            # in the slot after the last one taken (no command in flight holds it), and
+            # its arm command; done here, where the arrays were just written
+            k = self._slot + 1
+            if k == len(slots):
+                k = 0
+            buf, slot = slots[k]
+            buf[...] = self._fri_buf
+            slot.flags = fri.flags
+            slot.control = fri.control
+            arm = self._arm_commands.get((k, fri.flags, fri.control, self.world.mode))
+            self._pending = arm if arm is not None else self._arm_command(slot, k)
+        # applied_from_fri without a copy: the applied command is one of a few views of
+        # the FRI command's arrays (the same values: the set-point, the gains, the
+        # wrench or zeros), or of the clipped gains
+        applied = self._applied
+        applied.status = status
+        applied.extras = fri
+        flags = int(fri.flags)
+        if flags & _CARTSTIFF:
             # the gains rarely change: clip them again only when their bytes do
-            k_key = fri.cart_stiffness.tobytes()
-            d_key = fri.cart_damping.tobytes()
+            key = self._gain_values.tobytes()  # the stiffness and the damping
             gains = self._gains
-            if gains is None or gains[0] != k_key or gains[1] != d_key:
-                gains = self._gains = (k_key, d_key, *self._clipped_gains(fri))
-            if gains[2] is not None:
-                applied.status |= ApplyStatus.CLIPPED
-                applied.command.stiffness_npm_nmprad[...] = gains[2]
-                applied.command.damping_ratio[...] = gains[3]
+            if gains is None or gains[0] != key:
+                gains = self._gains = (key, self._clipped_commands(fri))
+            clipped = gains[1]
+            if clipped is not None:
+                applied.status = status | ApplyStatus.CLIPPED
+                applied.command = clipped[0] if flags & _TCPFT else clipped[1]
+                return applied
+        applied.command = self._as_sent if flags & _TCPFT else self._as_sent_no_wrench
         return applied
 
-    def _clipped_gains(self, fri: FriCommand) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """The stiffness and damping the world will apply, or ``None``s if neither clips."""
+    def _clipped_commands(self, fri: FriCommand
+                          ) -> tuple[CartesianCommand, CartesianCommand] | None:
+        """The applied commands (with the wrench sent, with none) of the stiffness and
+        damping the world will apply, or ``None`` if neither clips."""
         mx = self.world.scene.controller.cart_stiffness_max
         k, clipped = clip_cart_stiffness(fri.cart_stiffness, mx[0], mx[1])
         d = np.clip(fri.cart_damping, 0.0, 1.0)
         if clipped or bool(np.any(d != fri.cart_damping)):
-            return k, d
-        return None, None
+            k.flags.writeable = d.flags.writeable = False
+            return (CartesianCommand(fri.cart_pos, k, d, fri.add_tcp_ft),
+                    CartesianCommand(fri.cart_pos, k, d, _NO_WRENCH))
+        return None
 
 
 def _stop_message(error: int, q: np.ndarray, limits_rad: np.ndarray) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -95,3 +96,92 @@ def test_ft_block_saturates_and_flags_rows() -> None:
     assert out.wrench[2, 1] == settings.range[1]
     assert out.status.tolist() == [0, 0, 0x00020000, 0]
     assert not out.wrench[[0, 1, 3]].any()
+
+
+def test_tool_wrench_is_the_numpy_form() -> None:
+    """The contact wrench moved to the TCP and turned into the TCF: the compiled form
+    against the numpy one (plain-float cross product, ``@`` with the rotation)."""
+    from drivers.world import kernels
+
+    rng = np.random.default_rng(3)
+    for _ in range(3000):
+        cfrc = rng.normal(size=6) * 10.0 ** rng.uniform(-3, 2, size=6)
+        com, tcp = rng.normal(size=3), rng.normal(size=3)
+        q = rng.normal(size=4)
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, q / np.linalg.norm(q))
+        rot = rot.reshape(3, 3)
+        out = np.empty(6)
+        kernels.tool_wrench(cfrc, com, tcp, rot, out)
+        cx, cy, cz, fx, fy, fz = cfrc.tolist()
+        rx, ry, rz = (com - tcp).tolist()
+        torque = np.array(((cx + ry * fz) - rz * fy, (cy + rz * fx) - rx * fz,
+                           (cz + rx * fy) - ry * fx))
+        want = np.concatenate((cfrc[3:] @ rot, torque @ rot))
+        assert _bits(out) == _bits(want)
+
+
+def test_touches_finds_a_tool_geom_in_any_pair() -> None:
+    """Any contact whose pair holds a tool geom (first or second) counts; a flex's
+    ``-1`` is no geom."""
+    from drivers.world import kernels
+
+    is_tool = np.zeros(10, dtype=bool)
+    is_tool[[3, 7]] = True
+    rng = np.random.default_rng(5)
+    for _ in range(500):
+        geom = rng.integers(-1, 10, size=(int(rng.integers(0, 40)), 2)).astype(np.int32)
+        want = bool(np.isin(geom, [3, 7]).any())
+        assert kernels.touches(geom, is_tool) is want
+    strided = np.zeros((5, 8), dtype=np.int32)[:, 2:4]  # MuJoCo's contact.geom: a strided view
+    strided[4, 1] = 7
+    assert kernels.touches(strided, is_tool)
+    assert not kernels.touches(strided[:4], is_tool)
+
+
+@pytest.mark.parametrize("shape", [2.0, 1.0, 1.5])
+def test_friction_level_is_the_numpy_form(shape: float) -> None:
+    """The dry level written per cycle (compiled around numpy's own ``exp``) equals
+    :meth:`JointFriction.dry_level_nm`, the curve in numpy, for speeds from rest to far
+    beyond the Stribeck speed (and the clip at 40 of them); a NaN speed (a diverged
+    state: the run has stopped before) gives a NaN, its sign bit aside."""
+    from drivers.world.friction import JointFriction
+
+    rng = np.random.default_rng(11)
+    n = 7
+    fr = JointFriction(static_nm=rng.uniform(0.1, 1.0, n), coulomb_nm=rng.uniform(0.05, 0.1, n),
+                       viscous_nmsprad=rng.uniform(0.0, 0.1, n),
+                       stribeck_radps=rng.uniform(1e-3, 0.1, n), shape=shape)
+    out = np.empty(n)
+    for _ in range(2000):
+        speed = rng.normal(size=n) * 10.0 ** rng.uniform(-5, 1, size=n)
+        speed[rng.integers(n)] = rng.choice([0.0, -0.0, 1e3, np.nan, speed[0]])
+        fr.apply_into(speed, out)
+        want = fr.dry_level_nm(speed)
+        assert np.array_equal(np.isnan(out), np.isnan(want))
+        out[np.isnan(out)] = want[np.isnan(want)] = 0.0
+        assert _bits(out) == _bits(want)
+
+
+def test_arm_warnings_are_the_limits_value_by_value() -> None:
+    """Each bit when and only when one joint passes its limit (speed and torque by
+    magnitude, the torque's at the limit already, the position above or below)."""
+    from drivers.world import kernels
+
+    rng = np.random.default_rng(13)
+    n = 7
+    limits = np.array([rng.uniform(1, 2, n), rng.uniform(1, 2, n), -rng.uniform(1, 2, n),
+                       rng.uniform(10, 20, n)])
+    bits = np.array([4, 16, 64])
+    for _ in range(3000):
+        scale = rng.uniform(0.5, 1.2)
+        qvel = rng.uniform(-1, 1, n) * limits[0] * scale
+        q = rng.uniform(-1, 1, n) * 2.0 * scale
+        tau = rng.uniform(-1, 1, n) * limits[3] * scale
+        if rng.random() < 0.1:
+            tau[rng.integers(n)] = -limits[3, 0] if rng.random() < 0.5 else np.nan
+            tau[0] = -limits[3, 0]
+        want = ((4 if np.any(np.abs(qvel) > limits[0]) else 0)
+                | (16 if np.any(q > limits[1]) or np.any(limits[2] > q) else 0)
+                | (64 if np.any(np.abs(tau) >= limits[3]) else 0))
+        assert kernels.arm_warnings(qvel, q, tau, limits, bits) == want

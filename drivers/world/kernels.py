@@ -136,3 +136,82 @@ def ft_block(white: F64, i: int, raw: F64, delay_buf: F64, delay_n: int, drift: 
             acc *= consts[FT_RES, j]
             out[r, j] = acc
     return rows_over
+
+
+# ---------------------------------------------------------------- the tool's contact
+
+
+@njit(cache=True)
+def touches(geom: Any, is_tool: Any) -> bool:
+    """Whether a contact's geom pair (``geom``: MuJoCo's ``contact.geom``, ``(ncon, 2)``)
+    holds one of the tool's geoms (``is_tool[g]``; ``-1``, a flex's contact, is none)."""
+    for r in range(geom.shape[0]):
+        g0 = geom[r, 0]
+        g1 = geom[r, 1]
+        if (g0 >= 0 and is_tool[g0]) or (g1 >= 0 and is_tool[g1]):
+            return True
+    return False
+
+
+@njit(cache=True)
+def tool_wrench(cfrc: F64, com: F64, tcp: F64, rot: F64, out: F64) -> None:
+    """The tool body's external wrench ``cfrc`` (MuJoCo's ``cfrc_ext``: torque about the
+    subtree centre of mass ``com``, force; world axes) at the TCP ``tcp``, in the TCF
+    (``rot``: the TCP's rotation, row-major): ``out = [f @ rot, (t + r x f) @ rot]``,
+    ``r = com - tcp``, the products as OpenBLAS sums them (:func:`dot3`)."""
+    cx, cy, cz = cfrc[0], cfrc[1], cfrc[2]
+    fx, fy, fz = cfrc[3], cfrc[4], cfrc[5]
+    rx = com[0] - tcp[0]
+    ry = com[1] - tcp[1]
+    rz = com[2] - tcp[2]
+    t0 = (cx + ry * fz) - rz * fy
+    t1 = (cy + rz * fx) - rx * fz
+    t2 = (cz + rx * fy) - ry * fx
+    for j in range(3):
+        out[j] = dot3(fx, fy, fz, rot[0, j], rot[1, j], rot[2, j])
+        out[3 + j] = dot3(t0, t1, t2, rot[0, j], rot[1, j], rot[2, j])
+
+
+# ---------------------------------------------------------------- the arm's state
+
+
+@njit(cache=True)
+def arm_warnings(qvel: F64, q: F64, torque: F64, limits: F64, bits: Any) -> int:
+    """The limit warnings of the arm's state: ``bits[0]`` if a joint's speed is beyond
+    ``limits[0]`` (``|v| > limit``), ``bits[1]`` if a position is beyond ``limits[1]``
+    above or ``limits[2]`` below, ``bits[2]`` if a torque reaches ``limits[3]``
+    (``|tau| >= limit``)."""
+    out = 0
+    for j in range(q.shape[0]):
+        if abs(qvel[j]) > limits[0, j]:
+            out |= bits[0]
+            break
+    for j in range(q.shape[0]):
+        if q[j] > limits[1, j] or limits[2, j] > q[j]:
+            out |= bits[1]
+            break
+    for j in range(q.shape[0]):
+        if abs(torque[j]) >= limits[3, j]:
+            out |= bits[2]
+            break
+    return out
+
+
+@njit(cache=True)
+def stribeck_arg(speed: F64, stribeck: F64, square: bool, out: F64) -> None:
+    """``-(min(|v| / v_s, 40) ** 2)`` (``square``; else the power 1) into ``out``: the
+    Stribeck curve's exponent before ``exp`` (``JointFriction.apply_into``)."""
+    for j in range(out.shape[0]):
+        v = abs(speed[j]) / stribeck[j]
+        if v > 40.0:  # np.minimum(v, 40.0) (a NaN stays)
+            v = 40.0
+        if square:
+            v = v * v
+        out[j] = -v
+
+
+@njit(cache=True)
+def stribeck_level(coulomb: F64, excess: F64, e: F64, out: F64) -> None:
+    """``coulomb + excess * e`` into ``out`` (the dry level from ``e = exp(...)``)."""
+    for j in range(out.shape[0]):
+        out[j] = coulomb[j] + excess[j] * e[j]

@@ -162,12 +162,10 @@ class SimWorld:
         self._pos_limits = np.radians(scene.arm.description.position_limits_deg)
         self._pos_lower = np.radians(scene.arm.description.lower_limits_deg)
         self._torque_limits = np.asarray(scene.arm.torque_limits)
-        self._pos_warn = self._pos_limits - 1e-3
-        self._pos_warn_lower_l = (self._pos_lower + 1e-3).tolist()
-        self._torque_warn = self._torque_limits - 1e-9
-        self._vel_limits_l = self._vel_limits.tolist()
-        self._pos_warn_l = self._pos_warn.tolist()
-        self._torque_warn_l = self._torque_warn.tolist()
+        from drivers.world import kernels  # numba: imported when a world is built
+        self._arm_warnings = kernels.arm_warnings  # the state's, from these limits:
+        self._warn_limits = np.array((self._vel_limits, self._pos_limits - 1e-3,
+                                      self._pos_lower + 1e-3, self._torque_limits - 1e-9))
 
         # Preallocated work arrays.
         self._jac2 = np.zeros((2, 3, m.nv))  # MuJoCo's translational, rotational Jacobian

@@ -111,6 +111,9 @@ def test_tool_wrench_is_the_numpy_form() -> None:
         rot = np.zeros(9)
         mujoco.mju_quat2Mat(rot, q / np.linalg.norm(q))
         rot = rot.reshape(3, 3)
+        if rng.random() < 0.2:  # exact zeros (their signs: a sum of zeros is +0.0)
+            rot = np.eye(3)[rng.permutation(3)] * rng.choice([-1.0, 1.0], size=3)
+            cfrc[rng.integers(6, size=3)] = rng.choice([0.0, -0.0], size=3)
         out = np.empty(6)
         kernels.tool_wrench(cfrc, com, tcp, rot, out)
         cx, cy, cz, fx, fy, fz = cfrc.tolist()
@@ -185,3 +188,55 @@ def test_arm_warnings_are_the_limits_value_by_value() -> None:
                 | (16 if np.any(q > limits[1]) or np.any(limits[2] > q) else 0)
                 | (64 if np.any(np.abs(tau) >= limits[3]) else 0))
         assert kernels.arm_warnings(qvel, q, tau, limits, bits) == want
+
+
+def test_mujoco_calls_from_compiled_code_are_the_bindings() -> None:
+    """The end state's kinematics and bias forces and the TCP's Jacobian and mass
+    matrix, made by MuJoCo's functions called from compiled code, equal what the
+    Python bindings' calls (and numpy's ``R^T @ jac``) make, at random arm states."""
+    from pathlib import Path
+
+    from drivers.description.scene import load_scene
+    from drivers.world import kernels
+    from drivers.world.world import SimWorld
+
+    root = Path(__file__).resolve().parents[1]
+    w = SimWorld(load_scene(root / "data/scenes/paper.toml"))
+    m, d = w.model, w.data
+    fns = kernels.mujoco_addresses()
+    tcp = w._tcp
+    rng = np.random.default_rng(17)
+    q0, v0 = d.qpos.copy(), d.qvel.copy()
+    for _ in range(50):
+        d.qpos[:] = q0 + rng.normal(size=q0.shape) * 0.2
+        d.qvel[:] = v0 + rng.normal(size=v0.shape)
+        # the bindings
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_comVel(m, d)
+        mujoco.mj_passive(m, d)
+        bias = np.zeros(m.nv)
+        mujoco.mj_rne(m, d, 0, bias)
+        want_state = [d.xpos.copy(), d.xmat.copy(), d.cdof.copy(), d.cvel.copy(),
+                      d.qfrc_gravcomp.copy(), bias]
+        jac2 = np.zeros((2, 3, m.nv))
+        mujoco.mj_jacSite(m, d, jac2[0], jac2[1], tcp)
+        want_jac = np.matmul(d.site_xmat[tcp].reshape(3, 3).T, jac2)
+        mujoco.mj_makeM(m, d)
+        mujoco.mj_factorM(m, d)
+        want_m = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, want_m)
+        # compiled, from a spoilt state
+        for a in (d.xpos, d.xmat, d.cdof, d.cvel, d.qfrc_gravcomp):
+            a[:] = np.nan
+        got_bias = np.full(m.nv, np.nan)
+        kernels.end_state(fns, m._address, d._address, got_bias)
+        got_state = [d.xpos, d.xmat, d.cdof, d.cvel, d.qfrc_gravcomp, got_bias]
+        assert [_bits(a) for a in got_state] == [_bits(a) for a in want_state]
+        jac2[:] = np.nan
+        jfull2 = np.full((2, 3, m.nv), np.nan)
+        mfull = np.full((m.nv, m.nv), np.nan)
+        kernels.tcf_kinematics(fns, m._address, d._address, tcp, jac2,
+                               d.site_xmat[tcp].reshape(3, 3), jfull2, True, mfull)
+        assert _bits(jfull2) == _bits(want_jac)
+        assert _bits(mfull) == _bits(want_m)

@@ -11,7 +11,8 @@ unless written as :func:`fma`). Where the numpy form went through BLAS, the prod
 summed as OpenBLAS makes them (measured with numpy 2.4's wheels, OpenBLAS with FMA
 kernels on x86-64): ``dgemm``, transposed ``dgemv`` and ``ddot`` take ``a0 b0``, then
 fuse each further product in turn (:func:`dot3`; ``dgemm`` of ``k = 6``: the same, see
-:func:`ft_block`); ``dgemv`` not transposed fuses ``a0 b0`` into ``a1 b1`` first
+:func:`ft_block`), into an accumulator that starts at ``+0.0`` (:func:`dot3_z`: a sum of
+signed zeros is ``+0.0``); ``dgemv`` not transposed fuses ``a0 b0`` into ``a1 b1`` first
 (:func:`dot3_n`). ``tests/test_world_kernels.py`` and ``tests/test_estimation_batch.py``
 check them against numpy's own products on random inputs, so a numpy whose BLAS sums
 otherwise shows there, not as a changed recording; the compiled form itself gives the
@@ -20,17 +21,40 @@ same bits on every machine (``llvm.fma`` rounds once, in hardware or in software
 
 from __future__ import annotations
 
+import ctypes
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from llvmlite import ir  # type: ignore[import-untyped]
 from numba import njit, types
 from numba.extending import intrinsic
+from numpy.typing import NDArray
 
 from drivers.base.types import F64
 
-__all__ = ["FT_BIAS", "FT_INV_RES", "FT_RANGE", "FT_RES", "FT_TARE", "FT_XFORM", "dot3",
-           "dot3_n", "fma", "ft_block"]
+__all__ = [
+    "FT_BIAS",
+    "FT_INV_RES",
+    "FT_RANGE",
+    "FT_RES",
+    "FT_TARE",
+    "FT_XFORM",
+    "MUJOCO",
+    "arm_warnings",
+    "dot3",
+    "dot3_n",
+    "dot3_z",
+    "end_state",
+    "fma",
+    "ft_block",
+    "mujoco_addresses",
+    "stribeck_arg",
+    "stribeck_level",
+    "tcf_kinematics",
+    "tool_wrench",
+    "touches",
+]
 
 
 def _fma_typing(typingctx, a, b, c):  # type: ignore[no-untyped-def]
@@ -55,9 +79,148 @@ def dot3(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> fl
 
 
 @njit(cache=True)
+def dot3_z(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
+    """:func:`dot3` from BLAS's zeroed accumulator, ``fma(a0, b0, +0.0)`` first: the same
+    value, but a sum of zeros is ``+0.0`` as OpenBLAS's ``dgemm``/``dgemv`` make it
+    (``dot3``'s ``a0 b0`` may leave ``-0.0``)."""
+    return float(fma(a2, b2, fma(a1, b1, fma(a0, b0, 0.0))))
+
+
+@njit(cache=True)
 def dot3_n(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
     """``a . b`` as OpenBLAS's ``dgemv`` (not transposed) makes a row of ``A x``."""
     return float(fma(a2, b2, fma(a0, b0, a1 * b1)))
+
+
+# ---------------------------------------------------------------- MuJoCo from compiled code
+
+#: The MuJoCo functions the kernels call, in the order of :func:`mujoco_addresses`.
+MUJOCO = ("mj_kinematics", "mj_comPos", "mj_comVel", "mj_passive", "mj_rne", "mj_jacSite",
+          "mj_makeM", "mj_factorM", "mj_fullM", "mj_rnePostConstraint")
+_KINEMATICS, _COM_POS, _COM_VEL, _PASSIVE, _RNE, _JAC_SITE, _MAKE_M, _FACTOR_M, _FULL_M, \
+    _RNE_POST = range(len(MUJOCO))
+
+
+def mujoco_addresses() -> NDArray[np.int64]:
+    """The addresses of :data:`MUJOCO`'s functions in MuJoCo's shared library (the one
+    the ``mujoco`` package loaded): the kernels call MuJoCo's own functions with the
+    world's ``mjModel`` and ``mjData`` (their ``_address``), the same calls the
+    Python bindings make, without a Python call each."""
+    import mujoco
+
+    here = Path(mujoco.__file__).parent
+    names = ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
+    found = sorted(p for pattern in names for p in here.glob(pattern))
+    if not found:
+        raise RuntimeError(f"no MuJoCo shared library in {here}")
+    lib = ctypes.CDLL(str(found[0]))
+    return np.array([ctypes.cast(getattr(lib, name), ctypes.c_void_p).value
+                     for name in MUJOCO], dtype=np.int64)
+
+
+def _ptr(context: Any, builder: Any, ty: Any, value: Any) -> Any:
+    """An array argument's data pointer, as ``double*``."""
+    data = context.make_array(ty)(context, builder, value).data
+    return builder.bitcast(data, ir.DoubleType().as_pointer())
+
+
+def _call_md_typing(typingctx, addr, m, d):  # type: ignore[no-untyped-def]
+    """``f(m, d)`` at the address ``addr`` (``m``, ``d``: the structs' addresses)."""
+    sig = types.void(types.int64, types.int64, types.int64)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        vp = ir.IntType(8).as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def _call_mdi_a_typing(typingctx, addr, m, d, i, a):  # type: ignore[no-untyped-def]
+    """``f(m, d, i, a)`` at ``addr`` (``mj_rne``: an int, then an array)."""
+    sig = types.void(types.int64, types.int64, types.int64, types.int32, a)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        vp = ir.IntType(8).as_pointer()
+        dp = ir.DoubleType().as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, ir.IntType(32), dp])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp), args[3],
+                          _ptr(context, builder, signature.args[4], args[4])])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def _call_mdaai_typing(typingctx, addr, m, d, a, b, i):  # type: ignore[no-untyped-def]
+    """``f(m, d, a, b, i)`` at ``addr`` (``mj_jacSite``: two arrays, then an int)."""
+    sig = types.void(types.int64, types.int64, types.int64, a, b, types.int32)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        vp = ir.IntType(8).as_pointer()
+        dp = ir.DoubleType().as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, dp, dp, ir.IntType(32)])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp),
+                          _ptr(context, builder, signature.args[3], args[3]),
+                          _ptr(context, builder, signature.args[4], args[4]), args[5]])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def _call_mda_typing(typingctx, addr, m, d, a):  # type: ignore[no-untyped-def]
+    """``f(m, d, a)`` at ``addr`` (``mj_fullM``: an array)."""
+    sig = types.void(types.int64, types.int64, types.int64, a)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        vp = ir.IntType(8).as_pointer()
+        dp = ir.DoubleType().as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, dp])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp),
+                          _ptr(context, builder, signature.args[3], args[3])])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+_call_md: Any = intrinsic(_call_md_typing)
+_call_mdi_a: Any = intrinsic(_call_mdi_a_typing)
+_call_mdaai: Any = intrinsic(_call_mdaai_typing)
+_call_mda: Any = intrinsic(_call_mda_typing)
+
+
+@njit(cache=True)
+def end_state(fns: Any, m: int, d: int, qfrc_bias: F64) -> None:
+    """The end state's kinematics and bias forces: ``mj_kinematics``, ``mj_comPos``,
+    ``mj_comVel``, ``mj_passive`` and ``mj_rne(m, d, 0, qfrc_bias)``, in this order."""
+    _call_md(fns[_KINEMATICS], m, d)
+    _call_md(fns[_COM_POS], m, d)
+    _call_md(fns[_COM_VEL], m, d)
+    _call_md(fns[_PASSIVE], m, d)
+    _call_mdi_a(fns[_RNE], m, d, np.int32(0), qfrc_bias)
+
+
+@njit(cache=True)
+def tcf_kinematics(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfull2: F64,
+                   make_m: bool, mfull: F64) -> None:
+    """The site's Jacobian in its own frame and the full mass matrix: ``mj_jacSite`` into
+    ``jac2`` (translational, rotational), ``jfull2[h] = rot^T @ jac2[h]`` (summed as
+    OpenBLAS's ``dgemm``, :func:`dot3_z`), ``mj_makeM`` and ``mj_factorM`` if ``make_m``,
+    then ``mj_fullM`` into ``mfull``."""
+    _call_mdaai(fns[_JAC_SITE], m, d, jac2[0], jac2[1], np.int32(site))
+    for h in range(2):
+        for i in range(3):
+            for c in range(jac2.shape[2]):
+                jfull2[h, i, c] = dot3_z(rot[0, i], rot[1, i], rot[2, i],
+                                       jac2[h, 0, c], jac2[h, 1, c], jac2[h, 2, c])
+    if make_m:
+        _call_md(fns[_MAKE_M], m, d)
+        _call_md(fns[_FACTOR_M], m, d)
+    _call_mda(fns[_FULL_M], m, d, mfull)
 
 
 # ---------------------------------------------------------------- the F/T model
@@ -126,7 +289,7 @@ def ft_block(white: F64, i: int, raw: F64, delay_buf: F64, delay_n: int, drift: 
         for c in range(6):
             w[c] = out[r, c]
         for j in range(6):
-            acc = w[0] * consts[FT_XFORM, j]
+            acc = fma(w[0], consts[FT_XFORM, j], 0.0)  # BLAS's zeroed accumulator
             for k in range(1, 6):
                 acc = fma(w[k], consts[FT_XFORM + k, j], acc)
             if tared:
@@ -158,7 +321,7 @@ def tool_wrench(cfrc: F64, com: F64, tcp: F64, rot: F64, out: F64) -> None:
     """The tool body's external wrench ``cfrc`` (MuJoCo's ``cfrc_ext``: torque about the
     subtree centre of mass ``com``, force; world axes) at the TCP ``tcp``, in the TCF
     (``rot``: the TCP's rotation, row-major): ``out = [f @ rot, (t + r x f) @ rot]``,
-    ``r = com - tcp``, the products as OpenBLAS sums them (:func:`dot3`)."""
+    ``r = com - tcp``, the products as OpenBLAS sums them (:func:`dot3_z`)."""
     cx, cy, cz = cfrc[0], cfrc[1], cfrc[2]
     fx, fy, fz = cfrc[3], cfrc[4], cfrc[5]
     rx = com[0] - tcp[0]
@@ -168,8 +331,8 @@ def tool_wrench(cfrc: F64, com: F64, tcp: F64, rot: F64, out: F64) -> None:
     t1 = (cy + rz * fx) - rx * fz
     t2 = (cz + rx * fy) - ry * fx
     for j in range(3):
-        out[j] = dot3(fx, fy, fz, rot[0, j], rot[1, j], rot[2, j])
-        out[3 + j] = dot3(t0, t1, t2, rot[0, j], rot[1, j], rot[2, j])
+        out[j] = dot3_z(fx, fy, fz, rot[0, j], rot[1, j], rot[2, j])
+        out[3 + j] = dot3_z(t0, t1, t2, rot[0, j], rot[1, j], rot[2, j])
 
 
 # ---------------------------------------------------------------- the arm's state

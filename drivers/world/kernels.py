@@ -49,6 +49,7 @@ __all__ = [
     "fma",
     "ft_block",
     "mujoco_addresses",
+    "pose4",
     "stribeck_arg",
     "stribeck_level",
     "tcf_kinematics",
@@ -378,3 +379,16 @@ def stribeck_level(coulomb: F64, excess: F64, e: F64, out: F64) -> None:
     """``coulomb + excess * e`` into ``out`` (the dry level from ``e = exp(...)``)."""
     for j in range(out.shape[0]):
         out[j] = coulomb[j] + excess[j] * e[j]
+
+
+@njit(cache=True)
+def pose4(pos: F64, mat9: F64) -> F64:
+    """A new 4x4 pose from a position and a row-major 3x3 rotation (9 values)."""
+    out = np.empty((4, 4))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = mat9[3 * i + j]
+        out[i, 3] = pos[i]
+        out[3, i] = 0.0
+    out[3, 3] = 1.0
+    return out

@@ -7,16 +7,11 @@ load them.
 
 Bit for bit the numbers of the numpy form they replace: the same IEEE operations in the
 same order, no fast-math (no contraction of ``a * b + c`` into a fused multiply-add
-unless written as :func:`fma`). Where the numpy form went through BLAS, the products are
-summed as OpenBLAS makes them (measured with numpy 2.4's wheels, OpenBLAS with FMA
-kernels on x86-64): ``dgemm``, transposed ``dgemv`` and ``ddot`` take ``a0 b0``, then
-fuse each further product in turn (:func:`dot3`; ``dgemm`` of ``k = 6``: the same, see
-:func:`ft_block`), into an accumulator that starts at ``+0.0`` (:func:`dot3_z`: a sum of
-signed zeros is ``+0.0``); ``dgemv`` not transposed fuses ``a0 b0`` into ``a1 b1`` first
-(:func:`dot3_n`). ``tests/test_world_kernels.py`` and ``tests/test_estimation_batch.py``
-check them against numpy's own products on random inputs, so a numpy whose BLAS sums
-otherwise shows there, not as a changed recording; the compiled form itself gives the
-same bits on every machine (``llvm.fma`` rounds once, in hardware or in software).
+unless written as ``fma``). Where the numpy form went through BLAS, the products are
+summed as OpenBLAS makes them (:mod:`drivers.base.blas`; ``dgemm`` of ``k = 6``: each
+product fused in turn into a zeroed accumulator, see :func:`ft_block`).
+``tests/test_world_kernels.py`` checks every kernel against its numpy form (or the
+MuJoCo bindings' calls) on random inputs.
 """
 
 from __future__ import annotations
@@ -31,6 +26,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numpy.typing import NDArray
 
+from drivers.base.blas import dot3_z, fma
 from drivers.base.types import F64
 
 __all__ = [
@@ -42,11 +38,7 @@ __all__ = [
     "FT_XFORM",
     "MUJOCO",
     "arm_warnings",
-    "dot3",
-    "dot3_n",
-    "dot3_z",
     "end_state",
-    "fma",
     "ft_block",
     "mujoco_addresses",
     "pose4",
@@ -56,41 +48,6 @@ __all__ = [
     "tool_wrench",
     "touches",
 ]
-
-
-def _fma_typing(typingctx, a, b, c):  # type: ignore[no-untyped-def]
-    """``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        d = ir.DoubleType()
-        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
-        return builder.call(fn, args)
-
-    return sig, codegen
-
-
-fma: Any = intrinsic(_fma_typing)
-
-
-@njit(cache=True)
-def dot3(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
-    """``a . b`` as OpenBLAS's ``ddot``, ``dgemm`` and transposed ``dgemv`` make it."""
-    return float(fma(a2, b2, fma(a1, b1, a0 * b0)))
-
-
-@njit(cache=True)
-def dot3_z(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
-    """:func:`dot3` from BLAS's zeroed accumulator, ``fma(a0, b0, +0.0)`` first: the same
-    value, but a sum of zeros is ``+0.0`` as OpenBLAS's ``dgemm``/``dgemv`` make it
-    (``dot3``'s ``a0 b0`` may leave ``-0.0``)."""
-    return float(fma(a2, b2, fma(a1, b1, fma(a0, b0, 0.0))))
-
-
-@njit(cache=True)
-def dot3_n(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
-    """``a . b`` as OpenBLAS's ``dgemv`` (not transposed) makes a row of ``A x``."""
-    return float(fma(a2, b2, fma(a0, b0, a1 * b1)))
 
 
 # ---------------------------------------------------------------- MuJoCo from compiled code

@@ -47,8 +47,8 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numpy.typing import NDArray
 
+from drivers.base.blas import dot3, dot3_n
 from drivers.base.types import F64, FtStatus
-from drivers.world.kernels import dot3, dot3_n
 
 #: The status bit of a saturated F/T sample.
 SATURATION = int(FtStatus.SATURATION)

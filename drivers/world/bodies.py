@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from drivers.base.types import F64, AttachedFrame, BodyTruth
+from drivers.world.truth import pose as _pose
 
 __all__ = ["FreeBodies", "body_twist"]
 
@@ -66,7 +67,7 @@ class FreeBodies:
         self._vel = np.zeros(6)
         self._mass = model.body_mass  # views into the model's and the state's buffers
         # per body: its id, position and row-major rotation (views, current every cycle)
-        self._rows = tuple((name, bid, data.xpos[bid], data.xmat[bid].reshape(3, 3))
+        self._rows = tuple((name, bid, data.xpos[bid], data.xmat[bid])
                            for name, bid in self.ids.items())
 
     def report_mass(self, name: str, mass_kg: float) -> None:
@@ -133,9 +134,7 @@ class FreeBodies:
         m, d, work, mass = self.model, self.data, self._vel, self._mass
         out = {}
         for name, bid, xpos, xmat in self._rows:
-            pose = _EYE4.copy()
-            pose[:3, :3] = xmat
-            pose[:3, 3] = xpos
+            pose = _pose(xpos, xmat)
             _OBJECT_VELOCITY(m, d, _OBJ_BODY, bid, work, 0)
             out[name] = BodyTruth(pose, work.take(_V_W), float(mass[bid]))
         return out

@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from itertools import chain
 
 import mujoco
 import numpy as np
@@ -138,6 +137,10 @@ class ToolContact:
         self._tcp_rot = data.site_xmat[tcp].reshape(3, 3)
         self._tool_xpos = data.xpos[tool_body]
         self._apart = _apart_bounds(model, data, tool_body, tool_geoms)
+        from drivers.world import kernels  # numba: imported when a world is built
+
+        self._touches = kernels.touches
+        self._wrench_at_tcp = kernels.tool_wrench
 
     def wrench(self) -> tuple[F64, bool]:
         """The wrench and whether touching, at the current state.
@@ -162,23 +165,10 @@ class ToolContact:
                     break
             else:
                 return np.zeros(6), False
-        geom = d.contact.geom
-        if ncon <= 16:  # a few contacts (the target's pads): plain ints are cheaper
-            if self._tool_geoms.isdisjoint(chain.from_iterable(geom.tolist())):
-                return np.zeros(6), False
-        elif not self._is_tool_geom[geom].any():
+        if not self._touches(d.contact.geom, self._is_tool_geom):
             return np.zeros(6), False
         mujoco.mj_rnePostConstraint(self._m, d)
-        cfrc = self._cfrc_tool  # [torque about the subtree com, force], world
-        f = cfrc[3:]
-        # torque + r x f, r from the subtree com to the TCP: plain floats (the same
-        # IEEE operations as on arrays, in the same order; 3 values)
-        cx, cy, cz, fx, fy, fz = cfrc.tolist()
-        rx, ry, rz = map(float.__sub__, self._tool_com.tolist(), self._tcp_xpos.tolist())
-        torque = np.array(((cx + ry * fz) - rz * fy, (cy + rz * fx) - rx * fz,
-                           (cz + rx * fy) - ry * fx))
-        rot = self._tcp_rot
+        # [torque about the subtree com, force], world -> at the TCP, TCF (kernels.py)
         out = np.empty(6)
-        out[:3] = f @ rot
-        out[3:] = torque @ rot
+        self._wrench_at_tcp(self._cfrc_tool, self._tool_com, self._tcp_xpos, self._tcp_rot, out)
         return out, True

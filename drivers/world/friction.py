@@ -56,6 +56,9 @@ class JointFriction:
         self._excess = self.static_nm - self.coulomb_nm
         self._n = int(self.static_nm.shape[0])
         self._work = np.zeros(self._n)
+        from drivers.world import kernels  # numba: imported when a friction is made
+
+        self._arg, self._level = kernels.stribeck_arg, kernels.stribeck_level
 
     @classmethod
     def of_arm(cls, arm: ArmSettings) -> JointFriction:
@@ -103,6 +106,11 @@ class JointFriction:
         """:meth:`dry_level_nm` of ``speed_radps`` (``n`` values) written into ``out``
         (the model's ``dof_frictionloss[:n]``), bit for bit, without temporaries."""
         v = self._work
+        if self.shape == 2.0 or self.shape == 1.0:  # compiled, but numpy's exp
+            self._arg(speed_radps, self.stribeck_radps, self.shape == 2.0, v)
+            np.exp(v, out=v)
+            self._level(self.coulomb_nm, self._excess, v, out)
+            return
         np.abs(speed_radps, out=v)
         np.divide(v, self.stribeck_radps, out=v)
         np.minimum(v, 40.0, out=v)

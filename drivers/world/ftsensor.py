@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+from numpy.typing import NDArray
 
 from drivers.base.types import F64, FtSamples, FtStatus
 from drivers.description.scene import FtSensorSettings
@@ -80,6 +81,19 @@ class FtSensorModel:
         self._xform[:3, 3:] = np.array([[0.0, -rz, ry], [rz, 0.0, -rx], [-ry, rx, 0.0]]).T
         self._scale = np.concatenate([self._drift_step, self._noise])
         self._inv_res = 1.0 / self._res
+        from drivers.world import kernels  # numba: imported when a world is built
+
+        # the compiled block's constants (kernels.FT_*: bias, range, tare, 1/res, res, xform)
+        self._consts = np.zeros((kernels.FT_XFORM + 6, 6))
+        self._consts[kernels.FT_BIAS] = self.bias
+        self._consts[kernels.FT_RANGE] = self._range
+        self._consts[kernels.FT_INV_RES] = self._inv_res
+        self._consts[kernels.FT_RES] = self._res
+        self._consts[kernels.FT_XFORM:] = self._xform
+        self._consts_bias = self._consts[kernels.FT_BIAS]  # views: rewritten on a change
+        self._consts_tare = self._consts[kernels.FT_TARE]
+        self._ft_block = kernels.ft_block
+        self._row_over = np.zeros(0, dtype=bool)
         self._delay_n = round(settings.delay_s * settings.rate)
         # the last _delay_n readings, not yet sampled, then the newest block: [held; raw]
         self._delay_buf: F64 | None = None
@@ -117,6 +131,7 @@ class FtSensorModel:
     def tare_offset(self, value: F64) -> None:
         self._tare = np.asarray(value, dtype=np.float64)
         self._tared = bool(np.any(self._tare != 0.0))
+        self._consts_tare[:] = self._tare
 
     def _draws(self, n: int) -> int:
         """Where the next ``n`` rows of scaled draws (drift increments, white noise)
@@ -171,6 +186,8 @@ class FtSensorModel:
         self._over_n = np.empty((n, 6), dtype=bool)
         self._no_status = np.zeros(n, dtype=np.uint32)
         self._no_status.flags.writeable = False
+        self._row_over = np.zeros(n, dtype=bool)
+        self._consts_bias[:] = self.bias
 
     def _slab(self, seq: int, t0_ns: int, n: int) -> None:
         """Sample times and sequence numbers for the next blocks, from ``seq`` at ``t0_ns``."""
@@ -196,37 +213,13 @@ class FtSensorModel:
         buf[dn:] = raw
         return buf[:n]
 
-    def process(self, raw_parent_on_child: F64, t0_ns: int) -> FtSamples:
-        """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``.
-
-        The per-block work is a fixed handful of array operations (a block is
-        one FRI cycle's samples); the clip runs only when some value exceeds
-        its range. The samples' ``time_ns``, ``seq`` and (unsaturated)
-        ``status`` are read-only arrays. (:attr:`bias` may be replaced, not
-        changed in place: its rows are tiled once per object.)
-        """
-        if self._delay_n:
-            raw_parent_on_child = self._delayed(raw_parent_on_child)
-        n = raw_parent_on_child.shape[0]
-        i = self._used
-        if (n == self._plan_n and i == self._plan_at and self._gauss is self._plan_g
-                and i + n <= self._plan_end and self.drift is self._plan_prev):
-            # the next block of the plan (what _draws and _drift_rows would give)
-            self._used = i + n
-            base = i - self._plan_base
-            drift = self._plan_rows[base:base + n]
-        else:
-            if n == 0:
-                return FtSamples()
-            i = self._draws(n)
-            drift = self._drift_rows(i, n)
-        self._plan_at = i + n
-        self.drift = self._plan_prev = drift[-1]
-        if n != self._tiled_n or self.bias is not self._bias_key:
-            self._tile(n)
+    def _block(self, white: F64, raw: F64, drift: F64) -> tuple[F64, NDArray[np.uint32]]:
+        """The block's wrenches and status from its white noise, raw readings and drift:
+        the numpy form of :func:`drivers.world.kernels.ft_block` (a single row: its
+        product goes through ``dgemv``)."""
         # environment (incl. tool load) on the tool, sensor frame: (noise - raw) + drift
         # + bias, in this order
-        w = self._white[i:i + n] - raw_parent_on_child
+        w = white - raw
         w += drift
         w += self._bias_n
         over = np.greater(np.abs(w, out=self._abs_n), self._range_n, out=self._over_n)
@@ -245,6 +238,50 @@ class FtSensorModel:
         w *= self._inv_res_n
         np.rint(w, out=w)
         w *= self._res_n
+        return w, status
+
+    def process(self, raw_parent_on_child: F64, t0_ns: int) -> FtSamples:
+        """Convert ``(n, 6)`` raw readings (force, torque; sensor frame) sampled from ``t0_ns``.
+
+        The per-block work is a fixed handful of array operations (a block is
+        one FRI cycle's samples); the clip runs only when some value exceeds
+        its range. The samples' ``time_ns``, ``seq`` and (unsaturated)
+        ``status`` are read-only arrays. (:attr:`bias` may be replaced, not
+        changed in place: its rows are tiled once per object.)
+        """
+        raw = raw_parent_on_child
+        n = raw.shape[0]
+        buf, dn = self._delay_buf, self._delay_n
+        if buf is None or buf.shape[0] != dn + n or n < 2:
+            if dn:  # the first block, another size, or one row
+                raw = self._delayed(raw)
+            buf, dn = raw, 0  # (the compiled block's delay: none)
+        i = self._used
+        if (n == self._plan_n and i == self._plan_at and self._gauss is self._plan_g
+                and i + n <= self._plan_end and self.drift is self._plan_prev):
+            # the next block of the plan (what _draws and _drift_rows would give)
+            self._used = i + n
+            base = i - self._plan_base
+            drift = self._plan_rows[base:base + n]
+        else:
+            if n == 0:
+                return FtSamples()
+            i = self._draws(n)
+            drift = self._drift_rows(i, n)
+        self._plan_at = i + n
+        self.drift = self._plan_prev = drift[-1]
+        if n != self._tiled_n or self.bias is not self._bias_key:
+            self._tile(n)
+        if n >= 2:  # compiled: the same operations (kernels.ft_block)
+            w = np.empty((n, 6))
+            if self._ft_block(self._white, i, raw, buf, dn, drift, self._consts,
+                              self._tared, w, self._row_over):
+                status = np.where(self._row_over, np.uint32(FtStatus.SATURATION),
+                                  np.uint32(0)).astype(np.uint32)
+            else:
+                status = self._no_status
+        else:
+            w, status = self._block(self._white[i:i + n], raw, drift)
         self.last_wrench = w[-1].copy()
         seq = self.seq
         self.seq = seq + n

@@ -24,6 +24,8 @@ import dataclasses
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from drivers.world.arm import ArmMode, ArmState, ArmWarning
 from drivers.world.truth import ground_truth, pose
 
@@ -36,8 +38,7 @@ _WARN_TORQUE = int(ArmWarning.TORQUE_LIMIT)
 _WARN_VELOCITY = int(ArmWarning.VELOCITY_LIMIT)
 _WARN_POSITION = int(ArmWarning.POSITION_LIMIT)
 _FIELDS = tuple(f.name for f in dataclasses.fields(ArmState))
-_gt = float.__gt__
-_ge = float.__ge__
+_WARN_BITS = np.array((_WARN_VELOCITY, _WARN_POSITION, _WARN_TORQUE))
 #: ArmWarning(bits) for every combination of the 4 bits (the same objects; a lookup
 #: is cheaper than the enum's constructor)
 _ARM_WARNINGS = tuple(
@@ -106,15 +107,10 @@ def _fill_joints(s: LazyArmState, w: SimWorld) -> None:
     d["tcp_pose_m"] = tcp
     d["cmd_jnt_pos_rad"] = q.copy() if cart else w._jnt_pos.copy()
     d["cmd_cart_pose_m"] = w._cart_pos.copy() if cart else tcp.copy()
-    warning = w._warning
-    # the limits, value by value (plain floats: 7 joints; |value| > limit)
-    if any(map(_gt, map(abs, w._qvel_arm.tolist()), w._vel_limits_l)):
-        warning |= _WARN_VELOCITY
-    ql = q.tolist()
-    if any(map(_gt, ql, w._pos_warn_l)) or any(map(_gt, w._pos_warn_lower_l, ql)):
-        warning |= _WARN_POSITION
-    if any(map(_ge, map(abs, w._actuator_arm.tolist()), w._torque_warn_l)):
-        warning |= _WARN_TORQUE
+    # the limits, value by value (kernels.arm_warnings: |speed| > limit, position
+    # beyond its limits, |torque| >= limit)
+    warning = w._warning | w._arm_warnings(w._qvel_arm, q, w._actuator_arm, w._warn_limits,
+                                           _WARN_BITS)
     d["warning"] = _ARM_WARNINGS[warning]
 
 

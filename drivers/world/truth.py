@@ -7,21 +7,24 @@ A scenario derives its own measures from it (the funnel's placement:
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Callable
 
 from drivers.base.types import F64, AttachedFrame, BodyTruth, GroundTruth
 
 __all__ = ["ground_truth", "pose"]
 
-_EYE4 = np.eye(4)
+_pose4: Callable[[F64, F64], F64] | None = None  # kernels.pose4, imported on first use
 
 
 def pose(pos: F64, mat9: F64) -> F64:
-    """4x4 pose from a position and a row-major 3x3 rotation (MuJoCo's ``xmat``)."""
-    out = _EYE4.copy()
-    out[:3, :3] = mat9.reshape(3, 3)
-    out[:3, 3] = pos
-    return out
+    """4x4 pose from a position and a row-major 3x3 rotation (MuJoCo's ``xmat``; 9 values
+    or 3x3), a new array (compiled: :func:`drivers.world.kernels.pose4`)."""
+    global _pose4
+    if _pose4 is None:
+        from drivers.world.kernels import pose4
+
+        _pose4 = pose4
+    return _pose4(pos, mat9 if mat9.ndim == 1 else mat9.reshape(9))
 
 
 def ground_truth(bodies: dict[str, BodyTruth], sites: dict[str, F64], contact: F64,

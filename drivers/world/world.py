@@ -162,12 +162,13 @@ class SimWorld:
         self._pos_limits = np.radians(scene.arm.description.position_limits_deg)
         self._pos_lower = np.radians(scene.arm.description.lower_limits_deg)
         self._torque_limits = np.asarray(scene.arm.torque_limits)
-        self._pos_warn = self._pos_limits - 1e-3
-        self._pos_warn_lower_l = (self._pos_lower + 1e-3).tolist()
-        self._torque_warn = self._torque_limits - 1e-9
-        self._vel_limits_l = self._vel_limits.tolist()
-        self._pos_warn_l = self._pos_warn.tolist()
-        self._torque_warn_l = self._torque_warn.tolist()
+        from drivers.world import kernels  # numba: imported when a world is built
+        # MuJoCo's functions called from compiled code, on these structs (kernels.py)
+        self._mj = (kernels.mujoco_addresses(), m._address, d._address)
+        self._end_state, self._tcf_kinematics = kernels.end_state, kernels.tcf_kinematics
+        self._arm_warnings = kernels.arm_warnings  # the state's, from these limits:
+        self._warn_limits = np.array((self._vel_limits, self._pos_limits - 1e-3,
+                                      self._pos_lower + 1e-3, self._torque_limits - 1e-9))
 
         # Preallocated work arrays.
         self._jac2 = np.zeros((2, 3, m.nv))  # MuJoCo's translational, rotational Jacobian
@@ -202,7 +203,7 @@ class SimWorld:
         self._actuator_arm = d.qfrc_actuator[va]
         self._tcp_xpos = d.site_xpos[self._tcp]
         self._tcp_xmat = d.site_xmat[self._tcp]
-        self._tcp_rot_t = self._tcp_xmat.reshape(3, 3).T  # R^T, a view
+        self._tcp_rot = self._tcp_xmat.reshape(3, 3)  # a view
         self._pose_ok = False  # _tcp_pose is the current state's
         self._mouth_xpos = d.site_xpos[self._mouth]
         self._mouth_xmat = d.site_xmat[self._mouth]
@@ -355,13 +356,12 @@ class SimWorld:
         pose: :attr:`tcp_pose`)."""
         if self._kin_ok:
             return
-        m, d = self.model, self.data
-        mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp)
-        # both halves in one call: [R^T jacp; R^T jacr], the TCF rows
-        np.matmul(self._tcp_rot_t, self._jac2, out=self._jfull2)
-        self._mass()
-        mujoco.mj_fullM(m, d, self._mfull)
-        self._kin_ok = True
+        # mj_jacSite, [R^T jacp; R^T jacr] (the TCF rows), the mass matrix factorised
+        # (:meth:`_mass`) and mj_fullM, in one compiled call
+        fns, m, d = self._mj
+        self._tcf_kinematics(fns, m, d, self._tcp, self._jac2, self._tcp_rot, self._jfull2,
+                             not self._m_ok, self._mfull)
+        self._m_ok = self._kin_ok = True
 
     def _update_inertia(self) -> None:
         """Cartesian inertia (and the joint inertias) the KRC's damping uses, at this state."""
@@ -557,13 +557,9 @@ class SimWorld:
         The parts of ``mj_step1`` the measurement and the next cycle's command read,
         without collisions and constraints (the next ``mj_step`` redoes both), bit for
         bit; the mass matrix is built on first use from what ``mj_comPos`` left."""
-        m, d = self.model, self.data
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
+        # mj_kinematics, mj_comPos, mj_comVel, mj_passive (qfrc_gravcomp), mj_rne, compiled
+        self._end_state(*self._mj, self._qfrc_bias)
         self._m_ok = False
-        mujoco.mj_comVel(m, d)
-        mujoco.mj_passive(m, d)  # qfrc_gravcomp
-        mujoco.mj_rne(m, d, 0, self._qfrc_bias)
 
     def _mass(self) -> None:
         """The end state's mass matrix, factorised (once per cycle, when asked)."""

@@ -47,6 +47,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numpy.typing import NDArray
 
+from drivers.base.blas import dot3, dot3_n
 from drivers.base.types import F64, FtStatus
 
 #: The status bit of a saturated F/T sample.
@@ -62,33 +63,6 @@ CD_IN_CONTACT, CD_PENDING, CD_SINCE = 0, 1, 2
 CD_SIZE = 3
 CC_ON, CC_OFF, CC_HOLD_ON, CC_HOLD_OFF, CC_FZ = 0, 1, 2, 3, 4
 CC_SIZE = 5
-
-
-def _fma_typing(typingctx, a, b, c):  # type: ignore[no-untyped-def]
-    """``a * b + c`` rounded once (LLVM's ``llvm.fma.f64``)."""
-    sig = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        d = ir.DoubleType()
-        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
-        return builder.call(fn, args)
-
-    return sig, codegen
-
-
-_fma: Any = intrinsic(_fma_typing)
-
-
-@njit(cache=True)
-def dot3(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
-    """``a . b`` as OpenBLAS's ``ddot``, ``dgemm`` and transposed ``dgemv`` make it."""
-    return float(_fma(a2, b2, _fma(a1, b1, a0 * b0)))
-
-
-@njit(cache=True)
-def dot3_n(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
-    """``a . b`` as OpenBLAS's ``dgemv`` (not transposed) makes a row of ``A x``."""
-    return float(_fma(a2, b2, _fma(a0, b0, a1 * b1)))
 
 
 def _call_mat2quat_typing(typingctx, addr, quat, mat):  # type: ignore[no-untyped-def]

@@ -1,0 +1,351 @@
+"""The world's per-cycle arithmetic, compiled (numba). Pure: no I/O, no clock.
+
+Imported only when a world is built (numba's import costs about 0.4 s; ``ffexp --help``
+never imports it). Compiled functions are cached on disk next to this module
+(``cache=True``): a fresh checkout compiles them once (a few seconds), later processes
+load them.
+
+Bit for bit the numbers of the numpy form they replace: the same IEEE operations in the
+same order, no fast-math (no contraction of ``a * b + c`` into a fused multiply-add
+unless written as ``fma``). Where the numpy form went through BLAS, the products are
+summed as OpenBLAS makes them (:mod:`drivers.base.blas`; ``dgemm`` of ``k = 6``: each
+product fused in turn into a zeroed accumulator, see :func:`ft_block`).
+``tests/test_world_kernels.py`` checks every kernel against its numpy form (or the
+MuJoCo bindings' calls) on random inputs.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from llvmlite import ir  # type: ignore[import-untyped]
+from numba import njit, types
+from numba.extending import intrinsic
+from numpy.typing import NDArray
+
+from drivers.base.blas import dot3_z, fma
+from drivers.base.types import F64
+
+__all__ = [
+    "FT_BIAS",
+    "FT_INV_RES",
+    "FT_RANGE",
+    "FT_RES",
+    "FT_TARE",
+    "FT_XFORM",
+    "MUJOCO",
+    "arm_warnings",
+    "end_state",
+    "ft_block",
+    "mujoco_addresses",
+    "pose4",
+    "stribeck_arg",
+    "stribeck_level",
+    "tcf_kinematics",
+    "tool_wrench",
+    "touches",
+]
+
+
+# ---------------------------------------------------------------- MuJoCo from compiled code
+
+#: The MuJoCo functions the kernels call, in the order of :func:`mujoco_addresses`.
+MUJOCO = ("mj_kinematics", "mj_comPos", "mj_comVel", "mj_passive", "mj_rne", "mj_jacSite",
+          "mj_makeM", "mj_factorM", "mj_fullM", "mj_rnePostConstraint")
+_KINEMATICS, _COM_POS, _COM_VEL, _PASSIVE, _RNE, _JAC_SITE, _MAKE_M, _FACTOR_M, _FULL_M, \
+    _RNE_POST = range(len(MUJOCO))
+
+
+def mujoco_addresses() -> NDArray[np.int64]:
+    """The addresses of :data:`MUJOCO`'s functions in MuJoCo's shared library (the one
+    the ``mujoco`` package loaded): the kernels call MuJoCo's own functions with the
+    world's ``mjModel`` and ``mjData`` (their ``_address``), the same calls the
+    Python bindings make, without a Python call each."""
+    import mujoco
+
+    here = Path(mujoco.__file__).parent
+    names = ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
+    found = sorted(p for pattern in names for p in here.glob(pattern))
+    if not found:
+        raise RuntimeError(f"no MuJoCo shared library in {here}")
+    lib = ctypes.CDLL(str(found[0]))
+    return np.array([ctypes.cast(getattr(lib, name), ctypes.c_void_p).value
+                     for name in MUJOCO], dtype=np.int64)
+
+
+def _ptr(context: Any, builder: Any, ty: Any, value: Any) -> Any:
+    """An array argument's data pointer, as ``double*``."""
+    data = context.make_array(ty)(context, builder, value).data
+    return builder.bitcast(data, ir.DoubleType().as_pointer())
+
+
+def _call_md_typing(typingctx, addr, m, d):  # type: ignore[no-untyped-def]
+    """``f(m, d)`` at the address ``addr`` (``m``, ``d``: the structs' addresses)."""
+    sig = types.void(types.int64, types.int64, types.int64)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        vp = ir.IntType(8).as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def _call_mdi_a_typing(typingctx, addr, m, d, i, a):  # type: ignore[no-untyped-def]
+    """``f(m, d, i, a)`` at ``addr`` (``mj_rne``: an int, then an array)."""
+    sig = types.void(types.int64, types.int64, types.int64, types.int32, a)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        vp = ir.IntType(8).as_pointer()
+        dp = ir.DoubleType().as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, ir.IntType(32), dp])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp), args[3],
+                          _ptr(context, builder, signature.args[4], args[4])])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def _call_mdaai_typing(typingctx, addr, m, d, a, b, i):  # type: ignore[no-untyped-def]
+    """``f(m, d, a, b, i)`` at ``addr`` (``mj_jacSite``: two arrays, then an int)."""
+    sig = types.void(types.int64, types.int64, types.int64, a, b, types.int32)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        vp = ir.IntType(8).as_pointer()
+        dp = ir.DoubleType().as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, dp, dp, ir.IntType(32)])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp),
+                          _ptr(context, builder, signature.args[3], args[3]),
+                          _ptr(context, builder, signature.args[4], args[4]), args[5]])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def _call_mda_typing(typingctx, addr, m, d, a):  # type: ignore[no-untyped-def]
+    """``f(m, d, a)`` at ``addr`` (``mj_fullM``: an array)."""
+    sig = types.void(types.int64, types.int64, types.int64, a)
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+        vp = ir.IntType(8).as_pointer()
+        dp = ir.DoubleType().as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, dp])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp),
+                          _ptr(context, builder, signature.args[3], args[3])])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+_call_md: Any = intrinsic(_call_md_typing)
+_call_mdi_a: Any = intrinsic(_call_mdi_a_typing)
+_call_mdaai: Any = intrinsic(_call_mdaai_typing)
+_call_mda: Any = intrinsic(_call_mda_typing)
+
+
+@njit(cache=True)
+def end_state(fns: Any, m: int, d: int, qfrc_bias: F64) -> None:
+    """The end state's kinematics and bias forces: ``mj_kinematics``, ``mj_comPos``,
+    ``mj_comVel``, ``mj_passive`` and ``mj_rne(m, d, 0, qfrc_bias)``, in this order."""
+    _call_md(fns[_KINEMATICS], m, d)
+    _call_md(fns[_COM_POS], m, d)
+    _call_md(fns[_COM_VEL], m, d)
+    _call_md(fns[_PASSIVE], m, d)
+    _call_mdi_a(fns[_RNE], m, d, np.int32(0), qfrc_bias)
+
+
+@njit(cache=True)
+def tcf_kinematics(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfull2: F64,
+                   make_m: bool, mfull: F64) -> None:
+    """The site's Jacobian in its own frame and the full mass matrix: ``mj_jacSite`` into
+    ``jac2`` (translational, rotational), ``jfull2[h] = rot^T @ jac2[h]`` (summed as
+    OpenBLAS's ``dgemm``, :func:`dot3_z`), ``mj_makeM`` and ``mj_factorM`` if ``make_m``,
+    then ``mj_fullM`` into ``mfull``."""
+    _call_mdaai(fns[_JAC_SITE], m, d, jac2[0], jac2[1], np.int32(site))
+    for h in range(2):
+        for i in range(3):
+            for c in range(jac2.shape[2]):
+                jfull2[h, i, c] = dot3_z(rot[0, i], rot[1, i], rot[2, i],
+                                       jac2[h, 0, c], jac2[h, 1, c], jac2[h, 2, c])
+    if make_m:
+        _call_md(fns[_MAKE_M], m, d)
+        _call_md(fns[_FACTOR_M], m, d)
+    _call_mda(fns[_FULL_M], m, d, mfull)
+
+
+# ---------------------------------------------------------------- the F/T model
+
+#: Rows of the F/T model's constants (``consts``, ``(11, 6)``): its bias, gauge range,
+#: software tare, 1/resolution and resolution, then the 6x6 row-vector tool transform.
+FT_BIAS, FT_RANGE, FT_TARE, FT_INV_RES, FT_RES, FT_XFORM = 0, 1, 2, 3, 4, 5
+
+
+@njit(cache=True)
+def ft_block(white: F64, i: int, raw: F64, delay_buf: F64, delay_n: int, drift: F64,
+             consts: F64, tared: bool, out: F64, row_over: Any) -> int:
+    """One block of the Net F/T model (``FtSensorModel.process``'s arithmetic).
+
+    With ``delay_n > 0`` the readings first go through the delay buffer ``delay_buf``
+    (``[held; newest]``, ``delay_n + n`` rows): its last ``delay_n`` rows move to its
+    top, ``raw`` fills the rest, and its first ``n`` rows are the block's readings
+    (``x``); otherwise ``x`` is ``raw``. Then
+    ``out = rint((clip?((white[i:i+n] - x) + drift + bias) @ xform - tare?) *
+    inv_res) * res`` for the ``n`` rows of ``raw`` (``n >= 2``: the product as
+    OpenBLAS's ``dgemm`` sums it; a single row goes through ``dgemv``, whose order
+    differs). The clip to the gauge range runs only when some value exceeds it (then
+    ``row_over[r]`` is set per row, the number of such rows returned); the tare is
+    subtracted only when ``tared``.
+    """
+    n = raw.shape[0]
+    x = raw
+    if delay_n > 0:
+        for r in range(delay_n):  # forward: the source rows are below the target rows
+            for c in range(6):
+                delay_buf[r, c] = delay_buf[n + r, c]
+        for r in range(n):
+            for c in range(6):
+                delay_buf[delay_n + r, c] = raw[r, c]
+        x = delay_buf
+    over = False
+    for r in range(n):
+        for c in range(6):
+            v = white[i + r, c] - x[r, c]
+            v += drift[r, c]
+            v += consts[FT_BIAS, c]
+            out[r, c] = v
+            if abs(v) > consts[FT_RANGE, c]:
+                over = True
+    rows_over = 0
+    if over:
+        for r in range(n):
+            flag = False
+            for c in range(6):
+                v = out[r, c]
+                lim = consts[FT_RANGE, c]
+                if abs(v) > lim:
+                    flag = True
+                # np.clip(v, -lim, lim): maximum, then minimum
+                lo = -lim
+                if v < lo:
+                    v = lo
+                if v > lim:
+                    v = lim
+                out[r, c] = v
+            row_over[r] = flag
+            if flag:
+                rows_over += 1
+    w = np.empty(6)
+    for r in range(n):
+        for c in range(6):
+            w[c] = out[r, c]
+        for j in range(6):
+            acc = fma(w[0], consts[FT_XFORM, j], 0.0)  # BLAS's zeroed accumulator
+            for k in range(1, 6):
+                acc = fma(w[k], consts[FT_XFORM + k, j], acc)
+            if tared:
+                acc -= consts[FT_TARE, j]
+            acc *= consts[FT_INV_RES, j]
+            acc = np.rint(acc)
+            acc *= consts[FT_RES, j]
+            out[r, j] = acc
+    return rows_over
+
+
+# ---------------------------------------------------------------- the tool's contact
+
+
+@njit(cache=True)
+def touches(geom: Any, is_tool: Any) -> bool:
+    """Whether a contact's geom pair (``geom``: MuJoCo's ``contact.geom``, ``(ncon, 2)``)
+    holds one of the tool's geoms (``is_tool[g]``; ``-1``, a flex's contact, is none)."""
+    for r in range(geom.shape[0]):
+        g0 = geom[r, 0]
+        g1 = geom[r, 1]
+        if (g0 >= 0 and is_tool[g0]) or (g1 >= 0 and is_tool[g1]):
+            return True
+    return False
+
+
+@njit(cache=True)
+def tool_wrench(cfrc: F64, com: F64, tcp: F64, rot: F64, out: F64) -> None:
+    """The tool body's external wrench ``cfrc`` (MuJoCo's ``cfrc_ext``: torque about the
+    subtree centre of mass ``com``, force; world axes) at the TCP ``tcp``, in the TCF
+    (``rot``: the TCP's rotation, row-major): ``out = [f @ rot, (t + r x f) @ rot]``,
+    ``r = com - tcp``, the products as OpenBLAS sums them (:func:`dot3_z`)."""
+    cx, cy, cz = cfrc[0], cfrc[1], cfrc[2]
+    fx, fy, fz = cfrc[3], cfrc[4], cfrc[5]
+    rx = com[0] - tcp[0]
+    ry = com[1] - tcp[1]
+    rz = com[2] - tcp[2]
+    t0 = (cx + ry * fz) - rz * fy
+    t1 = (cy + rz * fx) - rx * fz
+    t2 = (cz + rx * fy) - ry * fx
+    for j in range(3):
+        out[j] = dot3_z(fx, fy, fz, rot[0, j], rot[1, j], rot[2, j])
+        out[3 + j] = dot3_z(t0, t1, t2, rot[0, j], rot[1, j], rot[2, j])
+
+
+# ---------------------------------------------------------------- the arm's state
+
+
+@njit(cache=True)
+def arm_warnings(qvel: F64, q: F64, torque: F64, limits: F64, bits: Any) -> int:
+    """The limit warnings of the arm's state: ``bits[0]`` if a joint's speed is beyond
+    ``limits[0]`` (``|v| > limit``), ``bits[1]`` if a position is beyond ``limits[1]``
+    above or ``limits[2]`` below, ``bits[2]`` if a torque reaches ``limits[3]``
+    (``|tau| >= limit``)."""
+    out = 0
+    for j in range(q.shape[0]):
+        if abs(qvel[j]) > limits[0, j]:
+            out |= bits[0]
+            break
+    for j in range(q.shape[0]):
+        if q[j] > limits[1, j] or limits[2, j] > q[j]:
+            out |= bits[1]
+            break
+    for j in range(q.shape[0]):
+        if abs(torque[j]) >= limits[3, j]:
+            out |= bits[2]
+            break
+    return out
+
+
+@njit(cache=True)
+def stribeck_arg(speed: F64, stribeck: F64, square: bool, out: F64) -> None:
+    """``-(min(|v| / v_s, 40) ** 2)`` (``square``; else the power 1) into ``out``: the
+    Stribeck curve's exponent before ``exp`` (``JointFriction.apply_into``)."""
+    for j in range(out.shape[0]):
+        v = abs(speed[j]) / stribeck[j]
+        if v > 40.0:  # np.minimum(v, 40.0) (a NaN stays)
+            v = 40.0
+        if square:
+            v = v * v
+        out[j] = -v
+
+
+@njit(cache=True)
+def stribeck_level(coulomb: F64, excess: F64, e: F64, out: F64) -> None:
+    """``coulomb + excess * e`` into ``out`` (the dry level from ``e = exp(...)``)."""
+    for j in range(out.shape[0]):
+        out[j] = coulomb[j] + excess[j] * e[j]
+
+
+@njit(cache=True)
+def pose4(pos: F64, mat9: F64) -> F64:
+    """A new 4x4 pose from a position and a row-major 3x3 rotation (9 values)."""
+    out = np.empty((4, 4))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = mat9[3 * i + j]
+        out[i, 3] = pos[i]
+        out[3, i] = 0.0
+    out[3, 3] = 1.0
+    return out

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 
 from drivers.base.types import F64
-from ffexp.estimation.kernels import dot3, dot3_n
+from drivers.base.blas import dot3, dot3_n
 
 #: ``work`` of :func:`approach_error`: the translation error (3), the rotation's cosine
 #: (clipped), the rotation vector's unscaled differences (3).

@@ -5,8 +5,9 @@ replays whichever recordings it is handed with the candidates' overrides.
 ``jobs = 1`` runs in the calling process (tests; one core).
 
 ``batch > 1``: the rollouts a process is handed are stepped together, up to
-``batch`` at once, as the runs of one :class:`~drivers.world.gate.PhysicsGate`
-(a greenlet each, their physics one dispatch a cycle; ``docs/batch.md``); each
+``batch`` at once, as the runs of one physics gate
+(:func:`~ffexp.sweeps.batch.step_together`: a greenlet each, their physics one
+dispatch a cycle; ``docs/batch.md``); each
 rollout is still the rollout alone, bit for bit, so the fit is the same. The
 rollouts of a call are spread over the processes (``ceil(rollouts / jobs)`` a
 batch, at most ``batch``).
@@ -44,7 +45,7 @@ def stepped_together(inputs: Sequence[ReplayInput], scene_file: Path,
                      tasks: Sequence[tuple[int, tuple[str, ...]]]) -> list[Trace]:
     """The rollouts ``tasks`` (a recording's index in ``inputs`` and the overrides) as one
     batch in this process: a run each of one gate, their physics one dispatch a cycle."""
-    from drivers.world.gate import PhysicsGate
+    from ffexp.sweeps.batch import step_together
 
     out: list[Trace | BaseException | None] = [None] * len(tasks)
 
@@ -55,7 +56,7 @@ def stepped_together(inputs: Sequence[ReplayInput], scene_file: Path,
         except BaseException as exc:  # raised in the caller, as a rollout alone raises
             out[k] = exc
 
-    PhysicsGate().run([lambda k=k: body(k) for k in range(len(tasks))])  # type: ignore[misc]
+    step_together([lambda k=k: body(k) for k in range(len(tasks))])  # type: ignore[misc]
     traces = []
     for t in out:
         if isinstance(t, BaseException):

@@ -36,7 +36,7 @@ import functools
 import math
 import threading
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -74,6 +74,16 @@ def run_batch(jobs: tuple[Job, ...], threads: int = 1,
     gate = gate or PhysicsGate(threads)
     gate.run([functools.partial(body, i, job) for i, job in enumerate(jobs)])
     return out
+
+
+def step_together(bodies: Sequence[Callable[[], object]], threads: int = 1) -> None:
+    """Run ``bodies`` (each a run of the simulated world, e.g. a calibration's rollout)
+    to their ends as one batch of a :class:`~drivers.world.gate.PhysicsGate`: a greenlet
+    each, their physics one dispatch a cycle; a body is expected to catch its own
+    exceptions."""
+    from drivers.world.gate import PhysicsGate
+
+    PhysicsGate(threads).run(bodies)
 
 
 class BatchExecutor(Executor):

@@ -255,13 +255,14 @@ def warm_worker() -> int:
     return os.getpid()
 
 
-def study(executor: str, warm: int) -> Callable[[Path, list[Job]], float]:
+def study(executor: str, warm: int, refill: bool = True) -> Callable[[Path, list[Job]], float]:
     """The study through the sweep engine on ``--executor executor`` (``warm`` warm-up
-    tasks first, so every worker has imported what a run needs)."""
+    tasks first, so every worker has imported what a run needs; ``refill``: see
+    :func:`~ffexp.sweeps.executors.make_executor`)."""
     def run(out: Path, jobs: list[Job]) -> float:
         jobs = [replace(j, out_dir=str(out)) for j in jobs]
         ex: Executor
-        ex, slots = make_executor(parse_executor(executor))
+        ex, slots = make_executor(parse_executor(executor), refill=refill)
         try:
             for f in [ex.submit(warm_worker) for _ in range(warm)]:
                 f.result()

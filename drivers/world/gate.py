@@ -11,7 +11,8 @@ run resumes with its own data, which ``mj_step`` changed exactly as alone (each
 run keeps its own model and data: the result depends neither on the thread
 that stepped it nor on the order).
 
-Runs join on their first cycle and leave by ending (they aligned, aborted,
+Runs join on their first cycle (a body given to :meth:`PhysicsGate.run`, or one its
+``more`` hands in between two dispatches: a refill) and leave by ending (they aligned, aborted,
 timed out, or raised): the gate takes the control back whenever a run steps or
 ends, so it never waits on a run that left, and a run that dies anywhere is
 simply gone. No OS thread hands the interpreter to another per cycle: switching
@@ -102,17 +103,29 @@ class PhysicsGate:
         self._work_left = 0
         self._closed = False
 
-    def run(self, bodies: Sequence[Callable[[], object]]) -> None:
+    def run(self, bodies: Sequence[Callable[[], object]],
+            more: Callable[[], Sequence[Callable[[], object]]] | None = None) -> None:
         """Run every body to its end, as a batch: a greenlet each on this thread, their
         worlds' cycles stepped together. A body's exception ends only that body (a body
-        is expected to catch its own; one that escapes is dropped here)."""
+        is expected to catch its own; one that escapes is dropped here).
+
+        ``more``: called before each cycle's round (after the previous dispatch), the
+        bodies that join the batch now (a refill: they run up to their first step and
+        are stepped in this round's dispatch). The batch ends when no body is left and
+        ``more`` gives none."""
         if self._hub is not None:
             raise RuntimeError("this gate is running a batch already")
         self._hub = greenlet.getcurrent()
         try:
             ready = [greenlet.greenlet(self._member(body)) for body in bodies]
             self._members = set(ready)
-            while ready:
+            while True:
+                if more is not None:
+                    joining = [greenlet.greenlet(self._member(body)) for body in more()]
+                    self._members.update(joining)
+                    ready += joining
+                if not ready:
+                    break
                 calls: list[tuple[greenlet.greenlet, _Call]] = []
                 for g in ready:
                     try:

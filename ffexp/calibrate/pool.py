@@ -1,12 +1,21 @@
 """Rollouts in parallel: every (candidate, recording) pair of a batch on a process pool.
 
 Each worker process reads the replay inputs once (its initializer) and then
-replays whichever recording it is handed with the candidate's overrides.
+replays whichever recordings it is handed with the candidates' overrides.
 ``jobs = 1`` runs in the calling process (tests; one core).
+
+``batch > 1``: the rollouts a process is handed are stepped together, up to
+``batch`` at once, as the runs of one physics gate
+(:func:`~ffexp.sweeps.batch.step_together`: a greenlet each, their physics one
+dispatch a cycle; ``docs/batch.md``); each
+rollout is still the rollout alone, bit for bit, so the fit is the same. The
+rollouts of a call are spread over the processes (``ceil(rollouts / jobs)`` a
+batch, at most ``batch``).
 """
 
 from __future__ import annotations
 
+import math
 import multiprocessing
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -28,14 +37,45 @@ def _run(index: int, overrides: tuple[str, ...]) -> Trace:
     return rollout(_INPUTS[index], _SCENE, overrides)
 
 
+def _run_batch(tasks: Sequence[tuple[int, tuple[str, ...]]]) -> list[Trace]:
+    return stepped_together(_INPUTS, _SCENE, tasks)
+
+
+def stepped_together(inputs: Sequence[ReplayInput], scene_file: Path,
+                     tasks: Sequence[tuple[int, tuple[str, ...]]]) -> list[Trace]:
+    """The rollouts ``tasks`` (a recording's index in ``inputs`` and the overrides) as one
+    batch in this process: a run each of one gate, their physics one dispatch a cycle."""
+    from ffexp.sweeps.batch import step_together
+
+    out: list[Trace | BaseException | None] = [None] * len(tasks)
+
+    def body(k: int) -> None:
+        i, overrides = tasks[k]
+        try:
+            out[k] = rollout(inputs[i], scene_file, overrides)
+        except BaseException as exc:  # raised in the caller, as a rollout alone raises
+            out[k] = exc
+
+    step_together([lambda k=k: body(k) for k in range(len(tasks))])  # type: ignore[misc]
+    traces = []
+    for t in out:
+        if isinstance(t, BaseException):
+            raise t
+        assert t is not None
+        traces.append(t)
+    return traces
+
+
 class Rollouts:
-    """Replays recordings with candidate overrides, ``jobs`` at a time; a context manager."""
+    """Replays recordings with candidate overrides, ``jobs`` processes at a time, each
+    stepping up to ``batch`` rollouts together; a context manager."""
 
     def __init__(self, inputs: Sequence[ReplayInput], scene_file: Path, jobs: int = 2,
-                 on_done: Callable[[int], None] | None = None) -> None:
+                 on_done: Callable[[int], None] | None = None, batch: int = 1) -> None:
         self.inputs = tuple(inputs)
         self.scene_file = scene_file
         self.jobs = max(1, jobs)
+        self.batch = max(1, batch)
         self.on_done = on_done
         self.count = 0
         """Rollouts run so far."""
@@ -57,23 +97,42 @@ class Rollouts:
             which: Sequence[int] | None = None) -> list[list[Trace]]:
         """Traces of the recordings ``which`` (default: all) for each candidate's overrides."""
         idx = list(range(len(self.inputs))) if which is None else list(which)
-        tasks = [(c, i) for c in range(len(candidates)) for i in idx]
-        out: list[list[Trace | None]] = [[None] * len(idx) for _ in candidates]
-        if self._pool is None:
-            for c, i in tasks:
-                out[c][idx.index(i)] = rollout(self.inputs[i], self.scene_file, candidates[c])
+        tasks = [(i, tuple(candidates[c])) for c in range(len(candidates)) for i in idx]
+        if self.batch > 1:
+            traces = self._batched(tasks)
+        elif self._pool is None:
+            traces = []
+            for i, overrides in tasks:
+                traces.append(rollout(self.inputs[i], self.scene_file, overrides))
                 self._done()
         else:
-            futures: list[tuple[int, int, Future[Trace]]] = []
-            for c, i in tasks:
-                fut = self._pool.submit(_run, i, candidates[c])
+            futures: list[Future[Trace]] = []
+            for i, overrides in tasks:
+                fut = self._pool.submit(_run, i, overrides)
                 fut.add_done_callback(lambda _f: self._done())
-                futures.append((c, idx.index(i), fut))
-            for c, j, fut in futures:
-                out[c][j] = fut.result()
-        return [[t for t in row if t is not None] for row in out]
+                futures.append(fut)
+            traces = [fut.result() for fut in futures]
+        n = len(idx)
+        return [traces[c * n:(c + 1) * n] for c in range(len(candidates))]
 
-    def _done(self) -> None:
-        self.count += 1
-        if self.on_done is not None:
-            self.on_done(self.count)
+    def _batched(self, tasks: list[tuple[int, tuple[str, ...]]]) -> list[Trace]:
+        size = min(self.batch, math.ceil(len(tasks) / self.jobs)) if tasks else 1
+        chunks = [tasks[k:k + size] for k in range(0, len(tasks), size)]
+        if self._pool is None:
+            out: list[Trace] = []
+            for chunk in chunks:
+                out += stepped_together(self.inputs, self.scene_file, chunk)
+                self._done(len(chunk))
+            return out
+        futures: list[Future[list[Trace]]] = []
+        for chunk in chunks:
+            fut = self._pool.submit(_run_batch, chunk)
+            fut.add_done_callback(lambda _f, n=len(chunk): self._done(n))  # type: ignore[misc]
+            futures.append(fut)
+        return [t for fut in futures for t in fut.result()]
+
+    def _done(self, n: int = 1) -> None:
+        for _ in range(n):
+            self.count += 1
+            if self.on_done is not None:
+                self.on_done(self.count)

@@ -53,8 +53,11 @@ def misfit_warnings(res: FitResult) -> list[str]:
 def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, *,
               holdout: Sequence[Path] = (), scene_overrides: Sequence[str] = (),
               jobs: int = 2, progress: Progress | None = None,
-              keep_unidentified: bool = False) -> tuple[FitResult, list[Param]]:
+              keep_unidentified: bool = False, batch: int = 1) -> tuple[FitResult, list[Param]]:
     """Fit the scene keys ``fit`` (``KEY`` or ``KEY=LO:HI``) to ``recordings``.
+
+    ``jobs`` processes run the rollouts, each stepping up to ``batch`` of them together
+    (:class:`~ffexp.calibrate.pool.Rollouts`; the same fit whatever the two).
 
     ``holdout`` recordings are not fitted to: they are predicted at the result.
     Raises :class:`ConfigError` / :class:`InputError` (exit 2) on bad input.
@@ -88,7 +91,7 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
         if progress is not None:
             progress("rollouts", n, None, "replays of a recording")
 
-    with Rollouts(all_in, scene_file, jobs, done) as pool:
+    with Rollouts(all_in, scene_file, jobs, done, batch) as pool:
         fit_idx = list(range(len(fit_in)))
         cal = Calibration(fit_in, params, pool, scene_overrides, period, progress,
                           keep_unidentified, fit_idx, delay_s)

@@ -75,6 +75,9 @@ def calibrate(
                                        "beside --out."),
     jobs: int = typer.Option(min(2, os.cpu_count() or 1), "--jobs", "-j",
                              help="Rollouts in parallel (processes)."),
+    batch: int = typer.Option(1, "--batch", help="Rollouts each process steps together, "
+                              "their physics one dispatch a cycle (the same fit; 1: one "
+                              "at a time)."),
     keep_unidentified: bool = typer.Option(False, "--keep-unidentified", help="Keep a "
                                            "parameter no recording excites at its start "
                                            "value (reported as not identified) instead of "
@@ -110,12 +113,15 @@ def calibrate(
         raise ConfigError("--out", str(out), f"no directory {out.parent}")
     if jobs < 1:
         raise ConfigError("--jobs", str(jobs), "at least 1")
+    if batch < 1:
+        raise ConfigError("--batch", str(batch), "at least 1")
     report_dir = report if report is not None else out.parent / f"{out.stem}-report"
     if report_dir.exists() and not report_dir.is_dir():
         raise ConfigError("--report", str(report_dir), "exists and is not a directory")
     with _Bars() as bars:
         res, params = run(recordings, fit, scene, holdout=holdout, scene_overrides=scene_set,
-                          jobs=jobs, progress=bars.update, keep_unidentified=keep_unidentified)
+                          jobs=jobs, progress=bars.update, keep_unidentified=keep_unidentified,
+                          batch=batch)
     con = console(wide=wide)  # the terminal's width (80 when piped); the report has all
     rows = parameter_rows(res)
     cols = [Column(k, k, _PRIORITY.get(k, 0), left=k in ("key", "note"))

@@ -6,9 +6,10 @@
   ``forkserver`` that imported the simulator once (no fork of this process,
   which runs threads; no import per worker).
 - ``batch:N`` / ``local:W,batch:N``: W processes (default: the CPUs this process may
-  use), each stepping batches of up to N runs together in lockstep, their physics in
-  one dispatch a cycle (:mod:`ffexp.sweeps.batch`); the same rows as ``local``. Its
-  ``workers`` (the runs at once, the progress bar's slots) is ``W * N``.
+  use), each stepping up to N runs together in lockstep, their physics in one
+  dispatch a cycle, a queued job joining a process's batch as soon as one of its runs
+  ends (:mod:`ffexp.sweeps.batch`); the same rows as ``local``. Its ``workers`` (the
+  runs at once, the progress bar's slots) is ``W * N``.
 - ``ray[:ADDRESS],batch:N``: the batches of ``batch:N`` as Ray tasks (one CPU each):
   each task steps a batch of up to N runs on a worker of the cluster, as many
   batches at once as the cluster has CPUs.
@@ -145,8 +146,13 @@ def _ray_spec(text: str, ray: str) -> ExecutorSpec:
                       "ray[:ADDRESS] or ray[:ADDRESS],batch:N")
 
 
-def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
+def make_executor(spec: ExecutorSpec, refill: bool = True) -> tuple[Executor, int]:
     """The executor and how many runs it runs at once.
+
+    ``refill`` (``local:W,batch:N``): a batch process keeps N runs live, a queued job
+    joining its running batch as a run ends (:class:`~ffexp.sweeps.batch.RefillExecutor`);
+    ``False``: each process takes a batch of up to N jobs and the batch shrinks as its
+    runs end (:class:`~ffexp.sweeps.batch.BatchExecutor`, as on Ray).
 
     Raises:
         ConfigError: Ray is not installed, or its address does not answer.
@@ -166,11 +172,12 @@ def make_executor(spec: ExecutorSpec) -> tuple[Executor, int]:
                                    initializer=init_worker)
         if spec.kind == "local":
             return pool, spec.workers
-        from ffexp.sweeps.batch import BatchExecutor
+        from ffexp.sweeps.batch import BatchExecutor, RefillExecutor
 
         # the CPUs the processes leave share each batch's physics dispatch
         threads = max(1, available_cpus() // processes)
-        return BatchExecutor(pool, processes, spec.batch, threads), spec.workers
+        kind = RefillExecutor if refill else BatchExecutor
+        return kind(pool, processes, spec.batch, threads), spec.workers
     ex = RayExecutor.connect(spec.address)
     return ex, ex.slots
 

@@ -27,8 +27,8 @@ import math
 import numpy as np
 from numba import njit
 
-from drivers.base.types import F64
 from drivers.base.blas import dot3, dot3_n
+from drivers.base.types import F64
 
 #: ``work`` of :func:`approach_error`: the translation error (3), the rotation's cosine
 #: (clipped), the rotation vector's unscaled differences (3).

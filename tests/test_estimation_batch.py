@@ -167,25 +167,34 @@ def test_compiled_sums_of_products_are_numpys() -> None:
     below)."""
     from ffexp.estimation import kernels as k
 
+    def bits(values: object) -> list[int]:  # the doubles' bit patterns: -0.0 is not +0.0
+        return np.asarray(values, dtype=np.float64).view(np.uint64).tolist()
+
     rng = np.random.default_rng(11)
-    for _ in range(3000):
+    for n in range(3000):
         pose = rng.normal(size=(4, 4)) * rng.choice([1e-3, 1.0, 1e3])
         r = pose[:3, :3]
         g = rng.normal(size=3)
         a = rng.normal(size=(3, 3))
         x = rng.normal(size=(6, 3))
+        if n % 10 == 0:  # zeros against signs: every product a signed zero (a sum of zeros)
+            g = np.zeros(3) * rng.choice([-1.0, 1.0], size=3)
+            r, a = -np.abs(r), -np.abs(a)
+            x[:2] = 0.0
         want_vm, want_mv, want_mm = g @ r, a @ g, (x @ a).ravel()
-        assert [k.dot3(*g, *r[:, j]) for j in range(3)] == want_vm.tolist()
-        assert [k.dot3_n(*a[i], *g) for i in range(3)] == want_mv.tolist()
-        assert [k.dot3(*x[i], *a[:, j]) for i in range(6) for j in range(3)] == \
-            want_mm.tolist()
-        assert k.dot3(*g, *g) == float(g.dot(g))
+        assert bits([k.dot3(*g, *r[:, j]) for j in range(3)]) == bits(want_vm)
+        assert bits([k.dot3_n(*a[i], *g) for i in range(3)]) == bits(want_mv)
+        assert bits([k.dot3(*x[i], *a[:, j]) for i in range(6) for j in range(3)]) == \
+            bits(want_mm)
+        assert bits([k.dot3(*g, *g)]) == bits([g.dot(g)])
+        assert bits([k.dot3(*g, *r[:, 0])]) == bits([np.dot(g, r[:, 0])])
 
 
 def test_compiled_sums_of_products_round_as_documented() -> None:
     """``dot3`` is ``fma(a2, b2, fma(a1, b1, a0 b0))`` and ``dot3_n`` is ``fma(a2, b2,
-    fma(a0, b0, a1 b1))``, each step rounded once: checked against exact rational
-    arithmetic rounded to the nearest double (the same on every machine)."""
+    fma(a0, b0, a1 b1))`` (each from an accumulator of ``+0.0``), each step rounded once:
+    checked against exact rational arithmetic rounded to the nearest double (the same on
+    every machine)."""
     from fractions import Fraction
 
     from ffexp.estimation import kernels as k

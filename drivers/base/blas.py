@@ -3,10 +3,11 @@ replaces a numpy product bit for bit. Pure: no I/O.
 
 Imported only by compiled modules (numba's import costs about 0.4 s). Measured with
 numpy 2.4's wheels (OpenBLAS with FMA kernels on x86-64): ``dgemm``, transposed
-``dgemv`` and ``ddot`` take ``a0 b0``, then fuse each further product in turn
-(:func:`dot3`), into an accumulator that starts at ``+0.0`` (:func:`dot3_z`: a sum of
-signed zeros is ``+0.0``); ``dgemv`` not transposed fuses ``a0 b0`` into ``a1 b1``
-first (:func:`dot3_n`). ``tests/test_estimation_batch.py`` and
+``dgemv`` and ``ddot`` fuse ``a0 b0``, ``a1 b1`` and ``a2 b2`` in turn (:func:`dot3`);
+``dgemv`` not transposed fuses ``a1 b1``, ``a0 b0``, then ``a2 b2`` (:func:`dot3_n`).
+Each starts from an accumulator of ``+0.0``: the first product's value is unchanged,
+but a sum of signed zeros is ``+0.0``, as numpy's products give it (``a0 b0`` alone
+may be ``-0.0``). ``tests/test_estimation_batch.py`` and
 ``tests/test_world_kernels.py`` check them against numpy's own products on random
 inputs, so a numpy whose BLAS sums otherwise shows there, not as a changed recording;
 the compiled form itself gives the same bits on every machine (``llvm.fma`` rounds
@@ -21,7 +22,7 @@ from llvmlite import ir  # type: ignore[import-untyped]
 from numba import njit, types
 from numba.extending import intrinsic
 
-__all__ = ["dot3", "dot3_n", "dot3_z", "fma"]
+__all__ = ["dot3", "dot3_n", "fma"]
 
 
 def _fma_typing(typingctx, a, b, c):  # type: ignore[no-untyped-def]
@@ -41,19 +42,13 @@ fma: Any = intrinsic(_fma_typing)
 
 @njit(cache=True)
 def dot3(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
-    """``a . b`` as OpenBLAS's ``ddot``, ``dgemm`` and transposed ``dgemv`` make it."""
-    return float(fma(a2, b2, fma(a1, b1, a0 * b0)))
-
-
-@njit(cache=True)
-def dot3_z(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
-    """:func:`dot3` from BLAS's zeroed accumulator, ``fma(a0, b0, +0.0)`` first: the same
-    value, but a sum of zeros is ``+0.0`` as OpenBLAS's ``dgemm``/``dgemv`` make it
-    (``dot3``'s ``a0 b0`` may leave ``-0.0``)."""
+    """``a . b`` as OpenBLAS's ``ddot``, ``dgemm`` and transposed ``dgemv`` make it:
+    ``a0 b0``, ``a1 b1``, ``a2 b2`` fused in turn into ``+0.0``."""
     return float(fma(a2, b2, fma(a1, b1, fma(a0, b0, 0.0))))
 
 
 @njit(cache=True)
 def dot3_n(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
-    """``a . b`` as OpenBLAS's ``dgemv`` (not transposed) makes a row of ``A x``."""
-    return float(fma(a2, b2, fma(a0, b0, a1 * b1)))
+    """``a . b`` as OpenBLAS's ``dgemv`` (not transposed) makes a row of ``A x``:
+    ``a1 b1``, ``a0 b0``, ``a2 b2`` fused in turn into ``+0.0``."""
+    return float(fma(a2, b2, fma(a0, b0, fma(a1, b1, 0.0))))

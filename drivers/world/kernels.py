@@ -26,7 +26,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numpy.typing import NDArray
 
-from drivers.base.blas import dot3_z, fma
+from drivers.base.blas import dot3, fma
 from drivers.base.types import F64
 
 __all__ = [
@@ -167,13 +167,13 @@ def tcf_kinematics(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfu
                    make_m: bool, mfull: F64) -> None:
     """The site's Jacobian in its own frame and the full mass matrix: ``mj_jacSite`` into
     ``jac2`` (translational, rotational), ``jfull2[h] = rot^T @ jac2[h]`` (summed as
-    OpenBLAS's ``dgemm``, :func:`dot3_z`), ``mj_makeM`` and ``mj_factorM`` if ``make_m``,
+    OpenBLAS's ``dgemm``, :func:`dot3`), ``mj_makeM`` and ``mj_factorM`` if ``make_m``,
     then ``mj_fullM`` into ``mfull``."""
     _call_mdaai(fns[_JAC_SITE], m, d, jac2[0], jac2[1], np.int32(site))
     for h in range(2):
         for i in range(3):
             for c in range(jac2.shape[2]):
-                jfull2[h, i, c] = dot3_z(rot[0, i], rot[1, i], rot[2, i],
+                jfull2[h, i, c] = dot3(rot[0, i], rot[1, i], rot[2, i],
                                        jac2[h, 0, c], jac2[h, 1, c], jac2[h, 2, c])
     if make_m:
         _call_md(fns[_MAKE_M], m, d)
@@ -279,7 +279,7 @@ def tool_wrench(cfrc: F64, com: F64, tcp: F64, rot: F64, out: F64) -> None:
     """The tool body's external wrench ``cfrc`` (MuJoCo's ``cfrc_ext``: torque about the
     subtree centre of mass ``com``, force; world axes) at the TCP ``tcp``, in the TCF
     (``rot``: the TCP's rotation, row-major): ``out = [f @ rot, (t + r x f) @ rot]``,
-    ``r = com - tcp``, the products as OpenBLAS sums them (:func:`dot3_z`)."""
+    ``r = com - tcp``, the products as OpenBLAS sums them (:func:`dot3`)."""
     cx, cy, cz = cfrc[0], cfrc[1], cfrc[2]
     fx, fy, fz = cfrc[3], cfrc[4], cfrc[5]
     rx = com[0] - tcp[0]
@@ -289,8 +289,8 @@ def tool_wrench(cfrc: F64, com: F64, tcp: F64, rot: F64, out: F64) -> None:
     t1 = (cy + rz * fx) - rx * fz
     t2 = (cz + rx * fy) - ry * fx
     for j in range(3):
-        out[j] = dot3_z(fx, fy, fz, rot[0, j], rot[1, j], rot[2, j])
-        out[3 + j] = dot3_z(t0, t1, t2, rot[0, j], rot[1, j], rot[2, j])
+        out[j] = dot3(fx, fy, fz, rot[0, j], rot[1, j], rot[2, j])
+        out[3 + j] = dot3(t0, t1, t2, rot[0, j], rot[1, j], rot[2, j])
 
 
 # ---------------------------------------------------------------- the arm's state

@@ -97,16 +97,18 @@ class _Kept(dict[str, bool]):
         return kept
 
 
-class _Encoders(dict[str, Callable[[object], bytes]]):
+class _Encoders(dict[str, Callable[[object], bytes] | None]):
     """Per topic, the recorder's encoder of its fields (:meth:`Recorder.encoder
-    <ffexp.recording.Recorder.encoder>`), fetched once per topic."""
+    <ffexp.recording.Recorder.encoder>`), or ``None`` when the log does not keep the
+    topic: one lookup a message, each topic's decided once."""
 
-    def __init__(self, recorder: Recorder) -> None:
+    def __init__(self, recorder: Recorder, kept: _Kept) -> None:
         super().__init__()
         self._recorder = recorder
+        self._kept = kept
 
-    def __missing__(self, topic: str) -> Callable[[object], bytes]:
-        fn = self[topic] = self._recorder.encoder(topic)
+    def __missing__(self, topic: str) -> Callable[[object], bytes] | None:
+        fn = self[topic] = self._recorder.encoder(topic) if self._kept[topic] else None
         return fn
 
 
@@ -129,7 +131,7 @@ class RunLog:
         self.truth_prefix = truth_prefix
         self._filter = TopicFilter(lean, truth_prefix)
         self._kept = _Kept(self._filter.keeps)  # what keeps() says, a dict lookup a topic
-        self._enc = None if recorder is None else _Encoders(recorder)
+        self._enc = None if recorder is None else _Encoders(recorder, self._kept)
         if recorder is not None and lean:
             recorder.metadata(RECORDING_METADATA, lean_metadata(True, truth_prefix))
         self.start_utc_ns = start_utc_ns
@@ -200,8 +202,7 @@ class RunLog:
         minus ``t0_ns``, the run's start): call it before the cycle's notes and
         :meth:`cycle`, so the recording stays in log-time order."""
         rec = self.rec
-        n = len(ft)
-        if rec is None or not n or self.lean:  # a lean log keeps no F/T sample
+        if self.lean or rec is None or not len(ft):  # a lean log keeps no F/T sample
             return
         times = (ft.time_ns + (self.start_utc_ns - t0_ns)).tolist()
         # the numpy record filled row by row (seq modulo 2^32: numpy's cast into uint32),
@@ -247,9 +248,10 @@ class RunLog:
         extras = state.extras
         if extras is not None:
             for topic in extras.topics():
-                if kept[topic]:
+                fn = enc[topic]
+                if fn is not None:
                     topics.append(topic)
-                    datas.append(enc[topic](extras))
+                    datas.append(fn(extras))
         topics.append("/estimator/state")
         datas.append(lay["/estimator/state"].pack(
             CDR_HEADER, *est.wrench.tolist(), *est.wrench_std.tolist(), *est.bias.tolist(),
@@ -274,9 +276,10 @@ class RunLog:
         datas.append(lay["/control/terms"].pack(*values))
         if phase == Phase.ALIGN and controller.topic is not None:
             topic = controller.topic.topic
-            if kept[topic]:
+            fn = enc[topic]
+            if fn is not None:
                 topics.append(topic)
-                datas.append(enc[topic](controller.extra))
+                datas.append(fn(controller.extra))
 
         if kept["/control/command"]:
             topics.append("/control/command")
@@ -284,9 +287,10 @@ class RunLog:
         extras = applied.extras
         if extras is not None:
             for topic in extras.topics():
-                if kept[topic]:
+                fn = enc[topic]
+                if fn is not None:
                     topics.append(topic)
-                    datas.append(enc[topic](extras))
+                    datas.append(fn(extras))
         truth = state.truth
         if truth is not None:
             if truth.attached is not self._attached:  # once a run: frames fixed on a body
@@ -296,14 +300,16 @@ class RunLog:
                     topics.append(fixed[0])
                     datas.append(rec.encode_json(fixed[1]))
             for topic, source in truth.messages():
-                if kept[topic]:
+                fn = enc[topic]
+                if fn is not None:
                     topics.append(topic)
-                    datas.append(enc[topic](source))
+                    datas.append(fn(source))
         if scenario is not None:
             for topic, source in scenario.messages():
-                if kept[topic]:
+                fn = enc[topic]
+                if fn is not None:
                     topics.append(topic)
-                    datas.append(enc[topic](source))
+                    datas.append(fn(source))
         new_target = target is not None and (target.frames != self._target_frames
                                              or target.valid != self._target_valid)
         if self.lean:

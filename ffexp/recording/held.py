@@ -104,34 +104,65 @@ class _Loose:
         self.times: list[int] = []
         self.datas: list[bytes] = []
         self.counts: list[int] = []  # per unit, its messages
-        # rows encoded at the drain, per template: [(where in datas, how many, columns)]
-        self.rows: dict[int, tuple[NDArray[Any], list[tuple[
-            int, int, Mapping[str, NDArray[Any]]]]]] = {}
 
     def arrays(self) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any], NDArray[Any]]:
         """Channels, log times, data sizes, messages per unit."""
-        if self.rows:
-            self._encode_rows()
         n = len(self.cids)
         return (np.array(self.cids, dtype=np.uint16), np.array(self.times, dtype=np.uint64),
                 np.fromiter(map(len, self.datas), dtype=np.int64, count=n),
                 np.array(self.counts, dtype=np.int64))
 
-    def _encode_rows(self) -> None:
-        """The held rows' messages into their places: one record array per template."""
-        datas = self.datas
-        for template, blocks in self.rows.values():
-            encoded = encode_rows(template, [b[2] for b in blocks],
-                                  sum([b[1] for b in blocks]))
-            j = 0
-            for pos, k, _ in blocks:
-                datas[pos:pos + k] = encoded[j:j + k]
-                j += k
-        self.rows = {}
-
     def records(self, c: NDArray[Any], t: NDArray[Any], sizes: NDArray[Any],
                 seq: NDArray[Any]) -> bytes:
         return _records(_heads(c, t, sizes, seq), self.datas)
+
+
+class _Rows:
+    """Messages of one channel whose data are the rows of one record template with
+    columns assigned (:meth:`Held.rows`), a unit per call: their records built as one
+    numpy array (each a head, then the template's bytes, the columns assigned)."""
+
+    def __init__(self, index: int, channel_id: int, template: NDArray[Any]) -> None:
+        self.index = index  # in the held blocks
+        self.channel = channel_id
+        self.template = template
+        self.times: list[int] = []
+        self.counts: list[int] = []
+        self.columns: list[Mapping[str, NDArray[Any]]] = []
+        size = template.dtype.itemsize
+        self.dtype = np.dtype({"names": ["head", "data"], "formats": [HEAD_DTYPE, template.dtype],
+                               "offsets": [0, MESSAGE_HEAD.size],
+                               "itemsize": MESSAGE_HEAD.size + size})
+
+    def sequences(self, counts: dict[int, int]) -> None:
+        return None
+
+    def arrays(self) -> tuple[NDArray[Any], NDArray[Any], NDArray[Any], NDArray[Any]]:
+        n = len(self.times)
+        return (np.full(n, self.channel, dtype=np.uint16),
+                np.array(self.times, dtype=np.uint64),
+                np.full(n, self.template.dtype.itemsize, dtype=np.int64),
+                np.array(self.counts, dtype=np.int64))
+
+    def records(self, c: NDArray[Any], t: NDArray[Any], sizes: NDArray[Any],
+                seq: NDArray[Any]) -> memoryview:
+        """The rows' records: the bytes of :func:`encode_rows` (the template repeated,
+        each column assigned to its field), each after its head."""
+        n = len(c)
+        rec = np.empty(n, dtype=self.dtype)
+        raw = rec.view(np.uint8).reshape(n, self.dtype.itemsize)
+        raw[:, MESSAGE_HEAD.size:] = np.frombuffer(self.template.tobytes(), dtype=np.uint8)
+        data = rec["data"]
+        for name in self.columns[0]:
+            data[name] = np.concatenate([cols[name] for cols in self.columns])
+        head = rec["head"]
+        head["op"] = OPCODE_MESSAGE
+        head["length"] = sizes + MESSAGE_FIXED
+        head["channel"] = c
+        head["sequence"] = seq
+        head["log_time"] = t
+        head["publish_time"] = t
+        return raw.reshape(-1).data
 
 
 class _Cycles:
@@ -224,9 +255,10 @@ class Held:
 
     def _reset(self) -> None:
         self._cycles: dict[tuple[int, ...], _Cycles] = {}
-        self._blocks: list[_Cycles | _Loose] = []
+        self._blocks: list[_Cycles | _Loose | _Rows] = []
         self._last: _Cycles | None = None  # the block of the last cycle
         self._loose: _Loose | None = None
+        self._rows: dict[tuple[int, int], _Rows] = {}
         self.units: list[int] = []  # per unit (call), its block's index in _blocks
         self.count = 0  # messages held
         self.size = 0  # their records' bytes (a cycle's: as its block's first)
@@ -259,11 +291,8 @@ class Held:
               size: int) -> None:
         """Messages of any channels at their own times (their records' ``size``), one
         unit (none when empty)."""
-        if cids:
-            self._add_loose(cids, times, datas, size)
-
-    def _add_loose(self, cids: Sequence[int], times: Sequence[int], datas: Sequence[bytes],
-                   size: int) -> _Loose:
+        if not cids:
+            return
         blk = self._loose
         if blk is None:
             blk = self._loose = _Loose(len(self._blocks))
@@ -275,21 +304,26 @@ class Held:
         self.units.append(blk.index)
         self.count += len(cids)
         self.size += size
-        return blk
 
     def rows(self, channel_id: int, times: Sequence[int], template: NDArray[Any],
              columns: Mapping[str, NDArray[Any]]) -> None:
-        """Messages of one channel whose data are rows of ``template`` with ``columns``
-        assigned, encoded at :meth:`frame` for all held at once."""
+        """Messages of one channel whose data are rows of ``template`` (one record) with
+        ``columns`` assigned (the same fields every call; arrays that do not change
+        afterwards), encoded at :meth:`frame` for all held at once."""
         k = len(times)
         if not k:
             return
-        blk = self._add_loose([channel_id] * k, times, [b""] * k,  # encoded at the drain
-                              k * (template.dtype.itemsize + MESSAGE_HEAD.size))
-        group = blk.rows.get(id(template))
-        if group is None:
-            group = blk.rows[id(template)] = (template, [])
-        group[1].append((len(blk.datas) - k, k, columns))
+        key = (channel_id, id(template))
+        blk = self._rows.get(key)
+        if blk is None or blk.template is not template:
+            blk = self._rows[key] = _Rows(len(self._blocks), channel_id, template)
+            self._blocks.append(blk)
+        blk.times += times
+        blk.counts.append(k)
+        blk.columns.append(columns)
+        self.units.append(blk.index)
+        self.count += k
+        self.size += k * (template.dtype.itemsize + MESSAGE_HEAD.size)
 
     def frame(self, counts: dict[int, int]) -> Framed:
         """Every held message framed, in the order given (each channel's sequence numbers
@@ -299,7 +333,7 @@ class Held:
         if len(blocks) == 1:  # one kind of unit: in its block's order
             blk = blocks[0]
             c, t, sizes, _ = blk.arrays()
-            seq = blk.sequences(counts) if isinstance(blk, _Cycles) else None
+            seq = None if isinstance(blk, _Loose) else blk.sequences(counts)
             if seq is None:
                 seq = sequences(c, counts)
             return Framed(c, t, sizes, memoryview(blk.records(c, t, sizes, seq)))

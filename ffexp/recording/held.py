@@ -5,14 +5,16 @@ Messages come in *units* (one call: a cycle's topics, a cycle's F/T samples, an
 event) and are kept in *blocks*. Every cycle of a run writes the same topics in
 the same order, so a cycle's topics go to the block of their channel tuple
 (:meth:`Held.cycle`): per call only its log time and its messages are kept. At
-the drain (:meth:`Held.frame`) such a block's records are built at once, its
-cycles as the rows of one byte array: each message's MCAP record head (opcode,
-record length, channel, sequence, log and publish time) from one template, only
-the sequence numbers and log times set per cycle, the data copied column by
-column. Everything else (single messages, F/T rows, a cycle whose message sizes
-changed) is framed message by message from one numpy array of heads. The units
-are then laid out in the order they were given: the very records mcap's own
-writer writes message by message (``tests/test_recording_writer.py``).
+the drain (:meth:`Held.frame`) such a block's records are built at once from one
+template of a cycle's records (each message's MCAP record head: opcode, record
+length, channel, sequence, log and publish time; then its data): the template
+repeated with the data put in, joined in one go, and only the heads' sequence
+numbers and times set, through a numpy view of the bytes. The rows of a record
+(:meth:`Held.rows`, the F/T samples) are one numpy array of heads and rows; the
+rest (single messages, a cycle whose message sizes changed) is joined with blank
+heads, put in their places by numpy. The units are then laid out in the order
+they were given: the very records mcap's own writer writes message by message
+(``tests/test_recording_writer.py``).
 
 Pure: no I/O. The writer hands the records to its chunks, closing each one after
 the message mcap's writer would close it after.
@@ -40,7 +42,8 @@ OPCODE_MESSAGE = int(Opcode.MESSAGE)
 #: :data:`MESSAGE_HEAD` as a packed numpy record (many heads in one array)
 HEAD_DTYPE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
                        ("sequence", "<u4"), ("log_time", "<u8"), ("publish_time", "<u8")])
-_HEAD_BYTES = struct.Struct(f"{MESSAGE_HEAD.size}s")  # iter_unpack: the heads one by one
+_BLANK_HEAD = bytes(MESSAGE_HEAD.size)  # a head's place, filled by numpy
+_HEAD_RANGE = np.arange(MESSAGE_HEAD.size, dtype=np.int64)
 _first = itemgetter(0)
 #: held messages drained into the chunk at the latest at this count
 HELD_MESSAGES = 4096
@@ -87,12 +90,18 @@ def _heads(c: NDArray[Any], t: NDArray[Any], sizes: NDArray[Any],
     return heads
 
 
-def _records(heads: NDArray[Any], datas: Sequence[bytes]) -> bytes:
-    """Records one by one: each message's head, then its data."""
-    parts: list[bytes] = [b""] * (2 * len(datas))
-    parts[0::2] = map(_first, _HEAD_BYTES.iter_unpack(heads.tobytes()))
+def _records(heads: NDArray[Any], datas: Sequence[bytes]) -> bytearray:
+    """Records one by one (each message's head, then its data): the data joined with a
+    blank head before each, then the heads put in their places by numpy."""
+    n = len(datas)
+    parts = [_BLANK_HEAD] * (2 * n)
     parts[1::2] = datas
-    return b"".join(parts)
+    out = bytearray().join(parts)
+    record_sizes = heads["length"].astype(np.int64) + 9  # what the length counts, + 9
+    starts = np.cumsum(record_sizes) - record_sizes
+    where = (starts[:, None] + _HEAD_RANGE).reshape(-1)
+    np.frombuffer(out, dtype=np.uint8)[where] = heads.view(np.uint8)
+    return out
 
 
 class _Loose:
@@ -113,7 +122,7 @@ class _Loose:
                 np.array(self.counts, dtype=np.int64))
 
     def records(self, c: NDArray[Any], t: NDArray[Any], sizes: NDArray[Any],
-                seq: NDArray[Any]) -> bytes:
+                seq: NDArray[Any]) -> bytearray:
         return _records(_heads(c, t, sizes, seq), self.datas)
 
 
@@ -215,7 +224,7 @@ class _Cycles:
                 sizes, np.full(k, m, dtype=np.int64))
 
     def records(self, c: NDArray[Any], t: NDArray[Any], sizes: NDArray[Any],
-                seq: NDArray[Any]) -> bytes | bytearray:
+                seq: NDArray[Any]) -> bytearray:
         if not self._fixed:  # a message's size changed: one by one
             return _records(_heads(c, t, sizes, seq), self.datas)
         k = len(self.times)

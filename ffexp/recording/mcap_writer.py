@@ -6,10 +6,11 @@ chunk index, message index, statistics) with one ``struct.pack`` per message
 instead of mcap's field-by-field record writer, and hands a whole chunk's
 messages to mcap's chunk builder at once; :meth:`FastWriter.add_fixed` frames a
 run of same-sized messages of one channel (numpy records) in one numpy array.
-:meth:`FastWriter.add_at` and :meth:`FastWriter.add_series` (what the
-:class:`~ffexp.recording.Recorder` uses) hold a cycle's messages and frame those of
-many cycles at once (their heads in one numpy array, their sequence numbers and index
-entries per channel by numpy): the same bytes again.
+:meth:`FastWriter.add_cycle`, :meth:`FastWriter.add_rows`, :meth:`FastWriter.add_at`
+and :meth:`FastWriter.add_series` (what the :class:`~ffexp.recording.Recorder` uses)
+hold the messages and frame those of many cycles at once
+(:class:`~ffexp.recording.held.Held`: the cycles of one topic tuple from one
+template, the index entries per channel by numpy): the same bytes again.
 A full zstd chunk is compressed in a worker thread while the next one fills. It
 uses the ``Writer``'s private chunk builder, statistics and record builder; if a
 future mcap lacks them, it falls

@@ -374,10 +374,9 @@ class Held:
             b_bytes = unit_bytes[w]
             starts[w] = np.cumsum(b_bytes) - b_bytes
         runs = np.flatnonzero(np.diff(unit_block)) + 1  # runs of one block's units
-        first_units = [0, *runs.tolist()]
-        last_units = [*(runs - 1).tolist(), len(units) - 1]
-        out = []
-        for a, b in zip(first_units, last_units, strict=True):
-            lo = int(starts[a])
-            out.append(records[units[a]][lo:int(starts[b] + unit_bytes[b])])
+        first = np.concatenate(([0], runs))
+        last = np.append(runs - 1, len(units) - 1)
+        out = [records[b][lo:hi] for b, lo, hi in zip(
+            unit_block[first].tolist(), starts[first].tolist(),
+            (starts[last] + unit_bytes[last]).tolist(), strict=True)]
         return Framed(c, t, sizes, memoryview(b"".join(out)))

@@ -132,6 +132,8 @@ class Recorder:
         self._row_templates: dict[str, np.ndarray] = {}  # write_rows: an empty record each
         # a subclass that watches write_series sees write_rows' messages there, encoded now
         self._series_watched = type(self).write_series is not Recorder.write_series
+        # and one that watches write_batch sees write_cycle's messages there
+        self._batch_watched = type(self).write_batch is not Recorder.write_batch
         self._frames: dict[tuple[str, str], str] = {}
         self.message_count = 0
         self.finished = False
@@ -210,14 +212,21 @@ class Recorder:
         cycle's topics): :meth:`write_bytes` for each, in one call."""
         if messages:
             topics, datas = zip(*messages, strict=True)
-            self.write_cycle(time_ns, topics, datas)
+            self._write_cycle(time_ns, topics, datas)
 
     def write_cycle(self, time_ns: int, topics: Sequence[str], datas: Sequence[bytes]) -> None:
         """:meth:`write_batch` of the messages ``datas`` on ``topics`` (one a message).
 
         A run's cycles that write the same topics in the same order are framed from one
         template (:meth:`FastWriter.add_cycle
-        <ffexp.recording.mcap_writer.FastWriter.add_cycle>`)."""
+        <ffexp.recording.mcap_writer.FastWriter.add_cycle>`). In a subclass that
+        overrides :meth:`write_batch`, the messages go through it."""
+        if self._batch_watched:
+            self.write_batch(time_ns, list(zip(topics, datas, strict=True)))
+        else:
+            self._write_cycle(time_ns, topics, datas)
+
+    def _write_cycle(self, time_ns: int, topics: Sequence[str], datas: Sequence[bytes]) -> None:
         if not datas:
             return
         if time_ns < 0:

@@ -30,6 +30,7 @@ events are kept, in :attr:`RunLog.events`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from struct import Struct
 from typing import Protocol
 
@@ -84,6 +85,33 @@ class CycleSink(Protocol):
         run log's batch of the cycle, written after) when given, else written."""
 
 
+class _Kept(dict[str, bool]):
+    """Per topic, whether a run log writes it (its filter asked once per topic)."""
+
+    def __init__(self, keeps: Callable[[str], bool]) -> None:
+        super().__init__()
+        self._keeps = keeps
+
+    def __missing__(self, topic: str) -> bool:
+        kept = self[topic] = self._keeps(topic)
+        return kept
+
+
+class _Encoders(dict[str, Callable[[object], bytes] | None]):
+    """Per topic, the recorder's encoder of its fields (:meth:`Recorder.encoder
+    <ffexp.recording.Recorder.encoder>`), or ``None`` when the log does not keep the
+    topic: one lookup a message, each topic's decided once."""
+
+    def __init__(self, recorder: Recorder, kept: _Kept) -> None:
+        super().__init__()
+        self._recorder = recorder
+        self._kept = kept
+
+    def __missing__(self, topic: str) -> Callable[[object], bytes] | None:
+        fn = self[topic] = self._recorder.encoder(topic) if self._kept[topic] else None
+        return fn
+
+
 class RunLog:
     """Writes a run's cycles and notes through a recorder (or only keeps the events).
 
@@ -102,6 +130,8 @@ class RunLog:
         """Only the topics the metrics read are built and written."""
         self.truth_prefix = truth_prefix
         self._filter = TopicFilter(lean, truth_prefix)
+        self._kept = _Kept(self._filter.keeps)  # what keeps() says, a dict lookup a topic
+        self._enc = None if recorder is None else _Encoders(recorder, self._kept)
         if recorder is not None and lean:
             recorder.metadata(RECORDING_METADATA, lean_metadata(True, truth_prefix))
         self.start_utc_ns = start_utc_ns
@@ -172,8 +202,7 @@ class RunLog:
         minus ``t0_ns``, the run's start): call it before the cycle's notes and
         :meth:`cycle`, so the recording stays in log-time order."""
         rec = self.rec
-        n = len(ft)
-        if rec is None or not n or self.lean:  # a lean log keeps no F/T sample
+        if self.lean or rec is None or not len(ft):  # a lean log keeps no F/T sample
             return
         times = (ft.time_ns + (self.start_utc_ns - t0_ns)).tolist()
         # the numpy record filled row by row (seq modulo 2^32: numpy's cast into uint32),
@@ -210,15 +239,23 @@ class RunLog:
         lay = self._layouts
         if lay is None:
             lay = self._layouts = {topic: rec.layout(topic) for topic in _PACKED}
-        lean = self.lean  # then each topic's message is built only when kept
-        msgs = [("/robot/state", self._state(lay["/robot/state"], state))]
-        if state.extras is not None:
-            for topic in state.extras.topics():
-                if not lean or self.keeps(topic):
-                    msgs.append((topic, rec.encode_fields(topic, state.extras)))
-        msgs.append(("/estimator/state", lay["/estimator/state"].pack(
+        # the cycle's messages in order: their topics, their bytes (each built only when
+        # its topic is kept)
+        kept, enc = self._kept, self._enc
+        assert enc is not None
+        topics = ["/robot/state"]
+        datas = [self._state(lay["/robot/state"], state)]
+        extras = state.extras
+        if extras is not None:
+            for topic in extras.topics():
+                fn = enc[topic]
+                if fn is not None:
+                    topics.append(topic)
+                    datas.append(fn(extras))
+        topics.append("/estimator/state")
+        datas.append(lay["/estimator/state"].pack(
             CDR_HEADER, *est.wrench.tolist(), *est.wrench_std.tolist(), *est.bias.tolist(),
-            *est.twist_tcf.tolist(), est.f_z, len(ft), int(est.in_contact))))
+            *est.twist_tcf.tolist(), est.f_z, len(ft), int(est.in_contact)))
 
         terms = controller.terms if phase == Phase.ALIGN else None
         values: list[object] = [CDR_HEADER]
@@ -235,68 +272,86 @@ class RunLog:
         values += setpoint.ravel().tolist()
         values.append(int(phase))
         values.append(int(bool(getattr(terms, "saturated", False))))
-        msgs.append(("/control/terms", lay["/control/terms"].pack(*values)))
+        topics.append("/control/terms")
+        datas.append(lay["/control/terms"].pack(*values))
         if phase == Phase.ALIGN and controller.topic is not None:
             topic = controller.topic.topic
-            if not lean or self.keeps(topic):
-                msgs.append((topic, rec.encode_fields(topic, controller.extra)))
+            fn = enc[topic]
+            if fn is not None:
+                topics.append(topic)
+                datas.append(fn(controller.extra))
 
-        if not lean or self.keeps("/control/command"):
-            msgs.append(("/control/command", self._command(lay["/control/command"], intent,
-                                                           applied)))
-        if applied.extras is not None:
-            for topic in applied.extras.topics():
-                if not lean or self.keeps(topic):
-                    msgs.append((topic, rec.encode_fields(topic, applied.extras)))
+        if kept["/control/command"]:
+            topics.append("/control/command")
+            datas.append(self._command(lay["/control/command"], intent, applied))
+        extras = applied.extras
+        if extras is not None:
+            for topic in extras.topics():
+                fn = enc[topic]
+                if fn is not None:
+                    topics.append(topic)
+                    datas.append(fn(extras))
         truth = state.truth
         if truth is not None:
             if truth.attached is not self._attached:  # once a run: frames fixed on a body
                 self._attached = truth.attached
                 fixed = truth.attached_message()
-                if fixed is not None and (not lean or self.keeps(fixed[0])):
-                    msgs.append((fixed[0], rec.encode_json(fixed[1])))
+                if fixed is not None and kept[fixed[0]]:
+                    topics.append(fixed[0])
+                    datas.append(rec.encode_json(fixed[1]))
             for topic, source in truth.messages():
-                if not lean or self.keeps(topic):
-                    msgs.append((topic, rec.encode_fields(topic, source)))
+                fn = enc[topic]
+                if fn is not None:
+                    topics.append(topic)
+                    datas.append(fn(source))
         if scenario is not None:
             for topic, source in scenario.messages():
-                if not lean or self.keeps(topic):
-                    msgs.append((topic, rec.encode_fields(topic, source)))
-        if lean:
-            if target is not None and (target.frames != self._target_frames
-                                       or target.valid != self._target_valid):
-                self._target(log_ns, state, target, msgs)
-            rec.write_batch(log_ns, msgs)  # no /tf, no sink: the metrics read neither
+                fn = enc[topic]
+                if fn is not None:
+                    topics.append(topic)
+                    datas.append(fn(source))
+        new_target = target is not None and (target.frames != self._target_frames
+                                             or target.valid != self._target_valid)
+        if self.lean:
+            if new_target:
+                assert target is not None
+                self._target(log_ns, state, target, topics, datas)
+            rec.write_cycle(log_ns, topics, datas)  # no /tf, no sink: the metrics read neither
             return
         if t_ns >= self._next_tf_ns:
             self._next_tf_ns = t_ns + self.tf_period_ns
-            msgs.append(("/tf", rec.encode_transform(log_ns, "base", "tool",
-                                                     state.tcp_pose_m.tolist())))
+            topics.append("/tf")
+            datas.append(rec.encode_transform(log_ns, "base", "tool", state.tcp_pose_m.tolist()))
             if truth is not None:
-                self._truth_tf(log_ns, truth, msgs)
-        if target is not None and (target.frames != self._target_frames
-                                   or target.valid != self._target_valid):
-            self._target(log_ns, state, target, msgs)
-        for sink in self.sinks:
-            sink.cycle(log_ns, state, target, msgs)
-        rec.write_batch(log_ns, msgs)  # the cycle's one write
+                self._truth_tf(log_ns, truth, topics, datas)
+        if new_target:
+            assert target is not None
+            self._target(log_ns, state, target, topics, datas)
+        if self.sinks:
+            msgs: list[tuple[str, bytes]] = []
+            for sink in self.sinks:
+                sink.cycle(log_ns, state, target, msgs)
+            for topic, data in msgs:
+                topics.append(topic)
+                datas.append(data)
+        rec.write_cycle(log_ns, topics, datas)  # the cycle's one write
 
-    def _truth_tf(self, log_ns: int, truth: GroundTruth,
-                  msgs: list[tuple[str, bytes]]) -> None:
+    def _truth_tf(self, log_ns: int, truth: GroundTruth, topics: list[str],
+                  datas: list[bytes]) -> None:
         """``/tf`` of the truth's bodies in the robot's base frame (and, on a floating
         base, the world in it)."""
         assert self.rec is not None
         inv = None if truth.base_pose is None else np.linalg.inv(truth.base_pose)
         if inv is not None:
-            msgs.append(("/tf", self.rec.encode_transform(log_ns, "base", "world",
-                                                          inv.tolist())))
+            topics.append("/tf")
+            datas.append(self.rec.encode_transform(log_ns, "base", "world", inv.tolist()))
         for name, body in truth.bodies.items():
             pose = body.pose if inv is None else inv @ body.pose
-            msgs.append(("/tf", self.rec.encode_transform(log_ns, "base", name,
-                                                          pose.tolist())))
+            topics.append("/tf")
+            datas.append(self.rec.encode_transform(log_ns, "base", name, pose.tolist()))
 
     def _target(self, log_ns: int, state: RobotState, target: TargetObservation,
-                msgs: list[tuple[str, bytes]]) -> None:
+                topics: list[str], datas: list[bytes]) -> None:
         """A new tracker observation: ``/target/pose`` and, when valid, ``/tf``."""
         assert self.rec is not None
         self._target_frames, self._target_valid = target.frames, target.valid
@@ -307,10 +362,12 @@ class RunLog:
         r["valid"] = int(target.valid)
         r["frames"] = target.frames & 0xFFFFFFFF
         r["age_s"] = (state.time_ns - target.time_ns) / NS_PER_S
-        msgs.append(("/target/pose", r.tobytes()))
+        topics.append("/target/pose")
+        datas.append(r.tobytes())
         if target.valid and not self.lean:
-            msgs.append(("/tf", self.rec.encode_transform(log_ns, "base", TRACKED_FRAME,
-                                                          target.pose_m.tolist())))
+            topics.append("/tf")
+            datas.append(self.rec.encode_transform(log_ns, "base", TRACKED_FRAME,
+                                                   target.pose_m.tolist()))
 
     @staticmethod
     def _state(layout: Struct, state: RobotState) -> bytes:

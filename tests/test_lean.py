@@ -9,6 +9,7 @@ simulator), so nothing depends on what a run's outcome is.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -87,11 +88,15 @@ def test_a_lean_run_log_builds_no_message_it_does_not_keep(
     kept topics (the CPU is saved, not just the bytes)."""
     encoded: list[str] = []
     calls = {"transform": 0, "command": 0, "rows": 0}
-    real_fields = Recorder.encode_fields
+    real_encoder = Recorder.encoder
 
-    def fields(self: Recorder, topic: str, source: object) -> bytes:
-        encoded.append(topic)
-        return real_fields(self, topic, source)
+    def encoder(self: Recorder, topic: str) -> Callable[[object], bytes]:
+        fn = real_encoder(self, topic)
+
+        def counted(source: object) -> bytes:
+            encoded.append(topic)
+            return fn(source)
+        return counted
 
     def count(key: str, real: Any) -> Any:
         def wrapped(*args: Any, **kwargs: Any) -> Any:
@@ -99,7 +104,7 @@ def test_a_lean_run_log_builds_no_message_it_does_not_keep(
             return real(*args, **kwargs)
         return wrapped
 
-    monkeypatch.setattr(Recorder, "encode_fields", fields)
+    monkeypatch.setattr(Recorder, "encoder", encoder)
     monkeypatch.setattr(Recorder, "encode_transform", count("transform",
                                                              Recorder.encode_transform))
     monkeypatch.setattr(Recorder, "write_rows", count("rows", Recorder.write_rows))

@@ -129,3 +129,26 @@ def test_compiled_encoder_equals_the_segment_walk(topic: str) -> None:
         odd: object = 1.5 if f.count == 1 else np.zeros(f.count, dtype=np.float32)
         source = SimpleNamespace(**{**values, f.name: odd})
         assert enc.encode(source) == enc.encode_segments(source)
+
+
+@pytest.mark.parametrize("topic", sorted(CDR_TOPICS))
+def test_the_recorders_encoder_equals_encode_fields(topic: str, tmp_path: Path) -> None:
+    """``Recorder.encoder(topic)`` (the compiled encoder with the numpy record compiled
+    in as its fallback) gives the bytes of ``encode_fields`` for plain values and for
+    each value numpy would convert; an error of the fallback reaches the caller."""
+    spec = CDR_TOPICS[topic].spec
+    rng = np.random.default_rng(13)
+    with Recorder(tmp_path / "a.mcap") as rec:
+        encode = rec.encoder(topic)
+        assert rec.encoder(topic) is encode  # one function a topic
+        values = _values(spec, rng)
+        assert encode(SimpleNamespace(**values)) == rec.encode_fields(
+            topic, SimpleNamespace(**values)) == _record(spec, values)
+        for f in spec.fields:
+            for odd in ((1.0, True) if f.count == 1 else
+                        (np.arange(f.count, dtype=np.float32), list(range(f.count)))):
+                source = SimpleNamespace(**{**values, f.name: odd})
+                assert encode(source) == rec.encode_fields(topic, source)
+        bad = SimpleNamespace(**{**values, spec.fields[0].name: "not a number"})
+        with pytest.raises((TypeError, ValueError)):
+            encode(bad)

@@ -64,6 +64,19 @@ class FieldsEncoder:
         """The message, or ``None`` if a value is not plainly of its field's type."""
         return self._compiled(source)
 
+    def with_fallback(self, fallback: Callable[[object], bytes]) -> Callable[[object], bytes]:
+        """:meth:`encode` that calls ``fallback(source)`` for its message instead of
+        returning ``None`` (one call a message: the fallback compiled in)."""
+        compiled = _compile(self._segments, fallback)
+        if compiled is not None:
+            return compiled  # type: ignore[return-value]
+        encode = self.encode_segments
+
+        def encode_or(source: object) -> bytes:
+            data = encode(source)
+            return fallback(source) if data is None else data
+        return encode_or
+
     def encode_segments(self, source: object) -> bytes | None:
         """:meth:`encode` by walking the segments (the compiled form's reference)."""
         parts = [CDR_HEADER]
@@ -84,14 +97,24 @@ class FieldsEncoder:
         return b"".join(parts)
 
 
-def _compile(segments: tuple[tuple[int, Any, Any, Any, bytes], ...]) -> Callable[
+class _Fallback(Exception):
+    """A value is not plainly of its field's type (inside a compiled encoder)."""
+
+
+def _compile(segments: tuple[tuple[int, Any, Any, Any, bytes], ...],
+             fallback: Callable[[object], bytes] | None = None) -> Callable[
         [object], bytes | None] | None:
     """:meth:`FieldsEncoder.encode_segments` for these segments as one function of straight
     code (the same checks and parts in the same order, without the loop over segments),
     made once per message type like ``dataclasses`` makes ``__init__``. ``None`` when a
-    field's name is not an identifier (the loop is kept)."""
-    env: dict[str, Any] = {"_nd": np.ndarray, "_head": CDR_HEADER,
-                           "_errors": (struct.error, TypeError, OverflowError)}
+    field's name is not an identifier (the loop is kept). With ``fallback``, where it
+    would return ``None`` it returns ``fallback(source)``."""
+    env: dict[str, Any] = {"_nd": np.ndarray, "_head": CDR_HEADER, "_fallback": fallback,
+                           "_Fallback": _Fallback,
+                           "_errors": (struct.error, TypeError, OverflowError, _Fallback)}
+    # a value not plainly of its type: None, or (out of the try) the fallback's message
+    refuse = "return None" if fallback is None else "raise _Fallback"
+    handle = "return None" if fallback is None else "return _fallback(s)"
     body: list[str] = []
     parts: list[str] = ["_head"]
     for i, (kind, a, b, count, pad) in enumerate(segments):
@@ -103,7 +126,7 @@ def _compile(segments: tuple[tuple[int, Any, Any, Any, bytes], ...]) -> Callable
             body += [f"v{i} = s.{a}",
                      f"if type(v{i}) is not _nd or v{i}.size != {int(count)} "
                      f"or v{i}.dtype != _dt{i}:",
-                     "    return None"]
+                     f"    {refuse}"]
             if pad:
                 env[f"_pad{i}"] = pad
                 parts.append(f"_pad{i}")
@@ -114,7 +137,7 @@ def _compile(segments: tuple[tuple[int, Any, Any, Any, bytes], ...]) -> Callable
             parts.append(f"p{i}")
     code = ["def encode(s):", "    try:"]
     code += [f"        {line}" for line in body]
-    code += ["    except _errors:", "        return None",
+    code += ["    except _errors:", f"        {handle}",
              f"    return b''.join(({', '.join(parts)},))"]
     exec("\n".join(code), env)  # generated from the spec's field names only
     fn: Callable[[object], bytes | None] = env["encode"]

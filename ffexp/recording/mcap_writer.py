@@ -6,10 +6,11 @@ chunk index, message index, statistics) with one ``struct.pack`` per message
 instead of mcap's field-by-field record writer, and hands a whole chunk's
 messages to mcap's chunk builder at once; :meth:`FastWriter.add_fixed` frames a
 run of same-sized messages of one channel (numpy records) in one numpy array.
-:meth:`FastWriter.add_at` and :meth:`FastWriter.add_series` (what the
-:class:`~ffexp.recording.Recorder` uses) hold a cycle's messages and frame those of
-many cycles at once (their heads in one numpy array, their sequence numbers and index
-entries per channel by numpy): the same bytes again.
+:meth:`FastWriter.add_cycle`, :meth:`FastWriter.add_rows`, :meth:`FastWriter.add_at`
+and :meth:`FastWriter.add_series` (what the :class:`~ffexp.recording.Recorder` uses)
+hold the messages and frame those of many cycles at once
+(:class:`~ffexp.recording.held.Held`: the cycles of one topic tuple from one
+template, the index entries per channel by numpy): the same bytes again.
 A full zstd chunk is compressed in a worker thread while the next one fills. It
 uses the ``Writer``'s private chunk builder, statistics and record builder; if a
 future mcap lacks them, it falls
@@ -26,7 +27,6 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import cache
 from itertools import chain
-from operator import itemgetter
 from typing import IO, Any
 
 import numpy as np
@@ -36,47 +36,37 @@ from mcap.records import Chunk, ChunkIndex, MessageIndex
 from mcap.writer import CompressionType, IndexType, Writer
 from numpy.typing import NDArray
 
+from ffexp.recording.held import (
+    HEAD_DTYPE,
+    HELD_MESSAGES,
+    MESSAGE_FIXED,
+    MESSAGE_HEAD,
+    OPCODE_MESSAGE,
+    Held,
+    encode_rows,
+)
+
 __all__ = ["FastWriter", "encode_rows"]
 
-#: An MCAP Message record's head: opcode, record length, channel id, sequence,
-#: log time, publish time (the MCAP specification's field order, little endian).
-_MESSAGE_HEAD = struct.Struct("<BQHIQQ")
-_MESSAGE_FIXED = _MESSAGE_HEAD.size - 9  # the record length counts what follows it
-_OPCODE_MESSAGE = int(Opcode.MESSAGE)
+_MESSAGE_HEAD = MESSAGE_HEAD
+_MESSAGE_FIXED = MESSAGE_FIXED
+_OPCODE_MESSAGE = OPCODE_MESSAGE
 _NO_TIME = 1 << 64  # above every log time (uint64)
 #: A Message Index record's head: opcode, record length, channel id, entries' length.
 _INDEX_HEAD = struct.Struct("<BQHI")
 _OPCODE_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
-#: :data:`_MESSAGE_HEAD` as a packed numpy record (a held batch's heads in one array)
-_HEAD_DTYPE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
-                        ("sequence", "<u4"), ("log_time", "<u8"), ("publish_time", "<u8")])
-_HEAD_BYTES = struct.Struct(f"{_MESSAGE_HEAD.size}s")  # iter_unpack: the heads one by one
-_first = itemgetter(0)
-#: held messages drained into the chunk at the latest at this count
-HELD_MESSAGES = 4096
 
 
 @cache
 def _record_dtype(data_size: int) -> np.dtype[Any]:
     """A whole Message record with ``data_size`` bytes of data, as a packed numpy record
     (the fields of :data:`_MESSAGE_HEAD`, then the data)."""
-    return np.dtype([*_HEAD_DTYPE.descr, ("data", f"V{data_size}")])
+    return np.dtype([*HEAD_DTYPE.descr, ("data", f"V{data_size}")])
 
 
 def _compress(data: bytes, crcs: bool) -> tuple[bytes, int]:
     """A chunk's zstd compression (``zstandard.compress``, as mcap's ``Writer``) and CRC."""
     return zstandard.compress(data), (zlib.crc32(data) if crcs else 0)
-
-
-def encode_rows(template: NDArray[Any], blocks: list[Mapping[str, NDArray[Any]]],
-                n: int) -> list[bytes]:
-    """Each of the ``n`` rows' bytes: ``template`` repeated, each block's columns assigned
-    to their fields (numpy's casts), one message a row."""
-    rec = np.repeat(template, n)
-    for name in blocks[0]:
-        rec[name] = np.concatenate([b[name] for b in blocks])
-    return list(map(_first, struct.Struct(f"{rec.dtype.itemsize}s").iter_unpack(
-        rec.tobytes())))
 
 
 @dataclass
@@ -143,27 +133,21 @@ class FastWriter(Writer):
         self._pool: ThreadPoolExecutor | None = None
         self._closing: tuple[Any, ...] | None = None  # the chunk being compressed
         # the pending batch: record bytes, per channel [(log time, offset)], counts
-        self._parts: list[bytes] = []
+        self._parts: list[bytes | memoryview] = []
         # per channel its (log time, offset) entries: a list, or a (k, 2) array (_drain)
         self._index: dict[int, Any] = {}  # their lengths: the channels' counts
         self._size = 0  # the chunk's size with the pending records
         self._t_min = 0
         self._t_max = 0
-        # messages held for a time-batched framing (add_at, add_series): in order, their
-        # channels, log times and data; their records' size; what the chunk takes first
-        self._held_cids: list[int] = []
-        self._held_times: list[int] = []
-        self._held_datas: list[bytes] = []
-        self._held_size = 0
+        # messages held for a time-batched framing (add_cycle, add_at, add_series,
+        # add_rows), and what the chunk takes first
+        self._held = Held()
         self._held_room = 0
-        # rows encoded at the drain, per template: [(where in _held_datas, how many, columns)]
-        self._held_rows: dict[int, tuple[NDArray[Any], list[tuple[
-            int, int, Mapping[str, NDArray[Any]]]]]] = {}
         self._counts: dict[int, int] = {}  # per channel: sequence numbers handed out
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
-        if self._held_cids:
+        if self._held.count:
             self._drain()
         if not self.fast:
             super().add_message(channel_id, log_time, data, publish_time, sequence)
@@ -194,7 +178,7 @@ class FastWriter(Writer):
                      sequences: list[int]) -> None:
         """:meth:`add_message` for several messages (publish time = log time), in order:
         the same bytes, one call."""
-        if self._held_cids:
+        if self._held.count:
             self._drain()
         if not self.fast:
             for cid, t, data, seq in zip(channel_ids, log_times, datas, sequences, strict=True):
@@ -233,7 +217,7 @@ class FastWriter(Writer):
                         sequences: list[int]) -> None:
         """:meth:`add_messages` of messages all at one log time (a cycle's topics): the
         same bytes, without a time per message."""
-        if self._held_cids:
+        if self._held.count:
             self._drain()
         if not self.fast:
             for cid, data, seq in zip(channel_ids, datas, sequences, strict=True):
@@ -276,7 +260,7 @@ class FastWriter(Writer):
         rows of a numpy record array, e.g. a cycle's F/T samples; publish time = log time,
         sequences counting up from ``first_sequence``): the same bytes, their records built
         in one numpy array instead of a ``struct.pack`` each."""
-        if self._held_cids:
+        if self._held.count:
             self._drain()
         n = len(log_times)
         size_each = datas.dtype.itemsize
@@ -323,13 +307,30 @@ class FastWriter(Writer):
                 self._close_chunk()
 
     # -- time-batched: messages held, framed many cycles at once -------------------------
+    def add_cycle(self, channel_ids: Sequence[int], log_time: int,
+                  datas: Sequence[bytes]) -> None:
+        """A cycle's messages at one log time (publish time = log time), of the channels
+        ``channel_ids``: a sequence that must not change afterwards (a run's cycles of
+        the same topics give the same object). Held as :meth:`add_at`'s, the cycles of
+        the same channels framed from one template (:class:`~ffexp.recording.held.Held`)."""
+        if not self.fast:
+            self.add_at(channel_ids, log_time, datas)
+            return
+        held = self._held
+        if not held.count:
+            self._start_holding()
+        held.cycle(channel_ids, log_time, datas)
+        if held.size > self._held_room or held.count >= HELD_MESSAGES:
+            self._drain()
+
     def add_at(self, channel_ids: Sequence[int], log_time: int, datas: Sequence[bytes]) -> None:
-        """Messages of several channels at one log time (a cycle's topics; publish time =
-        log time), each channel's sequence numbers counting up from 0 (:meth:`reserve`).
+        """Messages of several channels at one log time (publish time = log time), each
+        channel's sequence numbers counting up from 0 (:meth:`reserve`).
 
         Held, and framed with the next cycles' at once (:meth:`_drain`) when the chunk is
         full, before any other call (a channel, :meth:`flush`, ...) or at
-        :data:`HELD_MESSAGES`: the file is byte for byte mcap's own writer's."""
+        :data:`~ffexp.recording.held.HELD_MESSAGES`: the file is byte for byte mcap's
+        own writer's."""
         if not self.fast:
             for cid, data in zip(channel_ids, datas, strict=True):
                 super().add_message(cid, log_time, data, log_time, self._next_seq(cid))
@@ -356,43 +357,33 @@ class FastWriter(Writer):
         ``columns`` assigned to its field, as numpy assigns), held as :meth:`add_at`'s
         and encoded at the drain for all held cycles at once. The column arrays must
         not change afterwards (give copies)."""
-        k = len(log_times)
         if not self.fast:
-            self.add_series(channel_id, log_times, encode_rows(template, [columns], k))
+            self.add_series(channel_id, log_times,
+                            encode_rows(template, [columns], len(log_times)))
             return
-        group = self._held_rows.get(id(template))
-        if group is None:
-            group = self._held_rows[id(template)] = (template, [])
-        group[1].append((len(self._held_datas), k, columns))
-        self._hold([channel_id] * k, log_times, [b""] * k,  # encoded at the drain
-                   k * (template.dtype.itemsize + _MESSAGE_HEAD.size))
+        if not self._held.count:
+            self._start_holding()
+        self._held.rows(channel_id, log_times, template, columns)
+        self._check_held()
+
+    def _start_holding(self) -> None:
+        """The first held message: the room left in the chunk."""
+        self._held_room = self._chunk_size - (
+            self._size if self._parts else self._chunks.record_writer._buffer.tell())
 
     def _hold(self, cids: Sequence[int], times: Sequence[int], datas: Sequence[bytes],
               size: int) -> None:
         """Hold messages (their records' ``size``); drained when the chunk they go into
-        is full, or at :data:`HELD_MESSAGES`."""
-        if not self._held_cids:
-            self._held_room = self._chunk_size - (
-                self._size if self._parts else self._chunks.record_writer._buffer.tell())
-        self._held_cids += cids
-        self._held_times += times
-        self._held_datas += datas
-        self._held_size += size
-        if self._held_size > self._held_room or len(self._held_cids) >= HELD_MESSAGES:
-            self._drain()
+        is full, or at :data:`~ffexp.recording.held.HELD_MESSAGES`."""
+        if not self._held.count:
+            self._start_holding()
+        self._held.loose(cids, times, datas, size)
+        self._check_held()
 
-    def _encode_held_rows(self, datas: list[bytes]) -> None:
-        """The held rows' messages into their places in ``datas``: one record array for
-        the rows of each template."""
-        groups = self._held_rows
-        self._held_rows = {}
-        for template, blocks in groups.values():
-            encoded = encode_rows(template, [b[2] for b in blocks],
-                                  sum([b[1] for b in blocks]))
-            j = 0
-            for pos, k, _ in blocks:
-                datas[pos:pos + k] = encoded[j:j + k]
-                j += k
+    def _check_held(self) -> None:
+        held = self._held
+        if held.size > self._held_room or held.count >= HELD_MESSAGES:
+            self._drain()
 
     def reserve(self, channel_id: int, n: int) -> int:
         """The next ``n`` sequence numbers of a channel (its first), for messages given
@@ -406,47 +397,18 @@ class FastWriter(Writer):
         return seq
 
     def _drain(self) -> None:
-        """Frame the held messages into the chunk: their heads in one numpy array, their
-        sequence numbers and index entries per channel by numpy, the chunk closed after
-        the very message mcap's writer would close it after."""
-        cids = self._held_cids
-        n = len(cids)
-        if not n:
+        """Frame the held messages into the chunk (:meth:`Held.frame
+        <ffexp.recording.held.Held.frame>`), their index entries per channel by numpy,
+        the chunk closed after the very message mcap's writer would close it after."""
+        if not self._held.count:
             return
-        times, datas = self._held_times, self._held_datas
-        self._held_cids, self._held_times, self._held_datas = [], [], []
-        if self._held_rows:
-            self._encode_held_rows(datas)
-        self._held_size = 0
+        framed = self._held.frame(self._counts)
         self._commit_parts()  # what was given before them
-        c = np.array(cids, dtype=np.uint16)  # MCAP's channel ids (numpy's radix sort)
-        t = np.array(times, dtype=np.uint64)
-        sizes = np.fromiter(map(len, datas), dtype=np.int64, count=n)
-        # sequences: the channel's count so far plus the rank among its held messages
-        order = np.argsort(c, kind="stable")
-        sc = c[order]
-        starts = np.flatnonzero(np.concatenate(([True], sc[1:] != sc[:-1])))
-        counts = np.diff(np.append(starts, n))
-        held = self._counts
-        base = []
-        for cid, k in zip(sc[starts].tolist(), counts.tolist(), strict=True):
-            b = held.get(cid, 0)
-            base.append(b)
-            held[cid] = b + k
-        seq = np.empty(n, dtype=np.int64)
-        seq[order] = np.arange(n) - np.repeat(starts - np.asarray(base, dtype=np.int64), counts)
-        heads = np.empty(n, dtype=_HEAD_DTYPE)
-        heads["op"] = _OPCODE_MESSAGE
-        heads["length"] = sizes + _MESSAGE_FIXED
-        heads["channel"] = c
-        heads["sequence"] = seq
-        heads["log_time"] = t
-        heads["publish_time"] = t
-        parts = [b""] * (2 * n)  # each message's head, then its data
-        parts[0::2] = map(_first, _HEAD_BYTES.iter_unpack(heads.tobytes()))
-        parts[1::2] = datas
-        records = sizes + _MESSAGE_HEAD.size
+        c, t, records = framed.channels, framed.times, framed.sizes + _MESSAGE_HEAD.size
+        n = len(c)
+        blob = framed.records
         done = 0
+        byte = 0  # where the next message starts in blob
         while done < n:
             start = self._chunks.record_writer._buffer.tell()
             ends = np.cumsum(records[done:]) + start
@@ -468,7 +430,9 @@ class FastWriter(Writer):
             self._index = {cid: entries[a:b] for _, cid, a, b in groups}
             tseg = t[seg]
             self._t_min, self._t_max = int(tseg.min()), int(tseg.max())
-            self._parts = parts[2 * done:2 * (done + m)]
+            size = int(ends[m - 1]) - start
+            self._parts = [blob[byte:byte + size]]
+            byte += size
             self._size = int(ends[m - 1])
             done += m
             self._commit_parts()
@@ -477,7 +441,7 @@ class FastWriter(Writer):
 
     def _commit(self) -> None:
         """The held messages (:meth:`_drain`), then the pending batch, into the chunk."""
-        if self._held_cids:
+        if self._held.count:
             self._drain()
         self._commit_parts()
 
@@ -508,7 +472,7 @@ class FastWriter(Writer):
                 index = indices[cid] = _MessageIndex(channel_id=cid, records=[])
             index.add(records)
         cb.num_messages += n
-        cb.record_writer._buffer.write(b"".join(parts))
+        cb.record_writer._buffer.write(parts[0] if len(parts) == 1 else b"".join(parts))
         self._parts = []
         self._index = {}
 

@@ -20,7 +20,7 @@ import json
 import math
 import struct
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
@@ -128,9 +128,12 @@ class Recorder:
         self._layouts: dict[str, struct.Struct] = {}
         self._plans: dict[tuple[str, type], tuple[tuple[str, np.ndarray], ...]] = {}
         self._encoders: dict[str, FieldsEncoder] = {}
+        self._encode_fns: dict[str, Callable[[object], bytes]] = {}  # encoder(topic)
         self._row_templates: dict[str, np.ndarray] = {}  # write_rows: an empty record each
         # a subclass that watches write_series sees write_rows' messages there, encoded now
         self._series_watched = type(self).write_series is not Recorder.write_series
+        # and one that watches write_batch sees write_cycle's messages there
+        self._batch_watched = type(self).write_batch is not Recorder.write_batch
         self._frames: dict[tuple[str, str], str] = {}
         self.message_count = 0
         self.finished = False
@@ -207,18 +210,39 @@ class Recorder:
     def write_batch(self, time_ns: int, messages: list[tuple[str, bytes]]) -> None:
         """Write encoded messages of several topics at one log time, in order (a
         cycle's topics): :meth:`write_bytes` for each, in one call."""
-        if not messages:
+        if messages:
+            topics, datas = zip(*messages, strict=True)
+            self._write_cycle(time_ns, topics, datas)
+
+    def write_cycle(self, time_ns: int, topics: Sequence[str], datas: Sequence[bytes]) -> None:
+        """:meth:`write_batch` of the messages ``datas`` on ``topics`` (one a message).
+
+        A run's cycles that write the same topics in the same order are framed from one
+        template (:meth:`FastWriter.add_cycle
+        <ffexp.recording.mcap_writer.FastWriter.add_cycle>`). In a subclass that
+        overrides :meth:`write_batch`, the messages go through it."""
+        if self._batch_watched:
+            self.write_batch(time_ns, list(zip(topics, datas, strict=True)))
+        else:
+            self._write_cycle(time_ns, topics, datas)
+
+    def _write_cycle(self, time_ns: int, topics: Sequence[str], datas: Sequence[bytes]) -> None:
+        if not datas:
             return
         if time_ns < 0:
-            raise ValueError(f"{messages[0][0]}: negative log time {time_ns} ns")
-        topics, datas = zip(*messages, strict=True)
-        cids = self._cids.get(topics)
+            raise ValueError(f"{topics[0]}: negative log time {time_ns} ns")
+        key = tuple(topics)
+        cids = self._cids.get(key)
         if cids is None:  # a new mix of topics: their channels, registered in order
-            cids = self._cids[topics] = [self._channel(topic) for topic in topics]
-        self._writer.add_at(cids, time_ns, datas)
+            if len(key) != len(datas):
+                raise ValueError(f"{len(key)} topics for {len(datas)} messages")
+            cids = self._cids[key] = [self._channel(topic) for topic in key]
+        elif len(datas) != len(cids):
+            raise ValueError(f"{len(key)} topics for {len(datas)} messages")
+        self._writer.add_cycle(cids, time_ns, datas)
         self.message_count += len(datas)
         if self.taps:
-            for topic, data in messages:
+            for topic, data in zip(topics, datas, strict=True):
                 for tap in self.taps:
                     tap(topic, time_ns, data)
         if self._clock() - self._last_flush >= self._flush_interval_s:
@@ -288,6 +312,19 @@ class Recorder:
             enc = self._encoders[topic] = FieldsEncoder(CDR_TOPICS[topic].spec)
         data = enc.encode(source)
         return self._encode_fields_numpy(topic, source) if data is None else data
+
+    def encoder(self, topic: str) -> Callable[[object], bytes]:
+        """:meth:`encode_fields` of ``topic`` as one function of the source (the same
+        bytes; the numpy record filled where the values ask for it), for a caller that
+        encodes the topic every cycle."""
+        fn = self._encode_fns.get(topic)
+        if fn is None:
+            enc = self._encoders.get(topic)
+            if enc is None:
+                enc = self._encoders[topic] = FieldsEncoder(CDR_TOPICS[topic].spec)
+            fn = self._encode_fns[topic] = enc.with_fallback(
+                lambda source: self._encode_fields_numpy(topic, source))
+        return fn
 
     def _encode_fields_numpy(self, topic: str, source: object) -> bytes:
         rec = self._records.get(topic)

@@ -16,8 +16,6 @@ MuJoCo bindings' calls) on random inputs.
 
 from __future__ import annotations
 
-import ctypes
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,6 +25,7 @@ from numba.extending import intrinsic
 from numpy.typing import NDArray
 
 from drivers.base.blas import dot3, fma
+from drivers.base.mjlib import function_addresses
 from drivers.base.types import F64
 
 __all__ = [
@@ -60,20 +59,11 @@ _KINEMATICS, _COM_POS, _COM_VEL, _PASSIVE, _RNE, _JAC_SITE, _MAKE_M, _FACTOR_M, 
 
 
 def mujoco_addresses() -> NDArray[np.int64]:
-    """The addresses of :data:`MUJOCO`'s functions in MuJoCo's shared library (the one
-    the ``mujoco`` package loaded): the kernels call MuJoCo's own functions with the
-    world's ``mjModel`` and ``mjData`` (their ``_address``), the same calls the
-    Python bindings make, without a Python call each."""
-    import mujoco
-
-    here = Path(mujoco.__file__).parent
-    names = ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
-    found = sorted(p for pattern in names for p in here.glob(pattern))
-    if not found:
-        raise RuntimeError(f"no MuJoCo shared library in {here}")
-    lib = ctypes.CDLL(str(found[0]))
-    return np.array([ctypes.cast(getattr(lib, name), ctypes.c_void_p).value
-                     for name in MUJOCO], dtype=np.int64)
+    """The addresses of :data:`MUJOCO`'s functions in MuJoCo's shared library: the
+    kernels call MuJoCo's own functions with the world's ``mjModel`` and ``mjData``
+    (their ``_address``), the same calls the Python bindings make
+    (:func:`drivers.base.mjlib.function_addresses`)."""
+    return function_addresses(MUJOCO)
 
 
 def _ptr(context: Any, builder: Any, ty: Any, value: Any) -> Any:

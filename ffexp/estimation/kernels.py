@@ -36,9 +36,7 @@ on its own keeps one run's):
 
 from __future__ import annotations
 
-import ctypes
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -48,6 +46,7 @@ from numba.extending import intrinsic
 from numpy.typing import NDArray
 
 from drivers.base.blas import dot3, dot3_n
+from drivers.base.mjlib import function_addresses
 from drivers.base.types import F64, FtStatus
 
 #: The status bit of a saturated F/T sample.
@@ -108,16 +107,7 @@ def mujoco_functions() -> NDArray[np.int64]:
     own rotation functions from compiled code, so its numbers are MuJoCo's bits
     whatever MuJoCo's version (an own copy of them would have to follow MuJoCo's
     arithmetic to the last ulp, near-orthonormal matrices included)."""
-    import mujoco
-
-    here = Path(mujoco.__file__).parent
-    names = ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
-    found = sorted(p for pattern in names for p in here.glob(pattern))
-    if not found:
-        raise RuntimeError(f"no MuJoCo shared library in {here}")
-    lib = ctypes.CDLL(str(found[0]))
-    return np.array([ctypes.cast(lib.mju_mat2Quat, ctypes.c_void_p).value,
-                     ctypes.cast(lib.mju_quat2Vel, ctypes.c_void_p).value], dtype=np.int64)
+    return function_addresses(("mju_mat2Quat", "mju_quat2Vel"))
 
 
 # ---------------------------------------------------------------- the wrench filter

@@ -86,12 +86,10 @@ def step_together(bodies: Sequence[Callable[[], object]], threads: int = 1) -> N
     PhysicsGate(threads).run(bodies)
 
 
-class BatchExecutor(Executor):
-    """Runs ``run_one`` jobs in batches of at most ``batch`` on ``processes`` processes
-    (``pool``: a process pool of them, or Ray's tasks, ``processes`` the cluster's CPUs).
-
-    Anything else submitted goes to the pool as it is (one call in one process).
-    """
+class _RunsExecutor(Executor):
+    """What both batch executors share: ``run_one`` jobs queued under one lock (each with
+    its own future), anything else submitted to ``pool`` as it is, and the pool's
+    processes for :func:`~ffexp.sweeps.executors.end_workers`."""
 
     def __init__(self, pool: Executor, processes: int, batch: int,
                  threads: int = 1) -> None:
@@ -101,7 +99,6 @@ class BatchExecutor(Executor):
         self.threads = max(1, threads)
         self._cond = threading.Condition()
         self._pending: deque[tuple[Job, Future[dict[str, Any]]]] = deque()
-        self._inflight = 0
         self._shutdown = False
 
     # the pool's processes, for end_workers
@@ -121,9 +118,29 @@ class BatchExecutor(Executor):
             if self._shutdown:
                 raise RuntimeError("cannot schedule new futures after shutdown")
             self._pending.append((args[0], fut))
-            failed = self._dispatch(full_only=True) if len(self._pending) >= self.batch else []
+            failed = self._queued()
         _fail(failed)
         return fut  # type: ignore[return-value]  # run_one's future
+
+    def _queued(self) -> list[tuple[Future[Any], BaseException]]:
+        """A job was queued (the lock held): send what can go; the futures to fail."""
+        raise NotImplementedError
+
+
+class BatchExecutor(_RunsExecutor):
+    """Runs ``run_one`` jobs in batches of at most ``batch`` on ``processes`` processes
+    (``pool``: a process pool of them, or Ray's tasks, ``processes`` the cluster's CPUs).
+
+    Anything else submitted goes to the pool as it is (one call in one process).
+    """
+
+    def __init__(self, pool: Executor, processes: int, batch: int,
+                 threads: int = 1) -> None:
+        super().__init__(pool, processes, batch, threads)
+        self._inflight = 0
+
+    def _queued(self) -> list[tuple[Future[Any], BaseException]]:
+        return self._dispatch(full_only=True) if len(self._pending) >= self.batch else []
 
     def flush(self) -> None:
         """Send the jobs submitted so far (the engine submitted all it has for now)."""
@@ -266,7 +283,7 @@ class _Slot:
         self.readable = True  # its pipe not at its end yet
 
 
-class RefillExecutor(Executor):
+class RefillExecutor(_RunsExecutor):
     """Runs ``run_one`` jobs in batch processes that each keep up to ``batch`` runs
     live (``pool``: a process pool of ``processes`` processes): a job goes to the batch
     process with the fewest runs as soon as it has a free slot (a process without a
@@ -279,40 +296,17 @@ class RefillExecutor(Executor):
 
     def __init__(self, pool: Executor, processes: int, batch: int,
                  threads: int = 1) -> None:
-        self._pool = pool
-        self.processes = max(1, processes)
-        self.batch = max(1, batch)
-        self.threads = max(1, threads)
-        self._cond = threading.Condition()
-        self._pending: deque[tuple[Job, Future[dict[str, Any]]]] = deque()
+        super().__init__(pool, processes, batch, threads)
         self._slots: list[_Slot | None] = [None] * self.processes
         self._keys = 0
-        self._shutdown = False
         self._broken: BaseException | None = None
         self._collector: threading.Thread | None = None
         self._wake_r: Any = None
         self._wake_w: Any = None
 
-    @property
-    def _processes(self) -> Any:
-        return getattr(self._pool, "_processes", None)
-
-    @property
-    def _executor_manager_thread(self) -> Any:
-        return getattr(self._pool, "_executor_manager_thread", None)
-
-    def submit(self, fn: Callable[..., T], /, *args: Any, **kwargs: Any) -> Future[T]:
-        if fn is not worker.run_one or kwargs or len(args) != 1:
-            return self._pool.submit(fn, *args, **kwargs)
-        fut: Future[dict[str, Any]] = Future()
-        with self._cond:
-            if self._shutdown:
-                raise RuntimeError("cannot schedule new futures after shutdown")
-            self._start_collector()
-            self._pending.append((args[0], fut))
-            failed = self._dispatch()
-        _fail(failed)
-        return fut  # type: ignore[return-value]  # run_one's future
+    def _queued(self) -> list[tuple[Future[Any], BaseException]]:
+        self._start_collector()
+        return self._dispatch()
 
     def flush(self) -> None:
         """Jobs go as they come: nothing waits for a flush."""

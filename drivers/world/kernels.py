@@ -19,13 +19,11 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from llvmlite import ir  # type: ignore[import-untyped]
-from numba import njit, types
-from numba.extending import intrinsic
+from numba import njit
 from numpy.typing import NDArray
 
 from drivers.base.blas import dot3, fma
-from drivers.base.mjlib import function_addresses
+from drivers.base.mjlib import c_call, function_addresses
 from drivers.base.types import F64
 
 __all__ = [
@@ -66,90 +64,15 @@ def mujoco_addresses() -> NDArray[np.int64]:
     return function_addresses(MUJOCO)
 
 
-def _ptr(context: Any, builder: Any, ty: Any, value: Any) -> Any:
-    """An array argument's data pointer, as ``double*``."""
-    data = context.make_array(ty)(context, builder, value).data
-    return builder.bitcast(data, ir.DoubleType().as_pointer())
-
-
-def _call_md_typing(typingctx, addr, m, d):  # type: ignore[no-untyped-def]
-    """``f(m, d)`` at the address ``addr`` (``m``, ``d``: the structs' addresses)."""
-    sig = types.void(types.int64, types.int64, types.int64)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        vp = ir.IntType(8).as_pointer()
-        fnty = ir.FunctionType(ir.VoidType(), [vp, vp])
-        fn = builder.inttoptr(args[0], fnty.as_pointer())
-        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp)])
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
-def _call_mdi_a_typing(typingctx, addr, m, d, i, a):  # type: ignore[no-untyped-def]
-    """``f(m, d, i, a)`` at ``addr`` (``mj_rne``: an int, then an array)."""
-    sig = types.void(types.int64, types.int64, types.int64, types.int32, a)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        vp = ir.IntType(8).as_pointer()
-        dp = ir.DoubleType().as_pointer()
-        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, ir.IntType(32), dp])
-        fn = builder.inttoptr(args[0], fnty.as_pointer())
-        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp), args[3],
-                          _ptr(context, builder, signature.args[4], args[4])])
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
-def _call_mdaai_typing(typingctx, addr, m, d, a, b, i):  # type: ignore[no-untyped-def]
-    """``f(m, d, a, b, i)`` at ``addr`` (``mj_jacSite``: two arrays, then an int)."""
-    sig = types.void(types.int64, types.int64, types.int64, a, b, types.int32)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        vp = ir.IntType(8).as_pointer()
-        dp = ir.DoubleType().as_pointer()
-        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, dp, dp, ir.IntType(32)])
-        fn = builder.inttoptr(args[0], fnty.as_pointer())
-        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp),
-                          _ptr(context, builder, signature.args[3], args[3]),
-                          _ptr(context, builder, signature.args[4], args[4]), args[5]])
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
-def _call_mda_typing(typingctx, addr, m, d, a):  # type: ignore[no-untyped-def]
-    """``f(m, d, a)`` at ``addr`` (``mj_fullM``: an array)."""
-    sig = types.void(types.int64, types.int64, types.int64, a)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        vp = ir.IntType(8).as_pointer()
-        dp = ir.DoubleType().as_pointer()
-        fnty = ir.FunctionType(ir.VoidType(), [vp, vp, dp])
-        fn = builder.inttoptr(args[0], fnty.as_pointer())
-        builder.call(fn, [builder.inttoptr(args[1], vp), builder.inttoptr(args[2], vp),
-                          _ptr(context, builder, signature.args[3], args[3])])
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
-_call_md: Any = intrinsic(_call_md_typing)
-_call_mdi_a: Any = intrinsic(_call_mdi_a_typing)
-_call_mdaai: Any = intrinsic(_call_mdaai_typing)
-_call_mda: Any = intrinsic(_call_mda_typing)
-
-
 @njit(cache=True)
 def end_state(fns: Any, m: int, d: int, qfrc_bias: F64) -> None:
     """The end state's kinematics and bias forces: ``mj_kinematics``, ``mj_comPos``,
     ``mj_comVel``, ``mj_passive`` and ``mj_rne(m, d, 0, qfrc_bias)``, in this order."""
-    _call_md(fns[_KINEMATICS], m, d)
-    _call_md(fns[_COM_POS], m, d)
-    _call_md(fns[_COM_VEL], m, d)
-    _call_md(fns[_PASSIVE], m, d)
-    _call_mdi_a(fns[_RNE], m, d, np.int32(0), qfrc_bias)
+    c_call(fns[_KINEMATICS], (m, d))
+    c_call(fns[_COM_POS], (m, d))
+    c_call(fns[_COM_VEL], (m, d))
+    c_call(fns[_PASSIVE], (m, d))
+    c_call(fns[_RNE], (m, d, np.int32(0), qfrc_bias))
 
 
 @njit(cache=True)
@@ -159,16 +82,16 @@ def tcf_kinematics(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfu
     ``jac2`` (translational, rotational), ``jfull2[h] = rot^T @ jac2[h]`` (summed as
     OpenBLAS's ``dgemm``, :func:`dot3`), ``mj_makeM`` and ``mj_factorM`` if ``make_m``,
     then ``mj_fullM`` into ``mfull``."""
-    _call_mdaai(fns[_JAC_SITE], m, d, jac2[0], jac2[1], np.int32(site))
+    c_call(fns[_JAC_SITE], (m, d, jac2[0], jac2[1], np.int32(site)))
     for h in range(2):
         for i in range(3):
             for c in range(jac2.shape[2]):
                 jfull2[h, i, c] = dot3(rot[0, i], rot[1, i], rot[2, i],
                                        jac2[h, 0, c], jac2[h, 1, c], jac2[h, 2, c])
     if make_m:
-        _call_md(fns[_MAKE_M], m, d)
-        _call_md(fns[_FACTOR_M], m, d)
-    _call_mda(fns[_FULL_M], m, d, mfull)
+        c_call(fns[_MAKE_M], (m, d))
+        c_call(fns[_FACTOR_M], (m, d))
+    c_call(fns[_FULL_M], (m, d, mfull))
 
 
 # ---------------------------------------------------------------- the F/T model

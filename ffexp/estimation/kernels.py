@@ -37,16 +37,13 @@ on its own keeps one run's):
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
-from llvmlite import ir  # type: ignore[import-untyped]
-from numba import njit, types
-from numba.extending import intrinsic
+from numba import njit
 from numpy.typing import NDArray
 
 from drivers.base.blas import dot3, dot3_n
-from drivers.base.mjlib import function_addresses
+from drivers.base.mjlib import c_call, function_addresses
 from drivers.base.types import F64, FtStatus
 
 #: The status bit of a saturated F/T sample.
@@ -62,43 +59,6 @@ CD_IN_CONTACT, CD_PENDING, CD_SINCE = 0, 1, 2
 CD_SIZE = 3
 CC_ON, CC_OFF, CC_HOLD_ON, CC_HOLD_OFF, CC_FZ = 0, 1, 2, 3, 4
 CC_SIZE = 5
-
-
-def _call_mat2quat_typing(typingctx, addr, quat, mat):  # type: ignore[no-untyped-def]
-    """``mju_mat2Quat(quat, mat)`` at the address ``addr`` (MuJoCo's own function)."""
-    sig = types.void(types.int64, quat, mat)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        q = context.make_array(signature.args[1])(context, builder, args[1]).data
-        m = context.make_array(signature.args[2])(context, builder, args[2]).data
-        d = ir.DoubleType().as_pointer()
-        fn = builder.inttoptr(args[0], ir.FunctionType(ir.VoidType(), [d, d]).as_pointer())
-        builder.call(fn, [q, m])
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
-_call_mat2quat: Any = intrinsic(_call_mat2quat_typing)
-
-
-def _call_quat2vel_typing(typingctx, addr, vel, quat, dt):  # type: ignore[no-untyped-def]
-    """``mju_quat2Vel(vel, quat, dt)`` at the address ``addr`` (MuJoCo's own function)."""
-    sig = types.void(types.int64, vel, quat, types.float64)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        v = context.make_array(signature.args[1])(context, builder, args[1]).data
-        q = context.make_array(signature.args[2])(context, builder, args[2]).data
-        d = ir.DoubleType()
-        fnty = ir.FunctionType(ir.VoidType(), [d.as_pointer(), d.as_pointer(), d])
-        fn = builder.inttoptr(args[0], fnty.as_pointer())
-        builder.call(fn, [v, q, args[3]])
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
-_call_quat2vel: Any = intrinsic(_call_quat2vel_typing)
 
 
 def mujoco_functions() -> NDArray[np.int64]:
@@ -221,8 +181,8 @@ def motion_step(x: F64, rot: F64, theta: F64, started: bool, pose: F64, gain: F6
                                     pose[0, j], pose[1, j], pose[2, j])
         q = work[9:13]
         v = work[13:16]
-        _call_mat2quat(mju[0], q, m)
-        _call_quat2vel(mju[1], v, q, 1.0)
+        c_call(mju[0], (q, m))
+        c_call(mju[1], (v, q, 1.0))
         for i in range(3):
             theta[i] += dot3_n(rot[i, 0], rot[i, 1], rot[i, 2], v[0], v[1], v[2])
     for i in range(3):

@@ -26,7 +26,6 @@ _OBJ_BODY = mujoco.mjtObj.mjOBJ_BODY
 _OBJECT_VELOCITY = mujoco.mj_objectVelocity
 #: MuJoCo's ``[w, v]`` as ``[v, w]``
 _V_W = np.array([3, 4, 5, 0, 1, 2])
-_EYE4 = np.eye(4)
 
 
 def body_twist(model: mujoco.MjModel, data: mujoco.MjData, body: int, work: F64) -> F64:
@@ -39,12 +38,9 @@ def body_twist(model: mujoco.MjModel, data: mujoco.MjData, body: int, work: F64)
 def _local(pos: F64, quat: F64) -> F64:
     """4x4 of a position and a unit quaternion ``[w, x, y, z]`` (a body's or a site's in
     its parent)."""
-    out = _EYE4.copy()
     mat = np.zeros(9)
     mujoco.mju_quat2Mat(mat, np.asarray(quat, dtype=np.float64))
-    out[:3, :3] = mat.reshape(3, 3)
-    out[:3, 3] = pos
-    return out
+    return _pose(np.asarray(pos, dtype=np.float64), mat)
 
 
 class FreeBodies:

@@ -127,7 +127,6 @@ class ToolContact:
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, tool_body: int,
                  tool_geoms: set[int], tcp: int) -> None:
         self._m, self._d = model, data
-        self._tool_geoms = tool_geoms
         self._is_tool_geom = np.zeros(model.ngeom, dtype=bool)
         self._is_tool_geom[list(tool_geoms)] = True
         # views into MuJoCo's buffers

@@ -172,8 +172,6 @@ class SimWorld:
 
         # Preallocated work arrays.
         self._jac2 = np.zeros((2, 3, m.nv))  # MuJoCo's translational, rotational Jacobian
-        self._jacp = self._jac2[0]
-        self._jacr = self._jac2[1]
         self._mfull = np.zeros((m.nv, m.nv))
         self._jfull = np.zeros((6, m.nv))
         self._jfull2 = self._jfull.reshape(2, 3, m.nv)  # the same memory

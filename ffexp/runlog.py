@@ -41,6 +41,7 @@ from drivers.base.types import (
     NS_PER_S,
     AppliedCommand,
     CartesianCommand,
+    Extras,
     FtSamples,
     GroundTruth,
     RobotState,
@@ -110,6 +111,14 @@ class _Encoders(dict[str, Callable[[object], bytes] | None]):
     def __missing__(self, topic: str) -> Callable[[object], bytes] | None:
         fn = self[topic] = self._recorder.encoder(topic) if self._kept[topic] else None
         return fn
+
+    def extras_into(self, extras: Extras, topics: list[str], datas: list[bytes]) -> None:
+        """A back-end's extras' kept topics and their messages appended to the cycle's."""
+        for topic in extras.topics():
+            fn = self[topic]
+            if fn is not None:
+                topics.append(topic)
+                datas.append(fn(extras))
 
 
 class RunLog:
@@ -245,13 +254,8 @@ class RunLog:
         assert enc is not None
         topics = ["/robot/state"]
         datas = [self._state(lay["/robot/state"], state)]
-        extras = state.extras
-        if extras is not None:
-            for topic in extras.topics():
-                fn = enc[topic]
-                if fn is not None:
-                    topics.append(topic)
-                    datas.append(fn(extras))
+        if state.extras is not None:
+            enc.extras_into(state.extras, topics, datas)
         topics.append("/estimator/state")
         datas.append(lay["/estimator/state"].pack(
             CDR_HEADER, *est.wrench.tolist(), *est.wrench_std.tolist(), *est.bias.tolist(),
@@ -284,13 +288,8 @@ class RunLog:
         if kept["/control/command"]:
             topics.append("/control/command")
             datas.append(self._command(lay["/control/command"], intent, applied))
-        extras = applied.extras
-        if extras is not None:
-            for topic in extras.topics():
-                fn = enc[topic]
-                if fn is not None:
-                    topics.append(topic)
-                    datas.append(fn(extras))
+        if applied.extras is not None:
+            enc.extras_into(applied.extras, topics, datas)
         truth = state.truth
         if truth is not None:
             if truth.attached is not self._attached:  # once a run: frames fixed on a body

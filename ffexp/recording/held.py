@@ -78,9 +78,10 @@ def sequences(c: NDArray[np.uint16], counts: dict[int, int]) -> NDArray[np.int64
     return seq
 
 
-def _heads(c: NDArray[Any], t: NDArray[Any], sizes: NDArray[Any],
-           seq: NDArray[Any]) -> NDArray[Any]:
-    heads = np.empty(len(c), dtype=HEAD_DTYPE)
+def _fill_heads(heads: NDArray[Any], c: NDArray[Any], t: NDArray[Any],
+                sizes: NDArray[Any], seq: NDArray[Any]) -> NDArray[Any]:
+    """Message record heads (``HEAD_DTYPE`` records) of channels ``c``, log and publish
+    times ``t``, data sizes and sequences, written into ``heads``."""
     heads["op"] = OPCODE_MESSAGE
     heads["length"] = sizes + MESSAGE_FIXED
     heads["channel"] = c
@@ -88,6 +89,11 @@ def _heads(c: NDArray[Any], t: NDArray[Any], sizes: NDArray[Any],
     heads["log_time"] = t
     heads["publish_time"] = t
     return heads
+
+
+def _heads(c: NDArray[Any], t: NDArray[Any], sizes: NDArray[Any],
+           seq: NDArray[Any]) -> NDArray[Any]:
+    return _fill_heads(np.empty(len(c), dtype=HEAD_DTYPE), c, t, sizes, seq)
 
 
 def _records(heads: NDArray[Any], datas: Sequence[bytes]) -> bytearray:
@@ -164,13 +170,7 @@ class _Rows:
         data = rec["data"]
         for name in self.columns[0]:
             data[name] = np.concatenate([cols[name] for cols in self.columns])
-        head = rec["head"]
-        head["op"] = OPCODE_MESSAGE
-        head["length"] = sizes + MESSAGE_FIXED
-        head["channel"] = c
-        head["sequence"] = seq
-        head["log_time"] = t
-        head["publish_time"] = t
+        _fill_heads(rec["head"], c, t, sizes, seq)
         return raw.reshape(-1).data
 
 

@@ -104,6 +104,7 @@ _WHAT = "sim robot"
 _CARTSTIFF = int(CmdFlags.CARTSTIFF)  # ``int & IntFlag`` goes through the enum machinery
 _TCPFT = int(CmdFlags.TCPFT)
 _CMD = FriState.CMD
+_FALLBACK = LinkEvent.FALLBACK
 _CARTESIAN = int(CARTESIAN_FLAGS)
 _CART_IMPEDANCE = ControlMode.CART_IMPEDANCE
 _APPLIED = ApplyStatus.APPLIED
@@ -382,7 +383,7 @@ class SimRobot(RobotDriver):
             arm = brake_command(world.last_state)
             self._brake = False
             self.delay.clear()
-        elif event is LinkEvent.FALLBACK:
+        elif event is _FALLBACK:
             arm = stop_command(world.last_state)
             self.delay.clear()
         elif not (self._answered and link.state == _CMD):  # no answer, or not taken

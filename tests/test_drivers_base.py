@@ -68,3 +68,24 @@ def test_requires_open_names_device_and_method() -> None:
         d.read(1)
     d.is_open = True
     assert d.read(1) == 2
+
+
+def test_ground_truth_messages_name_each_body_and_unattached_site() -> None:
+    """The truth's messages: the truth itself, each body, each site not fixed on a body
+    (as a frame of its pose), under the prefix; the names kept per prefix do not leak
+    from one prefix or truth to another."""
+    from drivers.base.types import AttachedFrame, BodyTruth, GroundTruth
+
+    for pre in ("/sim", "/other", "/sim"):
+        bodies = {"target": BodyTruth(), "base": BodyTruth(mass_kg=3.0)}
+        sites = {"mouth": np.eye(4) * 2.0, "tcp": np.eye(4) * 3.0, "fixed": np.eye(4)}
+        attached = {"fixed": AttachedFrame("target", np.eye(4))}
+        truth = GroundTruth(bodies=bodies, sites=sites, attached=attached, topic_prefix=pre)
+        got = truth.messages()
+        assert [t for t, _ in got] == [f"{pre}/truth", f"{pre}/body/target", f"{pre}/body/base",
+                                       f"{pre}/site/mouth", f"{pre}/site/tcp"]
+        assert got[0][1] is truth and got[1][1] is bodies["target"] and got[2][1] is bodies["base"]
+        assert got[3][1].pose is sites["mouth"]
+        assert got[4][1].pose is sites["tcp"]
+        bare = GroundTruth(bodies={"b": BodyTruth()}, topic_prefix=pre)
+        assert [t for t, _ in bare.messages()] == [f"{pre}/truth", f"{pre}/body/b"]

@@ -115,3 +115,22 @@ def test_the_torque_rate_and_the_joint_limits_bound_the_law() -> None:
     for _ in range(200):
         tau = law.torque(q, np.zeros(7), tcp, tool, cmd)
     assert np.all(np.abs(tau) <= np.array([87.0] * 4 + [12.0] * 3) + 1e-12)
+
+
+def test_cross3_is_numpys_cross_bit_for_bit() -> None:
+    """The plain-float cross product gives np.cross's values, signs of zero included, on
+    random vectors of many scales, with zeros and ones among them."""
+    from drivers.franka.model import cross3
+
+    rng = np.random.default_rng(11)
+    special = np.array([0.0, -0.0, 1.0, -1.0, 1e-300, 1e300])
+    for _ in range(3000):
+        a = rng.normal(size=3) * 10.0 ** rng.integers(-8, 8, 3)
+        b = rng.normal(size=3) * 10.0 ** rng.integers(-8, 8, 3)
+        if rng.random() < 0.3:
+            a[rng.integers(0, 3)] = rng.choice(special)
+            b[rng.integers(0, 3)] = rng.choice(special)
+        got = np.array(cross3(a, b))
+        with np.errstate(over="ignore", invalid="ignore"):  # (1e300 squared: inf, as floats)
+            ref = np.cross(a, b)
+        assert got.tobytes() == ref.tobytes(), (a, b)

@@ -23,14 +23,16 @@ from drivers.description import load_scene
 from drivers.fri.command import applied_from_fri, copy_fri_command, robot_state_from_fri
 from drivers.fri.emulate.krc import (
     CommandDelay,
+    StateMeasurement,
     arm_command_from_fri,
     fri_measurement,
     measurement_head,
     measurement_of,
+    state_free_head,
 )
 from drivers.fri.emulate.lockstep import SimRobot
 from drivers.fri.link import ERROR_SOFTWARE_LIMIT, KrcLink, QualityThresholds
-from drivers.fri.types import CmdFlags, FriCommand, FriQuality, FriState
+from drivers.fri.types import CmdFlags, FriCommand, FriMeasurement, FriQuality, FriState
 from drivers.world import ArmCommand, SimWorld
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -86,6 +88,37 @@ def test_measurement_from_a_head_equals_the_dataclass_with_the_link_fields() -> 
     assert m == ref
     assert list(vars(m)) == list(vars(ref))
     assert m.link_events is not measurement_of(head, s).link_events  # each its own
+
+
+def test_a_state_measurement_reads_the_state_once_and_equals_measurement_of() -> None:
+    """A :class:`StateMeasurement` holds the head's fields only until one of the state's
+    is read; then it holds every field, each the value (the very object) that
+    :func:`measurement_of` gives, and a field set before keeps its value."""
+    world = SimWorld(load_scene(PAPER), seed=4)
+    for _ in range(3):
+        world.step(None)
+    s = world.last_state
+    s.resolve()
+    head = measurement_head(0.005, FriState.CMD, FriQuality.PERFECT, 0, (1.0, 0.0, 0.0, 0.0), 2)
+    ref = measurement_of(head, s)
+    lazy: StateMeasurement = object.__new__(StateMeasurement)
+    lazy.__dict__ = {**state_free_head(head), "link_events": []}
+    lazy.arm_state = s
+    assert not set(vars(lazy)) & {"seq", "msr_jnt_pos", "jacobian", "warning"}
+    assert (lazy.state, lazy.quality, lazy.miss_counter) == (FriState.CMD, FriQuality.PERFECT, 2)
+    assert "seq" not in vars(lazy)  # (the link's fields read nothing of the state)
+    lazy.time_ns = 7
+    assert lazy.jacobian is ref.jacobian
+    assert lazy.time_ns == 7 and lazy.seq == ref.seq == s.cycle
+    lazy.time_ns = ref.time_ns
+    assert lazy == ref and ref == lazy
+    assert sorted(vars(lazy)) == sorted(vars(ref))
+    for name, value in vars(ref).items():
+        assert getattr(lazy, name) is value or getattr(lazy, name) == value, name
+    assert StateMeasurement.seq == FriMeasurement.seq  # (the class keeps the defaults)
+    other = measurement_of(head, s)
+    other.seq += 1
+    assert lazy != other and other != lazy
 
 
 def _state_view(state: RobotState) -> list[tuple[str, object]]:
@@ -150,7 +183,8 @@ def test_lockstep_cycles_equal_the_plain_rules(delay: int) -> None:
                                 link.error)
         ref_m.answer_rate, ref_m.latency_s, ref_m.jitter_s, ref_m.miss_rate = link.rates()
         ref_m.miss_counter = link.missed
-        assert m == ref_m and list(vars(m)) == list(vars(ref_m)), i
+        assert m == ref_m and ref_m == m, i
+        assert sorted(vars(m)) == sorted(vars(ref_m)), i  # (read: every field filled)
         ref_state = robot_state_from_fri(m)
         ref_state.truth = world.last_state.truth
         assert _state_view(state) == _state_view(ref_state), i

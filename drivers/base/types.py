@@ -140,11 +140,27 @@ class GroundTruth:
         source's attributes are its topic's fields by name. The frames of
         :attr:`attached` are not among them (:meth:`attached_message`)."""
         pre = self.topic_prefix
-        out: list[tuple[str, object]] = [(f"{pre}/truth", self)]
-        out += [(f"{pre}/body/{name}", body) for name, body in self.bodies.items()]
-        attached = self.attached
-        out += [(f"{pre}/site/{name}", _Frame(pose)) for name, pose in self.sites.items()
-                if name not in attached]
+        names = _TOPIC_NAMES.get(pre)
+        if names is None:
+            names = _TOPIC_NAMES[pre] = (f"{pre}/truth", {}, {})
+        out: list[tuple[str, object]] = [(names[0], self)]
+        # (plain loops: a comprehension is a function call of its own, every cycle; the
+        # topics' names made once per prefix and name)
+        body_topics = names[1]
+        for name, body in self.bodies.items():
+            topic = body_topics.get(name)
+            if topic is None:
+                topic = body_topics[name] = f"{pre}/body/{name}"
+            out.append((topic, body))
+        if self.sites:
+            attached = self.attached
+            site_topics = names[2]
+            for name, pose in self.sites.items():
+                if name not in attached:
+                    topic = site_topics.get(name)
+                    if topic is None:
+                        topic = site_topics[name] = f"{pre}/site/{name}"
+                    out.append((topic, _Frame(pose)))
         return out
 
     def attached_message(self) -> tuple[str, dict[str, object]] | None:
@@ -156,6 +172,11 @@ class GroundTruth:
         return f"{self.topic_prefix}/attached", {"frames": {
             name: {"body": a.body, "offset": a.offset.reshape(-1).tolist()}
             for name, a in self.attached.items()}}
+
+
+#: Per topic prefix, the topics of :meth:`GroundTruth.messages`: the truth's, and per
+#: name a body's and a site's (made once each).
+_TOPIC_NAMES: dict[str, tuple[str, dict[str, str], dict[str, str]]] = {}
 
 
 @dataclass

@@ -17,7 +17,16 @@ from drivers.base.types import F64
 from drivers.description.arm import ArmDescription
 from drivers.description.fr3 import FR3
 
-__all__ = ["ArmModel"]
+__all__ = ["ArmModel", "cross3"]
+
+
+def cross3(a: F64, b: F64) -> list[float]:
+    """``np.cross(a, b)`` of two 3-vectors in plain floats: the same products and
+    differences in the same order (numpy's ``a1 b2 - a2 b1``, ...), the same values,
+    without numpy's per-call machinery (tests/test_franka_model.py checks them)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return [a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0]
 
 
 class ArmModel:
@@ -33,6 +42,10 @@ class ArmModel:
         self._rotors = np.diag(np.asarray(rotors, dtype=np.float64))
         self._flange = np.eye(4)
         self._flange[:3, 3] = arm.flange_m
+        # per joint, its axis as an array, and per link its principal inertia as a
+        # diagonal matrix (made once, not per call)
+        self._axes = [np.asarray(a, dtype=np.float64) for a in arm.joint_axes]
+        self._inertia_diags = [np.diag(i) for i in self._inertias]
 
     def frames(self, q: F64) -> list[F64]:
         """Each link frame's pose in the base frame (4x4), links 1..n."""
@@ -55,8 +68,8 @@ class ArmModel:
         p = tcp[:3, 3]
         jac = np.empty((6, self.n))
         for i, f in enumerate(frames):
-            z = f[:3, :3] @ np.asarray(self.arm.joint_axes[i], dtype=np.float64)
-            jac[:3, i] = np.cross(z, p - f[:3, 3])
+            z = f[:3, :3] @ self._axes[i]
+            jac[:3, i] = cross3(z, p - f[:3, 3])
             jac[3:, i] = z
         r_t = tcp[:3, :3].T
         jac[:3] = r_t @ jac[:3]
@@ -67,8 +80,7 @@ class ArmModel:
         """The joint-space mass matrix (nxn) at ``q``, the drives' inertia included."""
         frames = self.frames(q)
         origins = [f[:3, 3] for f in frames]
-        axes = [f[:3, :3] @ np.asarray(a, dtype=np.float64)
-                for f, a in zip(frames, self.arm.joint_axes, strict=True)]
+        axes = [f[:3, :3] @ a for f, a in zip(frames, self._axes, strict=True)]
         m = self._rotors.copy()
         for k, f in enumerate(frames):
             r = f[:3, :3]
@@ -76,8 +88,8 @@ class ArmModel:
             jv = np.zeros((3, self.n))
             jw = np.zeros((3, self.n))
             for i in range(k + 1):
-                jv[:, i] = np.cross(axes[i], c - origins[i])
+                jv[:, i] = cross3(axes[i], c - origins[i])
                 jw[:, i] = axes[i]
-            inertia = r @ np.diag(self._inertias[k]) @ r.T
+            inertia = r @ self._inertia_diags[k] @ r.T
             m += self._masses[k] * jv.T @ jv + jw.T @ inertia @ jw
         return m

@@ -71,6 +71,7 @@ ROBOT_MODE_RUNNING: Final = 7
 SAFETY_OK: Final = (1, 2)  # NORMAL, REDUCED
 
 SCRIPT_NAME: Final = "ffexp_control.script"
+_WRENCH: Final = list(registers.WRENCH)  # (one multi-field index: every wrench register)
 
 
 def control_script() -> str:
@@ -275,5 +276,5 @@ class UrRobot(RobotDriver):
             held = CartesianCommand(pose_m=self._pose.copy())
             return AppliedCommand(held, ApplyStatus.HELD)
         applied = command.copy()
-        applied.wrench_n_nm[:] = [self._record[n] for n in registers.WRENCH]
+        applied.wrench_n_nm[:] = self._record[_WRENCH].item()  # (the registers' doubles)
         return AppliedCommand(applied, ApplyStatus.APPLIED)

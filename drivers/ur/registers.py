@@ -142,11 +142,6 @@ def fill_command(record: np.ndarray, seq: int, cmd: CartesianCommand | None,
                  servo_gain: float) -> Mode:
     """Write one cycle's command into ``record`` (an input recipe record over
     :data:`INPUT_NAMES`) and return the mode. ``None`` holds at ``hold_pose_m``."""
-    record[SEQ] = seq & 0x7FFFFFFF
-    record[DAMPING] = damping
-    record[GAIN_SCALING] = gain_scaling
-    record[LOOKAHEAD] = lookahead_s
-    record[SERVO_GAIN] = servo_gain
     if cmd is None:
         target, compliant = pose_vector(hold_pose_m), np.zeros(6, dtype=bool)
         mode = Mode.HOLD
@@ -155,6 +150,16 @@ def fill_command(record: np.ndarray, seq: int, cmd: CartesianCommand | None,
         mode = Mode.FORCE if compliant.any() else Mode.SERVO
     wrench = np.where(compliant, cmd.wrench_n_nm if cmd is not None else 0.0, 0.0)
     limits = np.where(compliant, speed_limits, deviation_limits)
+    if record.dtype.names == INPUT_NAMES:  # every field at once, in recipe order
+        record[()] = (seq & 0x7FFFFFFF, int(mode), selection_bits(compliant), *target.tolist(),
+                      *wrench.tolist(), *limits.tolist(), damping, gain_scaling, lookahead_s,
+                      servo_gain)
+        return mode
+    record[SEQ] = seq & 0x7FFFFFFF
+    record[DAMPING] = damping
+    record[GAIN_SCALING] = gain_scaling
+    record[LOOKAHEAD] = lookahead_s
+    record[SERVO_GAIN] = servo_gain
     record[MODE] = int(mode)
     record[SELECTION] = selection_bits(compliant)
     for names, values in ((POSE, target), (WRENCH, wrench), (LIMITS, limits)):

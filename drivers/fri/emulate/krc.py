@@ -64,6 +64,7 @@ __all__ = [
     "MAX_TCP_TORQUE_NM",
     "SOFTWARE_LIMITS_DEG",
     "CommandDelay",
+    "StateMeasurement",
     "arm_command_from_fri",
     "arm_mode",
     "brake_command",
@@ -75,6 +76,7 @@ __all__ = [
     "plausible_command",
     "software_limit_error",
     "software_limits_rad",
+    "state_free_head",
     "stop_command",
 ]
 
@@ -350,6 +352,65 @@ def measurement_of(head: dict[str, object], s: ArmState) -> FriMeasurement:
     m: FriMeasurement = _new(FriMeasurement)
     m.__dict__ = d
     return m
+
+
+class StateMeasurement(FriMeasurement):
+    """:func:`measurement_of` built lazily: the fields of the link (the head's) are set
+    now, those of the world state (:data:`_STATE_FIELDS` but ``link_events``) are read
+    from :attr:`arm_state` on the first read of any of them, all at once, with the values
+    :func:`measurement_of` gives (a lockstep KRC's recording that keeps only the link
+    pays nothing for them). Equal to the :class:`FriMeasurement` of the same values."""
+
+    __slots__ = ("arm_state",)
+    arm_state: ArmState
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, FriMeasurement):
+            return NotImplemented
+        return _compared(self) == _compared(other)
+
+    __hash__ = None  # type: ignore[assignment]  # (as the dataclass's: mutable)
+
+
+class _FromState:
+    """A field of :class:`StateMeasurement` not read yet: reading it fills them all."""
+
+    __slots__ = ("name",)
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def __get__(self, m: StateMeasurement | None, owner: type | None = None) -> object:
+        if m is None:  # (the class's attribute: the dataclass field's default, if any)
+            return getattr(FriMeasurement, self.name, None)
+        s = m.arm_state
+        w = int(s.warning)
+        values = (s.cycle, s.time_ns, _TO_FRI[s.mode],
+                  _FRI_WARNINGS[w] if w < len(_FRI_WARNINGS) else _fri_warning(w),
+                  s.jnt_pos_rad, s.tcp_pose_m, s.cmd_jnt_pos_rad, s.cmd_cart_pose_m,
+                  s.jnt_trq_nm, s.ext_jnt_trq_nm, s.ext_wrench_n_nm, s.jacobian,
+                  s.mass_matrix, s.gravity_nm)
+        d = m.__dict__
+        for name, value in zip(_LAZY_FIELDS, values, strict=True):
+            d.setdefault(name, value)  # (a field set since keeps its value)
+        return d[self.name]
+
+
+#: The fields :class:`StateMeasurement` reads from its state (measurement_of's order).
+_LAZY_FIELDS: Final = _STATE_FIELDS[:-1]
+for _name in _LAZY_FIELDS:
+    setattr(StateMeasurement, _name, _FromState(_name))
+_COMPARED: Final = tuple(f.name for f in fields(FriMeasurement) if f.compare)
+
+
+def _compared(m: FriMeasurement) -> tuple[object, ...]:
+    return tuple(getattr(m, name) for name in _COMPARED)
+
+
+def state_free_head(head: dict[str, object]) -> dict[str, object]:
+    """``head`` (:func:`measurement_head`) without the fields of a world state: the
+    dictionary a :class:`StateMeasurement` starts from (add a new ``link_events``)."""
+    return {name: value for name, value in head.items() if name not in _STATE_FIELDS}
 
 
 def fri_measurement(

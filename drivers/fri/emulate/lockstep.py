@@ -62,7 +62,7 @@ from drivers.fri.codec import (
     new_cmd_buffer,
     new_msr_buffer,
 )
-from drivers.fri.command import robot_state_from_fri, to_fri_command
+from drivers.fri.command import CARTESIAN_FLAGS, robot_state_from_fri, to_fri_command
 from drivers.fri.config import SimRobotConfig
 from drivers.fri.convert import (
     arrays_to_command,
@@ -73,6 +73,7 @@ from drivers.fri.convert import (
 from drivers.fri.emulate.krc import (
     SOFTWARE_LIMITS_DEG,
     CommandDelay,
+    StateMeasurement,
     arm_command_from_fri,
     brake_command,
     control_mode,
@@ -80,6 +81,7 @@ from drivers.fri.emulate.krc import (
     measurement_of,
     software_limit_error,
     software_limits_rad,
+    state_free_head,
     stop_command,
 )
 from drivers.fri.link import KrcLink, LinkEvent
@@ -102,6 +104,10 @@ _WHAT = "sim robot"
 _CARTSTIFF = int(CmdFlags.CARTSTIFF)  # ``int & IntFlag`` goes through the enum machinery
 _TCPFT = int(CmdFlags.TCPFT)
 _CMD = FriState.CMD
+_FALLBACK = LinkEvent.FALLBACK
+_CARTESIAN = int(CARTESIAN_FLAGS)
+_CART_IMPEDANCE = ControlMode.CART_IMPEDANCE
+_APPLIED = ApplyStatus.APPLIED
 _UNACCEPTABLE = FriQuality.UNACCEPTABLE
 _new: Final = object.__new__
 
@@ -171,6 +177,11 @@ class SimRobot(RobotDriver):
         # arm commands of the lockstep FRI command or a slot's (their arrays shared), per
         # (slot or -1, flags, control, arm mode): the same object while they do not change
         self._arm_commands: dict[tuple[int, CmdFlags, ControlMode, ArmMode], ArmCommand] = {}
+        # the last one of the lockstep command acting at once, and its key
+        self._now_arm: ArmCommand | None = None
+        self._now_flags: CmdFlags | None = None
+        self._now_control: ControlMode | None = None
+        self._now_mode: ArmMode | None = None
         self._brake = False
         self._stopped: str | None = None
         self.max_cycles = max_cycles
@@ -194,13 +205,20 @@ class SimRobot(RobotDriver):
         self._slots = [_buffered_command() for _ in range(self.delay.cycles + 1)
                        ] if self.delay.cycles else []
         self._slot = 0
+        # per slot, its last arm command and the key it was made for (flags, control, mode)
+        self._slot_arms: list[tuple[CmdFlags, ControlMode, ArmMode, ArmCommand] | None] = [
+            None] * len(self._slots)
         self._pending: ArmCommand | None = None  # the slot's arm command of the last send
         # the measurement's fields that are not the world's, while the link keeps them
         self._head: dict[str, object] = {}
+        self._bare_head: dict[str, object] = {}  # the head without a state's fields
+        self._msr: FriMeasurement
         self._head_changes = -1  # link.changes when the head was built (-1: build it)
         self._state: ArmState = world.last_state
         self._gains: tuple[bytes, tuple[CartesianCommand, CartesianCommand] | None] | None = None
         self._next: RobotState | None = None
+        # the robot state's link health of the head: (commanding, healthy)
+        self._health = (False, False)
         self._measure(world.last_state)
 
     def _new_link(self) -> KrcLink:
@@ -215,40 +233,65 @@ class SimRobot(RobotDriver):
 
     def _measure(self, state: ArmState) -> None:
         """The measurement of ``state``, the world's last state (held: its truth is read
-        next), and the robot state of it that :meth:`measurements` yields next."""
+        next), and the robot state of it that :meth:`measurements` yields next.
+
+        Without ``wire_precision`` the measurement is a
+        :class:`~drivers.fri.emulate.krc.StateMeasurement` (the state's fields read
+        when first read: the same values as
+        :func:`~drivers.fri.emulate.krc.measurement_of`), and the link's fields of both
+        are built again only when the link changed."""
         link = self.link
         self._state = state
-        head = self._head
         changed = link.changes != self._head_changes
         if changed:  # (the head's key: the link's count of changes, the link, the cycle)
-            head = self._head = measurement_head(self._cycle_s, link.state, link.quality,
-                                                 link.error, link.rates(), link.missed)
+            self._head = measurement_head(self._cycle_s, link.state, link.quality,
+                                          link.error, link.rates(), link.missed)
+            self._bare_head = state_free_head(self._head)
             self._head_changes = link.changes
-        m = measurement_of(head, state)
+            self._health = (link.state == _CMD, link.quality > _UNACCEPTABLE)
         if self.wire_precision:
-            m = self._over_the_wire(m)
+            self._measure_wire(state, changed)
+            return
+        m: StateMeasurement = _new(StateMeasurement)
+        d = self._bare_head.copy()
+        d["link_events"] = []
+        m.__dict__ = d
+        m.arm_state = state
+        # robot_state_from_fri(m) with the state's values and truth, inline (the same
+        # fields in the same order; tests/test_lockstep_fast.py); its link health's
+        # values kept while the link does not change
+        health = _new(LinkHealth)
+        health.commanding, health.healthy = self._health
+        health.cycle = state.cycle
+        health.cycle_s = self._cycle_s  # (both sample times of the head)
+        rs: RobotState = _new(RobotState)
+        rs.time_ns = state.time_ns
+        rs.tcp_pose_m = state.tcp_pose_m
+        rs.joint_pos_rad = state.jnt_pos_rad
+        rs.link = health
+        rs.tcp_twist_mps_radps = None
+        rs.ext_wrench_n_nm = state.ext_wrench_n_nm
+        rs.truth = state.truth
+        rs.extras = m
         if changed:  # (else the state and quality are those the watch saw last)
             self._watch.see(m, m.link_events)  # state and quality changes, as the UDP driver
+        if self._listeners:
+            for listener in self._listeners:
+                listener(m)
+        self._msr = m
+        self._next = rs
+
+    def _measure_wire(self, state: ArmState, changed: bool) -> None:
+        """:meth:`_measure` with ``wire_precision``: a new measurement as the UDP driver
+        decodes it, and a new robot state of it."""
+        m = self._over_the_wire(measurement_of(self._head, state))
+        if changed:
+            self._watch.see(m, m.link_events)
         for listener in self._listeners:
             listener(m)
         self._msr = m
-        # robot_state_from_fri(m) with the world's truth, inline (the same fields in the
-        # same order; tests/test_lockstep_fast.py)
-        link_health = _new(LinkHealth)
-        link_health.commanding = m.state == _CMD
-        link_health.healthy = m.quality > _UNACCEPTABLE
-        link_health.cycle = m.seq
-        cycle_s = m.cmd_sample_time
-        link_health.cycle_s = cycle_s if cycle_s > 0.0 else m.msr_sample_time
-        rs: RobotState = _new(RobotState)
-        rs.time_ns = m.time_ns
-        rs.tcp_pose_m = m.msr_cart_pos
-        rs.joint_pos_rad = m.msr_jnt_pos
-        rs.link = link_health
-        rs.tcp_twist_mps_radps = None
-        rs.ext_wrench_n_nm = m.est_ext_tcp_ft
+        rs = robot_state_from_fri(m)
         rs.truth = state.truth
-        rs.extras = m
         self._next = rs
 
     def _over_the_wire(self, m: FriMeasurement) -> FriMeasurement:
@@ -315,7 +358,12 @@ class SimRobot(RobotDriver):
     def _measurements(self) -> Iterator[RobotState]:
         n = 0
         while self._open:
-            yield self._robot_state()
+            rs = self._next  # _robot_state(), inline
+            if rs is None:
+                rs = self._robot_state()
+            else:
+                self._next = None
+            yield rs
             n += 1
             if self.max_cycles is not None and n >= self.max_cycles:
                 return
@@ -335,7 +383,7 @@ class SimRobot(RobotDriver):
             arm = brake_command(world.last_state)
             self._brake = False
             self.delay.clear()
-        elif event is LinkEvent.FALLBACK:
+        elif event is _FALLBACK:
             arm = stop_command(world.last_state)
             self.delay.clear()
         elif not (self._answered and link.state == _CMD):  # no answer, or not taken
@@ -346,8 +394,17 @@ class SimRobot(RobotDriver):
             queue = self.delay.queue  # delay.push(arm, copy=False)[0], inline
             queue.append((self._pending, None))
             arm = queue.popleft()[0]
-        else:  # the KRC takes the answer (the wire's, or acting at once)
+        elif self.wire_precision:  # the KRC takes the answer, as the wire carried it
             arm = self._delayed(self._taken())
+        else:  # it takes the answer, acting at once: _arm_command(fri, -1), kept
+            fri = self._fri
+            mode = world.mode
+            if (fri.flags is self._now_flags and fri.control is self._now_control
+                    and mode is self._now_mode and self._now_arm is not None):
+                arm = self._now_arm
+            else:
+                arm = self._now_arm = self._arm_command(fri, -1)
+                self._now_flags, self._now_control, self._now_mode = fri.flags, fri.control, mode
         self._answered = False
         world.advance(arm)
         state = world.last_state
@@ -401,29 +458,47 @@ class SimRobot(RobotDriver):
         if not self._open:  # requires_open, inline (every cycle)
             raise NotConnectedError(f"{_WHAT}: send() before connect/start")
         fri = self._fri
-        status = to_fri_command(command, self._msr, fri)
+        msr = self._msr
+        if command is not None and msr.state == _CMD and msr.power != 0:
+            # to_fri_command's Cartesian impedance command, inline (the same writes)
+            fri.flags = CARTESIAN_FLAGS
+            fri.control = _CART_IMPEDANCE
+            fri.cart_pos[...] = command.pose_m
+            fri.add_tcp_ft[...] = command.wrench_n_nm
+            fri.cart_stiffness[...] = command.stiffness_npm_nmprad
+            fri.cart_damping[...] = command.damping_ratio
+            status = _APPLIED
+            flags = _CARTESIAN
+        else:
+            status = to_fri_command(command, msr, fri)
+            flags = int(fri.flags)
         self._answered = True
         slots = self._slots
         if slots and not self.wire_precision:
             # with a delay, what the KRC takes if it takes this answer (_advance): a copy
             # in the slot after the last one taken (no command in flight holds it), and
-            # its arm command; done here, where the arrays were just written
+            # its arm command (_arm_command(slot, k), kept while its key stays); done
+            # here, where the arrays were just written
             k = self._slot + 1
             if k == len(slots):
                 k = 0
             buf, slot = slots[k]
             buf[...] = self._fri_buf
-            slot.flags = fri.flags
-            slot.control = fri.control
-            arm = self._arm_commands.get((k, fri.flags, fri.control, self.world.mode))
-            self._pending = arm if arm is not None else self._arm_command(slot, k)
+            slot.flags = f = fri.flags
+            slot.control = c = fri.control
+            mode = self.world.mode
+            kept = self._slot_arms[k]
+            if kept is not None and kept[0] is f and kept[1] is c and kept[2] is mode:
+                self._pending = kept[3]
+            else:
+                arm = self._pending = self._arm_command(slot, k)
+                self._slot_arms[k] = (f, c, mode, arm)
         # applied_from_fri without a copy: the applied command is one of a few views of
         # the FRI command's arrays (the same values: the set-point, the gains, the
         # wrench or zeros), or of the clipped gains
         applied = self._applied
         applied.status = status
         applied.extras = fri
-        flags = int(fri.flags)
         if flags & _CARTSTIFF:
             # the gains rarely change: clip them again only when their bytes do
             key = self._gain_values.tobytes()  # the stiffness and the damping

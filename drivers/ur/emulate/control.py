@@ -78,6 +78,8 @@ class UrArmControl:
         desc = world.scene.arm.description
         self._pos_limits = np.radians(desc.position_limits_deg)
         self._vel_limits = np.radians(desc.velocity_limits_degps)
+        self._pos_limits_list: list[float] = self._pos_limits.tolist()
+        self._vel_limits_list: list[float] = self._vel_limits.tolist()
         self._names = [f"joint {i + 1}" for i in range(desc.joints)]
         self._hold: F64 | None = None
         self.stopped: str | None = None
@@ -126,9 +128,10 @@ class UrArmControl:
         """After a cycle: latch a protective stop if a joint is at its position limit or
         beyond its speed limit; return why (``None``: no stop)."""
         if self.stopped is None:
-            q, qd = self.world.arm_qpos, self.world.arm_qvel
-            for name, qi, qdi, lim_q, lim_qd in zip(self._names, q, qd, self._pos_limits,
-                                                    self._vel_limits, strict=True):
+            # plain floats (the same values): numpy's scalars cost more than the test
+            q, qd = self.world.arm_qpos.tolist(), self.world.arm_qvel.tolist()
+            for name, qi, qdi, lim_q, lim_qd in zip(self._names, q, qd, self._pos_limits_list,
+                                                    self._vel_limits_list, strict=True):
                 if abs(qi) >= lim_q:
                     self.stopped = f"{name} at its position limit ({np.degrees(qi):.1f} deg)"
                 elif abs(qdi) > lim_qd:

@@ -75,7 +75,8 @@ class UrSimController:
         return self.inputs.get(name, 0)
 
     def _six(self, names: tuple[str, ...]) -> F64:
-        return np.array([float(self._reg(n)) for n in names])
+        get = self.inputs.get  # (_reg, inline)
+        return np.array([float(get(n, 0)) for n in names])
 
     def _program(self) -> ForceModeCommand | None:
         """One cycle of ffexp_control.script: the arm's command (``None``: hold)."""

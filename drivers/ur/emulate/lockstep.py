@@ -82,14 +82,14 @@ class LoopbackRtde:
             raise LinkLostError("in-process UR: the link is closed")
         for _ in range(self._every):
             values = self.controller.step()
-        record = self._outputs.empty()
-        for name in self._outputs.names:
-            record[name] = values[name]
-        return DataPackage(self._outputs.recipe_id, record)
+        outputs = self._outputs
+        record = outputs.empty()
+        record[()] = tuple([values[name] for name in outputs.names])  # (every field at once)
+        return DataPackage(outputs.recipe_id, record)
 
     def send(self, recipe: Recipe, values: Mapping[str, object] | np.ndarray) -> None:
-        if isinstance(values, np.ndarray):
-            self.controller.take({n: values[n].item() for n in recipe.names})
+        if isinstance(values, np.ndarray):  # (a record's values as Python numbers)
+            self.controller.take(dict(zip(recipe.names, values.item(), strict=True)))
         else:
             self.controller.take(values)
 

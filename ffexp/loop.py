@@ -173,10 +173,14 @@ class Cycle:
         self.target = target
         t_ns = self.t_ns = state.time_ns - self.t0_ns
         task = self.task
-        est = self.estimator.update(state, ft, t_ns, self.t0_ns)
-        stop = self.safety.check(t_ns, task.phase, state, est)
-        if stop is not None:
-            task.end(t_ns, stop)
+        # the estimate and the safety checks on it, one compiled call
+        safety = self.safety
+        est = self.estimator.update(state, ft, t_ns, self.t0_ns, safety, task.phase)
+        code = self.estimator.safety_code
+        if code:
+            stop = safety.stop_for(code, t_ns, state, est)
+            if stop is not None:
+                task.end(t_ns, stop)
         task.step(t_ns, state, est, target)
         if task.notes:
             self.flush_notes()

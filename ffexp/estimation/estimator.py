@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,6 +18,14 @@ from ffexp.estimation.wrench_filter import wrench_noise
 
 I64 = NDArray[np.int64]
 _KINDS = (None, "made", "broken")
+
+
+class SafetyRows(Protocol):
+    """What :meth:`Estimator.update` checks an estimate against in its compiled call:
+    the safety monitor's rows (:mod:`ffexp.estimation.kernels`' ``SF_*`` and ``SI_*``)."""
+
+    floats: F64
+    ints: I64
 
 
 @dataclass
@@ -85,9 +94,6 @@ class Estimator:
         self._cfg, self._fs, self._ist = cfg, fs, ist
         self._of = np.zeros((runs, k.OF_SIZE))
         self._oi = np.zeros((runs, k.OI_SIZE), dtype=np.int64)
-        self._offsets = np.zeros(runs + 1, dtype=np.int64)  # a single run's
-        self._ist0 = ist[0]  # the first run's row (a view, made once)
-        self._in_cols = (k.IS_COMMANDING, k.IS_T_NS, k.IS_T0_NS)
         self.batch = EstimateBatch(self._of, self._oi)
         # a single run's outputs: views of the first row, made once (Estimate's arrays
         # are reused between cycles)
@@ -95,9 +101,13 @@ class Estimator:
         self.out = Estimate(wrench=f[k.OF_WRENCH:k.OF_WRENCH + 6],
                             wrench_std=f[k.OF_STD:k.OF_STD + 6],
                             bias=f[k.OF_BIAS:k.OF_BIAS + 6],
-                            twist_tcf=f[k.OF_TWIST:k.OF_TWIST + 6])
+                            twist_tcf=f[k.OF_TWIST:k.OF_TWIST + 6], floats=f,
+                            ints=self._oi[0])
         self._of_scalars = f[k.OF_FZ:k.OF_PEAK_T + 1]
         self._oi0 = self._oi[0]
+        self._none_ns = k.NONE_NS
+        self.safety_code = 0
+        """Which of the safety checks held first in the last checked :meth:`update`."""
 
     def update_batch(self, poses: F64, wrench: F64, time_ns: I64, status: NDArray[np.uint32],
                      offsets: I64, commanding: NDArray[np.bool_], t_ns: I64,
@@ -140,23 +150,38 @@ class Estimator:
         det.in_contact = kind == 1
         return event
 
-    def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int) -> Estimate:
+    def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int,
+               checks: SafetyRows | None = None, phase: int = 0) -> Estimate:
         """One cycle of a single run (the batch of one). ``t_ns`` is the run time of the
         cycle, ``t0_ns`` the robot time of the run's start (sample times are on the
-        robot's clock)."""
+        robot's clock).
+
+        With ``checks`` (a :class:`~ffexp.safety.SafetyMonitor`'s rows), the monitor's
+        checks on this estimate in the same compiled call (:func:`kernels.checked_cycle`;
+        ``phase`` the task's phase before the cycle): which one held first is left in
+        :attr:`safety_code` (``kernels.SAFE`` for none)."""
         if self.runs != 1:
             raise ValueError(f"update steps a single run; this estimator has {self.runs}: "
                              "update_batch")
-        n = ft.time_ns.shape[0]
-        self._offsets[1] = n
-        ist = self._ist0
-        i_cmd, i_t, i_t0 = self._in_cols
-        ist[i_cmd] = state.link.commanding
-        ist[i_t] = t_ns
-        ist[i_t0] = t0_ns
-        self._cycle(state.tcp_pose_m[None], ft.wrench, ft.time_ns, ft.status, self._offsets)
+        mf = self.motion_filter
+        started = mf._started
+        mf._started = True
+        link = state.link
+        wrench = ft.wrench
+        if checks is None:
+            self._k.single_cycle(
+                self._cfg, self._fs, self._ist, mf._x, mf._rot, mf._theta, started,
+                mf.next_gain(), mf._f1_t, mf._mju, wrench, ft.time_ns, ft.status,
+                state.tcp_pose_m, link.commanding, t_ns, t0_ns, self._of, self._oi)
+        else:
+            self.safety_code = self._k.checked_cycle(
+                self._cfg, self._fs, self._ist, mf._x, mf._rot, mf._theta, started,
+                mf.next_gain(), mf._f1_t, mf._mju, wrench, ft.time_ns, ft.status,
+                state.tcp_pose_m, link.commanding, t_ns, t0_ns, self._of, self._oi,
+                link.healthy, phase == 0, phase == 1 or phase == 2, checks.floats,
+                checks.ints)
         out = self.out  # its arrays are views of the outputs: the columns kernels.OF_*
-        (_, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
+        (n, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
          last) = ints = self._oi0.tolist()  # the columns kernels.OI_*
         out.f_z, out.peak_force_n, out.peak_torque_nm = self._of_scalars.tolist()
         out.n_samples = n
@@ -166,5 +191,5 @@ class Estimator:
         out.tared = tared == 1
         out.tared_now = tared_now == 1
         out.tare_samples = tare_samples
-        out.last_sample_ns = None if last == self._k.NONE_NS else last
+        out.last_sample_ns = None if last == self._none_ns else last
         return out

@@ -19,6 +19,7 @@ from __future__ import annotations
 from types import ModuleType
 
 import numpy as np
+from numpy.typing import NDArray
 from pydantic import Field
 
 from drivers.base.types import F64, NS_PER_S, RobotState
@@ -73,7 +74,11 @@ class SafetyMonitor:
     bad link cycles, the workspace box's origin) in those rows.
     """
 
-    def __init__(self, limits: Limits) -> None:
+    def __init__(self, limits: Limits, rows: tuple[F64, NDArray[np.int64]] | None = None
+                 ) -> None:
+        """``rows``: where to keep :attr:`floats` and :attr:`ints` (an estimator's
+        :meth:`~ffexp.estimation.Estimator.check_rows`, for its compiled checks); ``None``:
+        arrays of its own."""
         self.limits = limits
         self._workspace: list[float] = np.asarray(limits.workspace_m, dtype=np.float64).tolist()
         # the limits as plain floats, and what the compiled motion check takes
@@ -82,12 +87,18 @@ class SafetyMonitor:
         self._stale_ns = limits.stale_ft_s * NS_PER_S
         self._kernels = kernels()
         ek = self._ek = estimation_kernels()
-        self.floats = sf = np.zeros(ek.SF_SIZE)
+        if rows is None:
+            rows = np.zeros(ek.SF_SIZE), np.zeros(ek.SI_SIZE, dtype=np.int64)
+        self.floats = sf = rows[0]
         """The limits, the box's origin and the motion check's outputs
         (:mod:`ffexp.estimation.kernels`' ``SF_*``)."""
-        self.ints = si = np.zeros(ek.SI_SIZE, dtype=np.int64)
+        self.ints = si = rows[1]
         """The count of bad link cycles, the limit on it, whether the box has its origin
         (``SI_*``)."""
+        if sf.shape != (ek.SF_SIZE,) or si.shape != (ek.SI_SIZE,):
+            raise ValueError("a safety monitor's rows are SF_SIZE floats and SI_SIZE ints")
+        sf[:] = 0.0
+        si[:] = 0
         sf[ek.SF_FORCE], sf[ek.SF_TORQUE] = self._max_force_n, self._max_torque_nm
         sf[ek.SF_SPEED], sf[ek.SF_STALE_NS] = self._max_speed_mps, self._stale_ns
         self._widths = sf[ek.SF_WIDTHS:ek.SF_WIDTHS + 3]

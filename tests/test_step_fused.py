@@ -45,7 +45,7 @@ def test_the_estimate_checked_in_one_call_is_the_estimate_then_the_checks(seed: 
     limits = Limits(max_force_n=8.0, max_torque_nm=0.6, max_speed_mps=0.05,
                     workspace_m=(0.01, 0.02, 0.03), stale_ft_s=0.012, link_lost_cycles=3)
     ref, fused = Estimator(cfg, 0.005, 0.05), Estimator(cfg, 0.005, 0.05)
-    mon_ref, mon_fused = SafetyMonitor(limits), SafetyMonitor(limits)
+    mon_ref, mon_fused = SafetyMonitor(limits), SafetyMonitor(limits, fused.check_rows())
     pose = np.eye(4)
     pose[:3, 3] = [0.4, 0.1, 0.3]
     phases = list(Phase)

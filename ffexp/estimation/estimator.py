@@ -69,14 +69,22 @@ class Estimator:
         self.cycle_s = cycle_s
         self.tare_ns = round(tares[0] * 1e9)
         self._k = k = kernels()
-        self.motion_filter = MotionFilter(configs[0].motion, cycle_s, runs)
+        # a single run's state packed in two rows (kernels.P_*, Q_*): its cycle is one
+        # call of few arguments; a batch keeps an array each
+        single = runs == 1
+        self._fb = fb = np.zeros(k.P_SIZE)
+        self._ib = ib = np.zeros(k.Q_SIZE, dtype=np.int64)
+        self.motion_filter = MotionFilter(
+            configs[0].motion, cycle_s, runs,
+            fb[k.P_MOTION:k.P_MOTION + k.MOTION_SIZE] if single else None)
         self.detector = ContactDetector(configs[0].contact)
         self.detectors = [self.detector, *(ContactDetector(c.contact) for c in configs[1:])]
-        cfg = np.zeros((runs, k.CF_SIZE))
-        fs = np.zeros((runs, k.FS_SIZE))
+        cfg = fb[k.P_CFG:k.P_FS].reshape(1, -1) if single else np.zeros((runs, k.CF_SIZE))
+        fs = fb[k.P_FS:k.P_OF].reshape(1, -1) if single else np.zeros((runs, k.FS_SIZE))
         fs[:, k.WF_P_FF:k.WF_P_FF + 6] = 100.0  # the wrench filter's prior before the tare
         fs[:, k.WF_P_BB:k.WF_P_BB + 6] = 100.0
-        ist = np.zeros((runs, k.IS_SIZE), dtype=np.int64)
+        ist = (ib[k.Q_IST:k.Q_OI].reshape(1, -1) if single
+               else np.zeros((runs, k.IS_SIZE), dtype=np.int64))
         ist[:, k.IS_CD + k.CD_PENDING] = ist[:, k.IS_CD + k.CD_SINCE] = k.NONE_NS
         ist[:, k.ST_FIRST] = ist[:, k.ST_LAST] = k.NONE_NS
         ist[:, k.ST_TARE_NS] = [round(t * 1e9) for t in tares]
@@ -92,8 +100,13 @@ class Estimator:
             ld[k.LD_GRAVITY:k.LD_GRAVITY + 3] = tl.gravity_base()
             ld[k.LD_SKEW:k.LD_SKEW + 9] = skew(np.asarray(tl.com_m, dtype=np.float64)).ravel()
         self._cfg, self._fs, self._ist = cfg, fs, ist
-        self._of = np.zeros((runs, k.OF_SIZE))
-        self._oi = np.zeros((runs, k.OI_SIZE), dtype=np.int64)
+        self._of = (fb[k.P_OF:k.P_MOTION].reshape(1, -1) if single
+                    else np.zeros((runs, k.OF_SIZE)))
+        self._oi = (ib[k.Q_OI:k.Q_MJU].reshape(1, -1) if single
+                    else np.zeros((runs, k.OI_SIZE), dtype=np.int64))
+        ib[k.Q_MJU:k.Q_SI] = self.motion_filter._mju
+        # the safety monitor's rows a single run's checks use (check_rows)
+        self._sf, self._si = fb[k.P_SF:k.P_SIZE], ib[k.Q_SI:k.Q_SIZE]
         self.batch = EstimateBatch(self._of, self._oi)
         # a single run's outputs: views of the first row, made once (Estimate's arrays
         # are reused between cycles)
@@ -150,16 +163,23 @@ class Estimator:
         det.in_contact = kind == 1
         return event
 
+    def check_rows(self) -> tuple[F64, I64]:
+        """The rows a :class:`~ffexp.safety.SafetyMonitor` keeps its limits and state in
+        for :meth:`update` to check a single run's estimate in its compiled call
+        (``SafetyMonitor(limits, rows=estimator.check_rows())``)."""
+        return self._sf, self._si
+
     def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int,
                checks: SafetyRows | None = None, phase: int = 0) -> Estimate:
         """One cycle of a single run (the batch of one). ``t_ns`` is the run time of the
         cycle, ``t0_ns`` the robot time of the run's start (sample times are on the
         robot's clock).
 
-        With ``checks`` (a :class:`~ffexp.safety.SafetyMonitor`'s rows), the monitor's
-        checks on this estimate in the same compiled call (:func:`kernels.checked_cycle`;
-        ``phase`` the task's phase before the cycle): which one held first is left in
-        :attr:`safety_code` (``kernels.SAFE`` for none)."""
+        With ``checks`` (a :class:`~ffexp.safety.SafetyMonitor` on :meth:`check_rows`),
+        the monitor's checks on this estimate in the same compiled call
+        (:func:`kernels.checked_cycle`; ``phase`` the task's phase before the cycle):
+        which one held first is left in :attr:`safety_code` (``kernels.SAFE`` for
+        none)."""
         if self.runs != 1:
             raise ValueError(f"update steps a single run; this estimator has {self.runs}: "
                              "update_batch")
@@ -167,19 +187,17 @@ class Estimator:
         started = mf._started
         mf._started = True
         link = state.link
-        wrench = ft.wrench
         if checks is None:
-            self._k.single_cycle(
-                self._cfg, self._fs, self._ist, mf._x, mf._rot, mf._theta, started,
-                mf.next_gain(), mf._f1_t, mf._mju, wrench, ft.time_ns, ft.status,
-                state.tcp_pose_m, link.commanding, t_ns, t0_ns, self._of, self._oi)
+            check = False
+        elif checks.floats is self._sf:
+            check = True
         else:
-            self.safety_code = self._k.checked_cycle(
-                self._cfg, self._fs, self._ist, mf._x, mf._rot, mf._theta, started,
-                mf.next_gain(), mf._f1_t, mf._mju, wrench, ft.time_ns, ft.status,
-                state.tcp_pose_m, link.commanding, t_ns, t0_ns, self._of, self._oi,
-                link.healthy, phase == 0, phase == 1 or phase == 2, checks.floats,
-                checks.ints)
+            raise ValueError("update checks with a safety monitor on this estimator's "
+                             "check_rows()")
+        self.safety_code = self._k.checked_cycle(
+            self._fb, self._ib, mf.next_gain(), ft.wrench, ft.time_ns, ft.status,
+            state.tcp_pose_m, started, link.commanding, t_ns, t0_ns, link.healthy,
+            phase == 0, phase == 1 or phase == 2, check)
         out = self.out  # its arrays are views of the outputs: the columns kernels.OF_*
         (n, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
          last) = ints = self._oi0.tolist()  # the columns kernels.OI_*

@@ -454,14 +454,46 @@ def safety_check(ofi: F64, oii: np.ndarray, t_ns: int, connect: bool, moving: bo
     return SAFE
 
 
+#: A single run's state packed in two rows, so its cycle is one call of few arguments
+#: (each array argument costs a compiled call's dispatch about 0.2 us, more with cold
+#: caches): the floats ``P_*`` (the settings ``cfg``, the state ``fs``, the outputs
+#: ``of``, the motion filter's ``x``, ``rot``, ``theta`` and ``F1^T``, the safety
+#: monitor's ``SF_*``) and the ints ``Q_*`` (``ist``, ``oi``, the MuJoCo functions, the
+#: safety monitor's ``SI_*``).
+P_CFG = 0
+P_FS = P_CFG + CF_SIZE
+P_OF = P_FS + FS_SIZE
+P_MOTION = P_OF + OF_SIZE  # x (6, 3), rot (3, 3), theta (3), F1^T (3, 3)
+MOTION_SIZE = 18 + 9 + 3 + 9
+P_SF = P_MOTION + MOTION_SIZE
+P_SIZE = P_SF + SF_SIZE
+Q_IST = 0
+Q_OI = Q_IST + IS_SIZE
+Q_MJU = Q_OI + OI_SIZE
+Q_SI = Q_MJU + 2
+Q_SIZE = Q_SI + SI_SIZE
+
+
 @njit(cache=True)
-def checked_cycle(cfg: F64, fs: F64, ist: np.ndarray, x: F64, rot: F64, theta: F64,
-                  started: bool, gain: F64, f1_t: F64, mju: NDArray[np.int64], wrench: F64,
-                  time_ns: np.ndarray, status: np.ndarray, pose: F64, commanding: bool,
-                  t_ns: int, t0_ns: int, of: F64, oi: np.ndarray, healthy: bool,
-                  connect: bool, moving: bool, sf: F64, si: np.ndarray) -> int:
-    """:func:`single_cycle` and then :func:`safety_check` on its estimate, in one call."""
-    single_cycle(cfg, fs, ist, x, rot, theta, started, gain, f1_t, mju, wrench, time_ns,
-                 status, pose, commanding, t_ns, t0_ns, of, oi)
-    return safety_check(of[0], oi[0], t_ns, connect, moving, healthy, commanding, pose, sf,
-                        si)
+def checked_cycle(fb: F64, ib: np.ndarray, gain: F64, wrench: F64, time_ns: np.ndarray,
+                  status: np.ndarray, pose: F64, started: bool, commanding: bool, t_ns: int,
+                  t0_ns: int, healthy: bool, connect: bool, moving: bool, check: bool) -> int:
+    """:func:`single_cycle` on a single run's packed rows ``fb``, ``ib`` (``P_*``,
+    ``Q_*``) and then, with ``check``, :func:`safety_check` on its estimate, in one call
+    (:data:`SAFE` without)."""
+    m = P_MOTION
+    x = fb[m:m + 18].reshape((6, 3))
+    rot = fb[m + 18:m + 27].reshape((1, 3, 3))
+    theta = fb[m + 27:m + 30].reshape((1, 3))
+    f1_t = fb[m + 30:m + 39].reshape((3, 3))
+    cfg = fb[P_CFG:P_FS].reshape((1, CF_SIZE))
+    fs = fb[P_FS:P_OF].reshape((1, FS_SIZE))
+    of = fb[P_OF:P_MOTION].reshape((1, OF_SIZE))
+    ist = ib[Q_IST:Q_OI].reshape((1, IS_SIZE))
+    oi = ib[Q_OI:Q_MJU].reshape((1, OI_SIZE))
+    single_cycle(cfg, fs, ist, x, rot, theta, started, gain, f1_t, ib[Q_MJU:Q_SI], wrench,
+                 time_ns, status, pose, commanding, t_ns, t0_ns, of, oi)
+    if not check:
+        return SAFE
+    return safety_check(of[0], oi[0], t_ns, connect, moving, healthy, commanding, pose,
+                        fb[P_SF:P_SIZE], ib[Q_SI:Q_SIZE])

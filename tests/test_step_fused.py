@@ -161,3 +161,16 @@ def test_the_funnel_watch_wraps_and_judges_as_python() -> None:
         assert (geo[k.GEO_WITHIN] == 1.0) == a.within(p)
         within_seen.add(a.within(p))
     assert within_seen == {True, False}
+
+
+def test_the_estimates_columns_are_the_kernels() -> None:
+    """The single run's estimate reads the kernels' own columns and flags."""
+    from ffexp.estimation import estimator as e
+    from ffexp.estimation import kernels as ek
+
+    assert (ek.OF_FZ, ek.OF_PEAK_F, ek.OF_PEAK_T) == (24, 25, 26)
+    assert (ek.OI_N, ek.OI_SATURATED, ek.OI_TARED, ek.OI_TARED_NOW, ek.OI_TARE_SAMPLES,
+            ek.OI_LAST) == (0, 5, 6, 7, 8, 9)
+    assert (ek.R_CHECK, ek.R_IN_CONTACT, ek.R_EVENT) == (15, 16, 32)
+    assert ek.STOP_WORKSPACE <= ek.R_CHECK
+    assert e._NONE_NS == ek.NONE_NS

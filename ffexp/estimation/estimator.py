@@ -17,6 +17,7 @@ from ffexp.estimation.tool_load import skew
 from ffexp.estimation.wrench_filter import wrench_noise
 
 I64 = NDArray[np.int64]
+_NONE_NS = np.iinfo(np.int64).min  # kernels.NONE_NS
 _KINDS = (None, "made", "broken")
 
 
@@ -37,6 +38,60 @@ class EstimateBatch:
 
     floats: F64
     ints: I64
+
+
+class RowEstimate(Estimate):
+    """A single run's :class:`Estimate` read from the estimator's output rows: its
+    arrays are views of them, its scalars read from them when asked (but ``in_contact``
+    and ``event``, which the estimator sets each cycle)."""
+
+    def __init__(self, floats: F64, ints: I64) -> None:  # no dataclass __init__
+        k = kernels()
+        self.floats, self.ints = floats, ints
+        self._f, self._i = floats, ints
+        self.wrench = floats[k.OF_WRENCH:k.OF_WRENCH + 6]
+        self.wrench_std = floats[k.OF_STD:k.OF_STD + 6]
+        self.bias = floats[k.OF_BIAS:k.OF_BIAS + 6]
+        self.twist_tcf = floats[k.OF_TWIST:k.OF_TWIST + 6]
+        self.in_contact = False
+        self.event = None
+
+    @property
+    def f_z(self) -> float:  # type: ignore[override]
+        return float(self._f[24])  # kernels.OF_FZ
+
+    @property
+    def peak_force_n(self) -> float:  # type: ignore[override]
+        return float(self._f[25])  # kernels.OF_PEAK_F
+
+    @property
+    def peak_torque_nm(self) -> float:  # type: ignore[override]
+        return float(self._f[26])  # kernels.OF_PEAK_T
+
+    @property
+    def n_samples(self) -> int:  # type: ignore[override]
+        return int(self._i[0])  # kernels.OI_N
+
+    @property
+    def saturated(self) -> bool:  # type: ignore[override]
+        return bool(self._i[5] == 1)  # kernels.OI_SATURATED
+
+    @property
+    def tared(self) -> bool:  # type: ignore[override]
+        return bool(self._i[6] == 1)  # kernels.OI_TARED
+
+    @property
+    def tared_now(self) -> bool:  # type: ignore[override]
+        return bool(self._i[7] == 1)  # kernels.OI_TARED_NOW
+
+    @property
+    def tare_samples(self) -> int:  # type: ignore[override]
+        return int(self._i[8])  # kernels.OI_TARE_SAMPLES
+
+    @property
+    def last_sample_ns(self) -> int | None:  # type: ignore[override]
+        last = int(self._i[9])  # kernels.OI_LAST
+        return None if last == _NONE_NS else last
 
 
 class Estimator:
@@ -110,13 +165,7 @@ class Estimator:
         self.batch = EstimateBatch(self._of, self._oi)
         # a single run's outputs: views of the first row, made once (Estimate's arrays
         # are reused between cycles)
-        f = self._of[0]
-        self.out = Estimate(wrench=f[k.OF_WRENCH:k.OF_WRENCH + 6],
-                            wrench_std=f[k.OF_STD:k.OF_STD + 6],
-                            bias=f[k.OF_BIAS:k.OF_BIAS + 6],
-                            twist_tcf=f[k.OF_TWIST:k.OF_TWIST + 6], floats=f,
-                            ints=self._oi[0])
-        self._of_scalars = f[k.OF_FZ:k.OF_PEAK_T + 1]
+        self.out: Estimate = RowEstimate(self._of[0], self._oi[0])
         self._oi0 = self._oi[0]
         self._none_ns = k.NONE_NS
         self.safety_code = 0
@@ -194,20 +243,12 @@ class Estimator:
         else:
             raise ValueError("update checks with a safety monitor on this estimator's "
                              "check_rows()")
-        self.safety_code = self._k.checked_cycle(
+        r = self._k.checked_cycle(
             self._fb, self._ib, mf.next_gain(), ft.wrench, ft.time_ns, ft.status,
             state.tcp_pose_m, started, link.commanding, t_ns, t0_ns, link.healthy,
             phase == 0, phase == 1 or phase == 2, check)
-        out = self.out  # its arrays are views of the outputs: the columns kernels.OF_*
-        (n, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
-         last) = ints = self._oi0.tolist()  # the columns kernels.OI_*
-        out.f_z, out.peak_force_n, out.peak_torque_nm = self._of_scalars.tolist()
-        out.n_samples = n
-        out.event = self._event(0, ints) if event else None
-        out.in_contact = in_contact == 1
-        out.saturated = saturated == 1
-        out.tared = tared == 1
-        out.tared_now = tared_now == 1
-        out.tare_samples = tare_samples
-        out.last_sample_ns = None if last == self._none_ns else last
+        self.safety_code = r & 15  # kernels.R_CHECK
+        out = self.out  # views of the outputs: the scalars read from them when asked
+        out.in_contact = r & 16 != 0  # kernels.R_IN_CONTACT
+        out.event = self._event(0, self._oi0.tolist()) if r & 32 else None  # R_EVENT
         return out

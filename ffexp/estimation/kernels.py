@@ -474,13 +474,18 @@ Q_SI = Q_MJU + 2
 Q_SIZE = Q_SI + SI_SIZE
 
 
+#: :func:`checked_cycle`'s flags beside the check's answer (``& R_CHECK``).
+R_CHECK, R_IN_CONTACT, R_EVENT = 15, 16, 32
+
+
 @njit(cache=True)
 def checked_cycle(fb: F64, ib: np.ndarray, gain: F64, wrench: F64, time_ns: np.ndarray,
                   status: np.ndarray, pose: F64, started: bool, commanding: bool, t_ns: int,
                   t0_ns: int, healthy: bool, connect: bool, moving: bool, check: bool) -> int:
     """:func:`single_cycle` on a single run's packed rows ``fb``, ``ib`` (``P_*``,
-    ``Q_*``) and then, with ``check``, :func:`safety_check` on its estimate, in one call
-    (:data:`SAFE` without)."""
+    ``Q_*``) and then, with ``check``, :func:`safety_check` on its estimate, in one call:
+    the check's answer (:data:`SAFE` without) with the flags :data:`R_IN_CONTACT` and
+    :data:`R_EVENT` (the estimate's contact, a contact event this cycle) set."""
     m = P_MOTION
     x = fb[m:m + 18].reshape((6, 3))
     rot = fb[m + 18:m + 27].reshape((1, 3, 3))
@@ -493,7 +498,12 @@ def checked_cycle(fb: F64, ib: np.ndarray, gain: F64, wrench: F64, time_ns: np.n
     oi = ib[Q_OI:Q_MJU].reshape((1, OI_SIZE))
     single_cycle(cfg, fs, ist, x, rot, theta, started, gain, f1_t, ib[Q_MJU:Q_SI], wrench,
                  time_ns, status, pose, commanding, t_ns, t0_ns, of, oi)
-    if not check:
-        return SAFE
-    return safety_check(of[0], oi[0], t_ns, connect, moving, healthy, commanding, pose,
-                        fb[P_SF:P_SIZE], ib[Q_SI:Q_SIZE])
+    code = SAFE
+    if check:
+        code = safety_check(of[0], oi[0], t_ns, connect, moving, healthy, commanding, pose,
+                            fb[P_SF:P_SIZE], ib[Q_SI:Q_SIZE])
+    if oi[0, OI_IN_CONTACT] != 0:
+        code |= R_IN_CONTACT
+    if oi[0, OI_EVENT] != 0:
+        code |= R_EVENT
+    return code

@@ -43,8 +43,7 @@ class Approach:
 
     def command(self, t_ns: int, pose: F64, twist_tcf: F64) -> F64:
         """The law's wrench ``t_ns`` into the line (also kept in :attr:`wrench`)."""
-        self.wrench[...] = self.law.update(pose, twist_tcf, (t_ns - self._start_ns) / NS_PER_S)
-        return self.wrench
+        return self.law.update(pose, twist_tcf, (t_ns - self._start_ns) / NS_PER_S, self.wrench)
 
 
 @dataclass

@@ -201,3 +201,112 @@ def safety_motion(twist: F64, max_speed: float, pose: F64, origin: F64, widths: 
         if abs(v) > widths[i]:
             crossed = True
     return MOTION_WORKSPACE if crossed else MOTION_OK
+
+
+# ---------------------------------------------------------------- the observer
+
+#: "No time" in the observer's int fields.
+NONE_NS = np.iinfo(np.int64).min
+#: The observer's float state (:class:`ffexp.observer.WrenchObserver`): the position at
+#: first contact, the bounds on the target's speed and travel, the impulse, and the last
+#: cycle's numbers (:attr:`~ffexp.observer.ObserverState.last`, 8).
+OBF_FIRST_Z, OBF_SPEED, OBF_TRAVEL, OBF_IMPULSE, OBF_LAST = 0, 1, 2, 3, 4
+OBF_SIZE = 12
+#: Its int state: first contact seen, the last cycle's time, since when quiet, since when
+#: on a wall or apart (:data:`NONE_NS`: none), ever quiet, the label (:data:`LABELS`),
+#: the last cycle's numbers set.
+OBI_HAS_FIRST, OBI_LAST_NS, OBI_QUIET, OBI_LOADED, OBI_EVER_QUIET, OBI_LABEL, OBI_HAS_LAST = \
+    range(7)
+OBI_SIZE = 7
+#: Its limits: seated depth, lateral force and torque, wall force ratio, least force,
+#: lateral speed, yaw rate, the hold in ns, the target's mass.
+(OBL_SEATED, OBL_LAT_F, OBL_LAT_T, OBL_WALL, OBL_MIN_F, OBL_LAT_V, OBL_YAW, OBL_HOLD_NS,
+ OBL_MASS) = range(9)
+OBL_SIZE = 9
+#: The labels by their code in ``OBI_LABEL``.
+LABELS = ("unverified", "aligned", "not aligned")
+
+
+@njit(cache=True)
+def observer_update(f: F64, i: np.ndarray, lim: F64, t_ns: int, z_m: float, in_contact: bool,
+                    f_z: float, f_y: float, t_x: float, v_y: float, w_x: float) -> int:
+    """One cycle of the observer (:meth:`ffexp.observer.WrenchObserver.update`, the same
+    operations on its state rows ``f``, ``i``); returns the label's code."""
+    last_ns = i[OBI_LAST_NS]
+    dt = 0.0 if last_ns == NONE_NS else (t_ns - last_ns) / 1_000_000_000
+    i[OBI_LAST_NS] = t_ns
+    has_first = i[OBI_HAS_FIRST] != 0
+    if has_first and dt > 0.0:
+        push = 0.0 if 0.0 > f_z else f_z  # Python's max(f_z, 0.0), NaN and -0.0 alike
+        f[OBF_SPEED] += push * dt / lim[OBL_MASS]
+        f[OBF_TRAVEL] += f[OBF_SPEED] * dt
+        f[OBF_IMPULSE] += push * dt
+    advance = z_m - f[OBF_FIRST_Z] if has_first else 0.0
+    side = in_contact and (abs(f_y) > lim[OBL_LAT_F] or abs(t_x) > lim[OBL_LAT_T])
+    quiet = (in_contact and f_z >= lim[OBL_MIN_F] and not side
+             and abs(v_y) <= lim[OBL_LAT_V] and abs(w_x) <= lim[OBL_YAW])
+    on_wall = (in_contact and abs(f_y) > lim[OBL_LAT_F]
+               and abs(f_y) >= lim[OBL_WALL] * (0.0 if 0.0 > f_z else f_z))
+    apart = not in_contact and has_first and advance < 0.0
+    if not quiet:
+        i[OBI_QUIET] = NONE_NS
+    elif i[OBI_QUIET] == NONE_NS:
+        i[OBI_QUIET] = t_ns
+    if not (on_wall or apart):
+        i[OBI_LOADED] = NONE_NS
+    elif i[OBI_LOADED] == NONE_NS:
+        i[OBI_LOADED] = t_ns
+    hold_ns = lim[OBL_HOLD_NS]
+    inserted = advance - f[OBF_TRAVEL]
+    last = f[OBF_LAST:OBF_LAST + 8]
+    last[0], last[1], last[2], last[3] = advance, inserted, f_z, f_y
+    last[4], last[5], last[6], last[7] = t_x, v_y, w_x, 1.0 if in_contact else 0.0
+    i[OBI_HAS_LAST] = 1
+    quiet_held = i[OBI_QUIET] != NONE_NS and t_ns - i[OBI_QUIET] >= hold_ns
+    if quiet_held and has_first:
+        i[OBI_EVER_QUIET] = 1
+    label = 0
+    if quiet_held and inserted >= lim[OBL_SEATED]:
+        label = 1
+    elif i[OBI_LOADED] != NONE_NS and t_ns - i[OBI_LOADED] >= hold_ns:
+        label = 2
+    i[OBI_LABEL] = label
+    return label
+
+
+#: :func:`funnel_observe`'s ``geo``: the tool tip in the mouth frame (3), the heading
+#: difference wrapped (:func:`drivers.base.placement.wrap_angle`), the measured pose's
+#: travel ``z_axis . p``, whether the placement is within the tolerances.
+GEO_YAW, GEO_ALONG, GEO_WITHIN, GEO_SIZE = 3, 4, 5, 6
+#: :func:`funnel_observe`'s tolerances: lateral, yaw [deg], least insertion.
+TOL_LATERAL, TOL_YAW_DEG, TOL_INSERTION = 0, 1, 2
+_DEGREES = 180.0 / math.pi  # math.degrees' factor
+
+
+@njit(cache=True)
+def funnel_observe(tool: F64, mouth: F64, measured: F64, z_axis: F64, truth: bool,
+                   start_z: float, tol: F64, geo: F64, of: F64, oi: np.ndarray, t_ns: int,
+                   f: F64, i: np.ndarray, lim: F64) -> bool:
+    """The funnel's watch of one cycle (:meth:`ffexp.scenarios.funnel.FunnelAlignment.
+    observe`): :func:`funnel_geometry` into ``geo`` (with ``truth``: the tool in the
+    mouth, its heading wrapped and whether it is within ``tol``), then the observer's
+    cycle on the estimate's rows ``of``, ``oi`` (:mod:`ffexp.estimation.kernels`' ``OF_*``,
+    ``OI_*``) at the travel since the start, ``geo[GEO_ALONG] - start_z`` (first contact
+    noted). False (nothing computed) if a pose holds a NaN."""
+    if not funnel_geometry(tool, mouth, measured, z_axis, geo):
+        return False
+    if truth:
+        # numba's float % is Python's (fmod, moved to the divisor's sign)
+        geo[GEO_YAW] = (geo[GEO_YAW] + math.pi) % (2.0 * math.pi) - math.pi
+        within = (abs(geo[1]) <= tol[TOL_LATERAL]
+                  and abs(geo[GEO_YAW] * _DEGREES) <= tol[TOL_YAW_DEG]
+                  and geo[0] >= tol[TOL_INSERTION])
+        geo[GEO_WITHIN] = 1.0 if within else 0.0
+    z = geo[GEO_ALONG] - start_z
+    in_contact = oi[1] == 1  # OI_IN_CONTACT
+    if in_contact and i[OBI_HAS_FIRST] == 0:
+        f[OBF_FIRST_Z] = z
+        i[OBI_HAS_FIRST] = 1
+    # the estimate's f_z (OF_FZ), f_y and t_x (OF_WRENCH), v_y and w_x (OF_TWIST)
+    observer_update(f, i, lim, t_ns, z, in_contact, of[24], of[1], of[3], of[19], of[21])
+    return True

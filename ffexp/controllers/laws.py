@@ -331,8 +331,10 @@ class ImpedanceController:
         sp[:3, 3] += self._start[:3, :3] @ (self._dir * travel)
         return sp
 
-    def update(self, pose: F64, twist_tcf: F64, elapsed_s: float) -> F64:
-        """Commanded wrench (TCF) for the tool pose and its twist in TCF.
+    def update(self, pose: F64, twist_tcf: F64, elapsed_s: float,
+               out: F64 | None = None) -> F64:
+        """Commanded wrench (TCF) for the tool pose and its twist in TCF (into ``out``
+        when given, and returned).
 
         :meth:`setpoint_at`, :func:`pose_error_tcf` and ``np.clip(K e - B twist, -lim,
         lim)`` in one, compiled (:func:`ffexp.controllers.kernels.approach_error` and
@@ -357,11 +359,16 @@ class ImpedanceController:
                 scale = 1.0
             else:
                 scale = angle / (2.0 * float(np.sin(angle)))
-            out = np.empty(6)
+            if out is None:
+                out = np.empty(6)
             if k.impedance_out(work, scale, twist, self._imp_axes, out):
                 self.setpoint = sp
                 return out
-        return self.update_floats(pose, twist, elapsed_s)  # a NaN in
+        floats = self.update_floats(pose, twist, elapsed_s)  # a NaN in
+        if out is None:
+            return floats
+        out[...] = floats
+        return out
 
     def update_floats(self, pose: F64, twist_tcf: F64, elapsed_s: float) -> F64:
         """:meth:`update` with numpy's products and the rest on floats (its reference,

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 from pydantic import Field
 
 from drivers.base.types import F64
@@ -55,3 +56,9 @@ class Estimate:
     """A sample of this cycle carried the sensor's saturation bit."""
     last_sample_ns: int | None = None
     """Time of the newest sample so far, on the robot's clock [ns]."""
+    floats: F64 | None = field(default=None, repr=False, compare=False)
+    """The estimator's output row these values are read from (its kernels' ``OF_*``
+    columns), for compiled code that reads the estimate; ``None`` for an estimate made
+    otherwise."""
+    ints: NDArray[np.int64] | None = field(default=None, repr=False, compare=False)
+    """Likewise its int row (``OI_*``)."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,7 +17,16 @@ from ffexp.estimation.tool_load import skew
 from ffexp.estimation.wrench_filter import wrench_noise
 
 I64 = NDArray[np.int64]
+_NONE_NS = np.iinfo(np.int64).min  # kernels.NONE_NS
 _KINDS = (None, "made", "broken")
+
+
+class SafetyRows(Protocol):
+    """What :meth:`Estimator.update` checks an estimate against in its compiled call:
+    the safety monitor's rows (:mod:`ffexp.estimation.kernels`' ``SF_*`` and ``SI_*``)."""
+
+    floats: F64
+    ints: I64
 
 
 @dataclass
@@ -28,6 +38,60 @@ class EstimateBatch:
 
     floats: F64
     ints: I64
+
+
+class RowEstimate(Estimate):
+    """A single run's :class:`Estimate` read from the estimator's output rows: its
+    arrays are views of them, its scalars read from them when asked (but ``in_contact``
+    and ``event``, which the estimator sets each cycle)."""
+
+    def __init__(self, floats: F64, ints: I64) -> None:  # no dataclass __init__
+        k = kernels()
+        self.floats, self.ints = floats, ints
+        self._f, self._i = floats, ints
+        self.wrench = floats[k.OF_WRENCH:k.OF_WRENCH + 6]
+        self.wrench_std = floats[k.OF_STD:k.OF_STD + 6]
+        self.bias = floats[k.OF_BIAS:k.OF_BIAS + 6]
+        self.twist_tcf = floats[k.OF_TWIST:k.OF_TWIST + 6]
+        self.in_contact = False
+        self.event = None
+
+    @property
+    def f_z(self) -> float:  # type: ignore[override]
+        return float(self._f[24])  # kernels.OF_FZ
+
+    @property
+    def peak_force_n(self) -> float:  # type: ignore[override]
+        return float(self._f[25])  # kernels.OF_PEAK_F
+
+    @property
+    def peak_torque_nm(self) -> float:  # type: ignore[override]
+        return float(self._f[26])  # kernels.OF_PEAK_T
+
+    @property
+    def n_samples(self) -> int:  # type: ignore[override]
+        return int(self._i[0])  # kernels.OI_N
+
+    @property
+    def saturated(self) -> bool:  # type: ignore[override]
+        return bool(self._i[5] == 1)  # kernels.OI_SATURATED
+
+    @property
+    def tared(self) -> bool:  # type: ignore[override]
+        return bool(self._i[6] == 1)  # kernels.OI_TARED
+
+    @property
+    def tared_now(self) -> bool:  # type: ignore[override]
+        return bool(self._i[7] == 1)  # kernels.OI_TARED_NOW
+
+    @property
+    def tare_samples(self) -> int:  # type: ignore[override]
+        return int(self._i[8])  # kernels.OI_TARE_SAMPLES
+
+    @property
+    def last_sample_ns(self) -> int | None:  # type: ignore[override]
+        last = int(self._i[9])  # kernels.OI_LAST
+        return None if last == _NONE_NS else last
 
 
 class Estimator:
@@ -60,14 +124,22 @@ class Estimator:
         self.cycle_s = cycle_s
         self.tare_ns = round(tares[0] * 1e9)
         self._k = k = kernels()
-        self.motion_filter = MotionFilter(configs[0].motion, cycle_s, runs)
+        # a single run's state packed in two rows (kernels.P_*, Q_*): its cycle is one
+        # call of few arguments; a batch keeps an array each
+        single = runs == 1
+        self._fb = fb = np.zeros(k.P_SIZE)
+        self._ib = ib = np.zeros(k.Q_SIZE, dtype=np.int64)
+        self.motion_filter = MotionFilter(
+            configs[0].motion, cycle_s, runs,
+            fb[k.P_MOTION:k.P_MOTION + k.MOTION_SIZE] if single else None)
         self.detector = ContactDetector(configs[0].contact)
         self.detectors = [self.detector, *(ContactDetector(c.contact) for c in configs[1:])]
-        cfg = np.zeros((runs, k.CF_SIZE))
-        fs = np.zeros((runs, k.FS_SIZE))
+        cfg = fb[k.P_CFG:k.P_FS].reshape(1, -1) if single else np.zeros((runs, k.CF_SIZE))
+        fs = fb[k.P_FS:k.P_OF].reshape(1, -1) if single else np.zeros((runs, k.FS_SIZE))
         fs[:, k.WF_P_FF:k.WF_P_FF + 6] = 100.0  # the wrench filter's prior before the tare
         fs[:, k.WF_P_BB:k.WF_P_BB + 6] = 100.0
-        ist = np.zeros((runs, k.IS_SIZE), dtype=np.int64)
+        ist = (ib[k.Q_IST:k.Q_OI].reshape(1, -1) if single
+               else np.zeros((runs, k.IS_SIZE), dtype=np.int64))
         ist[:, k.IS_CD + k.CD_PENDING] = ist[:, k.IS_CD + k.CD_SINCE] = k.NONE_NS
         ist[:, k.ST_FIRST] = ist[:, k.ST_LAST] = k.NONE_NS
         ist[:, k.ST_TARE_NS] = [round(t * 1e9) for t in tares]
@@ -83,21 +155,21 @@ class Estimator:
             ld[k.LD_GRAVITY:k.LD_GRAVITY + 3] = tl.gravity_base()
             ld[k.LD_SKEW:k.LD_SKEW + 9] = skew(np.asarray(tl.com_m, dtype=np.float64)).ravel()
         self._cfg, self._fs, self._ist = cfg, fs, ist
-        self._of = np.zeros((runs, k.OF_SIZE))
-        self._oi = np.zeros((runs, k.OI_SIZE), dtype=np.int64)
-        self._offsets = np.zeros(runs + 1, dtype=np.int64)  # a single run's
-        self._ist0 = ist[0]  # the first run's row (a view, made once)
-        self._in_cols = (k.IS_COMMANDING, k.IS_T_NS, k.IS_T0_NS)
+        self._of = (fb[k.P_OF:k.P_MOTION].reshape(1, -1) if single
+                    else np.zeros((runs, k.OF_SIZE)))
+        self._oi = (ib[k.Q_OI:k.Q_MJU].reshape(1, -1) if single
+                    else np.zeros((runs, k.OI_SIZE), dtype=np.int64))
+        ib[k.Q_MJU:k.Q_SI] = self.motion_filter._mju
+        # the safety monitor's rows a single run's checks use (check_rows)
+        self._sf, self._si = fb[k.P_SF:k.P_SIZE], ib[k.Q_SI:k.Q_SIZE]
         self.batch = EstimateBatch(self._of, self._oi)
         # a single run's outputs: views of the first row, made once (Estimate's arrays
         # are reused between cycles)
-        f = self._of[0]
-        self.out = Estimate(wrench=f[k.OF_WRENCH:k.OF_WRENCH + 6],
-                            wrench_std=f[k.OF_STD:k.OF_STD + 6],
-                            bias=f[k.OF_BIAS:k.OF_BIAS + 6],
-                            twist_tcf=f[k.OF_TWIST:k.OF_TWIST + 6])
-        self._of_scalars = f[k.OF_FZ:k.OF_PEAK_T + 1]
+        self.out: Estimate = RowEstimate(self._of[0], self._oi[0])
         self._oi0 = self._oi[0]
+        self._none_ns = k.NONE_NS
+        self.safety_code = 0
+        """Which of the safety checks held first in the last checked :meth:`update`."""
 
     def update_batch(self, poses: F64, wrench: F64, time_ns: I64, status: NDArray[np.uint32],
                      offsets: I64, commanding: NDArray[np.bool_], t_ns: I64,
@@ -140,31 +212,43 @@ class Estimator:
         det.in_contact = kind == 1
         return event
 
-    def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int) -> Estimate:
+    def check_rows(self) -> tuple[F64, I64]:
+        """The rows a :class:`~ffexp.safety.SafetyMonitor` keeps its limits and state in
+        for :meth:`update` to check a single run's estimate in its compiled call
+        (``SafetyMonitor(limits, rows=estimator.check_rows())``)."""
+        return self._sf, self._si
+
+    def update(self, state: RobotState, ft: FtSamples, t_ns: int, t0_ns: int,
+               checks: SafetyRows | None = None, phase: int = 0) -> Estimate:
         """One cycle of a single run (the batch of one). ``t_ns`` is the run time of the
         cycle, ``t0_ns`` the robot time of the run's start (sample times are on the
-        robot's clock)."""
+        robot's clock).
+
+        With ``checks`` (a :class:`~ffexp.safety.SafetyMonitor` on :meth:`check_rows`),
+        the monitor's checks on this estimate in the same compiled call
+        (:func:`kernels.checked_cycle`; ``phase`` the task's phase before the cycle):
+        which one held first is left in :attr:`safety_code` (``kernels.SAFE`` for
+        none)."""
         if self.runs != 1:
             raise ValueError(f"update steps a single run; this estimator has {self.runs}: "
                              "update_batch")
-        n = ft.time_ns.shape[0]
-        self._offsets[1] = n
-        ist = self._ist0
-        i_cmd, i_t, i_t0 = self._in_cols
-        ist[i_cmd] = state.link.commanding
-        ist[i_t] = t_ns
-        ist[i_t0] = t0_ns
-        self._cycle(state.tcp_pose_m[None], ft.wrench, ft.time_ns, ft.status, self._offsets)
-        out = self.out  # its arrays are views of the outputs: the columns kernels.OF_*
-        (_, in_contact, event, _, _, saturated, tared, tared_now, tare_samples,
-         last) = ints = self._oi0.tolist()  # the columns kernels.OI_*
-        out.f_z, out.peak_force_n, out.peak_torque_nm = self._of_scalars.tolist()
-        out.n_samples = n
-        out.event = self._event(0, ints) if event else None
-        out.in_contact = in_contact == 1
-        out.saturated = saturated == 1
-        out.tared = tared == 1
-        out.tared_now = tared_now == 1
-        out.tare_samples = tare_samples
-        out.last_sample_ns = None if last == self._k.NONE_NS else last
+        mf = self.motion_filter
+        started = mf._started
+        mf._started = True
+        link = state.link
+        if checks is None:
+            check = False
+        elif checks.floats is self._sf:
+            check = True
+        else:
+            raise ValueError("update checks with a safety monitor on this estimator's "
+                             "check_rows()")
+        r = self._k.checked_cycle(
+            self._fb, self._ib, mf.next_gain(), ft.wrench, ft.time_ns, ft.status,
+            state.tcp_pose_m, started, link.commanding, t_ns, t0_ns, link.healthy,
+            phase == 0, phase == 1 or phase == 2, check)
+        self.safety_code = r & 15  # kernels.R_CHECK
+        out = self.out  # views of the outputs: the scalars read from them when asked
+        out.in_contact = r & 16 != 0  # kernels.R_IN_CONTACT
+        out.event = self._event(0, self._oi0.tolist()) if r & 32 else None  # R_EVENT
         return out

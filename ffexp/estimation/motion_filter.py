@@ -61,7 +61,11 @@ class MotionFilter:
     gets alone (``tests/test_estimation.py``).
     """
 
-    def __init__(self, config: MotionFilterConfig, cycle_s: float, runs: int = 1) -> None:
+    def __init__(self, config: MotionFilterConfig, cycle_s: float, runs: int = 1,
+                 rows: F64 | None = None) -> None:
+        """``rows``: a single run's float row to keep its state in (``x``, ``rot``,
+        ``theta``, ``F1^T``: :data:`ffexp.estimation.kernels.MOTION_SIZE` floats), as the
+        estimator packs it; ``None``: arrays of its own."""
         if runs < 1:
             raise ValueError(f"a motion filter needs at least one run, not {runs}")
         self.config = config
@@ -69,16 +73,20 @@ class MotionFilter:
         self.runs = runs
         self._f1 = np.array([[1.0, cycle_s, 0.5 * cycle_s**2], [0.0, 1.0, cycle_s],
                              [0.0, 0.0, 1.0]])
-        self._f1_t = self._f1.T.copy()
+        if rows is not None and (runs != 1 or rows.shape != (39,)):
+            raise ValueError("a motion filter keeps a single run's state in 39 floats")
+        self._f1_t = self._f1.T.copy() if rows is None else rows[30:39].reshape(3, 3)
+        self._f1_t[...] = self._f1.T
         self._q1 = Q_discrete_white_noise(dim=3, dt=cycle_s, var=config.accel_walk**2 * cycle_s)
         noise = [config.position_noise_m] * 3 + [config.rotation_noise_rad] * 3
         self._r = np.square(np.asarray(noise, dtype=np.float64))
         # per run and axis (run i's six axes are rows 6i to 6i + 5, so that one run's
         # arrays are exactly the single filter's): value, rate, acceleration
-        self._x = np.zeros((6 * runs, 3))
+        self._x = np.zeros((6 * runs, 3)) if rows is None else rows[0:18].reshape(6, 3)
         self._p = np.tile(np.eye(3) * 1e-2, (6, 1, 1))  # shared by the runs
-        self._rot = np.zeros((runs, 3, 3))  # each run's last rotation (once started)
-        self._theta = np.zeros((runs, 3))  # each run's accumulated rotation vector
+        # each run's last rotation (once started) and accumulated rotation vector
+        self._rot = np.zeros((runs, 3, 3)) if rows is None else rows[18:27].reshape(1, 3, 3)
+        self._theta = np.zeros((runs, 3)) if rows is None else rows[27:30].reshape(1, 3)
         self._work = np.zeros(16)
         self._started = False
         # the covariance and gain do not depend on the measurements: once the

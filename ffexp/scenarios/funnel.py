@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from pydantic import Field
 
-from drivers.base.placement import Placement, placement, wrap_angle
+from drivers.base.placement import Placement, placement
 from drivers.base.topics import CdrTopic, FieldSpec, MessageSpec
 from drivers.base.types import NS_PER_S, GroundTruth, RobotState, TargetObservation
 from drivers.config import StrictModel
@@ -175,7 +175,13 @@ class FunnelAlignment(Scenario):
         self._truth_p: Placement | None = None
         """The truth's placement this cycle (``None``: no truth)."""
         self._within_of: Placement | None = None  # the placement last judged, and how
-        self._geo = np.zeros(5)  # funnel_geometry's output
+        self._geo = np.zeros(6)  # funnel_observe's output (kernels.GEO_*)
+        # its tolerances (kernels.TOL_*)
+        self._tol = np.array([a.lateral_tol_m, a.yaw_tol_deg, a.min_insertion_m])
+        from ffexp.estimation import kernels as ek
+
+        self._ekernels = ek
+        self._est_rows = np.zeros(ek.OF_SIZE), np.zeros(ek.OI_SIZE, dtype=np.int64)
         self._want = alignment.source
         self._kernels = kernels()
         self._within_is = False
@@ -242,33 +248,53 @@ class FunnelAlignment(Scenario):
         truth = state.truth
         if truth is not None and self.truth_aligned is None:
             self.truth_aligned = False  # the truth is there: it says "not aligned" until held
-        # truth_placement and _advance in one compiled call (the same numbers; the
-        # functions themselves when a pose holds a NaN)
+        # truth_placement, _advance, the tolerances and the observer's cycle in one
+        # compiled call (the same numbers; the functions themselves when a pose holds a NaN)
         tcp = state.tcp_pose_m
         mouth = None if truth is None else truth.sites.get(MOUTH_SITE)
         geo = self._geo
+        obs = self.observer
+        ostate = obs.state
+        ef, ei = est.floats, est.ints
+        if ef is None or ei is None:  # an estimate not made by the estimator: its rows
+            ef, ei = self._rows(est)
         if mouth is None:
             self._truth_p = None
-            if self._kernels.funnel_geometry(tcp, tcp, tcp, self._start_z_axis, geo):
-                z = float(geo[4]) - self._start_z
-            else:
-                z = self._advance(state)
+            if self._kernels.funnel_observe(tcp, tcp, tcp, self._start_z_axis, False,
+                                            self._start_z, self._tol, geo, ef, ei, t_ns,
+                                            ostate.floats, ostate.ints, obs.lims):
+                self._place(state)
+                return
+            z = self._advance(state)
         else:
             assert truth is not None
-            if self._kernels.funnel_geometry(truth.sites.get(TCP_SITE, tcp), mouth, tcp,
-                                             self._start_z_axis, geo):
-                x, y, v, heading, along = geo.tolist()
-                self._truth_p = Placement((x, y, v, wrap_angle(heading)))
-                z = along - self._start_z
-            else:
-                self._truth_p = truth_placement(truth, tcp)
-                z = self._advance(state)
+            if self._kernels.funnel_observe(truth.sites.get(TCP_SITE, tcp), mouth, tcp,
+                                            self._start_z_axis, True, self._start_z,
+                                            self._tol, geo, ef, ei, t_ns,
+                                            ostate.floats, ostate.ints, obs.lims):
+                x, y, v, yaw, _, within = geo.tolist()
+                p = self._truth_p = Placement((x, y, v, yaw))
+                self._within_of, self._within_is = p, within == 1.0
+                self._place(state)
+                return
+            self._truth_p = truth_placement(truth, tcp)
+            z = self._advance(state)
         self._place(state)
         if est.in_contact:
             self.observer.contact_made(z)
         _, f_y, _, t_x, _, _ = est.wrench.tolist()
         _, v_y, _, w_x, _, _ = est.twist_tcf.tolist()
         self.observer.update(t_ns, z, est.in_contact, est.f_z, f_y, t_x, v_y, w_x)
+
+    def _rows(self, est: Estimate) -> tuple[np.ndarray, np.ndarray]:
+        """The estimator's output rows (its kernels' ``OF_*``, ``OI_*``) of ``est``."""
+        ek = self._ekernels
+        f, i = self._est_rows
+        f[ek.OF_WRENCH:ek.OF_WRENCH + 6] = est.wrench
+        f[ek.OF_TWIST:ek.OF_TWIST + 6] = est.twist_tcf
+        f[ek.OF_FZ] = est.f_z
+        i[ek.OI_IN_CONTACT] = est.in_contact
+        return f, i
 
     def contact(self, state: RobotState) -> None:
         if self._first_contact_z is None:

@@ -31,7 +31,7 @@ events are kept, in :attr:`RunLog.events`.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -101,6 +101,7 @@ class _Encoders(dict[str, Callable[[object], bytes] | None]):
         self._truths: dict[tuple[object, ...], tuple[
             tuple[str, Callable[[object], bytes]] | None,
             tuple[tuple[str, Callable[[object], bytes]] | None, ...]] | None] = {}
+        self._truth: tuple[Any, ...] | None = None  # the last truth's shape and plan
 
     def __missing__(self, topic: str) -> Callable[[object], bytes] | None:
         fn = self[topic] = self._recorder.encoder(topic) if self._kept[topic] else None
@@ -122,14 +123,25 @@ class _Encoders(dict[str, Callable[[object], bytes] | None]):
     def truth_into(self, truth: GroundTruth, topics: list[str], datas: list[bytes]) -> None:
         """The kept messages of the truth (:meth:`GroundTruth.messages
         <drivers.base.types.GroundTruth.messages>`) appended to the cycle's; a plain
-        ``GroundTruth``'s topics worked out once for its bodies and frames."""
+        ``GroundTruth``'s topics worked out once for its prefix, bodies and frames (the
+        last ones compared by their names: the bodies in order, the frames and the
+        attached ones as sets, a frame not attached making the plan ``None``)."""
         plan = None
         if type(truth) is GroundTruth:
-            key = (truth.topic_prefix, *truth.bodies, None, *truth.sites, None, *truth.attached)
-            if key in self._truths:
-                plan = self._truths[key]
+            last = self._truth
+            if (last is not None and truth.topic_prefix == last[0]
+                    and tuple(truth.bodies) == last[1] and truth.sites.keys() == last[2]
+                    and truth.attached.keys() == last[3]):
+                plan = last[4]
             else:
-                plan = self._truths[key] = self._truth_plan(truth)
+                key = (truth.topic_prefix, *truth.bodies, None, *truth.sites, None,
+                       *truth.attached)
+                if key in self._truths:
+                    plan = self._truths[key]
+                else:
+                    plan = self._truths[key] = self._truth_plan(truth)
+                self._truth = (truth.topic_prefix, tuple(truth.bodies), set(truth.sites),
+                               set(truth.attached), plan)
         if plan is None:
             for topic, source in truth.messages():
                 fn = self[topic]
@@ -141,7 +153,7 @@ class _Encoders(dict[str, Callable[[object], bytes] | None]):
         if own is not None:
             topics.append(own[0])
             datas.append(own[1](truth))
-        for entry, body in zip(bodies, truth.bodies.values(), strict=True):
+        for entry, body in zip(bodies, truth.bodies.values()):  # noqa: B905  # one length
             if entry is not None:
                 topics.append(entry[0])
                 datas.append(entry[1](body))

@@ -30,9 +30,8 @@ events are kept, in :attr:`RunLog.events`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from struct import Struct
-from typing import Protocol
+from collections.abc import Callable, Iterable
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -52,28 +51,15 @@ from ffexp.controllers import Controller
 from ffexp.estimation import Estimate
 from ffexp.recording import Recorder
 from ffexp.recording.batch import RECORDING_METADATA, TopicFilter, lean_metadata
-from ffexp.recording.schema import CDR_HEADER
-from ffexp.recording.topics import STATE_JOINTS
+from ffexp.recording.cycle import (
+    command_message,
+    estimator_message,
+    state_message,
+    terms_message,
+)
 from ffexp.recording.topics.target import TRACKED_FRAME
 from ffexp.scenarios.base import Scenario
 from ffexp.task import Event, Note, PhaseChange, Verdict
-
-_TERMS = ("p", "i", "ri", "ff", "impedance")
-#: The topics of every cycle, packed with their ``struct`` layout (one call each).
-_PACKED = ("/robot/state", "/estimator/state", "/control/terms", "/control/command")
-_NAN = float("nan")
-_ZEROS6 = [0.0] * 6
-_ZEROS_5X6 = [0.0] * 30
-_ZEROS_34 = [0.0] * 34  # pose, stiffness, damping and wrench of no intent
-
-
-def _floats6(value: F64) -> list[float]:
-    """A 6-vector's elements as floats (an array, or anything numpy makes one of:
-    the recording stays what filling a numpy record with it gave)."""
-    if type(value) is np.ndarray and value.shape == (6,):
-        out: list[float] = value.tolist()
-        return out
-    return list(np.broadcast_to(np.asarray(value, dtype=np.float64), (6,)).tolist())
 
 
 class CycleSink(Protocol):
@@ -107,18 +93,83 @@ class _Encoders(dict[str, Callable[[object], bytes] | None]):
         super().__init__()
         self._recorder = recorder
         self._kept = kept
+        # per tuple of topics an extras names: its kept topics and their encoders
+        self._extras: dict[tuple[str, ...], tuple[tuple[str, Callable[[object], bytes]], ...]] = {}
+        # per shape of a plain ground truth (prefix, bodies, sites, attached frames): its
+        # kept topics (the truth's, or None; the bodies' in order), or None when a site is
+        # not attached (its messages then asked for)
+        self._truths: dict[tuple[object, ...], tuple[
+            tuple[str, Callable[[object], bytes]] | None,
+            tuple[tuple[str, Callable[[object], bytes]] | None, ...]] | None] = {}
+        self._truth: tuple[Any, ...] | None = None  # the last truth's shape and plan
 
     def __missing__(self, topic: str) -> Callable[[object], bytes] | None:
         fn = self[topic] = self._recorder.encoder(topic) if self._kept[topic] else None
         return fn
 
+    def _pairs(self, topics: Iterable[str]) -> tuple[tuple[str, Callable[[object], bytes]], ...]:
+        return tuple((topic, fn) for topic in topics if (fn := self[topic]) is not None)
+
     def extras_into(self, extras: Extras, topics: list[str], datas: list[bytes]) -> None:
         """A back-end's extras' kept topics and their messages appended to the cycle's."""
-        for topic in extras.topics():
-            fn = self[topic]
-            if fn is not None:
-                topics.append(topic)
-                datas.append(fn(extras))
+        names = extras.topics()
+        plan = self._extras.get(names)
+        if plan is None:
+            plan = self._extras[names] = self._pairs(names)
+        for topic, fn in plan:
+            topics.append(topic)
+            datas.append(fn(extras))
+
+    def truth_into(self, truth: GroundTruth, topics: list[str], datas: list[bytes]) -> None:
+        """The kept messages of the truth (:meth:`GroundTruth.messages
+        <drivers.base.types.GroundTruth.messages>`) appended to the cycle's; a plain
+        ``GroundTruth``'s topics worked out once for its prefix, bodies and frames (the
+        last ones compared by their names: the bodies in order, the frames and the
+        attached ones as sets, a frame not attached making the plan ``None``)."""
+        plan = None
+        if type(truth) is GroundTruth:
+            last = self._truth
+            if (last is not None and truth.topic_prefix == last[0]
+                    and tuple(truth.bodies) == last[1] and truth.sites.keys() == last[2]
+                    and truth.attached.keys() == last[3]):
+                plan = last[4]
+            else:
+                key = (truth.topic_prefix, *truth.bodies, None, *truth.sites, None,
+                       *truth.attached)
+                if key in self._truths:
+                    plan = self._truths[key]
+                else:
+                    plan = self._truths[key] = self._truth_plan(truth)
+                self._truth = (truth.topic_prefix, tuple(truth.bodies), set(truth.sites),
+                               set(truth.attached), plan)
+        if plan is None:
+            for topic, source in truth.messages():
+                fn = self[topic]
+                if fn is not None:
+                    topics.append(topic)
+                    datas.append(fn(source))
+            return
+        own, bodies = plan
+        if own is not None:
+            topics.append(own[0])
+            datas.append(own[1](truth))
+        for entry, body in zip(bodies, truth.bodies.values()):  # noqa: B905  # one length
+            if entry is not None:
+                topics.append(entry[0])
+                datas.append(entry[1](body))
+
+    def _truth_plan(self, truth: GroundTruth) -> tuple[
+            tuple[str, Callable[[object], bytes]] | None,
+            tuple[tuple[str, Callable[[object], bytes]] | None, ...]] | None:
+        messages = truth.messages()
+        bodies = list(truth.bodies.values())
+        if (len(messages) != 1 + len(bodies) or messages[0][1] is not truth
+                or not all(m[1] is b for m, b in zip(messages[1:], bodies, strict=True))):
+            return None  # a site not attached, or messages of another order
+        own = self[messages[0][0]]
+        return (None if own is None else (messages[0][0], own),
+                tuple(None if (fn := self[topic]) is None else (topic, fn)
+                      for topic, _ in messages[1:]))
 
 
 class RunLog:
@@ -148,7 +199,6 @@ class RunLog:
         self.events: list[tuple[float, str, str]] = []
         """``(run time [s], name, message)`` of every event, for the outcome."""
         self._next_tf_ns = 0
-        self._layouts: dict[str, Struct] | None = None
         self.verdicts: list[Verdict] = []
         """Every verdict note, in order (the last one with ``final`` is the run's)."""
         self._target_frames = -1
@@ -245,40 +295,22 @@ class RunLog:
         if rec is None:
             return
         log_ns = self.start_utc_ns + t_ns
-        lay = self._layouts
-        if lay is None:
-            lay = self._layouts = {topic: rec.layout(topic) for topic in _PACKED}
         # the cycle's messages in order: their topics, their bytes (each built only when
         # its topic is kept)
         kept, enc = self._kept, self._enc
         assert enc is not None
         topics = ["/robot/state"]
-        datas = [self._state(lay["/robot/state"], state)]
+        datas = [state_message(state)]
         if state.extras is not None:
             enc.extras_into(state.extras, topics, datas)
         topics.append("/estimator/state")
-        datas.append(lay["/estimator/state"].pack(
-            CDR_HEADER, *est.wrench.tolist(), *est.wrench_std.tolist(), *est.bias.tolist(),
-            *est.twist_tcf.tolist(), est.f_z, len(ft), int(est.in_contact)))
-
-        terms = controller.terms if phase == Phase.ALIGN else None
-        values: list[object] = [CDR_HEADER]
-        if terms is None:
-            values += _ZEROS_5X6
-        else:
-            for name in _TERMS:
-                value = getattr(terms, name, None)
-                values += _ZEROS6 if value is None else _floats6(value)
-        if approach_wrench is not None:
-            values[25:31] = approach_wrench.tolist()
-        values += total.tolist()
-        values += _floats6(controller.f_ref)
-        values += setpoint.ravel().tolist()
-        values.append(int(phase))
-        values.append(int(bool(getattr(terms, "saturated", False))))
+        datas.append(estimator_message(est.wrench, est.wrench_std, est.bias, est.twist_tcf,
+                                       est.f_z, len(ft), est.in_contact))
+        align = phase == Phase.ALIGN
         topics.append("/control/terms")
-        datas.append(lay["/control/terms"].pack(*values))
-        if phase == Phase.ALIGN and controller.topic is not None:
+        datas.append(terms_message(controller.terms if align else None, approach_wrench,
+                                   total, controller.f_ref, setpoint, int(phase)))
+        if align and controller.topic is not None:
             topic = controller.topic.topic
             fn = enc[topic]
             if fn is not None:
@@ -287,7 +319,7 @@ class RunLog:
 
         if kept["/control/command"]:
             topics.append("/control/command")
-            datas.append(self._command(lay["/control/command"], intent, applied))
+            datas.append(command_message(intent, applied))
         if applied.extras is not None:
             enc.extras_into(applied.extras, topics, datas)
         truth = state.truth
@@ -298,11 +330,7 @@ class RunLog:
                 if fixed is not None and kept[fixed[0]]:
                     topics.append(fixed[0])
                     datas.append(rec.encode_json(fixed[1]))
-            for topic, source in truth.messages():
-                fn = enc[topic]
-                if fn is not None:
-                    topics.append(topic)
-                    datas.append(fn(source))
+            enc.truth_into(truth, topics, datas)
         if scenario is not None:
             for topic, source in scenario.messages():
                 fn = enc[topic]
@@ -367,40 +395,3 @@ class RunLog:
             topics.append("/tf")
             datas.append(self.rec.encode_transform(log_ns, "base", TRACKED_FRAME,
                                                    target.pose_m.tolist()))
-
-    @staticmethod
-    def _state(layout: Struct, state: RobotState) -> bytes:
-        """``/robot/state``'s message."""
-        joints = state.joint_pos_rad
-        n = len(joints)
-        q = joints[:STATE_JOINTS].tolist()
-        if n < STATE_JOINTS:
-            q += [_NAN] * (STATE_JOINTS - n)
-        link = state.link
-        twist, ext = state.tcp_twist_mps_radps, state.ext_wrench_n_nm
-        return layout.pack(
-            CDR_HEADER, state.time_ns, *state.tcp_pose_m.ravel().tolist(), *q, n,
-            int(link.commanding), int(link.healthy), link.cycle, link.cycle_s,
-            int(twist is not None), *(_ZEROS6 if twist is None else _floats6(twist)),
-            int(ext is not None), *(_ZEROS6 if ext is None else _floats6(ext)))
-
-    @staticmethod
-    def _command(layout: Struct, intent: CartesianCommand | None,
-                 applied: AppliedCommand) -> bytes:
-        """``/control/command``'s message."""
-        a = applied.command
-        values: list[object] = [CDR_HEADER]
-        if intent is not None:
-            values += intent.pose_m.ravel().tolist()
-            values += _floats6(intent.stiffness_npm_nmprad)
-            values += _floats6(intent.damping_ratio)
-            values += _floats6(intent.wrench_n_nm)
-        else:  # the robot keeps its own set-point: nothing was asked
-            values += _ZEROS_34
-        values += a.pose_m.ravel().tolist()
-        values += _floats6(a.stiffness_npm_nmprad)
-        values += _floats6(a.damping_ratio)
-        values += _floats6(a.wrench_n_nm)
-        values.append(int(applied.status))
-        values.append(int(intent is not None))
-        return layout.pack(*values)

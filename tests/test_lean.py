@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from ffexp import runlog
 from ffexp.analysis import metrics
 from ffexp.cli import app
 from ffexp.experiment import run_file
 from ffexp.recording import Recorder, Recording, load
 from ffexp.recording.batch import RECORDING_METADATA, is_lean, lean_topic, missing_topic
-from ffexp.runlog import RunLog
 from ffexp.sweeps import engine
 from ffexp.sweeps.grid import execute, prepare
 from ffexp.sweeps.worker import RUNS_DIR, Job, flat_metrics, read_row, serves
@@ -108,7 +108,8 @@ def test_a_lean_run_log_builds_no_message_it_does_not_keep(
     monkeypatch.setattr(Recorder, "encode_transform", count("transform",
                                                              Recorder.encode_transform))
     monkeypatch.setattr(Recorder, "write_rows", count("rows", Recorder.write_rows))
-    monkeypatch.setattr(RunLog, "_command", staticmethod(count("command", RunLog._command)))
+    monkeypatch.setattr("ffexp.runlog.command_message",
+                        count("command", runlog.command_message))
 
     def no_scene(*_args: object, **_kw: object) -> None:
         raise AssertionError("a lean run built the 3-D scene")

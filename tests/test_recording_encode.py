@@ -152,3 +152,20 @@ def test_the_recorders_encoder_equals_encode_fields(topic: str, tmp_path: Path) 
         bad = SimpleNamespace(**{**values, spec.fields[0].name: "not a number"})
         with pytest.raises((TypeError, ValueError)):
             encode(bad)
+
+
+def test_two_recorders_run_one_compiled_code_each_with_its_own_fallback(
+        tmp_path: Path) -> None:
+    """The encoders' code is compiled once a process; each recorder's encoder still falls
+    back to its own numpy record (the bytes of each recorder's values, interleaved)."""
+    spec = CDR_TOPICS["/sim/truth"].spec
+    rng = np.random.default_rng(21)
+    with Recorder(tmp_path / "a.mcap") as a, Recorder(tmp_path / "b.mcap") as b:
+        ea, eb = a.encoder("/sim/truth"), b.encoder("/sim/truth")
+        assert ea is not eb and ea.__code__ is eb.__code__
+        for _ in range(5):
+            va, vb = _values(spec, rng), _values(spec, rng)
+            va["in_contact"], vb["in_contact"] = 1.0, 0.0  # floats: each falls back
+            got_a = ea(SimpleNamespace(**va))
+            got_b = eb(SimpleNamespace(**vb))
+            assert got_a == _record(spec, va) and got_b == _record(spec, vb)

@@ -16,6 +16,8 @@ from __future__ import annotations
 import keyword
 import struct
 from collections.abc import Callable
+from functools import cache
+from types import CodeType
 from typing import Any
 
 import numpy as np
@@ -139,6 +141,12 @@ def _compile(segments: tuple[tuple[int, Any, Any, Any, bytes], ...],
     code += [f"        {line}" for line in body]
     code += ["    except _errors:", f"        {handle}",
              f"    return b''.join(({', '.join(parts)},))"]
-    exec("\n".join(code), env)  # generated from the spec's field names only
+    exec(_code("\n".join(code)), env)  # generated from the spec's field names only
     fn: Callable[[object], bytes | None] = env["encode"]
     return fn
+
+
+@cache
+def _code(source: str) -> CodeType:
+    """``source`` compiled, once a process (each recorder's encoders run the same code)."""
+    return compile(source, "<encoder>", "exec")

@@ -54,6 +54,9 @@ def _written_out(arm: ArmDescription) -> bool:
 def _angles(q_rad: Sequence[float] | F64, arm: ArmDescription) -> list[float]:
     if len(q_rad) < arm.joints:
         raise ValueError(f"{len(q_rad)} joint positions; the {arm.name} has {arm.joints}")
+    if type(q_rad) is np.ndarray and q_rad.dtype == np.float64 and q_rad.ndim == 1:
+        out: list[float] = q_rad[:arm.joints].tolist()  # the same floats, at once
+        return out
     return [float(v) for v in q_rad[:arm.joints]]
 
 

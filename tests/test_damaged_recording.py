@@ -136,6 +136,10 @@ def overrun_first(data: bytearray, start: int, heads: list[int]) -> None:
     struct.pack_into("<Q", data, heads[0] + 1, 1 << 40)
 
 
+def overrun_huge(data: bytearray, start: int, heads: list[int]) -> None:
+    struct.pack_into("<Q", data, heads[1] + 1, 2**64 - 1)  # past any buffer: OverflowError
+
+
 def short_message(data: bytearray, start: int, heads: list[int]) -> None:
     """The last message record cut to 3 bytes, the rest of it a record of an opcode no
     reader knows (the records still tile the chunk)."""
@@ -158,6 +162,8 @@ DAMAGE = [
      "runs past the chunk's end"),
     ("overrun_first", CompressionType.NONE, 1, no_crc_and(overrun_first),
      "the record at byte 0 of its data runs past the chunk's end"),
+    ("overrun_huge", CompressionType.NONE, 1, no_crc_and(overrun_huge),
+     "runs past the chunk's end"),
     ("short_message", CompressionType.NONE, 2, no_crc_and(short_message),
      "shorter than its fields"),
 ]
@@ -191,7 +197,7 @@ def test_load_names_the_file_and_the_chunk(damaged: dict[str, tuple[Path, int, i
     assert "\n" not in text and err.value.exit_code == 2
     with pytest.raises(CorruptRecordingError, match="ffexp recover"):
         load(path, ["/robot/state"])  # the damaged chunk holds every topic
-    if name not in ("overrun_first", "overrun_last", "short_message"):
+    if not name.startswith(("overrun", "short")):
         # mcap's own reader (it reads message records through the index only)
         with pytest.raises(InputError, match=f"{path.name}: corrupt data"):
             load_with_mcap(path)
@@ -317,3 +323,42 @@ def test_a_truncated_recording(run_path: Path, tmp_path: Path, cut: Callable[[in
     path.write_bytes(data[:cut(len(data))])
     result = runner.invoke(app, ["analyze", str(path)])
     check_one_line(result.exit_code, result.stderr, [str(path), needle])
+
+
+def test_a_summary_without_a_message_s_channel(run_path: Path, tmp_path: Path) -> None:
+    """The summary's channel records renumbered (so the chunks' messages name channels
+    it does not list): mcap's reader meets a KeyError; every reader says corrupt data
+    or reads what the summary lists, never lets the KeyError through."""
+    path = tmp_path / "renumbered.mcap"
+    rewrite(run_path, path, CompressionType.ZSTD)
+    data = bytearray(path.read_bytes())
+    (summary_start,) = struct.unpack_from("<Q", data, len(data) - 8 - 29 + 9)
+    pos, end = summary_start, len(data) - 8 - 29
+    while pos < end:  # opcode 0x04: a channel record, its id the first field (u16)
+        op, length = struct.unpack_from("<BQ", data, pos)
+        if op == 0x04:
+            struct.pack_into("<H", data, pos + 9, 1000 + struct.unpack_from("<H", data,
+                                                                           pos + 9)[0])
+        pos += 9 + length
+    path.write_bytes(bytes(data))
+    with pytest.raises(InputError, match=r"renumbered\.mcap: corrupt data"):
+        load_with_mcap(path)
+    rec = load(path)  # the chunks' own records are read: none of their channels is listed
+    assert not any(len(t) for t in rec.topics.values())
+    assert contents(path).rows
+
+
+def test_a_log_time_past_int64_loads_alike(tmp_path: Path) -> None:
+    """MCAP's times are unsigned: both readers take one past 2**63 as int64 (wrapped),
+    mcap's objects' path no longer fails on it."""
+    path = tmp_path / "late.mcap"
+    with path.open("wb") as fh:
+        w = Writer(fh)
+        w.start()
+        cid = w.register_channel("/events", "json", 0)
+        for t in (5, 2**63 + 7):
+            w.add_message(cid, t, b"{}", t)
+        w.finish()
+    want = [5, 2**63 + 7 - 2**64]
+    assert load(path).json["/events"].log_time_ns.tolist() == sorted(want)
+    assert load_with_mcap(path).json["/events"].log_time_ns.tolist() == sorted(want)

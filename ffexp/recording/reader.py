@@ -55,9 +55,10 @@ __all__ = [
 MAGIC = b"\x89MCAP0\r\n"
 # OSError: a file shorter than a footer cannot even be seeked to its summary
 _READ_ERRORS = (EndOfFile, McapError, struct.error, ValueError, MemoryError, OSError)
-# a chunk whose data cannot be decompressed, or whose CRC does not match (a ValueError);
-# lz4's errors are plain RuntimeErrors (``_damaged``)
-_CHUNK_ERRORS = (ZstdError, McapError, struct.error, ValueError, MemoryError)
+# a chunk whose data cannot be decompressed, or whose CRC does not match (a ValueError),
+# or whose records mcap cannot parse (a length past any buffer: OverflowError); lz4's
+# errors are plain RuntimeErrors (``_damaged``)
+_CHUNK_ERRORS = (ZstdError, McapError, struct.error, ValueError, MemoryError, OverflowError)
 
 
 def _damaged(exc: BaseException) -> bool:
@@ -182,7 +183,11 @@ def _finished_messages(
                     kwargs["starting_at"] = start_ns
                 if end_ns is not None:
                     kwargs["ending_before"] = end_ns
-                out.messages = [message for _s, _c, message in reader.iter_messages(**kwargs)]
+                try:
+                    out.messages = [m for _s, _c, m in reader.iter_messages(**kwargs)]
+                except KeyError as exc:  # mcap's reader met a channel the summary lacks
+                    raise McapError(f"a message of channel {exc}, which the summary does "
+                                    "not list") from None
             out.metadata = [
                 Metadata(name=m.name, metadata=m.metadata) for m in reader.iter_metadata()
             ]
@@ -334,7 +339,9 @@ def _decode_into(rec: Recording, stream: _Stream) -> None:
     for cid, channel in stream.channels.items():
         msgs = by_channel.get(cid, [])
         schema = stream.schemas.get(channel.schema_id)
-        times = np.fromiter((m.log_time for m in msgs), dtype=np.int64, count=len(msgs))
+        # MCAP's times are unsigned; as int64, as the chunk reader takes them
+        times = np.fromiter((m.log_time for m in msgs), dtype=np.uint64,
+                            count=len(msgs)).view(np.int64)
         if times.size > 1 and np.any(np.diff(times) < 0):
             order = np.argsort(times, kind="stable")
             times = times[order]

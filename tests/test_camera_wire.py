@@ -40,6 +40,10 @@ READY = re.compile(r"Net F/T on 0\.0\.0\.0:(\d+), camera on http://0\.0\.0\.0:(\
 
 @pytest.mark.slow
 def test_camera_tracker_over_the_wire_judges_like_the_truth(tmp_path: Path) -> None:
+    # the in-process run first: it compiles (or loads) the loop's and the world's kernels,
+    # which a fresh clone would otherwise compile inside the wire run's first cycles,
+    # seconds in which the lockstep emulator counts its misses
+    local = metrics(load(run_file(PROTOCOL, [], out_dir=tmp_path / "sim").path))
     (fri_port,) = free_udp_ports(1)  # the run binds it: the emulator must know it first
     cal = tmp_path / "camera.toml"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -69,7 +73,6 @@ def test_camera_tracker_over_the_wire_judges_like_the_truth(tmp_path: Path) -> N
     assert match is not None, run.stdout
     wire = metrics(load(Path(match.group(1))))
     assert wire.verdict_source == "tracker" and wire.verdict_truth is None
-    local = metrics(load(run_file(PROTOCOL, [], out_dir=tmp_path / "sim").path))
     assert local.verdict_source == "truth"
     assert wire.verdict == local.verdict == "aligned"
     assert wire.contact_breaks == local.contact_breaks

@@ -372,3 +372,24 @@ def test_claims_read_the_outcome_rule_when_the_row_has_one() -> None:
     assert claims.ii_low_fails(pushed, S) is False
     aborted = {**named, "III": {**named["III"], "outcome": "aborted"}}
     assert claims.iii_breaks(aborted, S) is None and claims.ordering(aborted, S) is None
+
+
+def test_ending_the_workers_settles_every_run_before_it_returns() -> None:
+    """``end_workers`` (a second signal) returns once the pool's manager thread has ended,
+    so every run's future is settled and the pool's wake-up pipe closed, however slow
+    that thread is: no bound on the wait (a bound raced on a loaded machine, and the
+    interpreter's exit hook, which writes to that pipe, printed 'Bad file descriptor')."""
+    import multiprocessing
+    import signal
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    from ffexp.sweeps.executors import end_workers
+
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("forkserver"))
+    futures = [pool.submit(signal.pause) for _ in range(3)]  # blocks until killed
+    manager = pool._executor_manager_thread  # type: ignore[attr-defined]
+    end_workers(pool)
+    assert all(f.done() for f in futures)  # none left to settle after it returned
+    assert all(f.cancelled() or isinstance(f.exception(), BrokenProcessPool) for f in futures)
+    assert manager is not None and not manager.is_alive()

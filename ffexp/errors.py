@@ -13,10 +13,34 @@ from __future__ import annotations
 
 from drivers.errors import ConfigError, DriverError, FfexpError, SimulationError
 
-__all__ = ["ConfigError", "DriverError", "FfexpError", "InputError", "SimulationError"]
+__all__ = ["ConfigError", "CorruptRecordingError", "DriverError", "FfexpError", "InputError",
+           "SimulationError"]
 
 
 class InputError(FfexpError):
     """A data file (video, recording, CSV) cannot be used as given."""
 
     exit_code = 2
+
+
+class CorruptRecordingError(InputError):
+    """A finished recording whose data is damaged: a chunk that does not decompress,
+    whose CRC does not match, or whose records do not fit in it.
+
+    Args:
+        path: the recording.
+        reason: what is damaged, in a few words (the chunk's number and byte offset
+            where they are known).
+
+    ``str(err)`` names the file and points to ``ffexp recover``, which rewrites every
+    readable chunk into a new file.
+    """
+
+    def __init__(self, path: str, reason: str) -> None:
+        self.path = path
+        self.reason = reason
+        super().__init__(f"{path}: corrupt data ({reason}); `ffexp recover {path}` rewrites "
+                         "every readable chunk into a new file")
+
+    def __reduce__(self) -> tuple[type[CorruptRecordingError], tuple[str, str]]:
+        return (type(self), (self.path, self.reason))  # pickles across a process pool

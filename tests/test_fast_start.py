@@ -89,12 +89,16 @@ def test_usage_error_is_one_line_naming_the_option() -> None:
 
 
 def test_shell_completion_is_offered() -> None:
-    code, heavy, output = run_cli(["--show-completion", "bash"])
-    assert code == 0 and "_FFEXP_COMPLETE" in output
+    """The bash script, for the shell named on the command line: typer otherwise detects
+    the shell from this process's ancestors (``/proc``), which a test run started from
+    no shell (a service, ``setsid``, a CI runner) does not have."""
+    no_detection = {"_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION": "1"}
+    code, heavy, output = run_cli(["--show-completion", "bash"], env=no_detection)
+    assert code == 0 and "_FFEXP_COMPLETE=complete_bash" in output, output
     env = {"_FFEXP_COMPLETE": "complete_bash", "COMP_WORDS": "ffexp camp", "COMP_CWORD": "1"}
     done = subprocess.run(
         [sys.executable, "-c", "from ffexp.cli import main; main()"],
         capture_output=True, text=True, cwd=ROOT, timeout=120, env={**os.environ, **env},
     )
-    assert done.stdout.split() == ["campaign"]
+    assert done.stdout.split() == ["campaign"], done.stdout + done.stderr
     assert heavy == []

@@ -167,3 +167,18 @@ def test_missing_file_as_a_process(tmp_path: Path) -> None:
     assert proc.returncode != 0
     _one_error_line(proc.stderr, "nowhere.mp4")
     assert proc.stdout == ""
+
+
+@pytest.mark.parametrize("option", ["--out", "--truth"])
+def test_synth_into_a_directory_is_one_line_as_a_process(tmp_path: Path, option: str) -> None:
+    """A directory where the video (or its truth) goes: one line naming the option, before
+    OpenCV's writer prints its own warnings straight to the process's stderr."""
+    args = {"--out": str(tmp_path / "v.avi"), "--truth": str(tmp_path / "t.json")}
+    args[option] = str(tmp_path)
+    done = subprocess.run([sys.executable, "-m", "ffexp", "friction", "synth",
+                           *[x for kv in args.items() for x in kv], "--duration", "0.2"],
+                          capture_output=True, text=True, timeout=120)
+    lines = [x for x in done.stderr.splitlines() if x.strip()]
+    assert done.returncode == 2 and len(lines) == 1, done.stderr
+    assert lines[0] == f"error: {option}: {tmp_path}: is a directory, expected a file name"
+    assert not (tmp_path / "v.avi").exists() and not (tmp_path / "t.json").exists()

@@ -132,6 +132,9 @@ def synth(
         err = exc.errors()[0]
         where = ".".join(str(p) for p in err["loc"]) or "parameters"
         raise InputError(f"synth: {where}: {err['msg']}") from None
+    for path, option in ((out, "--out"), (truth, "--truth")):
+        if path is not None and path.is_dir():  # OpenCV would print its own lines first
+            raise InputError(f"{option}: {path}: is a directory, expected a file name")
     try:
         with Steps() as steps, steps.step(f"rendering {cfg.n_frames} frames"):
             result = write_video(

@@ -25,8 +25,11 @@ and gathering their fields:
 The chunks are those mcap's reader would read (its chunk-index rules for topics and
 times) in the summary's order, the messages in file order, so a caller sees the
 very messages ``iter_messages(log_time_order=False)`` yields, in its order.
-Malformed data in a chunk whose CRC matches (a record running past the chunk's
-end, a message record shorter than its fixed fields) is an ``McapError``.
+A chunk that cannot be read is a :class:`ChunkError` naming the chunk (its number
+from 1 in the file's chunk index, and its byte offset) and why: its record is cut
+short, its data does not decompress (zstd or lz4; :func:`decompression_failed` says
+which library errors those are), its CRC does not match, or, in data whose CRC matches,
+a record runs past the chunk's end or a message record is shorter than its fixed fields.
 """
 
 from __future__ import annotations
@@ -41,10 +44,11 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Chunk, ChunkIndex
-from mcap.stream_reader import get_chunk_data_stream
+from mcap.stream_reader import CRCValidationError, get_chunk_data_stream
 from mcap.summary import Summary
+from zstandard import ZstdError
 
-__all__ = ["ChannelMessages", "read_messages"]
+__all__ = ["ChannelMessages", "ChunkError", "decompression_failed", "read_messages"]
 
 #: A record's head: opcode, length of what follows.
 _HEAD = struct.Struct("<BQ")
@@ -55,6 +59,29 @@ _AT_CHANNEL, _AT_LOG_TIME, _AT_DATA = 9, 9 + 2 + 4, 9 + _MESSAGE_FIELDS
 #: A message index record's head: opcode, length, channel id, byte length of its entries.
 _INDEX_HEAD = struct.Struct("<BQHI")
 _INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
+#: The compressions of a chunk's records the MCAP spec names ("": none).
+_COMPRESSIONS = ("", "zstd", "lz4")
+
+
+class ChunkError(McapError):
+    """A chunk of a finished file that cannot be read: ``number`` counts from 1 in the
+    file's chunk index, ``offset`` is the chunk record's byte offset in the file."""
+
+    def __init__(self, number: int, offset: int, reason: str) -> None:
+        self.number = number
+        self.offset = offset
+        self.reason = reason
+        super().__init__(f"chunk {number} at byte {offset}: {reason}")
+
+
+def decompression_failed(exc: BaseException) -> bool:
+    """Whether ``exc`` is what decompressing damaged chunk data raises: zstandard's
+    ``ZstdError``, or lz4.frame's plain ``RuntimeError`` (its messages name the LZ4F
+    call or say the frame is incomplete; a subclass, such as RecursionError, is a bug)."""
+    if isinstance(exc, ZstdError):
+        return True
+    text = str(exc)
+    return type(exc) is RuntimeError and ("LZ4F_" in text or text.startswith("Frame "))
 
 
 @dataclass
@@ -121,24 +148,31 @@ def read_messages(fh: IO[bytes], summary: Summary, channel_ids: Collection[int] 
                   start_ns: int | None = None, end_ns: int | None = None,
                   ) -> dict[int, ChannelMessages]:
     """The messages of ``channel_ids`` (None: every channel) with ``start_ns <= log_time <
-    end_ns``, by channel id, each in file order. A chunk whose data does not decompress
-    or whose CRC does not match raises as mcap's reader does (``CRCValidationError``,
-    ``ZstdError``)."""
+    end_ns``, by channel id, each in file order. A chunk that cannot be read (cut short,
+    does not decompress, a CRC that does not match, records that do not fit) raises a
+    :class:`ChunkError` naming it."""
     wanted = None if channel_ids is None else np.array(sorted(channel_ids), dtype=np.int64)
     parts: dict[int, list[tuple[np.ndarray, _Part]]] = {}
+    numbers = {ci.chunk_start_offset: k for k, ci in enumerate(summary.chunk_indexes, 1)}
     for ci in chunks_to_read(summary, channel_ids, start_ns, end_ns):
-        data = _chunk_data(fh, ci)
+        number = numbers[ci.chunk_start_offset]
+        data = _chunk_data(fh, ci, number)
         offsets = _indexed(data, _index_records(fh, ci), ci) if ci.message_index_offsets \
             else None
         if offsets is None:
-            offsets = np.array(_walk(data, 0, len(data)), dtype=np.int64)
+            try:
+                offsets = np.array(_walk(data, 0, len(data)), dtype=np.int64)
+            except McapError as exc:
+                raise ChunkError(number, ci.chunk_start_offset, str(exc)) from None
         if not len(offsets):
             continue
         u = np.frombuffer(data, dtype=np.uint8)
         length = _gather(u, offsets + 1, "<u8").astype(np.int64)
-        if np.any(length < _MESSAGE_FIELDS) or np.any(offsets + 9 + length > len(data)):
-            raise McapError("a message record is shorter than its fields or runs past "
-                            "its chunk's end")
+        bad = np.flatnonzero((length < _MESSAGE_FIELDS) | (offsets + 9 + length > len(data)))
+        if len(bad):
+            raise ChunkError(number, ci.chunk_start_offset, f"the message record at byte "
+                             f"{int(offsets[bad[0]])} of its data is shorter than its fields "
+                             "or runs past the chunk's end")
         cid = _gather(u, offsets + _AT_CHANNEL, "<u2").astype(np.int64)
         log_time = _gather(u, offsets + _AT_LOG_TIME, "<i8").astype(np.int64)
         keep = np.ones(len(offsets), dtype=bool) if wanted is None else np.isin(cid, wanted)
@@ -158,16 +192,40 @@ def read_messages(fh: IO[bytes], summary: Summary, channel_ids: Collection[int] 
     return out
 
 
-def _chunk_data(fh: IO[bytes], ci: ChunkIndex) -> bytes:
+def _chunk_data(fh: IO[bytes], ci: ChunkIndex, number: int) -> bytes:
     """The chunk's records, decompressed and CRC-checked by mcap (its reader's
-    ``get_chunk_data_stream``, the same libraries and rules)."""
-    fh.seek(ci.chunk_start_offset)
+    ``get_chunk_data_stream``, the same libraries and rules); a :class:`ChunkError`
+    naming chunk ``number`` if it cannot be."""
+    at = ci.chunk_start_offset
+    fh.seek(at)
     head = fh.read(_HEAD.size)
     if len(head) < _HEAD.size or head[0] != Opcode.CHUNK:
-        raise McapError(f"no chunk record at offset {ci.chunk_start_offset}")
-    chunk = Chunk.read(ReadDataStream(fh))
-    stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+        raise ChunkError(number, at, "the chunk index points to no chunk record")
+    try:
+        chunk = Chunk.read(ReadDataStream(fh))
+    except (McapError, struct.error, ValueError, MemoryError) as exc:
+        raise ChunkError(number, at, "its record is cut short or malformed: "
+                         f"{_first_line(exc)}") from None
+    if chunk.compression not in _COMPRESSIONS:  # mcap would read it as uncompressed
+        raise ChunkError(number, at, f"unknown compression {chunk.compression!r}")
+    try:
+        stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+    except CRCValidationError:
+        raise ChunkError(number, at, "its CRC does not match its data") from None
+    except McapError as exc:  # an unknown compression
+        raise ChunkError(number, at, str(exc)) from None
+    except Exception as exc:
+        if not isinstance(exc, MemoryError | ValueError) and not decompression_failed(exc):
+            raise
+        raise ChunkError(number, at, f"its {chunk.compression} data does not decompress: "
+                         f"{_first_line(exc)}") from None
     return stream.read(size)
+
+
+def _first_line(exc: BaseException) -> str:
+    """An error's message, its first line, shortened (what a library says went wrong)."""
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return text if len(text) <= 100 else text[:97] + "..."
 
 
 def _index_records(fh: IO[bytes], ci: ChunkIndex) -> bytes:
@@ -231,13 +289,13 @@ def _walk(data: bytes, start: int, stop: int) -> list[int]:
     message = int(Opcode.MESSAGE)
     while pos < stop:
         if pos + _HEAD.size > stop:
-            raise McapError("a record's head runs past its chunk's end")
+            raise McapError(f"the record at byte {pos} of its data is cut short")
         op, length = head(data, pos)
         if op == message:
             found.append(pos)
-        pos += _HEAD.size + length
-    if pos != stop:
-        raise McapError("a record runs past its chunk's end")
+        at, pos = pos, pos + _HEAD.size + length
+        if pos > stop:
+            raise McapError(f"the record at byte {at} of its data runs past the chunk's end")
     return found
 
 

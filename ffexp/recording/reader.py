@@ -10,8 +10,10 @@ per message), the reference ``load`` is tested and measured against. An unfinish
 file (killed run) has no footer; it is read record by record from the start, keeping
 every complete chunk, until the stream ends (``EndOfFile``) or breaks off in the
 middle of a record (``struct.error``). Chunk CRCs are checked: a finished file with
-a corrupt chunk is an :class:`InputError` naming the file and pointing to
-``ffexp recover``, which rewrites every chunk but the corrupt ones.
+a corrupt chunk (one that does not decompress, zstd or lz4, whose CRC does not match,
+or whose records do not fit in it) is a :class:`CorruptRecordingError` naming the file
+and the chunk and pointing to ``ffexp recover``, which rewrites every chunk but the
+corrupt ones; nothing raises a library's own error.
 """
 
 from __future__ import annotations
@@ -28,13 +30,19 @@ from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, Chunk, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
+from mcap.summary import Summary
 from mcap.writer import CompressionType, Writer
 from zstandard import ZstdError
 
 from drivers.config import not_regular
-from ffexp.errors import InputError
+from ffexp.errors import CorruptRecordingError, InputError
 from ffexp.recording import attached
-from ffexp.recording.chunks import ChannelMessages, read_messages
+from ffexp.recording.chunks import (
+    ChannelMessages,
+    ChunkError,
+    decompression_failed,
+    read_messages,
+)
 from ffexp.recording.columns import decode_channels
 from ffexp.recording.data import JsonData, Recording, TopicData, spec_from_schema
 
@@ -47,8 +55,15 @@ __all__ = [
 MAGIC = b"\x89MCAP0\r\n"
 # OSError: a file shorter than a footer cannot even be seeked to its summary
 _READ_ERRORS = (EndOfFile, McapError, struct.error, ValueError, MemoryError, OSError)
-# a chunk whose data cannot be decompressed, or whose CRC does not match (a ValueError)
-_CHUNK_ERRORS = (ZstdError, McapError, struct.error, ValueError, MemoryError)
+# a chunk whose data cannot be decompressed, or whose CRC does not match (a ValueError),
+# or whose records mcap cannot parse (a length past any buffer: OverflowError); lz4's
+# errors are plain RuntimeErrors (``_damaged``)
+_CHUNK_ERRORS = (ZstdError, McapError, struct.error, ValueError, MemoryError, OverflowError)
+
+
+def _damaged(exc: BaseException) -> bool:
+    """Whether ``exc`` is what reading a damaged chunk raises (and not a bug)."""
+    return isinstance(exc, _CHUNK_ERRORS) or decompression_failed(exc)
 
 
 def check_file(path: Path) -> None:
@@ -104,7 +119,9 @@ def _records(reader: StreamReader, out: _Stream) -> Iterator[Any]:
         n += 1
         try:
             inner = breakup_chunk(rec, validate_crc=True)
-        except _CHUNK_ERRORS:
+        except Exception as exc:
+            if not _damaged(exc):
+                raise
             out.corrupt.append(n)
             continue
         yield from inner
@@ -166,25 +183,31 @@ def _finished_messages(
                     kwargs["starting_at"] = start_ns
                 if end_ns is not None:
                     kwargs["ending_before"] = end_ns
-                out.messages = [message for _s, _c, message in reader.iter_messages(**kwargs)]
+                try:
+                    out.messages = [m for _s, _c, m in reader.iter_messages(**kwargs)]
+                except KeyError as exc:  # mcap's reader met a channel the summary lacks
+                    raise McapError(f"a message of channel {exc}, which the summary does "
+                                    "not list") from None
             out.metadata = [
                 Metadata(name=m.name, metadata=m.metadata) for m in reader.iter_metadata()
             ]
             out.attachments = list(reader.iter_attachments())
-        except (*_READ_ERRORS, *_CHUNK_ERRORS) as exc:
-            if summary is not None and isinstance(exc, _CHUNK_ERRORS):
-                raise InputError(
-                    f"{path}: corrupt data ({_why(exc)}); `ffexp recover {path}` rewrites "
-                    "every readable chunk into a new file") from None
+        except Exception as exc:
+            if summary is not None and _damaged(exc):
+                raise CorruptRecordingError(str(path), _why(exc)) from None
+            if not (isinstance(exc, _READ_ERRORS) or _damaged(exc)):
+                raise
             return _Stream(), False
     return out, True
 
 
 def _why(exc: BaseException) -> str:
     """A read error in a few words: its class, and its message when short."""
+    if isinstance(exc, ChunkError):
+        return str(exc)
     if isinstance(exc, CRCValidationError):
         return "a chunk's CRC does not match its data"
-    if isinstance(exc, ZstdError):
+    if isinstance(exc, ZstdError) or decompression_failed(exc):
         return "a chunk does not decompress"
     text = str(exc).splitlines()[0] if str(exc) else ""
     return f"{type(exc).__name__}: {text}" if text and len(text) < 120 else type(exc).__name__
@@ -316,7 +339,9 @@ def _decode_into(rec: Recording, stream: _Stream) -> None:
     for cid, channel in stream.channels.items():
         msgs = by_channel.get(cid, [])
         schema = stream.schemas.get(channel.schema_id)
-        times = np.fromiter((m.log_time for m in msgs), dtype=np.int64, count=len(msgs))
+        # MCAP's times are unsigned; as int64, as the chunk reader takes them
+        times = np.fromiter((m.log_time for m in msgs), dtype=np.uint64,
+                            count=len(msgs)).view(np.int64)
         if times.size > 1 and np.any(np.diff(times) < 0):
             order = np.argsort(times, kind="stable")
             times = times[order]
@@ -427,6 +452,26 @@ class Contents:
     warnings: list[str]
 
 
+def _attached_frames(fh: Any, summary: Summary, path: Path, warnings: list[str],
+                     ) -> dict[str, bytes]:
+    """The attached frames' last messages by topic, read through the summary's chunk
+    index; a corrupt chunk adds a warning (they then stay unresolved), never an error."""
+    ids = {cid for cid, c in summary.channels.items() if attached.is_attached(c.topic)}
+    try:
+        got = read_messages(fh, summary, ids) if ids else {}
+    except ChunkError as exc:
+        warnings.append(f"{path}: corrupt data ({exc}); `ffexp recover {path}` rewrites "
+                        "every readable chunk into a new file")
+        return {}
+    out = {}
+    for cid, msgs in got.items():
+        if len(msgs):  # the last by log time, as mcap's reader orders them
+            times = msgs.log_time_ns
+            out[summary.channels[cid].topic] = msgs.payloads()[
+                len(times) - 1 - int(np.argmax(times[::-1]))]
+    return out
+
+
 def contents(path: Path) -> Contents:
     """Topics, message counts, rates and time span of a recording.
 
@@ -441,39 +486,38 @@ def contents(path: Path) -> Contents:
     schema_of: dict[str, str] = {}
     fixed: dict[str, bytes] = {}  # the attached frames' messages by topic
     complete = False
+    warnings: list[str] = []
     with path.open("rb") as fh:
         try:
-            reader = make_reader(fh)
-            summary = reader.get_summary()
-            if summary is not None:
-                wanted = [c.topic for c in summary.channels.values()
-                          if attached.is_attached(c.topic)]
-                for _s, channel, message in (reader.iter_messages(topics=wanted)
-                                             if wanted else ()):
-                    fixed[channel.topic] = message.data
+            summary = make_reader(fh, validate_crcs=True).get_summary()
         except _READ_ERRORS:
             summary = None
-        if summary is not None:
-            complete = True
-            stats = summary.statistics
-            for cid, ch in summary.channels.items():
-                counts[ch.topic] = counts.get(ch.topic, 0) + (
-                    stats.channel_message_counts.get(cid, 0) if stats else 0
-                )
-                schema = summary.schemas.get(ch.schema_id)
-                schema_of[ch.topic] = schema.name if schema is not None else ""
-            for idx in summary.chunk_indexes:
-                for cid in idx.message_index_offsets:
-                    topic = summary.channels[cid].topic
-                    first[topic] = min(first.get(topic, idx.message_start_time),
-                                       idx.message_start_time)
-                    last[topic] = max(last.get(topic, idx.message_end_time), idx.message_end_time)
-    warnings: list[str] = []
+        if summary is not None and summary.chunk_indexes:
+            fixed.update(_attached_frames(fh, summary, path, warnings))
+    if summary is not None:
+        complete = True
+        stats = summary.statistics
+        for cid, ch in summary.channels.items():
+            counts[ch.topic] = counts.get(ch.topic, 0) + (
+                stats.channel_message_counts.get(cid, 0) if stats else 0
+            )
+            schema = summary.schemas.get(ch.schema_id)
+            schema_of[ch.topic] = schema.name if schema is not None else ""
+        for idx in summary.chunk_indexes:
+            for cid in idx.message_index_offsets:
+                if cid not in summary.channels:
+                    continue  # a damaged summary: counted from the statistics only
+                topic = summary.channels[cid].topic
+                first[topic] = min(first.get(topic, idx.message_start_time),
+                                   idx.message_start_time)
+                last[topic] = max(last.get(topic, idx.message_end_time), idx.message_end_time)
     if summary is None or not summary.chunk_indexes:
         stream = _read_stream(path)
         complete = complete and stream.complete
         if summary is None:
             warnings.append(f"{path}: recording is incomplete; `ffexp recover` rewrites it")
+        if stream.corrupt:
+            warnings.append(f"{path}: corrupt chunk(s) {_numbers(stream.corrupt)} left out")
         counts = {ch.topic: 0 for ch in stream.channels.values()}
         for ch in stream.channels.values():
             schema = stream.schemas.get(ch.schema_id)

@@ -42,8 +42,6 @@ OPTION = "--executor"
 PRELOAD = ("ffexp.sweeps.worker", "ffexp.sweeps.batch", "ffexp.experiment", "ffexp.analysis",
            "ffexp.recording", "ffexp.estimation.kernels", "drivers.world.gate",
            "drivers.world.world", "drivers.fri.emulate.lockstep")
-#: Seconds :func:`end_workers` waits for a process pool's manager thread to end.
-END_WORKERS_JOIN_S = 5.0
 #: Seconds to wait for a TCP answer from a Ray address before calling it unreachable.
 CONNECT_TIMEOUT_S = 3.0
 
@@ -261,15 +259,19 @@ def end_workers(executor: Executor) -> None:
     """Stop the running runs now (a second Ctrl-C): end a pool's worker processes (with
     SIGKILL: they ignore SIGINT and SIGTERM, see :func:`init_worker`)."""
     processes = getattr(executor, "_processes", None) or {}
+    # taken before shutdown, which forgets it (a pool's shutdown sets it to None)
+    manager = getattr(executor, "_executor_manager_thread", None)
     for proc in list(processes.values()):
         proc.kill()
     executor.shutdown(wait=False, cancel_futures=True)
-    # The pool's manager thread sees its workers gone and closes its wake-up pipe; let it
-    # finish (bounded) before the interpreter's exit hook writes to that pipe: on
-    # Python 3.11 the two race, and the loser prints "OSError: Bad file descriptor".
-    manager = getattr(executor, "_executor_manager_thread", None)
+    # The pool's manager thread sees its workers gone, settles every run's future (each
+    # ended or cancelled) and closes its wake-up pipe; let it finish before the
+    # interpreter's exit hook writes to that pipe: on Python 3.11 the two race, and the
+    # loser prints "OSError: Bad file descriptor". Not bounded: the exit hook itself
+    # joins the thread without a bound (concurrent.futures.process._python_exit), and a
+    # bound would be a race again on a loaded machine.
     if manager is not None:
-        manager.join(END_WORKERS_JOIN_S)
+        manager.join()
 
 
 def start_forkserver() -> None:

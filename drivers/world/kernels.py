@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import mujoco
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
@@ -34,11 +35,19 @@ __all__ = [
     "FT_TARE",
     "FT_XFORM",
     "MUJOCO",
+    "POSE_BODIES",
+    "POSE_CMD",
+    "POSE_TCP",
+    "POST_DIVERGED",
+    "POST_INERTIA",
+    "POST_TOUCHING",
     "arm_warnings",
     "end_state",
+    "fill_state",
     "ft_block",
     "mujoco_addresses",
     "pose4",
+    "post_step",
     "stribeck_arg",
     "stribeck_level",
     "tcf_kinematics",
@@ -51,9 +60,9 @@ __all__ = [
 
 #: The MuJoCo functions the kernels call, in the order of :func:`mujoco_addresses`.
 MUJOCO = ("mj_kinematics", "mj_comPos", "mj_comVel", "mj_passive", "mj_rne", "mj_jacSite",
-          "mj_makeM", "mj_factorM", "mj_fullM", "mj_rnePostConstraint")
+          "mj_makeM", "mj_factorM", "mj_fullM", "mj_rnePostConstraint", "mj_objectVelocity")
 _KINEMATICS, _COM_POS, _COM_VEL, _PASSIVE, _RNE, _JAC_SITE, _MAKE_M, _FACTOR_M, _FULL_M, \
-    _RNE_POST = range(len(MUJOCO))
+    _RNE_POST, _OBJECT_VELOCITY = range(len(MUJOCO))
 
 
 def mujoco_addresses() -> NDArray[np.int64]:
@@ -262,3 +271,123 @@ def pose4(pos: F64, mat9: F64) -> F64:
         out[3, i] = 0.0
     out[3, 3] = 1.0
     return out
+
+
+# ---------------------------------------------------------------- a cycle's end, one call
+
+#: MuJoCo's bad-state warnings' indices into ``mjData.warning`` (qacc, qpos, qvel) and
+#: the count they are primed at (:mod:`drivers.world.divergence`).
+_WARN_BAD = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC,
+                                   mujoco.mjtWarning.mjWARN_BADQPOS,
+                                   mujoco.mjtWarning.mjWARN_BADQVEL))
+_WARN_SEEN = 1
+_OBJ_BODY = np.int32(mujoco.mjtObj.mjOBJ_BODY)
+#: :func:`post_step`'s answer: the tool touches; MuJoCo flagged a bad state; a joint
+#: moved beyond the inertia's reuse distance.
+POST_TOUCHING, POST_DIVERGED, POST_INERTIA = 1, 2, 4
+
+
+@njit(cache=True)
+def post_step(fns: Any, m: int, d: int, is_tool: Any, cfrc: F64, com: F64, tcp: F64,
+              rot: F64, qfrc_bias: F64, warn: Any, q: F64, reuse: float, geom: Any,
+              contact: F64, q_ref: F64) -> int:
+    """What a cycle needs after its physics steps, in the order ``SimWorld.advance``
+    had it: the tool's contact (:func:`touches` on ``geom``, the contact list's geom
+    pairs; touching, ``mj_rnePostConstraint`` and :func:`tool_wrench` into
+    ``contact``, else zeros), the end state's dynamics (:func:`end_state`), MuJoCo's
+    bad-state counters (``warn``: ``mjData.warning.number``) and whether a joint
+    ``q`` moved more than ``reuse`` from ``q_ref``. Returns the ``POST_*`` bits."""
+    out = 0
+    if touches(geom, is_tool):
+        out |= POST_TOUCHING
+        c_call(fns[_RNE_POST], (m, d))
+        tool_wrench(cfrc, com, tcp, rot, contact)
+    else:
+        for j in range(6):
+            contact[j] = 0.0
+    end_state(fns, m, d, qfrc_bias)
+    for i in _WARN_BAD:
+        if warn[i] != _WARN_SEEN:
+            out |= POST_DIVERGED
+    for j in range(q.shape[0]):
+        if abs(q[j] - q_ref[j]) > reuse:
+            out |= POST_INERTIA
+            break
+    return out
+
+
+#: Rows of :func:`fill_state`'s pose buffer: the TCP's pose, the Cartesian set-point
+#: in use, then the bodies' poses and the sites'.
+POSE_TCP, POSE_CMD, POSE_BODIES = 0, 1, 2
+
+
+@njit(cache=True)
+def fill_state(fns: Any, m: int, d: int, tcp_site: int, jac2: F64, jfull2: F64, mfull: F64,
+               va0: int, qpos: F64, qvel: F64, torque: F64, limits: F64, bits: Any,
+               gravcomp: F64, site_xpos: F64, site_xmat: F64, xpos: F64, xmat: F64,
+               body_ids: Any, site_ids: Any, work: F64, kin: bool, make_m: bool,
+               jnt_src: F64, cart: bool, cart_src: F64, tcp_src: F64, contact: F64,
+               vec: F64, poses: F64) -> int:
+    """An arm state's arrays at the end state, into ``vec`` and ``poses``; returns its
+    limit warnings (:func:`arm_warnings`).
+
+    ``vec`` (``n`` joints): the joints, the joint set-point in use (``jnt_src``), the
+    gravity torques, the contact wrench (a copy of ``contact``), the TCF Jacobian
+    (``6 x n``, row-major), the mass matrix (``n x n``), then each body's twist
+    ``[v, w]`` (``mj_objectVelocity``, world axes). ``poses``: the TCP's 4x4 (from its
+    site, or a copy of ``tcp_src`` when that is 4x4), the Cartesian set-point in use
+    (``cart_src`` if ``cart``, else the TCP's), each body's, each site's. With ``kin``
+    the Jacobian and mass matrix are computed first (:func:`tcf_kinematics`, the mass
+    matrix factorised too if ``make_m``); else ``jfull2`` and ``mfull`` hold them."""
+    n = qpos.shape[0]
+    for j in range(n):
+        vec[j] = qpos[j]
+        vec[n + j] = qpos[j] if cart else jnt_src[j]
+        vec[2 * n + j] = gravcomp[j]
+    for j in range(6):
+        vec[3 * n + j] = contact[j]
+    if tcp_src.shape[0] == 4:
+        for i in range(4):
+            for j in range(4):
+                poses[POSE_TCP, i, j] = tcp_src[i, j]
+    else:
+        _pose_into(site_xpos[tcp_site], site_xmat[tcp_site], poses[POSE_TCP])
+    for i in range(4):
+        for j in range(4):
+            poses[POSE_CMD, i, j] = cart_src[i, j] if cart else poses[POSE_TCP, i, j]
+    if kin:
+        tcf_kinematics(fns, m, d, tcp_site, jac2, site_xmat[tcp_site].reshape((3, 3)),
+                       jfull2, make_m, mfull)
+    at = 3 * n + 6
+    for r in range(2):
+        for i in range(3):
+            for j in range(n):
+                vec[at + (3 * r + i) * n + j] = jfull2[r, i, va0 + j]
+    at += 6 * n
+    for i in range(n):
+        for j in range(n):
+            vec[at + i * n + j] = mfull[va0 + i, va0 + j]
+    at += n * n
+    for k in range(body_ids.shape[0]):
+        b = body_ids[k]
+        _pose_into(xpos[b], xmat[b], poses[POSE_BODIES + k])
+        c_call(fns[_OBJECT_VELOCITY], (m, d, _OBJ_BODY, np.int32(b), work, np.int32(0)))
+        for j in range(3):  # MuJoCo's [w, v] as [v, w]
+            vec[at + 6 * k + j] = work[3 + j]
+            vec[at + 6 * k + 3 + j] = work[j]
+    first = POSE_BODIES + body_ids.shape[0]
+    for k in range(site_ids.shape[0]):
+        s = site_ids[k]
+        _pose_into(site_xpos[s], site_xmat[s], poses[first + k])
+    return arm_warnings(qvel, vec[:n], torque, limits, bits)
+
+
+@njit(cache=True)
+def _pose_into(pos: F64, mat9: F64, out: F64) -> None:
+    """A 4x4 pose from a position and a row-major 3x3 rotation (9 values) into ``out``."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = mat9[3 * i + j]
+        out[i, 3] = pos[i]
+        out[3, i] = 0.0
+    out[3, 3] = 1.0

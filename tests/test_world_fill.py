@@ -12,11 +12,12 @@ import mujoco
 import numpy as np
 import pytest
 
+from drivers.base.types import BodyTruth
 from drivers.description.scene import Scene, load_scene
 from drivers.world import kernels
 from drivers.world.arm import ArmCommand, ArmMode, ArmWarning
 from drivers.world.contact import ToolContact
-from drivers.world.truth import pose
+from drivers.world.truth import ground_truth, pose
 from drivers.world.world import INERTIA_REUSE_RAD, SimWorld
 
 SCENES = Path(__file__).resolve().parent.parent / "data" / "scenes"
@@ -172,6 +173,11 @@ def test_the_state_fill_is_the_field_by_field_form(name: str, tmp_path: Path) ->
         if t.base_pose is not None:
             assert _bits(t.base_pose) == _bits(ref["base_pose"])
         assert t.contact_wrench is w._contact and t.in_contact == w._touching
+        made = ground_truth({}, {}, w._contact, False, np.zeros(6), None, w._attached)
+        assert list(vars(t)) == list(vars(made)) and t.topic_prefix == made.topic_prefix
+        assert t.attached is w._attached
+        assert all(list(vars(b)) == list(vars(BodyTruth())) for b in t.bodies.values())
+        assert all(isinstance(b.mass_kg, float) and b.mass_kg > 0 for b in t.bodies.values())
         assert isinstance(s.warning, ArmWarning)
 
 
@@ -196,3 +202,25 @@ def test_dot_is_numpys_matmul(shape: tuple[int, int]) -> None:
         y = rng.standard_normal(shape[0])
         assert _bits(a.dot(x)) == _bits(a @ x)
         assert _bits(y.dot(a)) == _bits(a.T @ y)
+
+
+def test_set_frame_is_the_bindings_mat2quat() -> None:
+    """The commanded frame written by one compiled call: the pose's translation and
+    ``mju_mat2Quat`` of its rotation, as the bindings give them (a pose in either order)."""
+    fns = kernels.mujoco_addresses()
+    rng = np.random.default_rng(5)
+    pos, quat, work = np.zeros(3), np.zeros(4), np.zeros(9)
+    for k in range(300):
+        q = rng.standard_normal(4)
+        q /= np.linalg.norm(q)
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, q)
+        p = np.eye(4)
+        p[:3, :3] = rot.reshape(3, 3)
+        p[:3, 3] = rng.standard_normal(3)
+        if k % 2:
+            p = np.asfortranarray(p)
+        want = np.zeros(4)
+        mujoco.mju_mat2Quat(want, p[:3, :3].ravel())
+        kernels.set_frame(fns, p, pos, quat, work)
+        assert _bits(quat) == _bits(want) and _bits(pos) == _bits(p[:3, 3])

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import mujoco
 import numpy as np
 
 from drivers.base.impedance import normalized_damping
@@ -37,9 +36,8 @@ def apply(w: SimWorld) -> None:
         if w._latched:  # the rest changes only with a command
             w._latched = False
             if written.get("pos") is not w._cart_pos:
-                w._mocap_pos[:] = w._cart_pos[:3, 3]
-                mujoco.mju_mat2Quat(w._quat, w._cart_pos[:3, :3].ravel())
-                w._mocap_quat[:] = w._quat
+                # mocap_pos = the translation, mju_mat2Quat(mocap_quat, the rotation)
+                w._set_frame(w._mj[0], w._cart_pos, w._mocap_pos, w._mocap_quat, w._rot9)
                 written["pos"] = w._cart_pos
             if written.get("k") is not w._cart_stiff:
                 np.negative(w._cart_stiff, out=w._cart_stiff_prm)

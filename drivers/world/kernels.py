@@ -48,6 +48,7 @@ __all__ = [
     "mujoco_addresses",
     "pose4",
     "post_step",
+    "set_frame",
     "stribeck_arg",
     "stribeck_level",
     "tcf_kinematics",
@@ -60,9 +61,10 @@ __all__ = [
 
 #: The MuJoCo functions the kernels call, in the order of :func:`mujoco_addresses`.
 MUJOCO = ("mj_kinematics", "mj_comPos", "mj_comVel", "mj_passive", "mj_rne", "mj_jacSite",
-          "mj_makeM", "mj_factorM", "mj_fullM", "mj_rnePostConstraint", "mj_objectVelocity")
+          "mj_makeM", "mj_factorM", "mj_fullM", "mj_rnePostConstraint", "mj_objectVelocity",
+          "mju_mat2Quat")
 _KINEMATICS, _COM_POS, _COM_VEL, _PASSIVE, _RNE, _JAC_SITE, _MAKE_M, _FACTOR_M, _FULL_M, \
-    _RNE_POST, _OBJECT_VELOCITY = range(len(MUJOCO))
+    _RNE_POST, _OBJECT_VELOCITY, _MAT2QUAT = range(len(MUJOCO))
 
 
 def mujoco_addresses() -> NDArray[np.int64]:
@@ -112,14 +114,14 @@ FT_BIAS, FT_RANGE, FT_TARE, FT_INV_RES, FT_RES, FT_XFORM = 0, 1, 2, 3, 4, 5
 
 @njit(cache=True)
 def ft_block(white: F64, i: int, raw: F64, delay_buf: F64, delay_n: int, drift: F64,
-             consts: F64, tared: bool, out: F64, row_over: Any) -> int:
+             at: int, consts: F64, tared: bool, out: F64, row_over: Any) -> int:
     """One block of the Net F/T model (``FtSensorModel.process``'s arithmetic).
 
     With ``delay_n > 0`` the readings first go through the delay buffer ``delay_buf``
     (``[held; newest]``, ``delay_n + n`` rows): its last ``delay_n`` rows move to its
     top, ``raw`` fills the rest, and its first ``n`` rows are the block's readings
     (``x``); otherwise ``x`` is ``raw``. Then
-    ``out = rint((clip?((white[i:i+n] - x) + drift + bias) @ xform - tare?) *
+    ``out = rint((clip?((white[i:i+n] - x) + drift[at:at+n] + bias) @ xform - tare?) *
     inv_res) * res`` for the ``n`` rows of ``raw`` (``n >= 2``: the product as
     OpenBLAS's ``dgemm`` sums it; a single row goes through ``dgemv``, whose order
     differs). The clip to the gauge range runs only when some value exceeds it (then
@@ -140,7 +142,7 @@ def ft_block(white: F64, i: int, raw: F64, delay_buf: F64, delay_n: int, drift: 
     for r in range(n):
         for c in range(6):
             v = white[i + r, c] - x[r, c]
-            v += drift[r, c]
+            v += drift[at + r, c]
             v += consts[FT_BIAS, c]
             out[r, c] = v
             if abs(v) > consts[FT_RANGE, c]:
@@ -380,6 +382,17 @@ def fill_state(fns: Any, m: int, d: int, tcp_site: int, jac2: F64, jfull2: F64, 
         s = site_ids[k]
         _pose_into(site_xpos[s], site_xmat[s], poses[first + k])
     return arm_warnings(qvel, vec[:n], torque, limits, bits)
+
+
+@njit(cache=True)
+def set_frame(fns: Any, pose: F64, pos: F64, quat: F64, work: F64) -> None:
+    """A 4x4 pose into a frame's position ``pos`` and unit quaternion ``quat``
+    (``mju_mat2Quat`` of its rotation, copied row-major into the 9 values ``work``)."""
+    for i in range(3):
+        pos[i] = pose[i, 3]
+        for j in range(3):
+            work[3 * i + j] = pose[i, j]
+    c_call(fns[_MAT2QUAT], (quat, work))
 
 
 @njit(cache=True)

@@ -23,9 +23,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from drivers.base.types import BodyTruth
+from drivers.base.types import BodyTruth, GroundTruth
 from drivers.world.arm import ArmMode, ArmState, ArmWarning
-from drivers.world.truth import ground_truth
 
 if TYPE_CHECKING:
     from drivers.world.world import SimWorld
@@ -42,6 +41,8 @@ _WARN_BITS = np.array((_WARN_VELOCITY, _WARN_POSITION, _WARN_TORQUE))
 _ARM_WARNINGS = tuple(
     ArmWarning(bits) for bits in range(1 << max(int(w) for w in ArmWarning).bit_length()))
 _NO_POSE = np.zeros((0, 4))  # fill_state's tcp_src: the TCP's pose from its site
+_TOPIC_PREFIX: str = GroundTruth().topic_prefix  # the simulator's recording topics
+_new = object.__new__
 
 
 class LazyArmState(ArmState):
@@ -113,18 +114,18 @@ class StateFill:
         self._n = n = w._n
         self._kernel = kernels.fill_state
         rows = w.bodies._rows
-        self._bodies = tuple((name, bid) for name, bid, _, _ in rows)
+        nb = len(rows)
+        twist0 = 9 * n + 6 + n * n  # vec: the bodies' twists from here
+        self._bodies = tuple((name, bid, slice(twist0 + 6 * k, twist0 + 6 * k + 6))
+                             for k, (name, bid, _, _) in enumerate(rows))
         self._body_masses = w.bodies
         sites = [("funnel_mouth", w._mouth)]
         if w.chaser is not None:  # the TCP in the world (the state's is in the base's)
             sites.append(("tcp", w._tcp))
         sites += w._object_sites
         self._site_names = tuple(name for name, _ in sites)
-        nb = len(rows)
         self._jac = slice(3 * n + 6, 9 * n + 6)
         self._mass = slice(9 * n + 6, 9 * n + 6 + n * n)
-        twist0 = 9 * n + 6 + n * n
-        self._twists = tuple(slice(twist0 + 6 * k, twist0 + 6 * k + 6) for k in range(nb))
         self._nvec = twist0 + 6 * nb
         self._npose = kernels.POSE_BODIES + nb + len(sites)
         self._site0 = kernels.POSE_BODIES + nb
@@ -132,7 +133,7 @@ class StateFill:
         self._args = (fns, ma, da, w._tcp, w._jac2, w._jfull2, w._mfull, w._va.start,
                       w._qpos_arm, w._qvel_arm, w._actuator_arm, w._warn_limits, _WARN_BITS,
                       w._gravcomp_arm, d.site_xpos, d.site_xmat, d.xpos, d.xmat,
-                      np.array([bid for _, bid in self._bodies], dtype=np.int32),
+                      np.array([bid for _, bid, _ in self._bodies], dtype=np.int32),
                       np.array([sid for _, sid in sites], dtype=np.int32), np.zeros(6))
         del m
 
@@ -160,9 +161,14 @@ class StateFill:
         tau_msr = mass.dot(w._qacc_arm)
         tau_msr += w._bias_arm
         tau_msr -= tau_ext
+        # the truth's objects without their dataclasses' __init__ (the same fields in
+        # the same order as truth.ground_truth's)
         masses = self._body_masses._mass
-        bodies = {name: BodyTruth(poses[2 + k], vec[self._twists[k]], float(masses[bid]))
-                  for k, (name, bid) in enumerate(self._bodies)}
+        bodies = {}
+        for k, (name, bid, twist) in enumerate(self._bodies):
+            body = bodies[name] = _new(BodyTruth)
+            body.__dict__ = {"pose": poses[2 + k], "twist": vec[twist],
+                             "mass_kg": float(masses[bid])}
         site0 = self._site0
         sites = {name: poses[site0 + k] for k, name in enumerate(self._site_names)}
         d = s.__dict__
@@ -178,8 +184,12 @@ class StateFill:
         d["jnt_trq_nm"] = tau_msr
         d["ext_wrench_n_nm"] = vec[3 * n:3 * n + 6]
         d["gravity_nm"] = vec[2 * n:3 * n]
-        d["truth"] = ground_truth(
-            bodies, sites, contact, w._touching, jac.dot(w._qvel_arm),
-            None if chaser is None else chaser.arm_base_pose(), w._attached)
+        truth = d["truth"] = _new(GroundTruth)
+        truth.__dict__ = {
+            "bodies": bodies, "sites": sites, "attached": w._attached,
+            "contact_wrench": contact, "in_contact": w._touching,
+            "tcp_twist": jac.dot(w._qvel_arm),
+            "base_pose": None if chaser is None else chaser.arm_base_pose(),
+            "topic_prefix": _TOPIC_PREFIX}
         if old is not None:  # fields set before the fill keep their values
             d.update(old)

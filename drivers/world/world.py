@@ -166,7 +166,7 @@ class SimWorld:
         # MuJoCo's functions called from compiled code, on these structs (kernels.py)
         self._mj = (kernels.mujoco_addresses(), m._address, d._address)
         self._end_state, self._tcf_kinematics = kernels.end_state, kernels.tcf_kinematics
-        self._post_step = kernels.post_step
+        self._post_step, self._set_frame = kernels.post_step, kernels.set_frame
         self._arm_warnings = kernels.arm_warnings  # the state's, from these limits:
         self._warn_limits = np.array((self._vel_limits, self._pos_limits - 1e-3,
                                       self._pos_lower + 1e-3, self._torque_limits - 1e-9))
@@ -217,7 +217,7 @@ class SimWorld:
         self._qfrc_bias = d.qfrc_bias
         self._gravcomp_arm = d.qfrc_gravcomp[va]
         self._applied_arm = d.qfrc_applied[va]
-        self._quat = np.zeros(4)
+        self._rot9 = np.zeros(9)
         self._ft_steps = FtSteps(
             m, d, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_FORCE),
             mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_TORQUE),

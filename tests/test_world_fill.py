@@ -193,15 +193,20 @@ def test_a_field_set_before_the_fill_keeps_its_value() -> None:
 
 @pytest.mark.parametrize("shape", [(6, 7), (6, 13), (7, 7)])
 def test_dot_is_numpys_matmul(shape: tuple[int, int]) -> None:
-    """``a.dot(b)`` (the fill's products) has the bits of ``@`` (the forms it replaced):
-    ``A x``, and ``A^T w`` as ``w.dot(A)``."""
+    """``a.dot(b)`` (the fill's products, on views of its buffer) has the bits of ``@`` on
+    a matrix of its own (the forms it replaced): ``A x``, and ``A^T w`` as ``w.dot(A)``."""
     rng = np.random.default_rng(7)
-    for _ in range(3000):
+    size = shape[0] * shape[1]
+    for k in range(3000):
         a = rng.standard_normal(shape) * 10.0 ** rng.integers(-4, 4, shape)
         x = rng.standard_normal(shape[1])
         y = rng.standard_normal(shape[0])
-        assert _bits(a.dot(x)) == _bits(a @ x)
-        assert _bits(y.dot(a)) == _bits(a.T @ y)
+        # in a buffer at any offset (the state's fields are views of one), or its own
+        at = k % 9
+        view = np.empty(size + 9)[at:at + size].reshape(shape)
+        view[...] = a
+        assert _bits(view.dot(x)) == _bits(a @ x)
+        assert _bits(y.dot(view)) == _bits(a.T @ y)
 
 
 def test_set_frame_is_the_bindings_mat2quat() -> None:
@@ -224,3 +229,91 @@ def test_set_frame_is_the_bindings_mat2quat() -> None:
         mujoco.mju_mat2Quat(want, p[:3, :3].ravel())
         kernels.set_frame(fns, p, pos, quat, work)
         assert _bits(quat) == _bits(want) and _bits(pos) == _bits(p[:3, 3])
+
+
+@pytest.mark.parametrize("name", ["paper", "free-flying"])
+def test_inertia_lhs_is_the_bindings_and_numpys_product(name: str, tmp_path: Path) -> None:
+    """``J M^-1 J^T`` of one compiled call (the Jacobian and mass matrix made first, or
+    only the factorisation, or neither) has the bits of the bindings' ``mj_solveM`` and
+    numpy's product; the world's Cartesian inertia is LAPACK's inverse of it."""
+    w = SimWorld(_scene(name, tmp_path), seed=4)
+    cmd = _press(w)
+    m = w.model
+    fns = kernels.mujoco_addresses()
+    for k in range(60):
+        w.advance(cmd)
+        if k % 6:
+            continue
+        ref = copy.copy(w.data)
+        jac2, jfull = np.zeros((2, 3, m.nv)), np.zeros((6, m.nv))
+        mujoco.mj_jacSite(m, ref, jac2[0], jac2[1], w._tcp)
+        rot = ref.site_xmat[w._tcp].reshape(3, 3)
+        jfull[:3], jfull[3:] = rot.T @ jac2[0], rot.T @ jac2[1]
+        mujoco.mj_makeM(m, ref)
+        mujoco.mj_factorM(m, ref)
+        x = np.zeros((6, m.nv))
+        mujoco.mj_solveM(m, ref, x, jfull)
+        want = jfull @ x.T
+        mfull = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, ref, mfull)
+        # made by the kernel; the Jacobian made before (the factorisation by the kernel);
+        # both made before
+        for case in range(3):
+            new = copy.copy(w.data)
+            j2, jf, mf = np.zeros((2, 3, m.nv)), np.zeros((6, m.nv)), np.zeros((m.nv, m.nv))
+            if case:
+                kernels.tcf_kinematics(fns, m._address, new._address, w._tcp, j2,
+                                       new.site_xmat[w._tcp].reshape(3, 3),
+                                       jf.reshape(2, 3, m.nv), case == 2, mf)
+            a, diag = np.empty((6, 6)), np.empty(w._n)
+            kernels.inertia_lhs(fns, m._address, new._address, w._tcp, j2,
+                                new.site_xmat[w._tcp].reshape(3, 3), jf.reshape(2, 3, m.nv),
+                                case == 0, case != 2, mf, jf, np.zeros((6, m.nv)), a,
+                                w._va.start, diag)
+            assert _bits(a) == _bits(want), case
+            assert _bits(diag) == _bits(mf.diagonal()[w._va]), case  # the mass matrix's
+            if case != 1:  # (made here: the end state's; case 1's full matrix is older)
+                assert _bits(mf) == _bits(mfull), case
+        w._update_inertia()
+        assert _bits(w.cart_inertia) == _bits(np.linalg.inv(want))
+
+
+def test_history_rows_are_the_ring_view_rolled() -> None:
+    """The F/T readings copied from MuJoCo's sensor history by one compiled call are the
+    strided view of the ring, rolled to its oldest sample, wherever the ring started; a
+    ring whose oldest sample is not the cycle's start is refused."""
+    w = SimWorld(load_scene(SCENES / "paper.toml"), seed=1)
+    steps = w._ft_steps
+    assert steps.uses_history
+    view, cursor = steps._hist  # type: ignore[misc]
+    m, d, n = w.model, w.data, w.substeps
+    for extra in range(n + 2):  # the ring started elsewhere: steps outside the cycle
+        for _ in range(extra):
+            mujoco.mj_step(m, d)
+        t_start = d.time
+        mujoco.mj_step(m, d, n)
+        oldest = (int(d.history[cursor]) + 1) % n
+        want = np.roll(view, -oldest, axis=0).reshape(n, 6)
+        raw = np.full((n, 6), np.nan)
+        assert kernels.history_rows(d.history, steps._fadr, steps._tadr, n, t_start, raw)
+        assert _bits(raw) == _bits(want)
+        assert not kernels.history_rows(d.history, steps._fadr, steps._tadr, n,
+                                        t_start - m.opt.timestep, raw)
+
+
+def test_same_or_finite_compares_bits() -> None:
+    """The pose latch's test: the same bits (a signed zero differs from the other), else
+    finite or not."""
+    rng = np.random.default_rng(9)
+    cur = rng.standard_normal((4, 4))
+    assert kernels.same_or_finite(cur.copy(), cur) == 0
+    assert kernels.same_or_finite(np.asfortranarray(cur), cur) == 0
+    for value, want in ((np.nextafter(cur[1, 2], 9.0), 1), (np.nan, 2), (np.inf, 2)):
+        src = cur.copy()
+        src[1, 2] = value
+        assert kernels.same_or_finite(src, cur) == want
+    zero = np.zeros((4, 4))
+    neg = zero.copy()
+    neg[3, 3] = -0.0
+    assert kernels.same_or_finite(neg, zero) == 1 and kernels.same_or_finite(zero, neg) == 1
+    assert kernels.same_or_finite(neg.copy(), neg) == 0

@@ -333,11 +333,15 @@ class FtSteps:
             raise SimulationError("unexpected sensor layout")
         self.raw = np.zeros((substeps, 6))
         """The last cycle's readings, oldest first (parent on child: force, torque)."""
-        self._raw3 = self.raw.reshape(substeps, 2, 3)  # the same memory
         self._rows = tuple(self.raw[i] for i in range(substeps))
         self._now = data.sensordata[adr:adr + 6]
         self._history = data.history  # a view of MuJoCo's buffer (fixed for the data's life)
         self._hist = self._history_view()
+        # the sensors' history addresses (kernels.history_rows: the view's rows, compiled)
+        self._fadr, self._tadr = (int(model.sensor_historyadr[s]) for s in self._sensors)
+        from drivers.world import kernels  # numba: imported when a world is built
+
+        self._history_rows = kernels.history_rows
         self._gate = current_gate()
         """The batch's physics gate this world steps through (``None``: alone)."""
 
@@ -406,13 +410,8 @@ class FtSteps:
             mujoco.mj_step(m, d, self._n)
         else:  # stepped with the batch's other runs, in one dispatch
             gate.step(m, d, self._n)
-        view, cursor = hist
-        history = self._history
-        oldest = int(history[cursor]) + 1
-        if oldest == self._n:
-            oldest = 0
-        else:  # the ring started elsewhere (a step outside this class)
-            view = np.roll(view, -oldest, axis=0)
-        if history[cursor + 1 + oldest] != t_start:  # the oldest sample's time
+        # the rows of the history view, oldest first (the ring may have started elsewhere:
+        # a step outside this class), and the oldest sample's time checked, compiled
+        if not self._history_rows(self._history, self._fadr, self._tadr, self._n, t_start,
+                                  self.raw):
             raise SimulationError("F/T sensor history: not this cycle's readings")
-        np.copyto(self._raw3, view)

@@ -16,6 +16,7 @@ MuJoCo bindings' calls) on random inputs.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import mujoco
@@ -45,9 +46,12 @@ __all__ = [
     "end_state",
     "fill_state",
     "ft_block",
+    "history_rows",
+    "inertia_lhs",
     "mujoco_addresses",
     "pose4",
     "post_step",
+    "same_or_finite",
     "set_frame",
     "stribeck_arg",
     "stribeck_level",
@@ -62,9 +66,9 @@ __all__ = [
 #: The MuJoCo functions the kernels call, in the order of :func:`mujoco_addresses`.
 MUJOCO = ("mj_kinematics", "mj_comPos", "mj_comVel", "mj_passive", "mj_rne", "mj_jacSite",
           "mj_makeM", "mj_factorM", "mj_fullM", "mj_rnePostConstraint", "mj_objectVelocity",
-          "mju_mat2Quat")
+          "mju_mat2Quat", "mj_solveM")
 _KINEMATICS, _COM_POS, _COM_VEL, _PASSIVE, _RNE, _JAC_SITE, _MAKE_M, _FACTOR_M, _FULL_M, \
-    _RNE_POST, _OBJECT_VELOCITY, _MAT2QUAT = range(len(MUJOCO))
+    _RNE_POST, _OBJECT_VELOCITY, _MAT2QUAT, _SOLVE_M = range(len(MUJOCO))
 
 
 def mujoco_addresses() -> NDArray[np.int64]:
@@ -103,6 +107,34 @@ def tcf_kinematics(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfu
         c_call(fns[_MAKE_M], (m, d))
         c_call(fns[_FACTOR_M], (m, d))
     c_call(fns[_FULL_M], (m, d, mfull))
+
+
+@njit(cache=True)
+def inertia_lhs(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfull2: F64,
+                kin: bool, make_m: bool, mfull: F64, jfull: F64, minv_jt: F64, a: F64,
+                va0: int, m_diag: F64) -> None:
+    """``a = J M^-1 J^T`` (the inverse of the Cartesian inertia) of the TCF Jacobian
+    ``jfull`` and MuJoCo's factorised mass matrix: first, with ``kin``, the Jacobian
+    and mass matrix (:func:`tcf_kinematics`), else with ``make_m`` the factorisation
+    (``mj_makeM``, ``mj_factorM``); then ``mj_solveM`` into ``minv_jt`` and the product
+    as OpenBLAS's ``dgemm`` sums it (each of the ``nv`` products fused in turn into a
+    zeroed accumulator); ``m_diag``: the arm's joint inertias (``mfull``'s diagonal from
+    ``va0``)."""
+    if kin:
+        tcf_kinematics(fns, m, d, site, jac2, rot, jfull2, make_m, mfull)
+    elif make_m:
+        c_call(fns[_MAKE_M], (m, d))
+        c_call(fns[_FACTOR_M], (m, d))
+    c_call(fns[_SOLVE_M], (m, d, minv_jt, jfull, np.int32(6)))
+    nv = jfull.shape[1]
+    for i in range(6):
+        for j in range(6):
+            acc = 0.0
+            for k in range(nv):
+                acc = fma(jfull[i, k], minv_jt[j, k], acc)
+            a[i, j] = acc
+    for j in range(m_diag.shape[0]):
+        m_diag[j] = mfull[va0 + j, va0 + j]
 
 
 # ---------------------------------------------------------------- the F/T model
@@ -181,6 +213,50 @@ def ft_block(white: F64, i: int, raw: F64, delay_buf: F64, delay_n: int, drift: 
             acc *= consts[FT_RES, j]
             out[r, j] = acc
     return rows_over
+
+
+@njit(cache=True)
+def history_rows(history: F64, fadr: int, tadr: int, n: int, t_start: float, raw: F64) -> bool:
+    """The ``n`` readings of the force and torque sensors' MuJoCo histories (each
+    ``[user, cursor, times[n], values[3 n]]`` from ``fadr``, ``tadr``: a ring whose
+    newest sample is at the cursor) into ``raw`` (``(n, 6)``), oldest first; ``False``
+    (nothing copied) when the oldest sample's time is not ``t_start``."""
+    oldest = int(history[fadr + 1]) + 1
+    if oldest == n:
+        oldest = 0
+    if history[fadr + 2 + oldest] != t_start:
+        return False
+    for r in range(n):
+        s = oldest + r
+        if s >= n:
+            s -= n
+        for a in range(3):
+            raw[r, a] = history[fadr + 2 + n + 3 * s + a]
+            raw[r, 3 + a] = history[tadr + 2 + n + 3 * s + a]
+    return True
+
+
+@njit(cache=True)
+def same_or_finite(src: F64, cur: F64) -> int:
+    """``0`` if the 2-D arrays ``src`` and ``cur`` (one shape) hold the same bits, else
+    ``1`` if every value of ``src`` is finite, ``2`` if not (a command's latch)."""
+    same = True
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            a = src[i, j]
+            b = cur[i, j]
+            if not (a == b and (a != 0.0 or math.copysign(1.0, a) == math.copysign(1.0, b))):
+                same = False
+                break
+        if not same:
+            break
+    if same:
+        return 0
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            if not math.isfinite(src[i, j]):
+                return 2
+    return 1
 
 
 # ---------------------------------------------------------------- the tool's contact
@@ -329,25 +405,27 @@ def fill_state(fns: Any, m: int, d: int, tcp_site: int, jac2: F64, jfull2: F64, 
                gravcomp: F64, site_xpos: F64, site_xmat: F64, xpos: F64, xmat: F64,
                body_ids: Any, site_ids: Any, work: F64, kin: bool, make_m: bool,
                jnt_src: F64, cart: bool, cart_src: F64, tcp_src: F64, contact: F64,
-               vec: F64, poses: F64) -> int:
-    """An arm state's arrays at the end state, into ``vec`` and ``poses``; returns its
+               mats: F64, poses: F64) -> int:
+    """An arm state's arrays at the end state, into ``mats`` and ``poses``; returns its
     limit warnings (:func:`arm_warnings`).
 
-    ``vec`` (``n`` joints): the joints, the joint set-point in use (``jnt_src``), the
-    gravity torques, the contact wrench (a copy of ``contact``), the TCF Jacobian
-    (``6 x n``, row-major), the mass matrix (``n x n``), then each body's twist
-    ``[v, w]`` (``mj_objectVelocity``, world axes). ``poses``: the TCP's 4x4 (from its
-    site, or a copy of ``tcp_src`` when that is 4x4), the Cartesian set-point in use
-    (``cart_src`` if ``cart``, else the TCP's), each body's, each site's. With ``kin``
-    the Jacobian and mass matrix are computed first (:func:`tcf_kinematics`, the mass
-    matrix factorised too if ``make_m``); else ``jfull2`` and ``mfull`` hold them."""
+    ``mats`` (``(3 + bodies, L, L)``, ``L = max(n, 6)`` for ``n`` joints): the mass
+    matrix in ``[0, :n, :n]``, the TCF Jacobian in ``[1, :6, :n]``; in ``[2]``'s rows
+    the joints, the joint set-point in use (``jnt_src``), the gravity torques (``n``
+    values each) and the contact wrench (a copy of ``contact``); each body's twist
+    ``[v, w]`` (``mj_objectVelocity``, world axes) in ``[3 + k, 0, :6]``. ``poses``: the
+    TCP's 4x4 (from its site, or a copy of ``tcp_src`` when that is 4x4), the Cartesian
+    set-point in use (``cart_src`` if ``cart``, else the TCP's), each body's, each
+    site's. With ``kin`` the Jacobian and mass matrix are computed first
+    (:func:`tcf_kinematics`, the mass matrix factorised too if ``make_m``); else
+    ``jfull2`` and ``mfull`` hold them."""
     n = qpos.shape[0]
     for j in range(n):
-        vec[j] = qpos[j]
-        vec[n + j] = qpos[j] if cart else jnt_src[j]
-        vec[2 * n + j] = gravcomp[j]
+        mats[2, 0, j] = qpos[j]
+        mats[2, 1, j] = qpos[j] if cart else jnt_src[j]
+        mats[2, 2, j] = gravcomp[j]
     for j in range(6):
-        vec[3 * n + j] = contact[j]
+        mats[2, 3, j] = contact[j]
     if tcp_src.shape[0] == 4:
         for i in range(4):
             for j in range(4):
@@ -360,28 +438,25 @@ def fill_state(fns: Any, m: int, d: int, tcp_site: int, jac2: F64, jfull2: F64, 
     if kin:
         tcf_kinematics(fns, m, d, tcp_site, jac2, site_xmat[tcp_site].reshape((3, 3)),
                        jfull2, make_m, mfull)
-    at = 3 * n + 6
     for r in range(2):
         for i in range(3):
             for j in range(n):
-                vec[at + (3 * r + i) * n + j] = jfull2[r, i, va0 + j]
-    at += 6 * n
+                mats[1, 3 * r + i, j] = jfull2[r, i, va0 + j]
     for i in range(n):
         for j in range(n):
-            vec[at + i * n + j] = mfull[va0 + i, va0 + j]
-    at += n * n
+            mats[0, i, j] = mfull[va0 + i, va0 + j]
     for k in range(body_ids.shape[0]):
         b = body_ids[k]
         _pose_into(xpos[b], xmat[b], poses[POSE_BODIES + k])
         c_call(fns[_OBJECT_VELOCITY], (m, d, _OBJ_BODY, np.int32(b), work, np.int32(0)))
         for j in range(3):  # MuJoCo's [w, v] as [v, w]
-            vec[at + 6 * k + j] = work[3 + j]
-            vec[at + 6 * k + 3 + j] = work[j]
+            mats[3 + k, 0, j] = work[3 + j]
+            mats[3 + k, 0, 3 + j] = work[j]
     first = POSE_BODIES + body_ids.shape[0]
     for k in range(site_ids.shape[0]):
         s = site_ids[k]
         _pose_into(site_xpos[s], site_xmat[s], poses[first + k])
-    return arm_warnings(qvel, vec[:n], torque, limits, bits)
+    return arm_warnings(qvel, mats[2, 0, :n], torque, limits, bits)
 
 
 @njit(cache=True)

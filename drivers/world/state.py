@@ -101,61 +101,59 @@ class StateFill:
     """Fills a :class:`LazyArmState` of ``world`` (``fill(state, world)``): the layout of
     its buffers and the compiled call's arguments that stay the same every cycle.
 
-    ``vec`` (:func:`~drivers.world.kernels.fill_state`): joints, joint set-point,
-    gravity, contact, Jacobian, mass matrix, body twists; ``poses``: TCP, Cartesian
-    set-point, bodies, sites (the funnel's mouth, the TCP in the world with a floating
-    base, the objects' frames).
+    ``mats`` (:func:`~drivers.world.kernels.fill_state`): mass matrix, Jacobian, the
+    vectors (joints, joint set-point, gravity, contact), the body twists; ``poses``:
+    TCP, Cartesian set-point, bodies, sites (the funnel's mouth, the TCP in the world
+    with a floating base, the objects' frames). Each field is one index of them.
     """
 
     def __init__(self, w: SimWorld) -> None:
         from drivers.world import kernels  # numba: imported when a world is built
 
-        m, d = w.model, w.data
+        d = w.data
         self._n = n = w._n
         self._kernel = kernels.fill_state
-        rows = w.bodies._rows
-        nb = len(rows)
-        twist0 = 9 * n + 6 + n * n  # vec: the bodies' twists from here
-        self._bodies = tuple((name, bid, slice(twist0 + 6 * k, twist0 + 6 * k + 6))
-                             for k, (name, bid, _, _) in enumerate(rows))
+        self._bodies = tuple((name, bid, 3 + k)
+                             for k, (name, bid, _, _) in enumerate(w.bodies._rows))
         self._body_masses = w.bodies
         sites = [("funnel_mouth", w._mouth)]
         if w.chaser is not None:  # the TCP in the world (the state's is in the base's)
             sites.append(("tcp", w._tcp))
         sites += w._object_sites
         self._site_names = tuple(name for name, _ in sites)
-        self._jac = slice(3 * n + 6, 9 * n + 6)
-        self._mass = slice(9 * n + 6, 9 * n + 6 + n * n)
-        self._nvec = twist0 + 6 * nb
-        self._npose = kernels.POSE_BODIES + nb + len(sites)
-        self._site0 = kernels.POSE_BODIES + nb
+        side = max(n, 6)
+        self._shape = (3 + len(self._bodies), side, side)
+        self._square = side == n  # the Jacobian's and mass matrix's rows contiguous
+        self._npose = kernels.POSE_BODIES + len(self._bodies) + len(sites)
+        self._site0 = kernels.POSE_BODIES + len(self._bodies)
         fns, ma, da = w._mj
         self._args = (fns, ma, da, w._tcp, w._jac2, w._jfull2, w._mfull, w._va.start,
                       w._qpos_arm, w._qvel_arm, w._actuator_arm, w._warn_limits, _WARN_BITS,
                       w._gravcomp_arm, d.site_xpos, d.site_xmat, d.xpos, d.xmat,
                       np.array([bid for _, bid, _ in self._bodies], dtype=np.int32),
                       np.array([sid for _, sid in sites], dtype=np.int32), np.zeros(6))
-        del m
 
     def __call__(self, s: LazyArmState, w: SimWorld) -> None:
-        vec = np.empty(self._nvec)
+        mats = np.empty(self._shape)
         poses = np.empty((self._npose, 4, 4))
         chaser = w.chaser
         cart = s.mode == ArmMode.CART_IMPEDANCE
         warning = self._kernel(*self._args, not w._kin_ok, not w._m_ok, w._jnt_pos, cart,
                                w._cart_pos, _NO_POSE if chaser is None else w.tcp_pose,
-                               w._contact, vec, poses)
+                               w._contact, mats, poses)
         w._kin_ok = w._m_ok = True
         tcp = poses[0]
         if chaser is None:  # the world's TCP pose of this state: the state's
             w._tcp_pose = tcp
             w._pose_ok = True
         n = self._n
-        jac = vec[self._jac].reshape(6, n)
-        mass = vec[self._mass].reshape(n, n)
+        if self._square:
+            mass, jac = mats[0], mats[1, :6]
+        else:  # fewer than 6 joints: contiguous copies
+            mass, jac = mats[0, :n, :n].copy(), mats[1, :6, :n].copy()
         contact = w._contact
         # (``a.dot(b)``: numpy's ``@`` of them, the same BLAS call without the ufunc's
-        # overhead; tests/test_world_kernels.py)
+        # overhead; tests/test_world_fill.py)
         tau_ext = contact.dot(jac)  # J^T w
         # Link-side torque sensors: M qdd + c + g = tau_msr + tau_ext.
         tau_msr = mass.dot(w._qacc_arm)
@@ -165,25 +163,26 @@ class StateFill:
         # the same order as truth.ground_truth's)
         masses = self._body_masses._mass
         bodies = {}
-        for k, (name, bid, twist) in enumerate(self._bodies):
+        for k, (name, bid, at) in enumerate(self._bodies):
             body = bodies[name] = _new(BodyTruth)
-            body.__dict__ = {"pose": poses[2 + k], "twist": vec[twist],
+            body.__dict__ = {"pose": poses[2 + k], "twist": mats[at, 0, :6],
                              "mass_kg": float(masses[bid])}
         site0 = self._site0
         sites = {name: poses[site0 + k] for k, name in enumerate(self._site_names)}
+        vecs = mats[2]
         d = s.__dict__
         old = d.copy() if len(d) > _OWN else None
-        d["jnt_pos_rad"] = vec[:n]
+        d["jnt_pos_rad"] = vecs[0, :n]
         d["tcp_pose_m"] = tcp
-        d["cmd_jnt_pos_rad"] = vec[n:2 * n]
+        d["cmd_jnt_pos_rad"] = vecs[1, :n]
         d["cmd_cart_pose_m"] = poses[1]
         d["warning"] = _ARM_WARNINGS[w._warning | warning]
         d["jacobian"] = jac
         d["mass_matrix"] = mass
         d["ext_jnt_trq_nm"] = tau_ext
         d["jnt_trq_nm"] = tau_msr
-        d["ext_wrench_n_nm"] = vec[3 * n:3 * n + 6]
-        d["gravity_nm"] = vec[2 * n:3 * n]
+        d["ext_wrench_n_nm"] = vecs[3, :6]
+        d["gravity_nm"] = vecs[2, :n]
         truth = d["truth"] = _new(GroundTruth)
         truth.__dict__ = {
             "bodies": bodies, "sites": sites, "attached": w._attached,

@@ -167,6 +167,7 @@ class SimWorld:
         self._mj = (kernels.mujoco_addresses(), m._address, d._address)
         self._end_state, self._tcf_kinematics = kernels.end_state, kernels.tcf_kinematics
         self._post_step, self._set_frame = kernels.post_step, kernels.set_frame
+        self._inertia_lhs, self._same_or_finite = kernels.inertia_lhs, kernels.same_or_finite
         self._arm_warnings = kernels.arm_warnings  # the state's, from these limits:
         self._warn_limits = np.array((self._vel_limits, self._pos_limits - 1e-3,
                                       self._pos_lower + 1e-3, self._torque_limits - 1e-9))
@@ -240,7 +241,6 @@ class SimWorld:
         self.mode = _MODES[scene.fri.control]
         ctl = scene.controller
         self._cart_pos = self.tcp_pose.copy()
-        self._cart_pos_key = b""  # the bytes of the pose last given ("": none)
         self._cart_stiff = np.asarray(ctl.cart_stiffness, dtype=np.float64)
         self._cart_damp = np.asarray(ctl.cart_damping, dtype=np.float64)
         self._tcp_ft = np.zeros(6)
@@ -359,8 +359,8 @@ class SimWorld:
         pose: :attr:`tcp_pose`)."""
         if self._kin_ok:
             return
-        # mj_jacSite, [R^T jacp; R^T jacr] (the TCF rows), the mass matrix factorised
-        # (:meth:`_mass`) and mj_fullM, in one compiled call
+        # mj_jacSite, [R^T jacp; R^T jacr] (the TCF rows), the mass matrix made and
+        # factorised (once per end state) and mj_fullM, in one compiled call
         fns, m, d = self._mj
         self._tcf_kinematics(fns, m, d, self._tcp, self._jac2, self._tcp_rot, self._jfull2,
                              not self._m_ok, self._mfull)
@@ -368,17 +368,19 @@ class SimWorld:
 
     def _update_inertia(self) -> None:
         """Cartesian inertia (and the joint inertias) the KRC's damping uses, at this state."""
-        self._kinematics()
-        jfull = self._jfull
-        # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M.
-        self._mass()
-        mujoco.mj_solveM(self.model, self.data, self._minv_jt, jfull)
-        a = jfull @ self._minv_jt.T
+        # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M (the Jacobian,
+        # mass matrix and J M^-1 J^T in one compiled call; the inverse LAPACK's)
+        fns, m, d = self._mj
+        a = np.empty((6, 6))
+        self._m_diag = np.empty(self._n)
+        self._inertia_lhs(fns, m, d, self._tcp, self._jac2, self._tcp_rot, self._jfull2,
+                          not self._kin_ok, not self._m_ok, self._mfull, self._jfull,
+                          self._minv_jt, a, self._va.start, self._m_diag)
+        self._kin_ok = self._m_ok = True
         lam = _inv(a)  # np.linalg.inv's own LAPACK gufunc; NaN: singular, let it raise
         self.cart_inertia = lam if lam[0, 0] == lam[0, 0] else np.linalg.inv(a)
         self._lam_diag = self.cart_inertia.diagonal().copy()
         self._inertia_new = True
-        self._m_diag = self._mfull.diagonal()[self._va].copy()
         self._inertia_q = self._qpos_arm.copy()  # where it was computed
 
     def _update_kinematics(self) -> None:
@@ -427,7 +429,7 @@ class SimWorld:
     def _let_go(self) -> None:
         """The data are about to change: a state still held gets its values now."""
         state = self._state_ref()
-        if state is not None:
+        if state is not None and state._world is not None:  # (else resolved already)
             state.resolve()
         self._state_ref = _no_state
         self._held = None
@@ -498,7 +500,7 @@ class SimWorld:
         return _INERTIA if moved.any() else 0
 
     def _end_state_dynamics(self) -> None:
-        """Kinematics and bias forces of the end state (its mass matrix: :meth:`_mass`).
+        """Kinematics and bias forces of the end state (its mass matrix: :meth:`_kinematics`).
 
         The parts of ``mj_step1`` the measurement and the next cycle's command read,
         without collisions and constraints (the next ``mj_step`` redoes both), bit for
@@ -506,13 +508,6 @@ class SimWorld:
         # mj_kinematics, mj_comPos, mj_comVel, mj_passive (qfrc_gravcomp), mj_rne, compiled
         self._end_state(*self._mj, self._qfrc_bias)
         self._m_ok = False
-
-    def _mass(self) -> None:
-        """The end state's mass matrix, factorised (once per cycle, when asked)."""
-        if not self._m_ok:
-            mujoco.mj_makeM(self.model, self.data)
-            mujoco.mj_factorM(self.model, self.data)
-            self._m_ok = True
 
     def ft_samples(self) -> FtSamples:
         """Every F/T sample produced since the last call."""

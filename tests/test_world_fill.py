@@ -317,3 +317,16 @@ def test_same_or_finite_compares_bits() -> None:
     neg[3, 3] = -0.0
     assert kernels.same_or_finite(neg, zero) == 1 and kernels.same_or_finite(zero, neg) == 1
     assert kernels.same_or_finite(neg.copy(), neg) == 0
+
+
+def test_torques_is_numpys_in_place_sum() -> None:
+    """``tau += bias; tau -= tau_ext`` compiled, as numpy's two in-place operations."""
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        tau, bias, ext = (rng.standard_normal(7) * 10.0 ** rng.integers(-6, 6, 7)
+                          for _ in range(3))
+        want = tau.copy()
+        want += bias
+        want -= ext
+        kernels.torques(tau, bias, ext)
+        assert _bits(tau) == _bits(want)

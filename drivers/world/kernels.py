@@ -21,7 +21,9 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import intrinsic
+from numba.np.numpy_support import carray
 from numpy.typing import NDArray
 
 from drivers.base.blas import dot3, fma
@@ -29,6 +31,8 @@ from drivers.base.mjlib import c_call, function_addresses
 from drivers.base.types import F64
 
 __all__ = [
+    "FILL_ARRAYS",
+    "FILL_DIMS",
     "FT_BIAS",
     "FT_INV_RES",
     "FT_RANGE",
@@ -57,6 +61,7 @@ __all__ = [
     "stribeck_level",
     "tcf_kinematics",
     "tool_wrench",
+    "torques",
     "touches",
 ]
 
@@ -399,26 +404,68 @@ def post_step(fns: Any, m: int, d: int, is_tool: Any, cfrc: F64, com: F64, tcp: 
 POSE_TCP, POSE_CMD, POSE_BODIES = 0, 1, 2
 
 
+#: :func:`fill_state`'s arrays, by their addresses (``arrays``; each C-contiguous and
+#: kept where it is for the world's life), and its sizes and ids (``dims``).
+FILL_ARRAYS = ("qpos", "qvel", "torque", "gravcomp", "site_xpos", "site_xmat", "xpos",
+               "xmat", "jac2", "jfull2", "mfull", "work", "limits")
+FILL_DIMS = ("n", "nv", "nsite", "nbody", "tcp_site", "va0", "bodies", "sites", "bit0",
+             "bit1", "bit2")
+
+
+def _f64_ptr_typing(typingctx: Any, addr: Any) -> Any:
+    """The ``double*`` at the address ``addr`` (an ``int64``)."""
+    pointer: Any = types.CPointer  # (numba's types are untyped)
+    sig = pointer(types.float64)(types.int64)
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+
+    return sig, codegen
+
+
+#: ``_f64_ptr(addr)`` in compiled code: a float64 array's data at ``addr``, for ``carray``.
+_f64_ptr: Any = intrinsic(_f64_ptr_typing)
+
+
 @njit(cache=True)
-def fill_state(fns: Any, m: int, d: int, tcp_site: int, jac2: F64, jfull2: F64, mfull: F64,
-               va0: int, qpos: F64, qvel: F64, torque: F64, limits: F64, bits: Any,
-               gravcomp: F64, site_xpos: F64, site_xmat: F64, xpos: F64, xmat: F64,
-               body_ids: Any, site_ids: Any, work: F64, kin: bool, make_m: bool,
+def fill_state(fns: Any, m: int, d: int, arrays: Any, dims: Any, kin: bool, make_m: bool,
                jnt_src: F64, cart: bool, cart_src: F64, tcp_src: F64, contact: F64,
                mats: F64, poses: F64) -> int:
     """An arm state's arrays at the end state, into ``mats`` and ``poses``; returns its
     limit warnings (:func:`arm_warnings`).
 
-    ``mats`` (``(3 + bodies, L, L)``, ``L = max(n, 6)`` for ``n`` joints): the mass
-    matrix in ``[0, :n, :n]``, the TCF Jacobian in ``[1, :6, :n]``; in ``[2]``'s rows
-    the joints, the joint set-point in use (``jnt_src``), the gravity torques (``n``
-    values each) and the contact wrench (a copy of ``contact``); each body's twist
-    ``[v, w]`` (``mj_objectVelocity``, world axes) in ``[3 + k, 0, :6]``. ``poses``: the
-    TCP's 4x4 (from its site, or a copy of ``tcp_src`` when that is 4x4), the Cartesian
-    set-point in use (``cart_src`` if ``cart``, else the TCP's), each body's, each
-    site's. With ``kin`` the Jacobian and mass matrix are computed first
-    (:func:`tcf_kinematics`, the mass matrix factorised too if ``make_m``); else
-    ``jfull2`` and ``mfull`` hold them."""
+    ``arrays``: the addresses of :data:`FILL_ARRAYS` (the arm's joints, speeds,
+    actuator torques and gravity torques; MuJoCo's site and body positions and
+    rotations; the Jacobian and mass matrix work arrays; a 6-array; the limits);
+    ``dims``: :data:`FILL_DIMS`, then the bodies' ids and the sites' (passed by
+    address, they cost the call nothing). ``mats`` (``(3 + bodies, L, L)``,
+    ``L = max(n, 6)`` for ``n`` joints): the mass matrix in ``[0, :n, :n]``, the TCF
+    Jacobian in ``[1, :6, :n]``; in ``[2]``'s rows the joints, the joint set-point in
+    use (``jnt_src``), the gravity torques (``n`` values each) and the contact wrench
+    (a copy of ``contact``); each body's twist ``[v, w]`` (``mj_objectVelocity``, world
+    axes) in ``[3 + k, 0, :6]``. ``poses``: the TCP's 4x4 (from its site, or a copy of
+    ``tcp_src`` when that is 4x4), the Cartesian set-point in use (``cart_src`` if
+    ``cart``, else the TCP's), each body's, each site's. With ``kin`` the Jacobian and
+    mass matrix are computed first (:func:`tcf_kinematics`, the mass matrix factorised
+    too if ``make_m``); else the work arrays hold them."""
+    n, nv, nsite, nbody, tcp_site, va0, nb, ns = (dims[0], dims[1], dims[2], dims[3],
+                                                   dims[4], dims[5], dims[6], dims[7])
+    qpos = carray(_f64_ptr(arrays[0]), (n,))
+    qvel = carray(_f64_ptr(arrays[1]), (n,))
+    torque = carray(_f64_ptr(arrays[2]), (n,))
+    gravcomp = carray(_f64_ptr(arrays[3]), (n,))
+    site_xpos = carray(_f64_ptr(arrays[4]), (nsite, 3))
+    site_xmat = carray(_f64_ptr(arrays[5]), (nsite, 9))
+    xpos = carray(_f64_ptr(arrays[6]), (nbody, 3))
+    xmat = carray(_f64_ptr(arrays[7]), (nbody, 9))
+    jac2 = carray(_f64_ptr(arrays[8]), (2, 3, nv))
+    jfull2 = carray(_f64_ptr(arrays[9]), (2, 3, nv))
+    mfull = carray(_f64_ptr(arrays[10]), (nv, nv))
+    work = carray(_f64_ptr(arrays[11]), (6,))
+    limits = carray(_f64_ptr(arrays[12]), (4, n))
+    bits = dims[8:11]
+    body_ids = dims[11:11 + nb]
+    site_ids = dims[11 + nb:11 + nb + ns]
     n = qpos.shape[0]
     for j in range(n):
         mats[2, 0, j] = qpos[j]
@@ -457,6 +504,13 @@ def fill_state(fns: Any, m: int, d: int, tcp_site: int, jac2: F64, jfull2: F64, 
         s = site_ids[k]
         _pose_into(site_xpos[s], site_xmat[s], poses[first + k])
     return arm_warnings(qvel, mats[2, 0, :n], torque, limits, bits)
+
+
+@njit(cache=True)
+def torques(tau: F64, bias: F64, tau_ext: F64) -> None:
+    """``tau += bias; tau -= tau_ext`` (the link-side torque sensors from ``M qdd``)."""
+    for j in range(tau.shape[0]):
+        tau[j] = (tau[j] + bias[j]) - tau_ext[j]
 
 
 @njit(cache=True)

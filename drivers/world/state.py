@@ -43,6 +43,8 @@ _ARM_WARNINGS = tuple(
 _NO_POSE = np.zeros((0, 4))  # fill_state's tcp_src: the TCP's pose from its site
 _TOPIC_PREFIX: str = GroundTruth().topic_prefix  # the simulator's recording topics
 _new = object.__new__
+#: States whose buffers are allocated at once (a state's arrays: views of one block).
+_BLOCK = 32
 
 
 class LazyArmState(ArmState):
@@ -112,10 +114,15 @@ class StateFill:
 
         d = w.data
         self._n = n = w._n
-        self._kernel = kernels.fill_state
+        self._kernel, self._torques = kernels.fill_state, kernels.torques
+        # the buffers of _BLOCK states at once (a state's are one index of them)
+        self._at = _BLOCK
+        self._mats_block = self._poses_block = np.zeros((0, 0))
         self._bodies = tuple((name, bid, 3 + k)
                              for k, (name, bid, _, _) in enumerate(w.bodies._rows))
         self._body_masses = w.bodies
+        self._masses_of: object = None
+        self._masses: list[float] = []
         sites = [("funnel_mouth", w._mouth)]
         if w.chaser is not None:  # the TCP in the world (the state's is in the base's)
             sites.append(("tcp", w._tcp))
@@ -126,16 +133,33 @@ class StateFill:
         self._square = side == n  # the Jacobian's and mass matrix's rows contiguous
         self._npose = kernels.POSE_BODIES + len(self._bodies) + len(sites)
         self._site0 = kernels.POSE_BODIES + len(self._bodies)
+        # the compiled call's arrays by their addresses (kept here: they live as long)
+        self._arrays = (w._qpos_arm, w._qvel_arm, w._actuator_arm, w._gravcomp_arm,
+                        d.site_xpos, d.site_xmat, d.xpos, d.xmat, w._jac2, w._jfull2,
+                        w._mfull, np.zeros(6), w._warn_limits)
+        assert len(self._arrays) == len(kernels.FILL_ARRAYS)
+        for a in self._arrays:
+            if a.dtype != np.float64 or not a.flags.c_contiguous:
+                raise ValueError("fill_state's arrays: C-contiguous float64")
+        m = w.model
+        dims = (n, m.nv, m.nsite, m.nbody, w._tcp, w._va.start, len(self._bodies), len(sites),
+                *_WARN_BITS.tolist())
+        assert len(dims) == len(kernels.FILL_DIMS)
         fns, ma, da = w._mj
-        self._args = (fns, ma, da, w._tcp, w._jac2, w._jfull2, w._mfull, w._va.start,
-                      w._qpos_arm, w._qvel_arm, w._actuator_arm, w._warn_limits, _WARN_BITS,
-                      w._gravcomp_arm, d.site_xpos, d.site_xmat, d.xpos, d.xmat,
-                      np.array([bid for _, bid, _ in self._bodies], dtype=np.int32),
-                      np.array([sid for _, sid in sites], dtype=np.int32), np.zeros(6))
+        self._args = (fns, ma, da, np.array([a.ctypes.data for a in self._arrays],
+                                            dtype=np.int64),
+                      np.array([*dims, *(bid for _, bid, _ in self._bodies),
+                                *(sid for _, sid in sites)], dtype=np.int64))
 
     def __call__(self, s: LazyArmState, w: SimWorld) -> None:
-        mats = np.empty(self._shape)
-        poses = np.empty((self._npose, 4, 4))
+        at = self._at
+        if at == _BLOCK:
+            self._mats_block = np.empty((_BLOCK, *self._shape))
+            self._poses_block = np.empty((_BLOCK, self._npose, 4, 4))
+            at = 0
+        self._at = at + 1
+        mats = self._mats_block[at]
+        poses = self._poses_block[at]
         chaser = w.chaser
         cart = s.mode == ArmMode.CART_IMPEDANCE
         warning = self._kernel(*self._args, not w._kin_ok, not w._m_ok, w._jnt_pos, cart,
@@ -157,18 +181,23 @@ class StateFill:
         tau_ext = contact.dot(jac)  # J^T w
         # Link-side torque sensors: M qdd + c + g = tau_msr + tau_ext.
         tau_msr = mass.dot(w._qacc_arm)
-        tau_msr += w._bias_arm
-        tau_msr -= tau_ext
+        self._torques(tau_msr, w._bias_arm, tau_ext)  # += bias, -= tau_ext (compiled)
         # the truth's objects without their dataclasses' __init__ (the same fields in
         # the same order as truth.ground_truth's)
         masses = self._body_masses._mass
+        if masses is not self._masses_of:  # (a body's mass reported otherwise: another)
+            self._masses_of = masses
+            self._masses = [float(masses[bid]) for _, bid, _ in self._bodies]
         bodies = {}
-        for k, (name, bid, at) in enumerate(self._bodies):
+        k = 2  # (indexing: cheaper than iterating over the array)
+        for (name, _, at), mass_kg in zip(self._bodies, self._masses, strict=True):
             body = bodies[name] = _new(BodyTruth)
-            body.__dict__ = {"pose": poses[2 + k], "twist": mats[at, 0, :6],
-                             "mass_kg": float(masses[bid])}
-        site0 = self._site0
-        sites = {name: poses[site0 + k] for k, name in enumerate(self._site_names)}
+            body.__dict__ = {"pose": poses[k], "twist": mats[at, 0, :6], "mass_kg": mass_kg}
+            k += 1
+        sites = {}
+        for name in self._site_names:
+            sites[name] = poses[k]
+            k += 1
         vecs = mats[2]
         d = s.__dict__
         old = d.copy() if len(d) > _OWN else None

@@ -6,8 +6,9 @@ Its fields (the joints, ``tcp_pose_m``, the set-points in use, ``warning``, the
 Jacobian, mass matrix, joint torques, external wrench, ``gravity_nm`` and the
 ``truth``) are computed from the world's MuJoCo data on the first read of any of
 them, all at once by :class:`StateFill` (one compiled call,
-:func:`drivers.world.kernels.fill_state`, into two new buffers the fields are views
-of; the products of the torques and the TCP twist stay numpy's).
+:func:`drivers.world.kernels.fill_state`, into two buffers the fields are views of,
+allocated for 32 states at a time (``_BLOCK``); the products of the torques and the
+TCP twist stay numpy's BLAS calls).
 
 A cycle nobody reads costs no measurement. The values are those of the cycle the
 state belongs to: before the world changes its data (the next cycle, a new target

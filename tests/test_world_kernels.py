@@ -22,11 +22,11 @@ def _reference(model: FtSensorModel) -> None:
     """Make ``model`` compute its blocks with its numpy form (``_delayed``, ``_block``)
     where it would call the compiled block."""
 
-    def block(white: Any, i: int, raw: Any, buf: Any, dn: int, drift: Any, consts: Any,
-              tared: bool, out: Any, row_over: Any) -> int:
+    def block(white: Any, i: int, raw: Any, buf: Any, dn: int, drift: Any, at: int,
+              consts: Any, tared: bool, out: Any, row_over: Any) -> int:
         n = raw.shape[0]
         x = model._delayed(raw) if dn else raw  # the same buffer, shifted the same way
-        w, status = model._block(white[i:i + n], x, drift)
+        w, status = model._block(white[i:i + n], x, drift[at:at + n])
         out[:] = w
         row_over[:] = status != 0
         return int(np.count_nonzero(status))

@@ -140,6 +140,9 @@ class ToolContact:
 
         self._touches = kernels.touches
         self._wrench_at_tcp = kernels.tool_wrench
+        self.kernel_args = (self._is_tool_geom, self._cfrc_tool, self._tool_com, self._tcp_xpos,
+                            self._tcp_rot)
+        """What :func:`drivers.world.kernels.post_step` takes for this contact (views)."""
 
     def wrench(self) -> tuple[F64, bool]:
         """The wrench and whether touching, at the current state.

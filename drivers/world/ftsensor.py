@@ -45,6 +45,7 @@ NOISE_BLOCK = 512
 SLAB = 1024
 
 _count_nonzero = np.count_nonzero
+_new = object.__new__
 
 
 class FtSensorModel:
@@ -98,7 +99,7 @@ class FtSensorModel:
         # the last _delay_n readings, not yet sampled, then the newest block: [held; raw]
         self._delay_buf: F64 | None = None
         self.seq = 0
-        self.last_wrench: F64 | None = None
+        self._last_block: F64 | None = None  # the last block's wrenches (last_wrench)
         self._gauss = np.zeros((0, 12))  # scaled draws not used yet start at row _used
         self._used = 0
         self._tared = False
@@ -121,6 +122,12 @@ class FtSensorModel:
         # entry j is sample _slab_seq0 + j, taken at _slab_t0 + j * period_ns
         self._slab_seq0 = self._slab_t0 = 0
         self._slab_seq = self._slab_t = np.zeros(0, dtype=np.int64)
+
+    @property
+    def last_wrench(self) -> F64 | None:
+        """The last sample's wrench (a new array; ``None`` before the first)."""
+        block = self._last_block
+        return None if block is None else block[-1].copy()
 
     @property
     def tare_offset(self) -> F64:
@@ -261,28 +268,29 @@ class FtSensorModel:
                 and i + n <= self._plan_end and self.drift is self._plan_prev):
             # the next block of the plan (what _draws and _drift_rows would give)
             self._used = i + n
-            base = i - self._plan_base
-            drift = self._plan_rows[base:base + n]
+            rows = self._plan_rows
+            at = i - self._plan_base
         else:
             if n == 0:
                 return FtSamples()
             i = self._draws(n)
-            drift = self._drift_rows(i, n)
+            rows = self._drift_rows(i, n)
+            at = 0
         self._plan_at = i + n
-        self.drift = self._plan_prev = drift[-1]
+        self.drift = self._plan_prev = rows[at + n - 1]
         if n != self._tiled_n or self.bias is not self._bias_key:
             self._tile(n)
         if n >= 2:  # compiled: the same operations (kernels.ft_block)
             w = np.empty((n, 6))
-            if self._ft_block(self._white, i, raw, buf, dn, drift, self._consts,
+            if self._ft_block(self._white, i, raw, buf, dn, rows, at, self._consts,
                               self._tared, w, self._row_over):
                 status = np.where(self._row_over, np.uint32(FtStatus.SATURATION),
                                   np.uint32(0)).astype(np.uint32)
             else:
                 status = self._no_status
         else:
-            w, status = self._block(self._white[i:i + n], raw, drift)
-        self.last_wrench = w[-1].copy()
+            w, status = self._block(self._white[i:i + n], raw, rows[at:at + n])
+        self._last_block = w
         seq = self.seq
         self.seq = seq + n
         j = seq - self._slab_seq0
@@ -290,8 +298,11 @@ class FtSensorModel:
                 and t0_ns == self._slab_t0 + j * self.period_ns):
             self._slab(seq, t0_ns, n)
             j = 0
-        return FtSamples(time_ns=self._slab_t[j:j + n], seq=self._slab_seq[j:j + n], wrench=w,
-                         status=status)
+        # FtSamples(time_ns=..., seq=..., wrench=w, status=status) without its __init__
+        out: FtSamples = _new(FtSamples)
+        out.__dict__ = {"time_ns": self._slab_t[j:j + n], "seq": self._slab_seq[j:j + n],
+                        "wrench": w, "status": status}
+        return out
 
 
 class FtSteps:
@@ -322,11 +333,15 @@ class FtSteps:
             raise SimulationError("unexpected sensor layout")
         self.raw = np.zeros((substeps, 6))
         """The last cycle's readings, oldest first (parent on child: force, torque)."""
-        self._raw3 = self.raw.reshape(substeps, 2, 3)  # the same memory
         self._rows = tuple(self.raw[i] for i in range(substeps))
         self._now = data.sensordata[adr:adr + 6]
         self._history = data.history  # a view of MuJoCo's buffer (fixed for the data's life)
         self._hist = self._history_view()
+        # the sensors' history addresses (kernels.history_rows: the view's rows, compiled)
+        self._fadr, self._tadr = (int(model.sensor_historyadr[s]) for s in self._sensors)
+        from drivers.world import kernels  # numba: imported when a world is built
+
+        self._history_rows = kernels.history_rows
         self._gate = current_gate()
         """The batch's physics gate this world steps through (``None``: alone)."""
 
@@ -395,13 +410,8 @@ class FtSteps:
             mujoco.mj_step(m, d, self._n)
         else:  # stepped with the batch's other runs, in one dispatch
             gate.step(m, d, self._n)
-        view, cursor = hist
-        history = self._history
-        oldest = int(history[cursor]) + 1
-        if oldest == self._n:
-            oldest = 0
-        else:  # the ring started elsewhere (a step outside this class)
-            view = np.roll(view, -oldest, axis=0)
-        if history[cursor + 1 + oldest] != t_start:  # the oldest sample's time
+        # the rows of the history view, oldest first (the ring may have started elsewhere:
+        # a step outside this class), and the oldest sample's time checked, compiled
+        if not self._history_rows(self._history, self._fadr, self._tadr, self._n, t_start,
+                                  self.raw):
             raise SimulationError("F/T sensor history: not this cycle's readings")
-        np.copyto(self._raw3, view)

@@ -1,7 +1,8 @@
 """Latching a command into the simulated world: each field the command gives is checked
 and kept for the cycles that follow (the KRC holds a command until the next). No I/O.
 
-A pose, stiffness or wrench whose bytes equal the latched one's keeps the latched
+A pose, stiffness or wrench whose bytes equal the latched one's (the pose: its
+values' bits, compared by :func:`drivers.world.kernels.same_or_finite`) keeps the latched
 object, so the world's actuators need no rewrite (:meth:`SimWorld._apply
 <drivers.world.world.SimWorld>` compares objects).
 """
@@ -46,20 +47,20 @@ def take(w: SimWorld, cmd: ArmCommand) -> None:
             raise InvalidCommandError(f"control mode {cmd.mode!r} not supported")
         w.mode = ArmMode(cmd.mode)
         w._cart_pos = w.tcp_pose.copy()
-        w._cart_pos_key = b""
         w._jnt_pos = w.data.qpos[w._qa].copy()
     w._warning = 0
     # A pose or wrench with the bytes of the latched one keeps the latched object
     # (validated already; the actuators then need no rewrite).
     if cmd.cart_pose_m is not None:
         p = np.asarray(cmd.cart_pose_m, dtype=np.float64)
-        key = p.tobytes()
-        if key != w._cart_pos_key or p.shape != (4, 4):
-            p = np.array(p)
-            if p.shape != (4, 4) or not _all_finite(p):
+        if p.shape != (4, 4):
+            raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
+        # compiled: the bits of the latched pose (0: kept), else finite (1) or not (2)
+        change = w._same_or_finite(p, w._cart_pos)
+        if change:
+            if change == 2:
                 raise InvalidCommandError("cart_pos must be a finite 4x4 pose")
-            w._cart_pos = p
-            w._cart_pos_key = key
+            w._cart_pos = np.array(p)
     if cmd.cart_stiffness_npm_nmprad is not None:
         k = np.asarray(cmd.cart_stiffness_npm_nmprad, dtype=np.float64)
         key = k.tobytes()

@@ -64,7 +64,7 @@ __all__ = ["WORLD_FIELDS", "TorqueStepper", "unfit"]
 #: contact; the flags of its per-cycle caches; where its joint inertia was taken).
 WORLD_FIELDS: Final = ("mode", "_jnt_pos", "_jnt_trq", "_jnt_stiff", "_jnt_damp", "_cart_pos",
                        "_warning", "_contact", "_touching", "_kin_ok", "_pose_ok", "_m_ok",
-                       "_m_diag", "_inertia_ql", "_let_go", "_qa", "_va")
+                       "_m_diag", "_inertia_q", "_let_go", "_qa", "_va")
 
 _JOINT_MODES = (ArmMode.JOINT_POSITION, ArmMode.JOINT_IMPEDANCE)
 #: The contact wrench of a cycle without contact (shared by all of them: read-only).
@@ -167,7 +167,7 @@ class TorqueStepper:
         self._va = va
         # the joint inertia the position servo's damping uses, and where it was taken
         self._m_diag: F64 = w._m_diag
-        self._inertia_ql: list[float] = list(w._inertia_ql)
+        self._inertia_ql: list[float] = w._inertia_q.tolist()
         self._dirty = True  # what the world latched is not in the actuators yet
         self._gains_of: tuple[object, ...] = ()
         self._trq_written: F64 | None = None

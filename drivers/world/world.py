@@ -36,16 +36,15 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Callable
-from itertools import repeat
 
 import mujoco
 import numpy as np
 
-from drivers.base.impedance import normalized_damping
 from drivers.base.types import F64, FtSamples
 from drivers.description import Scene, compute_layout, tool_tip_offset
 from drivers.errors import SimulationError
 from drivers.world import mjcf
+from drivers.world.actuate import apply
 from drivers.world.arm import ArmCommand, ArmMode
 from drivers.world.bodies import FreeBodies
 from drivers.world.chaser import FloatingBase
@@ -55,7 +54,7 @@ from drivers.world.friction import JointFriction
 from drivers.world.ftsensor import FtSensorModel, FtSteps
 from drivers.world.latch import take
 from drivers.world.rendered import RenderedTarget
-from drivers.world.state import LazyArmState
+from drivers.world.state import LazyArmState, StateFill
 from drivers.world.truth import pose as _pose
 
 #: The KRC's damping uses the Cartesian inertia of the configuration where it was
@@ -69,8 +68,9 @@ INERTIA_REUSE_RAD = 1e-3
 _inv: Callable[..., F64] = getattr(getattr(np.linalg, "_umath_linalg", None), "inv", np.linalg.inv)
 
 
-_gt, _sub = float.__gt__, float.__sub__
-_REUSE = repeat(INERTIA_REUSE_RAD)  # endless: zipped with the joints by map
+#: kernels.post_step's answer bits (POST_TOUCHING, POST_DIVERGED, POST_INERTIA)
+_TOUCHING, _DIVERGED, _INERTIA = 1, 2, 4
+_NO_GEOM = np.zeros((1, 4), dtype=np.int32)[:0, ::2]  # no contact (a strided view, as MuJoCo's)
 
 
 def _no_state() -> LazyArmState | None:
@@ -166,6 +166,8 @@ class SimWorld:
         # MuJoCo's functions called from compiled code, on these structs (kernels.py)
         self._mj = (kernels.mujoco_addresses(), m._address, d._address)
         self._end_state, self._tcf_kinematics = kernels.end_state, kernels.tcf_kinematics
+        self._post_step, self._set_frame = kernels.post_step, kernels.set_frame
+        self._inertia_lhs, self._same_or_finite = kernels.inertia_lhs, kernels.same_or_finite
         self._arm_warnings = kernels.arm_warnings  # the state's, from these limits:
         self._warn_limits = np.array((self._vel_limits, self._pos_limits - 1e-3,
                                       self._pos_lower + 1e-3, self._torque_limits - 1e-9))
@@ -208,6 +210,7 @@ class SimWorld:
         self._tool_contact = ToolContact(m, d, self._tool_body, self._tool_geoms, self._tcp)
         # what the actuators hold now (the objects last written; None: rewrite)
         self._written: dict[str, object] = {}
+        self._k_pos = self._neg_2d = np.zeros(6)  # the damping's factors of K and d (actuate)
         # the last stiffness/damping given and what they became (commands repeat them)
         self._given_k: tuple[bytes, F64, bool] | None = None
         self._given_d: tuple[bytes, F64] | None = None
@@ -215,7 +218,7 @@ class SimWorld:
         self._qfrc_bias = d.qfrc_bias
         self._gravcomp_arm = d.qfrc_gravcomp[va]
         self._applied_arm = d.qfrc_applied[va]
-        self._quat = np.zeros(4)
+        self._rot9 = np.zeros(9)
         self._ft_steps = FtSteps(
             m, d, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_FORCE),
             mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, mjcf.FT_SENSOR_TORQUE),
@@ -238,7 +241,6 @@ class SimWorld:
         self.mode = _MODES[scene.fri.control]
         ctl = scene.controller
         self._cart_pos = self.tcp_pose.copy()
-        self._cart_pos_key = b""  # the bytes of the pose last given ("": none)
         self._cart_stiff = np.asarray(ctl.cart_stiffness, dtype=np.float64)
         self._cart_damp = np.asarray(ctl.cart_damping, dtype=np.float64)
         self._tcp_ft = np.zeros(6)
@@ -257,7 +259,7 @@ class SimWorld:
         # Let the target settle on its pads, then start the clock.
         for _ in range(round(scene.physics.settle_time / self.dt)):
             mujoco.mj_step(m, d)
-        self._check_divergence()
+        check_divergence(d)
         d.time = 0.0
         self._ft_steps.restart()
         if self.chaser is not None:
@@ -281,6 +283,9 @@ class SimWorld:
             self.bodies.report_mass(mjcf.TARGET_BODY, tg.mass)
         self._contact, self._touching = self.contact_wrench()
         self._update_kinematics()
+        self._post_args = (*self._mj, *self._tool_contact.kernel_args, self._qfrc_bias,
+                           self._warn_number, self._qpos_arm, INERTIA_REUSE_RAD)
+        self._fill = StateFill(self)
         self._state_ref: Callable[[], LazyArmState | None] = _no_state
         self._held: LazyArmState | None = None
 
@@ -354,8 +359,8 @@ class SimWorld:
         pose: :attr:`tcp_pose`)."""
         if self._kin_ok:
             return
-        # mj_jacSite, [R^T jacp; R^T jacr] (the TCF rows), the mass matrix factorised
-        # (:meth:`_mass`) and mj_fullM, in one compiled call
+        # mj_jacSite, [R^T jacp; R^T jacr] (the TCF rows), the mass matrix made and
+        # factorised (once per end state) and mj_fullM, in one compiled call
         fns, m, d = self._mj
         self._tcf_kinematics(fns, m, d, self._tcp, self._jac2, self._tcp_rot, self._jfull2,
                              not self._m_ok, self._mfull)
@@ -363,18 +368,20 @@ class SimWorld:
 
     def _update_inertia(self) -> None:
         """Cartesian inertia (and the joint inertias) the KRC's damping uses, at this state."""
-        self._kinematics()
-        jfull = self._jfull
-        # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M.
-        self._mass()
-        mujoco.mj_solveM(self.model, self.data, self._minv_jt, jfull)
-        a = jfull @ self._minv_jt.T
+        # Lambda = (J M^-1 J^T)^-1 with MuJoCo's own factorisation of M (the Jacobian,
+        # mass matrix and J M^-1 J^T in one compiled call; the inverse LAPACK's)
+        fns, m, d = self._mj
+        a = np.empty((6, 6))
+        self._m_diag = np.empty(self._n)
+        self._inertia_lhs(fns, m, d, self._tcp, self._jac2, self._tcp_rot, self._jfull2,
+                          not self._kin_ok, not self._m_ok, self._mfull, self._jfull,
+                          self._minv_jt, a, self._va.start, self._m_diag)
+        self._kin_ok = self._m_ok = True
         lam = _inv(a)  # np.linalg.inv's own LAPACK gufunc; NaN: singular, let it raise
         self.cart_inertia = lam if lam[0, 0] == lam[0, 0] else np.linalg.inv(a)
         self._lam_diag = self.cart_inertia.diagonal().copy()
         self._inertia_new = True
-        self._m_diag = self._mfull.diagonal()[self._va].copy()
-        self._inertia_ql = self._qpos_arm.tolist()  # where it was computed
+        self._inertia_q = self._qpos_arm.copy()  # where it was computed
 
     def _update_kinematics(self) -> None:
         """Everything above at the current state, now."""
@@ -382,87 +389,14 @@ class SimWorld:
         self._update_inertia()
 
     def _apply(self) -> None:
-        """Write the held command into actuators, mocap and applied forces."""
-        # MuJoCo's arrays are looked up only where written (each lookup makes a view)
-        if self.mode == ArmMode.CART_IMPEDANCE:
-            # Each parameter is rewritten only when its inputs are other objects than
-            # those last written (a given field is a new array; a repeated gain the same).
-            w = self._written
-            if self._latched or self._inertia_new:  # the damping: its inputs changed
-                if (self._inertia_new or w.get("k_d") is not self._cart_stiff
-                        or w.get("d") is not self._cart_damp):
-                    self._write_cart_damping()
-                self._inertia_new = False
-            if self._latched:  # the rest changes only with a command
-                self._latched = False
-                if w.get("pos") is not self._cart_pos:
-                    self._mocap_pos[:] = self._cart_pos[:3, 3]
-                    mujoco.mju_mat2Quat(self._quat, self._cart_pos[:3, :3].ravel())
-                    self._mocap_quat[:] = self._quat
-                    w["pos"] = self._cart_pos
-                if w.get("k") is not self._cart_stiff:
-                    np.negative(self._cart_stiff, out=self._cart_stiff_prm)
-                    w["k"] = self._cart_stiff
-                if w.get("ft") is not self._tcp_ft:
-                    self._ctrl_ft[:] = self._tcp_ft
-                    w["ft"] = self._tcp_ft
-                if w.get("jnt") is None:  # the joint gains of the joint modes off
-                    jnt = self._act_jnt
-                    self.model.actuator_gainprm[jnt, 0] = 0.0
-                    self.model.actuator_biasprm[jnt, 1:3] = 0.0
-                    w["jnt"] = True
-                if w.get("trq") is not self._jnt_trq:
-                    self._jnt_trq_prm[:] = self._jnt_trq
-                    w["trq"] = self._jnt_trq
-        else:
-            m, ctrl, cart, jnt = self.model, self.data.ctrl, self._act_cart, self._act_jnt
-            gain, bias = m.actuator_gainprm, m.actuator_biasprm
-            self._written.clear()  # joint modes write over all of it
-            self._latched = True
-            self._inertia_new = True  # the Cartesian damping is rewritten on return
-            bias[cart, 1] = 0.0
-            bias[cart, 2] = 0.0
-            ctrl[self._act_ft] = 0.0
-            if self.mode == ArmMode.JOINT_POSITION:
-                k = np.full(self._n, self.scene.controller.jnt_position_stiffness)
-                dd = np.full(self._n, self.scene.controller.jnt_position_damping)
-            else:
-                k, dd = self._jnt_stiff, self._jnt_damp
-            damp = normalized_damping(k, dd, self._m_diag)
-            gain[jnt, 0] = k
-            bias[jnt, 0] = self._jnt_trq
-            bias[jnt, 1] = -k
-            bias[jnt, 2] = -damp
-            ctrl[jnt] = self._jnt_pos
-        # f_dyn: Coriolis/centrifugal (gravity is compensated inside every step).
-        np.subtract(self._bias_arm, self._gravcomp_arm, out=self._applied_arm)
-
-    def _write_cart_damping(self) -> None:
-        """``-normalized_damping(K, d, diag Lambda)`` into the Cartesian actuators, the
-        same operations in the same order; the factors of K and d are kept while those
-        are the same objects (``-(a b)`` is ``(-a) b`` in IEEE arithmetic)."""
-        w = self._written
-        k, dr = self._cart_stiff, self._cart_damp
-        if w.get("k_d") is not k:
-            self._k_pos = np.maximum(k, 0.0)
-            w["k_d"] = k
-        if w.get("d") is not dr:
-            self._neg_2d = np.negative(2.0 * dr)
-            w["d"] = dr
-        t = self._damp_work
-        np.maximum(self._lam_diag, 0.0, out=t)
-        np.multiply(self._k_pos, t, out=t)
-        np.sqrt(t, out=t)
-        np.multiply(self._neg_2d, t, out=self._cart_damp_prm)
+        """Write the held command into actuators, mocap and applied forces
+        (:func:`drivers.world.actuate.apply`)."""
+        apply(self)
 
     def _take(self, cmd: ArmCommand) -> None:
         """Latch the fields ``cmd`` gives (the others keep their values):
         :func:`drivers.world.latch.take`."""
         take(self, cmd)
-
-    def _check_divergence(self) -> None:
-        """Raise SimulationError if the physics diverged (:mod:`drivers.world.divergence`)."""
-        check_divergence(self.data)
 
     def step(self, command: ArmCommand | None = None) -> LazyArmState:
         """Latch ``command`` (``None``: keep everything), run one cycle, return its end state.
@@ -495,7 +429,7 @@ class SimWorld:
     def _let_go(self) -> None:
         """The data are about to change: a state still held gets its values now."""
         state = self._state_ref()
-        if state is not None:
+        if state is not None and state._world is not None:  # (else resolved already)
             state.resolve()
         self._state_ref = _no_state
         self._held = None
@@ -512,21 +446,27 @@ class SimWorld:
         """
         self._let_go()
         if command is not None:
-            self._take(command)
-        self._apply()
+            take(self, command)
+        apply(self)
         if self.chaser is not None:  # the base's own control, and the wrench's frame
             self.chaser.cycle(self.tcp_pose)
         d = self.data
         self._friction.apply_into(self._qvel_arm, self._frictionloss)
         self._ft_steps.step()  # the cycle's physics steps, their sensor readings
         # Contacts and constraint forces are consistent now (state of the last
-        # step, 1 physics step before the cycle's end).
-        self._contact, self._touching = self._tool_contact.wrench()
-        if self.rendered is not None:  # the carrier's loop on the mock-up (rendered.py)
-            self.rendered.cycle(self.cycle, self._contact, d.site_xpos[self._tcp],
-                                d.site_xmat[self._tcp].reshape(3, 3))
-        self._end_state_dynamics()
-        check_divergence(d, self._warn_number)
+        # step, 1 physics step before the cycle's end): the tool's contact, then the
+        # end state's dynamics, MuJoCo's bad-state counters and the inertia's reuse test
+        # in one compiled call (kernels.post_step)
+        if self.rendered is None:
+            self._contact = contact = np.empty(6)
+            flags = self._post_step(*self._post_args, d.contact.geom if d.ncon else _NO_GEOM,
+                                    contact, self._inertia_q)
+            self._touching = bool(flags & _TOUCHING)
+        else:
+            flags = self._rendered_post(d)
+        self._m_ok = False
+        if flags & _DIVERGED:
+            check_divergence(d, self._warn_number)
         decim = self._ft_decim
         if decim == 1:
             self._ft_pending.append(
@@ -540,17 +480,27 @@ class SimWorld:
         self._step_count += self.substeps
         self.cycle += 1
         self._kin_ok = self._pose_ok = False
-        # a joint moved more than INERTIA_REUSE_RAD (plain floats: one per joint)
-        if any(map(_gt, map(abs, map(_sub, self._qpos_arm.tolist(), self._inertia_ql)),
-                   _REUSE)):
+        if flags & _INERTIA:  # a joint moved more than INERTIA_REUSE_RAD
             self._update_inertia()
         hold = self.rendered.hold if self.rendered is not None else None
         if hold is not None and not self._hold_said:  # said once: the chaser's run stops
             self._hold_said = True
             raise SimulationError(f"{hold.device} held at {hold.t_s:.3f} s: {hold.cause}")
 
+    def _rendered_post(self, d: mujoco.MjData) -> int:
+        """:meth:`advance`'s compiled call's work with the carrier's loop on the mock-up
+        (:mod:`drivers.world.rendered`) between the contact and the end state."""
+        assert self.rendered is not None
+        self._contact, self._touching = self._tool_contact.wrench()
+        self.rendered.cycle(self.cycle, self._contact, d.site_xpos[self._tcp],
+                            d.site_xmat[self._tcp].reshape(3, 3))
+        self._end_state_dynamics()
+        check_divergence(d, self._warn_number)
+        moved = np.abs(self._qpos_arm - self._inertia_q) > INERTIA_REUSE_RAD
+        return _INERTIA if moved.any() else 0
+
     def _end_state_dynamics(self) -> None:
-        """Kinematics and bias forces of the end state (its mass matrix: :meth:`_mass`).
+        """Kinematics and bias forces of the end state (its mass matrix: :meth:`_kinematics`).
 
         The parts of ``mj_step1`` the measurement and the next cycle's command read,
         without collisions and constraints (the next ``mj_step`` redoes both), bit for
@@ -558,13 +508,6 @@ class SimWorld:
         # mj_kinematics, mj_comPos, mj_comVel, mj_passive (qfrc_gravcomp), mj_rne, compiled
         self._end_state(*self._mj, self._qfrc_bias)
         self._m_ok = False
-
-    def _mass(self) -> None:
-        """The end state's mass matrix, factorised (once per cycle, when asked)."""
-        if not self._m_ok:
-            mujoco.mj_makeM(self.model, self.data)
-            mujoco.mj_factorM(self.model, self.data)
-            self._m_ok = True
 
     def ft_samples(self) -> FtSamples:
         """Every F/T sample produced since the last call."""

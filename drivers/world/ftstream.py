@@ -20,6 +20,7 @@ class SimFtSensor(FlagStream, ForceTorqueSensor):
 
     def __init__(self, world: SimWorld) -> None:
         self.world = world
+        world.ft_read = True  # its samples are drawn every cycle from now on
 
     def start(self) -> None:
         self.world.ft_samples()  # a fresh stream starts now

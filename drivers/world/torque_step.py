@@ -78,6 +78,8 @@ def unfit(world: SimWorld) -> str | None:
         return "a floating base (its own control every cycle)"
     if world.rendered is not None:
         return "a rendered target (its carrier's loop every cycle)"
+    if world.ft_read:
+        return "an F/T sensor reads its samples (drawn only by SimWorld.advance)"
     missing = [name for name in WORLD_FIELDS if not hasattr(world, name)]
     if missing:
         return f"a SimWorld without {', '.join(missing)}"

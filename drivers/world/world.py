@@ -292,6 +292,10 @@ class SimWorld:
         self.ft_model = FtSensorModel(
             scene.ft_sensor, self.rng, np.array([0.0, 0.0, -tool_tip_offset(scene)])
         )
+        self.ft_read = False
+        """An F/T sensor reads this world's samples (:class:`~drivers.world.ftstream.SimFtSensor`
+        says so when made): a cycle stepped without them (:mod:`drivers.world.torque_step`)
+        would starve it."""
         self._ft_decim = scene.ft_decimation
         self._ft_pending: list[FtSamples] = []
         self.cycle = 0

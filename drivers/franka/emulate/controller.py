@@ -56,7 +56,10 @@ class Fr3SimController:
 
     ``lean``: the world stepped through :class:`~drivers.world.torque_step.TorqueStepper`
     where it can be (:func:`~drivers.world.torque_step.unfit`), the same physics with less
-    work; ``False``: through ``SimWorld.advance`` always."""
+    work; ``False``: through ``SimWorld.advance`` always. Which one is decided at the
+    first cycle or state asked for, not here: an F/T sensor made on the world after the
+    controller (the ``franka-sim`` robot's ``[ft] type = "sim"``) reads the world's
+    samples, which only ``SimWorld.advance`` draws."""
 
     def __init__(self, world: SimWorld, lean: bool = True) -> None:
         self.world = world
@@ -97,13 +100,23 @@ class Fr3SimController:
         self._measured_at = -1  # the step whose end state the measured fields hold
         self._wrench_o = np.zeros(6)
         self._wrench_written = True  # the record's wrench fields may be nonzero
-        self._lean = TorqueStepper(world) if lean and unfit(world) is None else None
+        self._want_lean = lean
+        self._lean: TorqueStepper | None = None
+        self._decided = False  # lean or not: at the first step() or state() (_decide)
         self.steps = 0
 
     @property
     def lean(self) -> TorqueStepper | None:
         """What steps the world lean (``None``: ``SimWorld.advance`` does)."""
+        if not self._decided:
+            self._decide()
         return self._lean
+
+    def _decide(self) -> None:
+        """Lean or not, once: lean if asked for and the world is fit for it now."""
+        self._decided = True
+        if self._want_lean and unfit(self.world) is None:
+            self._lean = TorqueStepper(self.world)
 
     @property
     def success_rate(self) -> float:
@@ -161,6 +174,8 @@ class Fr3SimController:
         The command's id, torques and end flags are read in one unpacking
         (:data:`~drivers.franka.codec.COMMAND_TORQUES`), the limits compared value by
         value (plain floats: seven joints)."""
+        if not self._decided:
+            self._decide()
         moving = self.moving
         fields = None if command is None else codec.COMMAND_TORQUES.unpack_from(command)  # type: ignore[arg-type]
         answered = fields is not None and fields[0] == self.message_id
@@ -254,9 +269,10 @@ class Fr3SimController:
                                      jnt_trq_nm=np.zeros(7)))
             else:
                 w.advance(None)
-        # the world keeps its F/T sensor's samples for a reader: the FR3 has none (its
-        # wrench is the state's estimate), so they are let go every cycle, not kept
-        w.ft_samples()
+        # the world keeps its F/T sensor's samples for a reader: without one (the FR3's
+        # wrench is the state's estimate) they are let go every cycle, not kept
+        if not w.ft_read:
+            w.ft_samples()
 
     def state(self) -> np.ndarray:
         """The current ``RobotState`` record (float32 arrays, as the robot sends it: a 0-d
@@ -267,6 +283,8 @@ class Fr3SimController:
         when what they report changed: the modes and error flags with the motion or the
         reflex, the commanded torques and joints when new ones came, the external
         wrench's fields while the tool touches (and once when it stops)."""
+        if not self._decided:
+            self._decide()
         v = self._views
         v.message_id[()] = self.message_id
         if self._lean is not None:

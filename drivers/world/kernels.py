@@ -347,12 +347,7 @@ def stribeck_level(coulomb: F64, excess: F64, e: F64, out: F64) -> None:
 def pose4(pos: F64, mat9: F64) -> F64:
     """A new 4x4 pose from a position and a row-major 3x3 rotation (9 values)."""
     out = np.empty((4, 4))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = mat9[3 * i + j]
-        out[i, 3] = pos[i]
-        out[3, i] = 0.0
-    out[3, 3] = 1.0
+    _pose_into(pos, mat9, out)
     return out
 
 

@@ -101,10 +101,8 @@ def run_once(ppath: Path, seconds: float, out: Path) -> tuple[float, dict[str, f
 #: loop, in the writer's thread.
 PARTS = (
     ("step", "ffexp.loop", "Cycle", "step"),
-    ("  estimator", "ffexp.estimation", "Estimator", "update"),
-    ("    compiled cycle", "ffexp.estimation.estimator", "Estimator",
-     "_cycle"),
-    ("  safety", "ffexp.safety", "SafetyMonitor", "check"),
+    ("  estimator and safety checks", "ffexp.estimation", "Estimator", "update"),
+    ("  safety's stop (when one holds)", "ffexp.safety", "SafetyMonitor", "stop_for"),
     ("  task", "ffexp.task", "Task", "step"),
     ("  approach law", "ffexp.controllers.base", "Approach", "command"),
     ("  align method", "ffexp.loop", "Cycle", "_align"),

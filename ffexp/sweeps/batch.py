@@ -126,6 +126,16 @@ class _RunsExecutor(Executor):
         """A job was queued (the lock held): send what can go; the futures to fail."""
         raise NotImplementedError
 
+    def _close_queue(self, cancel_futures: bool) -> list[Future[dict[str, Any]]]:
+        """Take no new jobs (the lock held); with ``cancel_futures`` the queued jobs leave
+        the queue: their futures, for the caller to cancel outside the lock."""
+        self._shutdown = True
+        if not cancel_futures:
+            return []
+        dropped = [fut for _, fut in self._pending]
+        self._pending.clear()
+        return dropped
+
 
 class BatchExecutor(_RunsExecutor):
     """Runs ``run_one`` jobs in batches of at most ``batch`` on ``processes`` processes
@@ -197,10 +207,7 @@ class BatchExecutor(_RunsExecutor):
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         with self._cond:
-            self._shutdown = True
-            dropped = [fut for _, fut in self._pending] if cancel_futures else []
-            if cancel_futures:
-                self._pending.clear()
+            dropped = self._close_queue(cancel_futures)
         for fut in dropped:
             fut.cancel()
         if wait:  # the jobs submitted run first, as a pool's do
@@ -461,10 +468,7 @@ class RefillExecutor(_RunsExecutor):
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         with self._cond:
-            self._shutdown = True
-            dropped = [fut for _, fut in self._pending] if cancel_futures else []
-            if cancel_futures:
-                self._pending.clear()
+            dropped = self._close_queue(cancel_futures)
             self._end_idle()
             collector = self._collector
             if self._wake_w is not None:

@@ -118,9 +118,9 @@ def test_the_torque_rate_and_the_joint_limits_bound_the_law() -> None:
 
 
 def test_cross3_is_numpys_cross_bit_for_bit() -> None:
-    """The plain-float cross product gives np.cross's values, signs of zero included, on
-    random vectors of many scales, with zeros and ones among them."""
-    from drivers.franka.model import cross3
+    """The plain-float cross product the model uses gives np.cross's values, signs of zero
+    included, on random vectors of many scales, with zeros and ones among them."""
+    from drivers.carrier.body import cross3
 
     rng = np.random.default_rng(11)
     special = np.array([0.0, -0.0, 1.0, -1.0, 1e-300, 1e300])

@@ -14,19 +14,11 @@ from __future__ import annotations
 import numpy as np
 
 from drivers.base.types import F64
+from drivers.carrier.body import cross3
 from drivers.description.arm import ArmDescription
 from drivers.description.fr3 import FR3
 
-__all__ = ["ArmModel", "cross3"]
-
-
-def cross3(a: F64, b: F64) -> list[float]:
-    """``np.cross(a, b)`` of two 3-vectors in plain floats: the same products and
-    differences in the same order (numpy's ``a1 b2 - a2 b1``, ...), the same values,
-    without numpy's per-call machinery (tests/test_franka_model.py checks them)."""
-    a0, a1, a2 = a.tolist()
-    b0, b1, b2 = b.tolist()
-    return [a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0]
+__all__ = ["ArmModel"]
 
 
 class ArmModel:

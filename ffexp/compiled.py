@@ -21,8 +21,9 @@ KERNEL_MODULES = ("ffexp.controllers.kernels", "ffexp.estimation.kernels")
 
 
 def load_kernels() -> tuple[ModuleType, ...]:
-    """Import every compiled module of :mod:`drivers` and of ffexp (seconds on a fresh
-    checkout, which compiles them; tens of milliseconds once numba's cache holds them)."""
+    """Import every compiled module of :mod:`drivers` and of ffexp (about 20 s of CPU on
+    a fresh checkout, which compiles them; about 0.5 s once numba's cache holds them, less
+    when a world already loaded its own)."""
     from drivers.base.signatures import load_kernels as load_drivers
 
     return (*load_drivers(), *(import_module(name) for name in KERNEL_MODULES))

@@ -80,6 +80,6 @@ I32_2A = _array(types.int32, 2, "A")
 
 def load_kernels() -> tuple[ModuleType, ...]:
     """Import :data:`KERNEL_MODULES`: every compiled function of :mod:`drivers` compiled,
-    or loaded from numba's cache, now (seconds on a fresh checkout, milliseconds after),
-    so none does at a world's first cycle."""
+    or loaded from numba's cache, now (seconds on a fresh checkout, a fraction of one
+    after), so none does at a world's first cycle."""
     return tuple(import_module(name) for name in KERNEL_MODULES)

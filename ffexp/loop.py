@@ -32,7 +32,7 @@ from drivers.base.types import (
     TargetObservation,
 )
 from drivers.errors import DriverError, DriverTimeoutError, LinkLostError
-from ffexp import controllers, scenarios
+from ffexp import compiled, controllers, scenarios
 from ffexp.contracts import Phase, Progress, RunOutcome, Stop, StopReason
 from ffexp.estimation import Estimator
 from ffexp.protocol import RunProtocol
@@ -309,6 +309,7 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
     no_state = ""
     # the F/T samples go through the log only when it records them (a lean log does not)
     log_samples = log.samples if log.rec is not None and log.keeps(FT_TOPIC) else None
+    compiled.load_kernels()  # every kernel compiled or loaded now: none in the loop
     try:
         robot.connect()
         sensor.start()

@@ -68,7 +68,7 @@ def _inputs(run: Run, cycles: int) -> list[tuple[RobotState, FtSamples]]:
         pose[:3, :3] = Rotation.from_rotvec(np.multiply(run.spin_radps, t)).as_matrix()
         pose[:3, 3] = [0.5 + 0.02 * math.sin(3 * t), 0.01 * t, 0.4 + 0.05 * t * t]
         n = run.sample_counts[k % len(run.sample_counts)]
-        times = t_ns + np.arange(n, dtype=np.int64) * (CYCLE_S * NS // max(n, 1))
+        times = t_ns + np.arange(n, dtype=np.int64) * int(CYCLE_S * NS // max(n, 1))
         wrench = bias + rng.normal(scale=0.05, size=(n, 6))
         if 80 <= k < 160:
             wrench[:, 2] -= run.contact_n

@@ -22,6 +22,8 @@ from llvmlite import ir  # type: ignore[import-untyped]
 from numba import njit, types
 from numba.extending import intrinsic
 
+from drivers.base.signatures import f8
+
 __all__ = ["dot3", "dot3_n", "fma"]
 
 
@@ -40,14 +42,14 @@ def _fma_typing(typingctx, a, b, c):  # type: ignore[no-untyped-def]
 fma: Any = intrinsic(_fma_typing)
 
 
-@njit(cache=True)
+@njit([(f8, f8, f8, f8, f8, f8)], cache=True)
 def dot3(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
     """``a . b`` as OpenBLAS's ``ddot``, ``dgemm`` and transposed ``dgemv`` make it:
     ``a0 b0``, ``a1 b1``, ``a2 b2`` fused in turn into ``+0.0``."""
     return float(fma(a2, b2, fma(a1, b1, fma(a0, b0, 0.0))))
 
 
-@njit(cache=True)
+@njit([(f8, f8, f8, f8, f8, f8)], cache=True)
 def dot3_n(a0: float, a1: float, a2: float, b0: float, b1: float, b2: float) -> float:
     """``a . b`` as OpenBLAS's ``dgemv`` (not transposed) makes a row of ``A x``:
     ``a1 b1``, ``a0 b0``, ``a2 b2`` fused in turn into ``+0.0``."""

@@ -156,6 +156,7 @@ class EmulatedRig:
                               f"the {s.robot} emulator serves no camera")
         if entry.needs_remote and s.remote is None:
             raise ConfigError(s.fields.remote, "", "the remote driver's address is required")
+        import_module("drivers.base.signatures").load_kernels()  # none compiles serving
         self.world = world = SimWorld(s.scene, seed=s.seed)
         try:
             if entry.ft_box and s.netft_port is not None:

@@ -28,6 +28,23 @@ from numpy.typing import NDArray
 
 from drivers.base.blas import dot3, fma
 from drivers.base.mjlib import c_call, function_addresses
+from drivers.base.signatures import (
+    B1,
+    F1,
+    F2,
+    F2A,
+    F3,
+    I1,
+    I32_1A,
+    I32_2,
+    I32_2A,
+    RF1,
+    RF2,
+    RF2A,
+    b1,
+    f8,
+    i8,
+)
 from drivers.base.types import F64
 
 __all__ = [
@@ -84,7 +101,7 @@ def mujoco_addresses() -> NDArray[np.int64]:
     return function_addresses(MUJOCO)
 
 
-@njit(cache=True)
+@njit([(I1, i8, i8, F1)], cache=True)
 def end_state(fns: Any, m: int, d: int, qfrc_bias: F64) -> None:
     """The end state's kinematics and bias forces: ``mj_kinematics``, ``mj_comPos``,
     ``mj_comVel``, ``mj_passive`` and ``mj_rne(m, d, 0, qfrc_bias)``, in this order."""
@@ -95,7 +112,7 @@ def end_state(fns: Any, m: int, d: int, qfrc_bias: F64) -> None:
     c_call(fns[_RNE], (m, d, np.int32(0), qfrc_bias))
 
 
-@njit(cache=True)
+@njit([(I1, i8, i8, i8, F3, F2, F3, b1, F2)], cache=True)
 def tcf_kinematics(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfull2: F64,
                    make_m: bool, mfull: F64) -> None:
     """The site's Jacobian in its own frame and the full mass matrix: ``mj_jacSite`` into
@@ -114,7 +131,7 @@ def tcf_kinematics(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfu
     c_call(fns[_FULL_M], (m, d, mfull))
 
 
-@njit(cache=True)
+@njit([(I1, i8, i8, i8, F3, F2, F3, b1, b1, F2, F2, F2, F2, i8, F1)], cache=True)
 def inertia_lhs(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfull2: F64,
                 kin: bool, make_m: bool, mfull: F64, jfull: F64, minv_jt: F64, a: F64,
                 va0: int, m_diag: F64) -> None:
@@ -149,7 +166,8 @@ def inertia_lhs(fns: Any, m: int, d: int, site: int, jac2: F64, rot: F64, jfull2
 FT_BIAS, FT_RANGE, FT_TARE, FT_INV_RES, FT_RES, FT_XFORM = 0, 1, 2, 3, 4, 5
 
 
-@njit(cache=True)
+@njit([(F2, i8, F2, F2, i8, F2, i8, F2, b1, F2, B1),
+       (F2, i8, F2A, F2A, i8, F2, i8, F2, b1, F2, B1)], cache=True)
 def ft_block(white: F64, i: int, raw: F64, delay_buf: F64, delay_n: int, drift: F64,
              at: int, consts: F64, tared: bool, out: F64, row_over: Any) -> int:
     """One block of the Net F/T model (``FtSensorModel.process``'s arithmetic).
@@ -220,7 +238,7 @@ def ft_block(white: F64, i: int, raw: F64, delay_buf: F64, delay_n: int, drift: 
     return rows_over
 
 
-@njit(cache=True)
+@njit([(F1, i8, i8, i8, f8, F2)], cache=True)
 def history_rows(history: F64, fadr: int, tadr: int, n: int, t_start: float, raw: F64) -> bool:
     """The ``n`` readings of the force and torque sensors' MuJoCo histories (each
     ``[user, cursor, times[n], values[3 n]]`` from ``fadr``, ``tadr``: a ring whose
@@ -241,7 +259,7 @@ def history_rows(history: F64, fadr: int, tadr: int, n: int, t_start: float, raw
     return True
 
 
-@njit(cache=True)
+@njit([(F2, F2), (RF2A, F2)], cache=True)
 def same_or_finite(src: F64, cur: F64) -> int:
     """``0`` if the 2-D arrays ``src`` and ``cur`` (one shape) hold the same bits, else
     ``1`` if every value of ``src`` is finite, ``2`` if not (a command's latch)."""
@@ -267,7 +285,7 @@ def same_or_finite(src: F64, cur: F64) -> int:
 # ---------------------------------------------------------------- the tool's contact
 
 
-@njit(cache=True)
+@njit([(I32_2, B1), (I32_2A, B1)], cache=True)
 def touches(geom: Any, is_tool: Any) -> bool:
     """Whether a contact's geom pair (``geom``: MuJoCo's ``contact.geom``, ``(ncon, 2)``)
     holds one of the tool's geoms (``is_tool[g]``; ``-1``, a flex's contact, is none)."""
@@ -279,7 +297,7 @@ def touches(geom: Any, is_tool: Any) -> bool:
     return False
 
 
-@njit(cache=True)
+@njit([(F1, F1, F1, F2, F1)], cache=True)
 def tool_wrench(cfrc: F64, com: F64, tcp: F64, rot: F64, out: F64) -> None:
     """The tool body's external wrench ``cfrc`` (MuJoCo's ``cfrc_ext``: torque about the
     subtree centre of mass ``com``, force; world axes) at the TCP ``tcp``, in the TCF
@@ -301,7 +319,7 @@ def tool_wrench(cfrc: F64, com: F64, tcp: F64, rot: F64, out: F64) -> None:
 # ---------------------------------------------------------------- the arm's state
 
 
-@njit(cache=True)
+@njit([(F1, F1, F1, F2, I1)], cache=True)
 def arm_warnings(qvel: F64, q: F64, torque: F64, limits: F64, bits: Any) -> int:
     """The limit warnings of the arm's state: ``bits[0]`` if a joint's speed is beyond
     ``limits[0]`` (``|v| > limit``), ``bits[1]`` if a position is beyond ``limits[1]``
@@ -323,7 +341,7 @@ def arm_warnings(qvel: F64, q: F64, torque: F64, limits: F64, bits: Any) -> int:
     return out
 
 
-@njit(cache=True)
+@njit([(F1, F1, b1, F1)], cache=True)
 def stribeck_arg(speed: F64, stribeck: F64, square: bool, out: F64) -> None:
     """``-(min(|v| / v_s, 40) ** 2)`` (``square``; else the power 1) into ``out``: the
     Stribeck curve's exponent before ``exp`` (``JointFriction.apply_into``)."""
@@ -336,14 +354,25 @@ def stribeck_arg(speed: F64, stribeck: F64, square: bool, out: F64) -> None:
         out[j] = -v
 
 
-@njit(cache=True)
+@njit([(F1, F1, F1, F1)], cache=True)
 def stribeck_level(coulomb: F64, excess: F64, e: F64, out: F64) -> None:
     """``coulomb + excess * e`` into ``out`` (the dry level from ``e = exp(...)``)."""
     for j in range(out.shape[0]):
         out[j] = coulomb[j] + excess[j] * e[j]
 
 
-@njit(cache=True)
+@njit([(F1, F1, F2)], cache=True)
+def _pose_into(pos: F64, mat9: F64, out: F64) -> None:
+    """A 4x4 pose from a position and a row-major 3x3 rotation (9 values) into ``out``."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = mat9[3 * i + j]
+        out[i, 3] = pos[i]
+        out[3, i] = 0.0
+    out[3, 3] = 1.0
+
+
+@njit([(F1, F1)], cache=True)
 def pose4(pos: F64, mat9: F64) -> F64:
     """A new 4x4 pose from a position and a row-major 3x3 rotation (9 values)."""
     out = np.empty((4, 4))
@@ -365,7 +394,8 @@ _OBJ_BODY = np.int32(mujoco.mjtObj.mjOBJ_BODY)
 POST_TOUCHING, POST_DIVERGED, POST_INERTIA = 1, 2, 4
 
 
-@njit(cache=True)
+@njit([(I1, i8, i8, B1, F1, F1, F1, F2, F1, I32_1A, F1, f8, I32_2, F1, F1),
+       (I1, i8, i8, B1, F1, F1, F1, F2, F1, I32_1A, F1, f8, I32_2A, F1, F1)], cache=True)
 def post_step(fns: Any, m: int, d: int, is_tool: Any, cfrc: F64, com: F64, tcp: F64,
               rot: F64, qfrc_bias: F64, warn: Any, q: F64, reuse: float, geom: Any,
               contact: F64, q_ref: F64) -> int:
@@ -422,7 +452,7 @@ def _f64_ptr_typing(typingctx: Any, addr: Any) -> Any:
 _f64_ptr: Any = intrinsic(_f64_ptr_typing)
 
 
-@njit(cache=True)
+@njit([(I1, i8, i8, I1, I1, b1, b1, RF1, b1, RF2, RF2, RF1, F3, F3)], cache=True)
 def fill_state(fns: Any, m: int, d: int, arrays: Any, dims: Any, kin: bool, make_m: bool,
                jnt_src: F64, cart: bool, cart_src: F64, tcp_src: F64, contact: F64,
                mats: F64, poses: F64) -> int:
@@ -501,14 +531,14 @@ def fill_state(fns: Any, m: int, d: int, arrays: Any, dims: Any, kin: bool, make
     return arm_warnings(qvel, mats[2, 0, :n], torque, limits, bits)
 
 
-@njit(cache=True)
+@njit([(F1, F1, F1)], cache=True)
 def torques(tau: F64, bias: F64, tau_ext: F64) -> None:
     """``tau += bias; tau -= tau_ext`` (the link-side torque sensors from ``M qdd``)."""
     for j in range(tau.shape[0]):
         tau[j] = (tau[j] + bias[j]) - tau_ext[j]
 
 
-@njit(cache=True)
+@njit([(I1, F2, F1, F1, F1), (I1, RF2A, F1, F1, F1)], cache=True)
 def set_frame(fns: Any, pose: F64, pos: F64, quat: F64, work: F64) -> None:
     """A 4x4 pose into a frame's position ``pos`` and unit quaternion ``quat``
     (``mju_mat2Quat`` of its rotation, copied row-major into the 9 values ``work``)."""
@@ -518,13 +548,3 @@ def set_frame(fns: Any, pose: F64, pos: F64, quat: F64, work: F64) -> None:
             work[3 * i + j] = pose[i, j]
     c_call(fns[_MAT2QUAT], (quat, work))
 
-
-@njit(cache=True)
-def _pose_into(pos: F64, mat9: F64, out: F64) -> None:
-    """A 4x4 pose from a position and a row-major 3x3 rotation (9 values) into ``out``."""
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = mat9[3 * i + j]
-        out[i, 3] = pos[i]
-        out[3, i] = 0.0
-    out[3, 3] = 1.0

@@ -30,6 +30,7 @@ from drivers.base.types import CartesianCommand
 from drivers.description.scene import Scene
 from drivers.factory import open_devices
 from drivers.rig import validate_rig
+from ffexp import compiled
 from ffexp.calibrate.inputs import ReplayInput, default_robot
 from ffexp.errors import FfexpError, SimulationError
 from ffexp.recording.topics import STATE_JOINTS
@@ -117,6 +118,7 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
     failed: str | None = None
     t0: int | None = None
     k = 0
+    compiled.load_kernels()  # every kernel compiled or loaded now: none in the loop
     try:
         robot.connect()
         sensor.start()

@@ -28,6 +28,7 @@ import numpy as np
 from numba import njit
 
 from drivers.base.blas import dot3, dot3_n
+from drivers.base.signatures import F1, F2, I1, b1, f8, i8
 from drivers.base.types import F64
 
 #: ``work`` of :func:`approach_error`: the translation error (3), the rotation's cosine
@@ -47,14 +48,14 @@ NAN = 2
 T_P, T_I, T_RI, T_FF, T_TOTAL = range(5)
 
 
-@njit(cache=True)
+@njit([(f8, f8, f8)], cache=True)
 def clip(x: float, lo: float, hi: float) -> float:
     """``np.clip`` of one float (NaN stays; of two equal values the bound)."""
     x = x if (x > lo or x != x) else lo
     return x if (x < hi or x != x) else hi
 
 
-@njit(cache=True)
+@njit([(f8,)], cache=True)
 def sign(x: float) -> float:
     """``np.sign`` of one float (NaN stays NaN)."""
     if x > 0.0:
@@ -64,7 +65,7 @@ def sign(x: float) -> float:
     return x if x != x else 0.0
 
 
-@njit(cache=True)
+@njit([(F2, F2, F1, f8, F2, F1)], cache=True)
 def approach_error(pose: F64, start: F64, direction: F64, travel: float, sp: F64,
                    work: F64) -> bool:
     """The set-point ``travel`` along ``direction`` (start TCF) from ``start`` into ``sp``
@@ -96,7 +97,7 @@ def approach_error(pose: F64, start: F64, direction: F64, travel: float, sp: F64
     return True
 
 
-@njit(cache=True)
+@njit([(F1, f8, F1, F2, F1)], cache=True)
 def impedance_out(work: F64, scale: float, twist: F64, axes: F64, out: F64) -> bool:
     """``out = clip(k e - b twist, lo, hi)`` per axis (``axes`` rows: k, b, lo, hi), the
     error ``e`` from :func:`approach_error`'s ``work``: its translation, and its
@@ -116,7 +117,7 @@ def impedance_out(work: F64, scale: float, twist: F64, axes: F64, out: F64) -> b
     return True
 
 
-@njit(cache=True)
+@njit([(F1, F1, F2, f8, F2)], cache=True)
 def force_update(w: F64, integral: F64, gains: F64, dt: float, terms: F64) -> int:
     """One cycle of eq. (9) per axis from the measured wrench ``w``: ``integral``
     stepped in place, the terms into ``terms``' rows; 1 if an output saturated, else 0;
@@ -153,7 +154,7 @@ def force_update(w: F64, integral: F64, gains: F64, dt: float, terms: F64) -> in
     return saturated
 
 
-@njit(cache=True)
+@njit([(F2, F2, F2, F1, F1)], cache=True)
 def funnel_geometry(tool: F64, mouth: F64, measured: F64, z_axis: F64, out: F64) -> bool:
     """Into ``out``: the tool tip ``tool`` in the mouth frame (``(p - p_m) R_m``, 3), the
     two headings' difference before wrapping (``atan2`` of the tool's z and the mouth's x
@@ -180,7 +181,7 @@ def funnel_geometry(tool: F64, mouth: F64, measured: F64, z_axis: F64, out: F64)
 MOTION_OK, MOTION_SPEED, MOTION_WORKSPACE = 0, 1, 2
 
 
-@njit(cache=True)
+@njit([(F1, f8, F2, F2, F1, b1, F1)], cache=True)
 def safety_motion(twist: F64, max_speed: float, pose: F64, origin: F64, widths: F64,
                   box: bool, out: F64) -> int:
     """The safety monitor's motion limits: the tool speed ``|twist[:3]|`` (into
@@ -227,7 +228,7 @@ OBL_SIZE = 9
 LABELS = ("unverified", "aligned", "not aligned")
 
 
-@njit(cache=True)
+@njit([(F1, I1, F1, i8, f8, b1, f8, f8, f8, f8, f8)], cache=True)
 def observer_update(f: F64, i: np.ndarray, lim: F64, t_ns: int, z_m: float, in_contact: bool,
                     f_z: float, f_y: float, t_x: float, v_y: float, w_x: float) -> int:
     """One cycle of the observer (:meth:`ffexp.observer.WrenchObserver.update`, the same
@@ -283,7 +284,7 @@ TOL_LATERAL, TOL_YAW_DEG, TOL_INSERTION = 0, 1, 2
 _DEGREES = 180.0 / math.pi  # math.degrees' factor
 
 
-@njit(cache=True)
+@njit([(F2, F2, F2, F1, b1, f8, F1, F1, F1, I1, i8, F1, I1, F1)], cache=True)
 def funnel_observe(tool: F64, mouth: F64, measured: F64, z_axis: F64, truth: bool,
                    start_z: float, tol: F64, geo: F64, of: F64, oi: np.ndarray, t_ns: int,
                    f: F64, i: np.ndarray, lim: F64) -> bool:

@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 
 from drivers.base.blas import dot3, dot3_n
 from drivers.base.mjlib import c_call, function_addresses
+from drivers.base.signatures import F1, F1A, F2, F3, I1, I2, RF2, RI1, RU1, b1, f8, i8
 from drivers.base.types import F64, FtStatus
 from ffexp.controllers.kernels import MOTION_SPEED, MOTION_WORKSPACE, safety_motion
 
@@ -74,7 +75,7 @@ def mujoco_functions() -> NDArray[np.int64]:
 # ---------------------------------------------------------------- the wrench filter
 
 
-@njit(cache=True)
+@njit([(F1, F1, F1, i8)], cache=True)
 def wrench_tare(wf: F64, wq: F64, total: F64, n: int) -> None:
     """The tare of one run's filter from the sum of ``n`` free-space samples (the
     bias-only Kalman filter's closed form, ``1/P = 1/100 + n/r``, ``b = P sum / r``)."""
@@ -88,7 +89,7 @@ def wrench_tare(wf: F64, wq: F64, total: F64, n: int) -> None:
         wf[WF_P_BB + k] = p_b
 
 
-@njit(cache=True)
+@njit([(F1, F1, F2)], cache=True)
 def wrench_update(wf: F64, wq: F64, rows: F64) -> None:
     """Predict one run's filter over a cycle and update it with the mean of ``rows``
     ``(n, 6)`` (summed row after row, as numpy's reduce over axis 0); ``n = 0``:
@@ -120,7 +121,7 @@ def wrench_update(wf: F64, wq: F64, rows: F64) -> None:
 # ---------------------------------------------------------------- the contact detector
 
 
-@njit(cache=True)
+@njit([(F1, f8, f8, f8)], cache=True)
 def contact_signal(cc: F64, w0: float, w1: float, w2: float) -> float:
     """The scalar the thresholds apply to: ``-f_z`` or the force's norm (numpy's)."""
     if cc[CC_FZ] != 0.0:
@@ -128,7 +129,7 @@ def contact_signal(cc: F64, w0: float, w1: float, w2: float) -> float:
     return math.sqrt(dot3(w0, w1, w2, w0, w1, w2))
 
 
-@njit(cache=True)
+@njit([(I1, F1, i8, f8, I1)], cache=True)
 def contact_update(cd: np.ndarray, cc: F64, time_ns: int, signal: float,
                    event: np.ndarray) -> bool:
     """One filtered value of one run's detector; an event it confirms goes into
@@ -159,7 +160,7 @@ def contact_update(cd: np.ndarray, cc: F64, time_ns: int, signal: float,
 # ---------------------------------------------------------------- the motion filter
 
 
-@njit(cache=True)
+@njit([(F2, F2, F1, b1, F2, RF2, F2, I1, F1)], cache=True)
 def motion_step(x: F64, rot: F64, theta: F64, started: bool, pose: F64, gain: F64,
                 f1_t: F64, mju: NDArray[np.int64], work: F64) -> None:
     """One cycle of one run's motion filter: ``x`` its six rows (value, rate,
@@ -200,7 +201,7 @@ def motion_step(x: F64, rot: F64, theta: F64, started: bool, pose: F64, gain: F6
         x[a, 2] = p2 + gain[a, 2] * y
 
 
-@njit(cache=True)
+@njit([(F2, F2, F1)], cache=True)
 def twist_tcf(x: F64, pose: F64, out: F64) -> None:
     """One run's twist in the tool frame of ``pose`` (``v @ R`` per half, dgemv's sums)."""
     for j in range(3):
@@ -208,7 +209,7 @@ def twist_tcf(x: F64, pose: F64, out: F64) -> None:
         out[3 + j] = dot3(x[3, 1], x[4, 1], x[5, 1], pose[0, j], pose[1, j], pose[2, j])
 
 
-@njit(cache=True)
+@njit([(F2, F3, F2, b1, F3, RF2, F2, I1, F1)], cache=True)
 def motion_batch(x: F64, rot: F64, theta: F64, started: bool, poses: F64, gain: F64,
                  f1_t: F64, mju: NDArray[np.int64], work: F64) -> None:
     """:func:`motion_step` for every run: ``x`` (6 N, 3), ``rot`` (N, 3, 3), ``theta``
@@ -243,7 +244,7 @@ OI_TARE_SAMPLES, OI_LAST = 8, 9
 OI_SIZE = 10
 
 
-@njit(cache=True)
+@njit([(F1A, i8)], cache=True)
 def _peak(squares: F64, n: int) -> float:
     """``sqrt(max(squares))``, NaN when one is."""
     top = 0.0
@@ -256,7 +257,8 @@ def _peak(squares: F64, n: int) -> float:
     return math.sqrt(top)
 
 
-@njit(cache=True)
+@njit([(i8, F2, F2, I2, F2, F3, F2, b1, RF2, F2, I1, F2, RI1, RU1, i8, i8, F2, F2, I2,
+        F2, F2, I1, F1)], cache=True)
 def run_cycle(i: int, cfg: F64, fs: F64, ist: np.ndarray, x: F64, rot: F64, theta: F64,
               started: bool, gain: F64, f1_t: F64, mju: NDArray[np.int64], wrench: F64,
               time_ns: np.ndarray, status: np.ndarray, lo: int, hi: int, pose: F64, of: F64,
@@ -367,7 +369,7 @@ def run_cycle(i: int, cfg: F64, fs: F64, ist: np.ndarray, x: F64, rot: F64, thet
     ofi[OF_FZ] = -wfi[WF_X_F + 2]
 
 
-@njit(cache=True)
+@njit([(F2, F2, I2, F2, F3, F2, b1, RF2, F2, I1, F2, RI1, RU1, I1, F3, F2, I2)], cache=True)
 def estimator_cycle(cfg: F64, fs: F64, ist: np.ndarray, x: F64, rot: F64, theta: F64,
                     started: bool, gain: F64, f1_t: F64, mju: NDArray[np.int64], wrench: F64,
                     time_ns: np.ndarray, status: np.ndarray, offsets: np.ndarray, poses: F64,
@@ -387,7 +389,8 @@ def estimator_cycle(cfg: F64, fs: F64, ist: np.ndarray, x: F64, rot: F64, theta:
                   work)
 
 
-@njit(cache=True)
+@njit([(F2, F2, I2, F2, F3, F2, b1, RF2, F2, I1, F2, RI1, RU1, F2, b1, i8, i8, F2,
+        I2)], cache=True)
 def single_cycle(cfg: F64, fs: F64, ist: np.ndarray, x: F64, rot: F64, theta: F64,
                  started: bool, gain: F64, f1_t: F64, mju: NDArray[np.int64], wrench: F64,
                  time_ns: np.ndarray, status: np.ndarray, pose: F64, commanding: bool,
@@ -421,7 +424,7 @@ SI_BAD_LINK, SI_LINK_LOST, SI_HAS_ORIGIN = 0, 1, 2
 SI_SIZE = 3
 
 
-@njit(cache=True)
+@njit([(F1, I1, i8, b1, b1, b1, b1, F2, F1, I1)], cache=True)
 def safety_check(ofi: F64, oii: np.ndarray, t_ns: int, connect: bool, moving: bool,
                  healthy: bool, commanding: bool, pose: F64, sf: F64, si: np.ndarray) -> int:
     """:meth:`ffexp.safety.SafetyMonitor.check` on one run's estimate (``of``/``oi``
@@ -478,7 +481,7 @@ Q_SIZE = Q_SI + SI_SIZE
 R_CHECK, R_IN_CONTACT, R_EVENT = 15, 16, 32
 
 
-@njit(cache=True)
+@njit([(F1, I1, RF2, F2, RI1, RU1, F2, b1, b1, i8, i8, b1, b1, b1, b1)], cache=True)
 def checked_cycle(fb: F64, ib: np.ndarray, gain: F64, wrench: F64, time_ns: np.ndarray,
                   status: np.ndarray, pose: F64, started: bool, commanding: bool, t_ns: int,
                   t0_ns: int, healthy: bool, connect: bool, moving: bool, check: bool) -> int:

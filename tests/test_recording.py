@@ -324,3 +324,46 @@ def test_rows_held_and_encoded_at_once_are_the_records_filled_row_by_row(
         seq += n
     assert [m for m in held if m[0] == "/ft/raw"] == expected
     assert len(expected) > 500
+
+
+def test_a_cycles_topics_given_as_the_last_tuple_again_go_to_their_channels(
+        tmp_path: Path) -> None:
+    """``write_cycle`` knows the channels of the tuple of topics it was given last (the
+    same object); another tuple, a list or new topics in between go where they belong:
+    the file is the one of writing every message by itself."""
+    a = ("/estimator/state", "/control/terms")
+    b = ("/control/terms", "/sim/truth", "/estimator/state")
+    rng = np.random.default_rng(3)
+    sizes = {t: CDR_TOPICS[t].spec.new_record().nbytes for t in (*a, *b)}
+    cycles = []
+    for k in range(300):
+        topics: tuple[str, ...] | list[str] = a if k % 7 else b
+        if k % 11 == 3:
+            topics = list(topics)  # a list: asked every time
+        if k % 13 == 5:
+            topics = tuple(list(a))  # a tuple of the same topics, another object
+        cycles.append((10**9 + 1000 * k, topics,
+                       [rng.bytes(sizes[t]) for t in topics]))
+    with Recorder(tmp_path / "cycles.mcap") as rec:
+        for t, topics, datas in cycles:
+            rec.write_cycle(t, topics, datas)
+    with Recorder(tmp_path / "each.mcap") as rec:
+        for t, topics, datas in cycles:
+            for topic, data in zip(topics, datas, strict=True):
+                rec.write_bytes(topic, t, data)
+    want, got = _messages(tmp_path / "each.mcap"), _messages(tmp_path / "cycles.mcap")
+    assert got == want
+    assert len(got["/sim/truth"]) == sum(1 for _, tp, _ in cycles if "/sim/truth" in tp)
+    with Recorder(tmp_path / "bad.mcap") as rec, pytest.raises(ValueError, match="2 topics"):
+        rec.write_cycle(1, a, [b"x"] * 2)
+        rec.write_cycle(2, a, [b"x"] * 3)  # the last tuple, with a message too many
+
+
+def _messages(path: Path) -> dict[str, list[tuple[int, int, bytes]]]:
+    from mcap.reader import make_reader
+
+    out: dict[str, list[tuple[int, int, bytes]]] = {}
+    with path.open("rb") as fh:
+        for _, ch, msg in make_reader(fh).iter_messages():
+            out.setdefault(ch.topic, []).append((msg.sequence, msg.log_time, msg.data))
+    return out

@@ -187,3 +187,41 @@ def test_the_loops_float64_arrays_take_the_joined_form(monkeypatch: pytest.Monke
     cycle.estimator_message(v, v, v, v, 1.0, 3, True)
     cycle.terms_message(SimpleNamespace(p=v, i=v, ri=None, ff=v), None, v, v, _pose(rng, 1), 2)
     cycle.command_message(CartesianCommand(), AppliedCommand(CartesianCommand()))
+
+
+def _other_f64(v: np.ndarray, big_endian: bool = False) -> np.ndarray:
+    """``v`` with a float64 dtype that is not numpy's own object (one with metadata)
+    or, ``big_endian``, in the other byte order: the same numbers."""
+    if big_endian:
+        return v.astype(">f8")
+    out: np.ndarray = v.view(np.dtype(np.float64, metadata={"unit": "m"}))
+    assert out.dtype == np.float64 and out.dtype is not np.dtype(np.float64)
+    return out
+
+
+@pytest.mark.parametrize("big_endian", [False, True])
+def test_float64_vectors_of_another_dtype_object_give_the_reference(big_endian: bool) -> None:
+    """The joined form takes numpy's own float64 dtype at once; a float64 of another
+    dtype object, or another byte order, still gives the reference's bytes."""
+    rng = np.random.default_rng(11)
+    vec = [_other_f64(rng.normal(size=6), big_endian) for _ in range(6)]
+    state = RobotState(time_ns=5, tcp_pose_m=_other_f64(rng.normal(size=(4, 4)), big_endian),
+                       joint_pos_rad=_other_f64(rng.normal(size=7), big_endian),
+                       link=LinkHealth(True, True, 3, 0.004),
+                       tcp_twist_mps_radps=vec[0], ext_wrench_n_nm=vec[1])
+    assert state_message(state) == state_packed(state)
+    plain = RobotState(time_ns=5, tcp_pose_m=state.tcp_pose_m.astype(np.float64),
+                       joint_pos_rad=state.joint_pos_rad.astype(np.float64),
+                       link=state.link, tcp_twist_mps_radps=vec[0].astype(np.float64),
+                       ext_wrench_n_nm=vec[1].astype(np.float64))
+    assert state_message(state) == state_message(plain)
+    args = (*vec[2:], 0.5, 4, True)
+    assert estimator_message(*args) == estimator_packed(*args)
+    assert estimator_message(*args) == estimator_message(
+        *[v.astype(np.float64) for v in vec[2:]], 0.5, 4, True)
+    total, setpoint = vec[0], _other_f64(rng.normal(size=(4, 4)), big_endian)
+    terms = SimpleNamespace(p=vec[1], i=vec[2], ri=vec[3], ff=vec[4], impedance=vec[5],
+                            saturated=True)
+    for approach in (None, vec[5].astype(np.float64)):
+        got = terms_message(terms, approach, total, vec[3], setpoint, 3)
+        assert got == terms_packed(terms, approach, total, vec[3], setpoint, 3)

@@ -169,3 +169,23 @@ def test_two_recorders_run_one_compiled_code_each_with_its_own_fallback(
             got_a = ea(SimpleNamespace(**va))
             got_b = eb(SimpleNamespace(**vb))
             assert got_a == _record(spec, va) and got_b == _record(spec, vb)
+
+
+@pytest.mark.parametrize("topic", sorted(t for t, c in CDR_TOPICS.items()
+                                         if any(f.count > 1 for f in c.spec.fields)))
+def test_arrays_of_an_equal_dtype_of_another_object_encode_as_the_record(topic: str) -> None:
+    """The encoder takes an array field's own numpy dtype by identity first; an equal
+    dtype that is another object (one with metadata) is taken too, and another byte
+    order is declined: each gives the numpy record's bytes (through the fallback)."""
+    spec = CDR_TOPICS[topic].spec
+    values = _values(spec, np.random.default_rng(5))
+    want = _record(spec, values)
+    arrays = [k for k, v in values.items() if isinstance(v, np.ndarray)]
+    tagged = {k: v.view(np.dtype(v.dtype, metadata={"unit": "x"})) if k in arrays else v
+              for k, v in values.items()}
+    assert all(tagged[k].dtype is not values[k].dtype for k in arrays)  # type: ignore[union-attr]
+    assert FieldsEncoder(spec).encode(SimpleNamespace(**tagged)) == want
+    swapped = {k: v.astype(v.dtype.newbyteorder()) if k in arrays and v.dtype.itemsize > 1
+               else v for k, v in values.items()}
+    enc = FieldsEncoder(spec).with_fallback(lambda s: _record(spec, vars(s)))
+    assert enc(SimpleNamespace(**swapped)) == want

@@ -69,7 +69,8 @@ def floats6(value: Any) -> list[float]:
 
 def _b6(value: Any) -> bytes:
     """A 6-vector's message bytes (:func:`floats6` packed)."""
-    if type(value) is _ND and value.dtype == _F8 and value.shape == _V6:
+    if type(value) is _ND and value.shape == _V6 and (value.dtype is _F8
+                                                       or value.dtype == _F8):
         return value.tobytes()
     return _PACK6(*floats6(value))
 
@@ -94,8 +95,9 @@ def state_packed(state: RobotState) -> bytes:
 def state_message(state: RobotState) -> bytes:
     """:func:`state_packed`, the arrays' bytes joined."""
     pose, joints = state.tcp_pose_m, state.joint_pos_rad
-    if (type(pose) is not _ND or pose.dtype != _F8 or pose.size != 16
-            or type(joints) is not _ND or joints.dtype != _F8 or joints.ndim != 1):
+    if (type(pose) is not _ND or type(joints) is not _ND
+            or (pose.dtype is not _F8 and pose.dtype != _F8) or pose.size != 16
+            or (joints.dtype is not _F8 and joints.dtype != _F8) or joints.ndim != 1):
         return state_packed(state)
     n = len(joints)
     q = joints.tobytes() if n == STATE_JOINTS else (
@@ -103,12 +105,23 @@ def state_message(state: RobotState) -> bytes:
         else joints.tobytes() + _NAN_PAD[STATE_JOINTS - n])
     link = state.link
     twist, ext = state.tcp_twist_mps_radps, state.ext_wrench_n_nm
+    if twist is None:
+        tw = _Z48
+    elif type(twist) is _ND and twist.dtype is _F8 and twist.shape == _V6:
+        tw = twist.tobytes()
+    else:
+        tw = _b6(twist)
+    if ext is None:
+        ex = _Z48
+    elif type(ext) is _ND and ext.dtype is _F8 and ext.shape == _V6:
+        ex = ext.tobytes()
+    else:
+        ex = _b6(ext)
     return b"".join((
         _STATE_HEAD.pack(CDR_HEADER, state.time_ns), pose.tobytes(), q,
         _STATE_LINK.pack(n, int(link.commanding), int(link.healthy), link.cycle, link.cycle_s,
                          twist is not None),
-        _Z48 if twist is None else _b6(twist), _STATE_EXT.pack(ext is not None),
-        _Z48 if ext is None else _b6(ext)))
+        tw, _STATE_EXT.pack(ext is not None), ex))
 
 
 # -- /estimator/state -------------------------------------------------------------------
@@ -122,10 +135,10 @@ def estimator_packed(wrench: Any, std: Any, bias: Any, twist: Any, f_z: float, n
 def estimator_message(wrench: Any, std: Any, bias: Any, twist: Any, f_z: float, n: int,
                       in_contact: bool) -> bytes:
     """:func:`estimator_packed`, the arrays' bytes joined."""
-    if (type(wrench) is _ND and wrench.dtype == _F8 and wrench.shape == _V6
-            and type(std) is _ND and std.dtype == _F8 and std.shape == _V6
-            and type(bias) is _ND and bias.dtype == _F8 and bias.shape == _V6
-            and type(twist) is _ND and twist.dtype == _F8 and twist.shape == _V6):
+    if (type(wrench) is _ND and type(std) is _ND and type(bias) is _ND and type(twist) is _ND
+            and wrench.dtype is _F8 and std.dtype is _F8 and bias.dtype is _F8
+            and twist.dtype is _F8 and wrench.shape == _V6 and std.shape == _V6
+            and bias.shape == _V6 and twist.shape == _V6):
         return b"".join((CDR_HEADER, wrench.tobytes(), std.tobytes(), bias.tobytes(),
                          twist.tobytes(), _EST_TAIL.pack(f_z, n, int(in_contact))))
     return estimator_packed(wrench, std, bias, twist, f_z, n, in_contact)
@@ -157,8 +170,9 @@ def terms_packed(terms: object | None, approach_wrench: Any, total: Any, f_ref: 
 def terms_message(terms: object | None, approach_wrench: Any, total: Any, f_ref: Any,
                   setpoint: Any, phase: int) -> bytes:
     """:func:`terms_packed`, the arrays' bytes joined."""
-    if (type(total) is not _ND or total.dtype != _F8 or total.shape != _V6
-            or type(setpoint) is not _ND or setpoint.dtype != _F8 or setpoint.size != 16
+    if (type(total) is not _ND or type(setpoint) is not _ND
+            or (total.dtype is not _F8 and total.dtype != _F8) or total.shape != _V6
+            or (setpoint.dtype is not _F8 and setpoint.dtype != _F8) or setpoint.size != 16
             or (approach_wrench is not None and (
                 type(approach_wrench) is not _ND or approach_wrench.dtype != _F8
                 or approach_wrench.shape != _V6))):

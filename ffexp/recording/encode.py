@@ -127,7 +127,7 @@ def _compile(segments: tuple[tuple[int, Any, Any, Any, bytes], ...],
             env[f"_dt{i}"] = b
             body += [f"v{i} = s.{a}",
                      f"if type(v{i}) is not _nd or v{i}.size != {int(count)} "
-                     f"or v{i}.dtype != _dt{i}:",
+                     f"or (v{i}.dtype is not _dt{i} and v{i}.dtype != _dt{i}):",
                      f"    {refuse}"]
             if pad:
                 env[f"_pad{i}"] = pad

@@ -5,6 +5,7 @@ command and the truth."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -96,3 +97,62 @@ def test_the_end_state_is_read_once_a_cycle() -> None:
     truth = state.truth
     controller.step()  # the next command read it; the cycle's end made a new one
     assert world.last_state is not state and state.truth is truth
+
+
+def _rodrigues(vector: np.ndarray) -> np.ndarray:
+    """UR's pose 6-vector as a 4x4 pose, written into an identity (the plain form)."""
+    pose = np.eye(4)
+    rx, ry, rz = (float(v) for v in vector[3:6])
+    angle = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if angle < 1e-12:
+        rot = [[1.0, -rz, ry], [rz, 1.0, -rx], [-ry, rx, 1.0]]
+    else:
+        kx, ky, kz = rx / angle, ry / angle, rz / angle
+        c, s = math.cos(angle), math.sin(angle)
+        v = 1.0 - c
+        rot = [[c + kx * kx * v, kx * ky * v - kz * s, kx * kz * v + ky * s],
+               [ky * kx * v + kz * s, c + ky * ky * v, ky * kz * v - kx * s],
+               [kz * kx * v - ky * s, kz * ky * v + kx * s, c + kz * kz * v]]
+    pose[:3, :3] = rot
+    pose[:3, 3] = vector[:3]
+    return pose
+
+
+def test_pose_matrix_is_rodrigues_into_an_identity_bit_for_bit() -> None:
+    rng = np.random.default_rng(9)
+    out = np.full((4, 4), np.nan)
+    for k in range(3000):
+        v = rng.normal(size=6) * (1e-13 if k % 10 == 0 else 1.0)
+        want = _rodrigues(v)
+        assert bits(registers.pose_matrix(v)) == bits(want)
+        assert registers.pose_matrix(v, out) is out and bits(out) == bits(want)
+
+
+def test_a_hold_and_a_command_fill_the_registers_as_the_rule_says() -> None:
+    from drivers.ur.rtde.fields import Recipe
+    from drivers.ur.rtde.variables import INPUTS
+
+    recipe = Recipe(2, registers.INPUT_NAMES, tuple(INPUTS[n] for n in registers.INPUT_NAMES))
+    record = recipe.empty()
+    rng = np.random.default_rng(4)
+    speed, deviation = np.full(6, 0.1), np.array([0.01, 0.02, 0.03, 0.1, 0.2, 0.3])
+    for k in range(200):
+        pose = _rodrigues(rng.normal(size=6))
+        stiffness = np.where(rng.random(6) < 0.5, 100.0, 3000.0)
+        cmd = None if k % 5 == 0 else CartesianCommand(pose, stiffness, np.full(6, 0.7),
+                                                       rng.normal(size=6))
+        mode = registers.fill_command(record, k, cmd, pose, stiffness_max=200.0,
+                                      speed_limits=speed, deviation_limits=deviation,
+                                      damping=0.1, gain_scaling=1.0, lookahead_s=0.1,
+                                      servo_gain=300.0)
+        compliant = np.zeros(6, bool) if cmd is None else stiffness <= 200.0
+        assert mode == (registers.Mode.HOLD if cmd is None else registers.Mode.FORCE
+                        if compliant.any() else registers.Mode.SERVO)
+        assert int(record[registers.SELECTION]) == sum(1 << i for i in range(6) if compliant[i])
+        wrench = [float(record[n]) for n in registers.WRENCH]
+        assert bits(wrench) == bits(np.where(compliant, 0.0 if cmd is None else
+                                             cmd.wrench_n_nm, 0.0))
+        limits = [float(record[n]) for n in registers.LIMITS]
+        assert limits == np.where(compliant, speed, deviation).tolist()
+        assert bits([float(record[n]) for n in registers.POSE]) == bits(
+            registers.pose_vector(pose))

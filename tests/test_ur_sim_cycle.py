@@ -1,6 +1,6 @@
 """The simulated UR's cycle against its plain forms: the program's registers latched at once
 (the in-process link) or name by name (the RTDE emulator), the force-mode law's kept axis
-masses against a fresh law's, and the end state read once for the outputs, the next
+masses and twist against a fresh law's, and the end state read once for the outputs, the next
 command and the truth."""
 
 from __future__ import annotations
@@ -77,6 +77,8 @@ def test_the_kept_axis_masses_give_a_fresh_laws_command() -> None:
         wrench = np.array([0.0, 0.0, 20.0 * np.sin(k / 20), 0.5, 0.0, 0.0])
         cmd = ForceModeCommand(pose, compliant, wrench, np.full(6, 0.05 + 0.01 * (k % 3)),
                                0.01 * (k % 4), 1.0)
+        if k % 2:  # the twist read first at this state (as the outputs read it): kept
+            assert bits(law.twist()) == bits(UrArmControl(world).twist())
         got = law.command(cmd)
         want = UrArmControl(world).command(cmd)
         assert bits(got.tcp_wrench_n_nm) == bits(want.tcp_wrench_n_nm)

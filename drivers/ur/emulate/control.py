@@ -88,13 +88,21 @@ class UrArmControl:
         self._lam: tuple[F64, F64] = (np.zeros(6), np.zeros(6))
         self._stiffness_of: bytes | None = None
         self._stiffness = self._servo_k
+        self._twist_at = -1  # the world's cycle self._twist is of
+        self._twist = np.zeros(6)
         self.stopped: str | None = None
         """Why a protective stop latched (``None``: none)."""
 
     def twist(self) -> F64:
-        """The TCP's twist in the TCF at the current state [m/s, rad/s]."""
+        """The TCP's twist in the TCF at the current state [m/s, rad/s] (made once per
+        cycle of the world: the outputs and the next command read it at the same state;
+        do not modify)."""
         w = self.world
-        return np.asarray(w.jacobian @ w.data.qvel[:w.jacobian.shape[1]], dtype=np.float64)
+        if self._twist_at != w.cycle:
+            jac = w.jacobian
+            self._twist = np.asarray(jac @ w.data.qvel[:jac.shape[1]], dtype=np.float64)
+            self._twist_at = w.cycle
+        return self._twist
 
     def hold(self) -> ArmCommand:
         """Hold the arm where it is (the pose when the hold began), no wrench."""

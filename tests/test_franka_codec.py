@@ -81,3 +81,25 @@ def test_the_error_flags_are_named_in_the_protocols_order() -> None:
     assert codec.ERROR_NAMES[0] == "joint_position_limits_violation"
     assert codec.ERROR_NAMES[31] == "communication_constraints_violation"
     assert codec.ERROR_NAMES[-1] == "base_acceleration_invalid_reading"
+
+
+def test_a_state_read_from_its_record_names_its_flags_and_follows_its_tool() -> None:
+    from drivers.franka.link import state_from_record
+
+    rec = np.zeros((), dtype=codec.ROBOT_STATE)
+    tool = np.eye(4)
+    tool[:3, 3] = (0.01, -0.02, 0.2)
+    rec["F_T_EE"] = tool.ravel(order="F")
+    first = state_from_record(codec.decode(codec.ROBOT_STATE, rec.tobytes()))
+    assert first.errors == [] and first.reflex == []
+    assert first.f_t_ee.tolist() == tool.astype(np.float32).astype(np.float64).tolist()
+    assert not first.f_t_ee.flags.writeable  # (kept for the next states: not to be changed)
+    rec["errors"][codec.ERROR_NAMES.index("joint_velocity_violation")] = 1
+    rec["reflex_reason"][[0, 3]] = 1
+    tool[2, 3] = 0.25  # another tool
+    rec["F_T_EE"] = tool.ravel(order="F")
+    second = state_from_record(codec.decode(codec.ROBOT_STATE, rec.tobytes()))
+    assert second.errors == ["joint_velocity_violation"]
+    assert second.reflex == [codec.ERROR_NAMES[0], codec.ERROR_NAMES[3]]
+    assert second.f_t_ee[2, 3] == np.float32(0.25)
+    assert first.f_t_ee[2, 3] == np.float32(0.2)

@@ -98,17 +98,32 @@ def _matrix(values: Sequence[float] | np.ndarray) -> F64:
 
 def state_from_record(rec: np.void) -> FciState:
     """An :class:`FciState` from a :data:`~drivers.franka.codec.ROBOT_STATE` record (float32
-    values widened to double, as libfranka does)."""
+    values widened to double, as libfranka does). The flags' names are read only when a
+    flag is set; the tool ``F_T_EE`` (the same every millisecond) is made once while its
+    bytes are the same (a read-only array)."""
     f64 = np.float64
+    errors, reflex = rec["errors"], rec["reflex_reason"]
+    tool = rec["F_T_EE"]
+    key = tool.tobytes()
+    global _tool
+    if _tool is None or _tool[0] != key:
+        f_t_ee = _matrix(tool)
+        f_t_ee.flags.writeable = False
+        _tool = (key, f_t_ee)
     return FciState(
         message_id=int(rec["message_id"]),
         q=np.asarray(rec["q"], dtype=f64), dq=np.asarray(rec["dq"], dtype=f64),
-        o_t_ee=_matrix(rec["O_T_EE"]), f_t_ee=_matrix(rec["F_T_EE"]),
+        o_t_ee=_matrix(rec["O_T_EE"]), f_t_ee=_tool[1],
         o_f_ext=np.asarray(rec["O_F_ext_hat_K"], dtype=f64),
         tau_ext=np.asarray(rec["tau_ext_hat_filtered"], dtype=f64),
         robot_mode=int(rec["robot_mode"]),
         success_rate=float(rec["control_command_success_rate"]),
-        errors=codec.error_names(rec["errors"]), reflex=codec.error_names(rec["reflex_reason"]))
+        errors=codec.error_names(errors) if errors.any() else [],
+        reflex=codec.error_names(reflex) if reflex.any() else [])
+
+
+#: The tool of the last state read (its bytes, its matrix).
+_tool: tuple[bytes, F64] | None = None
 
 
 class FciLink(Protocol):

@@ -7,6 +7,11 @@ description (:data:`drivers.description.fr3.FR3`): the chain's frames, the links
 centres of mass and principal inertias, and the drives' reflected inertias on the
 diagonal of the mass matrix (``M = sum_k m_k Jv_k^T Jv_k + Jw_k^T R_k I_k R_k^T Jw_k``
 plus the rotors).
+
+:meth:`ArmModel.jacobian_tcf` is one compiled call (:mod:`drivers.franka.kernels`, bit for
+bit :meth:`~ArmModel.jacobian_tcf_numpy`), and answers a second call for the same joints
+and tool (the driver's state and the law's cycle read the same state) with the same
+arrays.
 """
 
 from __future__ import annotations
@@ -38,6 +43,15 @@ class ArmModel:
         # diagonal matrix (made once, not per call)
         self._axes = [np.asarray(a, dtype=np.float64) for a in arm.joint_axes]
         self._inertia_diags = [np.diag(i) for i in self._inertias]
+        # the compiled Jacobian's inputs (drivers.franka.kernels: numba, imported here)
+        from drivers.franka.kernels import tcf_jacobian
+
+        self._tcf_jacobian = tcf_jacobian
+        self._turns = np.array(arm._fixed_turns, dtype=np.float64).reshape(self.n, 3, 3)
+        self._origins = np.array(arm.joint_origins_m, dtype=np.float64).reshape(self.n, 3)
+        self._axes_int = np.array(arm.joint_axes, dtype=np.int64).reshape(self.n, 3)
+        self._jac_key: tuple[bytes, bytes] | None = None
+        self._jac_last: tuple[F64, F64] | None = None
 
     def frames(self, q: F64) -> list[F64]:
         """Each link frame's pose in the base frame (4x4), links 1..n."""
@@ -54,7 +68,20 @@ class ArmModel:
 
     def jacobian_tcf(self, q: F64, flange_to_tcp: F64) -> tuple[F64, F64]:
         """``(J, tcp pose)``: the 6xn Jacobian mapping joint speeds to the TCP's twist
-        ``[v, w]`` in the TCF, and the TCP's pose in the base frame."""
+        ``[v, w]`` in the TCF, and the TCP's pose in the base frame (read-only arrays:
+        the same ones while ``q`` and ``flange_to_tcp`` are)."""
+        key = (q.tobytes(), flange_to_tcp.tobytes())
+        if key != self._jac_key or self._jac_last is None:
+            jac, tcp = np.empty((6, self.n)), np.empty((4, 4))
+            self._tcf_jacobian(np.asarray(q, dtype=np.float64), self._turns, self._origins,
+                               self._axes_int, self._flange,
+                               np.asarray(flange_to_tcp, dtype=np.float64), jac, tcp)
+            jac.flags.writeable = tcp.flags.writeable = False
+            self._jac_key, self._jac_last = key, (jac, tcp)
+        return self._jac_last
+
+    def jacobian_tcf_numpy(self, q: F64, flange_to_tcp: F64) -> tuple[F64, F64]:
+        """:meth:`jacobian_tcf` in numpy (the reference the compiled form equals)."""
         frames = self.frames(q)
         tcp = frames[-1] @ self._flange @ flange_to_tcp
         p = tcp[:3, 3]

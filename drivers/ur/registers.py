@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from enum import IntEnum
+from functools import lru_cache
 from typing import Final
 
 import numpy as np
@@ -107,22 +108,22 @@ def pose_matrix(vector: NDArray[np.float64], out: NDArray[np.float64] | None = N
                 ) -> NDArray[np.float64]:
     """UR's pose 6-vector as a 4x4 pose (into ``out`` when given): Rodrigues' formula in
     plain floats (scipy's ``Rotation`` is slow per call, as for :func:`pose_vector`)."""
-    pose = np.eye(4) if out is None else out
-    rx, ry, rz = (float(v) for v in vector[3:6])
+    x, y, z, rx, ry, rz = (float(v) for v in vector[:6])
     angle = math.sqrt(rx * rx + ry * ry + rz * rz)
     if angle < 1e-12:
-        rot = [[1.0, -rz, ry], [rz, 1.0, -rx], [-ry, rx, 1.0]]
+        rows = [[1.0, -rz, ry, x], [rz, 1.0, -rx, y], [-ry, rx, 1.0, z], [0.0, 0.0, 0.0, 1.0]]
     else:
         kx, ky, kz = rx / angle, ry / angle, rz / angle
         c, s = math.cos(angle), math.sin(angle)
         v = 1.0 - c
-        rot = [[c + kx * kx * v, kx * ky * v - kz * s, kx * kz * v + ky * s],
-               [ky * kx * v + kz * s, c + ky * ky * v, ky * kz * v - kx * s],
-               [kz * kx * v - ky * s, kz * ky * v + kx * s, c + kz * kz * v]]
-    pose[:3, :3] = rot
-    pose[:3, 3] = vector[:3]
-    pose[3] = (0.0, 0.0, 0.0, 1.0)
-    return pose
+        rows = [[c + kx * kx * v, kx * ky * v - kz * s, kx * kz * v + ky * s, x],
+                [ky * kx * v + kz * s, c + ky * ky * v, ky * kz * v - kx * s, y],
+                [kz * kx * v - ky * s, kz * ky * v + kx * s, c + kz * kz * v, z],
+                [0.0, 0.0, 0.0, 1.0]]
+    if out is None:  # (one array from the rows: cheaper than filling an identity)
+        return np.array(rows)
+    out[...] = rows
+    return out
 
 
 def compliant_axes(cmd: CartesianCommand, stiffness_max: float) -> NDArray[np.bool_]:
@@ -143,17 +144,20 @@ def fill_command(record: np.ndarray, seq: int, cmd: CartesianCommand | None,
     """Write one cycle's command into ``record`` (an input recipe record over
     :data:`INPUT_NAMES`) and return the mode. ``None`` holds at ``hold_pose_m``."""
     if cmd is None:
-        target, compliant = pose_vector(hold_pose_m), np.zeros(6, dtype=bool)
-        mode = Mode.HOLD
+        target = pose_vector(hold_pose_m)
+        wrench, (mode, bits, limits) = _ZERO6, _axes(None, stiffness_max,
+                                                     speed_limits.tobytes(),
+                                                     deviation_limits.tobytes())
     else:
-        target, compliant = pose_vector(cmd.pose_m), compliant_axes(cmd, stiffness_max)
-        mode = Mode.FORCE if compliant.any() else Mode.SERVO
-    wrench = np.where(compliant, cmd.wrench_n_nm if cmd is not None else 0.0, 0.0)
-    limits = np.where(compliant, speed_limits, deviation_limits)
+        target = pose_vector(cmd.pose_m)
+        k = np.asarray(cmd.stiffness_npm_nmprad, dtype=np.float64)
+        mode, bits, limits = _axes(k.tobytes(), stiffness_max, speed_limits.tobytes(),
+                                   deviation_limits.tobytes())
+        compliant = _COMPLIANT[bits]
+        wrench = np.where(compliant, cmd.wrench_n_nm, 0.0).tolist()
     if record.dtype.names == INPUT_NAMES:  # every field at once, in recipe order
-        record[()] = (seq & 0x7FFFFFFF, int(mode), selection_bits(compliant), *target.tolist(),
-                      *wrench.tolist(), *limits.tolist(), damping, gain_scaling, lookahead_s,
-                      servo_gain)
+        record[()] = (seq & 0x7FFFFFFF, int(mode), bits, *target.tolist(), *wrench, *limits,
+                      damping, gain_scaling, lookahead_s, servo_gain)
         return mode
     record[SEQ] = seq & 0x7FFFFFFF
     record[DAMPING] = damping
@@ -161,8 +165,29 @@ def fill_command(record: np.ndarray, seq: int, cmd: CartesianCommand | None,
     record[LOOKAHEAD] = lookahead_s
     record[SERVO_GAIN] = servo_gain
     record[MODE] = int(mode)
-    record[SELECTION] = selection_bits(compliant)
-    for names, values in ((POSE, target), (WRENCH, wrench), (LIMITS, limits)):
+    record[SELECTION] = bits
+    for names, values in ((POSE, target.tolist()), (WRENCH, wrench), (LIMITS, limits)):
         for name, value in zip(names, values, strict=True):
             record[name] = value
     return mode
+
+
+_ZERO6: Final = [0.0] * 6
+#: The compliant axes of each selection mask (bit i = axis i).
+_COMPLIANT: Final = tuple(np.array([bool(b >> i & 1) for i in range(6)]) for b in range(64))
+
+
+@lru_cache(maxsize=16)
+def _axes(stiffness: bytes | None, stiffness_max: float, speed_limits: bytes,
+          deviation_limits: bytes) -> tuple[Mode, int, list[float]]:
+    """The mode, the selection mask and the axes' limits (speed caps on the compliant
+    axes, deviation limits on the others) of a command's stiffness (its bytes; ``None``:
+    no command, a hold), kept for the next commands with the same."""
+    if stiffness is None:
+        compliant, mode = np.zeros(6, dtype=bool), Mode.HOLD
+    else:
+        compliant = np.frombuffer(stiffness, dtype=np.float64) <= stiffness_max
+        mode = Mode.FORCE if compliant.any() else Mode.SERVO
+    limits = np.where(compliant, np.frombuffer(speed_limits, dtype=np.float64),
+                      np.frombuffer(deviation_limits, dtype=np.float64))
+    return mode, selection_bits(compliant), limits.tolist()

@@ -31,6 +31,7 @@ from drivers.base.types import F64
 from drivers.description import tool_tip_offset
 from drivers.franka import codec
 from drivers.world.arm import ArmCommand, ArmMode
+from drivers.world.state import LazyArmState
 from drivers.world.torque_step import TorqueStepper, unfit
 from drivers.world.world import SimWorld
 
@@ -99,6 +100,7 @@ class Fr3SimController:
         self._answered_written = -1
         self._measured_at = -1  # the step whose end state the measured fields hold
         self._wrench_o = np.zeros(6)
+        self._held_state: LazyArmState | None = None  # (_measured_world)
         self._wrench_written = True  # the record's wrench fields may be nonzero
         self._want_lean = lean
         self._lean: TorqueStepper | None = None
@@ -347,7 +349,9 @@ class Fr3SimController:
     def _measured_world(self, v: _StateViews) -> np.ndarray:
         """What the robot measures, from the world's state (``SimWorld.last_state``)."""
         w = self.world
-        st = w.last_state
+        # held until the next one: the driver's truth of this state reads the same object
+        # (SimWorld.last_state: the same object while someone holds it), computed once
+        st = self._held_state = w.last_state
         pose = st.tcp_pose_m
         v.o_t_ee[...] = pose  # column-major, as libfranka's arrays
         v.o_t_ee_d[...] = pose

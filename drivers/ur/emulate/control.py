@@ -82,13 +82,27 @@ class UrArmControl:
         self._vel_limits_list: list[float] = self._vel_limits.tolist()
         self._names = [f"joint {i + 1}" for i in range(desc.joints)]
         self._hold: F64 | None = None
+        # each axis's own mass and mass per cycle (lam, lam / T), of the Cartesian inertia
+        # whose bytes are the key: the world makes a new one when a joint has moved
+        self._lam_of: tuple[bytes, float] | None = None
+        self._lam: tuple[F64, F64] = (np.zeros(6), np.zeros(6))
+        self._stiffness_of: bytes | None = None
+        self._stiffness = self._servo_k
+        self._twist_at = -1  # the world's cycle self._twist is of
+        self._twist = np.zeros(6)
         self.stopped: str | None = None
         """Why a protective stop latched (``None``: none)."""
 
     def twist(self) -> F64:
-        """The TCP's twist in the TCF at the current state [m/s, rad/s]."""
+        """The TCP's twist in the TCF at the current state [m/s, rad/s] (made once per
+        cycle of the world: the outputs and the next command read it at the same state;
+        do not modify)."""
         w = self.world
-        return np.asarray(w.jacobian @ w.data.qvel[:w.jacobian.shape[1]], dtype=np.float64)
+        if self._twist_at != w.cycle:
+            jac = w.jacobian
+            self._twist = np.asarray(jac @ w.data.qvel[:jac.shape[1]], dtype=np.float64)
+            self._twist_at = w.cycle
+        return self._twist
 
     def hold(self) -> ArmCommand:
         """Hold the arm where it is (the pose when the hold began), no wrench."""
@@ -104,25 +118,39 @@ class UrArmControl:
             return self.hold()
         self._hold = None
         sel = np.asarray(cmd.compliant, dtype=bool)
-        stiffness = np.where(sel, 0.0, self._servo_k)
+        key = sel.tobytes()
+        if key != self._stiffness_of:  # (the selection changes seldom)
+            self._stiffness = np.where(sel, 0.0, self._servo_k)
+            self._stiffness_of = key
+        stiffness = self._stiffness
         wrench = np.zeros(6)
         if sel.any():
             w = self.world
             v = self.twist()
             # the axis's own mass: a wrench on it alone, the arm free within the cycle
-            lam = 1.0 / np.maximum(np.linalg.inv(w.cart_inertia).diagonal(), 1e-12)
+            lam, per_speed = self._axis_mass(w.cart_inertia, w.cycle_s)
             ext = w.last_state.ext_wrench_n_nm
             g = cmd.gain_scaling
             push = g * np.asarray(cmd.wrench_n_nm) + (g - 1.0) * ext
             push -= lam * (min(max(cmd.damping, 0.0), 1.0) / w.cycle_s) * v
             # the speed cap: no more than takes the axis to it within the cycle
             cap = np.asarray(cmd.speed_limits_mps_radps)
-            per_speed = lam / w.cycle_s
             push = np.clip(push, per_speed * (-cap - v), per_speed * (cap - v))
             wrench = np.where(sel, push, 0.0)
         return ArmCommand(mode=ArmMode.CART_IMPEDANCE, cart_pose_m=np.asarray(cmd.pose_m),
                           cart_stiffness_npm_nmprad=stiffness,
                           cart_damping_ratio=self._servo_d, tcp_wrench_n_nm=wrench)
+
+    def _axis_mass(self, cart_inertia: np.ndarray, cycle_s: float) -> tuple[F64, F64]:
+        """``(lam, lam / T)``: each axis's own mass, ``1 / diag(Lambda^-1)``, made anew
+        only when ``cart_inertia``'s bytes (or the cycle) changed: the 6x6 inverse was
+        most of the law's cost."""
+        key = (cart_inertia.tobytes(), cycle_s)
+        if key != self._lam_of:
+            lam = 1.0 / np.maximum(np.linalg.inv(cart_inertia).diagonal(), 1e-12)
+            self._lam = (lam, lam / cycle_s)
+            self._lam_of = key
+        return self._lam
 
     def check_limits(self) -> str | None:
         """After a cycle: latch a protective stop if a joint is at its position limit or

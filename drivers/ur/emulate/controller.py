@@ -32,11 +32,11 @@ from typing import Any, Final
 
 import numpy as np
 
-from drivers.base.types import F64
 from drivers.ur import registers
 from drivers.ur.emulate.control import ForceModeCommand, UrArmControl
 from drivers.ur.registers import Mode, ScriptState
 from drivers.ur.rtde.variables import SAFETY_STATUS_BIT
+from drivers.world.state import LazyArmState
 from drivers.world.world import SimWorld
 
 __all__ = ["STALE_CYCLES", "UrSimController"]
@@ -49,6 +49,14 @@ SAFETY_PROTECTIVE_STOP: Final = 3
 RUNTIME_PLAYING: Final = 2
 _PROTECTIVE_BITS: Final = (1 << SAFETY_STATUS_BIT["protective_stopped"]) | (
     1 << SAFETY_STATUS_BIT["stopped_due_to_safety"])
+_NORMAL_BITS: Final = 1 << SAFETY_STATUS_BIT["normal_mode"]
+#: Each input register's place in :data:`~drivers.ur.registers.INPUT_NAMES`.
+_PLACE: Final = {name: i for i, name in enumerate(registers.INPUT_NAMES)}
+_SEQ, _MODE, _SELECTION = (_PLACE[n] for n in (registers.SEQ, registers.MODE,
+                                               registers.SELECTION))
+_POSE, _WRENCH, _LIMITS = (slice(_PLACE[n[0]], _PLACE[n[-1]] + 1)
+                           for n in (registers.POSE, registers.WRENCH, registers.LIMITS))
+_DAMPING, _GAIN = _PLACE[registers.DAMPING], _PLACE[registers.GAIN_SCALING]
 
 
 class UrSimController:
@@ -57,8 +65,15 @@ class UrSimController:
     def __init__(self, world: SimWorld) -> None:
         self.world = world
         self.arm = UrArmControl(world)
-        self.inputs: dict[str, Any] = {}
-        """The input registers as last written (zero until written)."""
+        # the program's input registers in INPUT_NAMES order (zero until written), and
+        # any other input written
+        self._regs: list[Any] = [0] * len(registers.INPUT_NAMES)
+        self._other: dict[str, Any] = {}
+        self._bits_of: tuple[int, np.ndarray] | None = None
+        # the world's end state the outputs were made of, held until the next cycle: the
+        # arm's next command and the driver's truth read the same object, computed once
+        # (SimWorld.last_state: the same object while someone holds it)
+        self._state: LazyArmState | None = None
         self.script_state = ScriptState.RUNNING
         self.applied_seq = 0
         self._last_seq = 0
@@ -67,20 +82,37 @@ class UrSimController:
         self._sensor_wrench = np.zeros(6)
         self.steps = 0
 
+    @property
+    def inputs(self) -> dict[str, Any]:
+        """The input registers as last written (the program's are zero until written)."""
+        return {**self._other, **dict(zip(registers.INPUT_NAMES, self._regs, strict=True))}
+
     def take(self, values: Mapping[str, Any]) -> None:
         """Latch input registers (a client's input data package)."""
-        self.inputs.update(values)
+        regs, place = self._regs, _PLACE
+        for name, value in values.items():
+            i = place.get(name)
+            if i is None:
+                self._other[name] = value
+            else:
+                regs[i] = value
 
-    def _reg(self, name: str) -> Any:
-        return self.inputs.get(name, 0)
+    def take_program_inputs(self, values: tuple[Any, ...]) -> None:
+        """Latch every register of :data:`~drivers.ur.registers.INPUT_NAMES` at once,
+        ``values`` in that order (the in-process link's whole input record)."""
+        self._regs[:] = values
 
-    def _six(self, names: tuple[str, ...]) -> F64:
-        get = self.inputs.get  # (_reg, inline)
-        return np.array([float(get(n, 0)) for n in names])
+    def _compliant(self, bits: int) -> np.ndarray:
+        """The selection bits as the compliant axes (the array kept while they are)."""
+        of = self._bits_of
+        if of is None or of[0] != bits:
+            of = self._bits_of = (bits, np.array([bool(bits >> i & 1) for i in range(6)]))
+        return of[1]
 
     def _program(self) -> ForceModeCommand | None:
         """One cycle of ffexp_control.script: the arm's command (``None``: hold)."""
-        seq, mode = int(self._reg(registers.SEQ)), int(self._reg(registers.MODE))
+        regs = self._regs
+        seq, mode = int(regs[_SEQ]), int(regs[_MODE])
         if self.script_state == ScriptState.ENDED:
             if mode == Mode.END or seq == self._last_seq:
                 return None
@@ -99,14 +131,13 @@ class UrSimController:
             return None
         self.script_state = ScriptState.RUNNING
         self.applied_seq = seq
-        pose = registers.pose_matrix(self._six(registers.POSE))
+        pose = registers.pose_matrix(np.array(regs[_POSE], dtype=np.float64))
         if mode != Mode.FORCE:
             return ForceModeCommand(pose)
-        bits = int(self._reg(registers.SELECTION))
-        compliant = np.array([bool(bits >> i & 1) for i in range(6)])
-        return ForceModeCommand(pose, compliant, self._six(registers.WRENCH),
-                                self._six(registers.LIMITS), float(self._reg(registers.DAMPING)),
-                                float(self._reg(registers.GAIN_SCALING)))
+        return ForceModeCommand(pose, self._compliant(int(regs[_SELECTION])),
+                                np.array(regs[_WRENCH], dtype=np.float64),
+                                np.array(regs[_LIMITS], dtype=np.float64),
+                                float(regs[_DAMPING]), float(regs[_GAIN]))
 
     def step(self) -> dict[str, object]:
         """Run one control cycle with the latched registers; the outputs of its end."""
@@ -118,7 +149,7 @@ class UrSimController:
     def outputs(self) -> dict[str, object]:
         """The RTDE outputs of the world's current state, name -> value."""
         w = self.world
-        state = w.last_state
+        state = self._state = w.last_state
         pose = state.tcp_pose_m
         rot = pose[:3, :3]
         samples = w.ft_samples()
@@ -139,8 +170,7 @@ class UrSimController:
             "ft_raw_wrench": self._sensor_wrench.copy(),
             "robot_mode": ROBOT_MODE_RUNNING,
             "safety_mode": SAFETY_PROTECTIVE_STOP if stopped else SAFETY_NORMAL,
-            "safety_status_bits": _PROTECTIVE_BITS if stopped else 1 << SAFETY_STATUS_BIT[
-                "normal_mode"],
+            "safety_status_bits": _PROTECTIVE_BITS if stopped else _NORMAL_BITS,
             "runtime_state": RUNTIME_PLAYING,
             registers.APPLIED_SEQ: self.applied_seq,
             registers.SCRIPT_STATE: int(self.script_state),

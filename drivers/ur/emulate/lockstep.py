@@ -26,6 +26,7 @@ from drivers.errors import LinkLostError
 from drivers.ur.config import UrSimConfig
 from drivers.ur.driver import UrRobot
 from drivers.ur.emulate.controller import UrSimController
+from drivers.ur.registers import INPUT_NAMES
 from drivers.ur.rtde.codec import ControllerVersion, DataPackage
 from drivers.ur.rtde.fields import Recipe
 from drivers.ur.rtde.variables import INPUTS, OUTPUTS
@@ -89,7 +90,10 @@ class LoopbackRtde:
 
     def send(self, recipe: Recipe, values: Mapping[str, object] | np.ndarray) -> None:
         if isinstance(values, np.ndarray):  # (a record's values as Python numbers)
-            self.controller.take(dict(zip(recipe.names, values.item(), strict=True)))
+            if recipe.names == INPUT_NAMES:  # the driver's record: every register, in order
+                self.controller.take_program_inputs(values.item())
+            else:
+                self.controller.take(dict(zip(recipe.names, values.item(), strict=True)))
         else:
             self.controller.take(values)
 

@@ -36,6 +36,7 @@ __all__ = [
     "I32_2A",
     "KERNEL_MODULES",
     "RF1",
+    "RF1A",
     "RF2",
     "RF2A",
     "RI1",
@@ -48,7 +49,7 @@ __all__ = [
 ]
 
 #: The compiled modules of :mod:`drivers`, in their import order.
-KERNEL_MODULES = ("drivers.base.blas", "drivers.world.kernels")
+KERNEL_MODULES = ("drivers.base.blas", "drivers.world.kernels", "drivers.franka.kernels")
 
 
 def _array(dtype: Any, ndim: int, layout: Any = "C", readonly: bool = False) -> Any:
@@ -65,7 +66,7 @@ F1, F2, F3 = (_array(types.float64, n) for n in (1, 2, 3))
 F1A, F2A = (_array(types.float64, n, "A") for n in (1, 2))
 #: read-only float64 arrays (a writable one converts to these)
 RF1, RF2 = (_array(types.float64, n, readonly=True) for n in (1, 2))
-RF2A = _array(types.float64, 2, "A", readonly=True)
+RF1A, RF2A = (_array(types.float64, n, "A", readonly=True) for n in (1, 2))
 #: int64, uint32 and bool arrays, C-contiguous (``R``: read-only)
 I1, I2 = (_array(types.int64, n) for n in (1, 2))
 RI1 = _array(types.int64, 1, readonly=True)

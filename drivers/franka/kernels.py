@@ -22,10 +22,11 @@ import numpy as np
 from numba import njit
 
 from drivers.base.blas import dot3_n, fma
+from drivers.base.signatures import F2, F2A, F3, I2, RF1A, RF2A
 from drivers.base.types import F64
 
 
-@njit(cache=True)
+@njit([(RF2A, RF2A, F2A)], cache=True)
 def _matmul(a: F64, b: F64, out: F64) -> None:
     """``out = a @ b`` as OpenBLAS's ``dgemm``: each sum fused in turn into ``+0.0``
     (``out`` may not be ``a`` or ``b``)."""
@@ -39,7 +40,7 @@ def _matmul(a: F64, b: F64, out: F64) -> None:
             out[i, j] = acc
 
 
-@njit(cache=True)
+@njit([(RF1A, F3, F2, I2, F2, RF2A, F2, F2)], cache=True)
 def tcf_jacobian(q: F64, turns: F64, origins: F64, axes: np.ndarray, flange: F64,
                  flange_to_tcp: F64, jac: F64, tcp: F64) -> None:
     """The 6xn Jacobian (TCF rows) into ``jac`` and the TCP's pose into ``tcp``.

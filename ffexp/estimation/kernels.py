@@ -459,7 +459,7 @@ def safety_check(ofi: F64, oii: np.ndarray, t_ns: int, connect: bool, moving: bo
 #: caches): the floats ``P_*`` (the settings ``cfg``, the state ``fs``, the outputs
 #: ``of``, the motion filter's ``x``, ``rot``, ``theta`` and ``F1^T``, the safety
 #: monitor's ``SF_*``) and the ints ``Q_*`` (``ist``, ``oi``, the MuJoCo functions, the
-#: safety monitor's ``SI_*``).
+#: safety monitor's ``SI_*``, the motion filter's place in its table of gains ``Q_GAIN``).
 P_CFG = 0
 P_FS = P_CFG + CF_SIZE
 P_OF = P_FS + FS_SIZE
@@ -471,7 +471,8 @@ Q_IST = 0
 Q_OI = Q_IST + IS_SIZE
 Q_MJU = Q_OI + OI_SIZE
 Q_SI = Q_MJU + 2
-Q_SIZE = Q_SI + SI_SIZE
+Q_GAIN = Q_SI + SI_SIZE
+Q_SIZE = Q_GAIN + 1
 
 
 #: :func:`checked_cycle`'s flags beside the check's answer (``& R_CHECK``).
@@ -485,7 +486,16 @@ def checked_cycle(fb: F64, ib: np.ndarray, gain: F64, wrench: F64, time_ns: np.n
     """:func:`single_cycle` on a single run's packed rows ``fb``, ``ib`` (``P_*``,
     ``Q_*``) and then, with ``check``, :func:`safety_check` on its estimate, in one call:
     the check's answer (:data:`SAFE` without) with the flags :data:`R_IN_CONTACT` and
-    :data:`R_EVENT` (the estimate's contact, a contact event this cycle) set."""
+    :data:`R_EVENT` (the estimate's contact, a contact event this cycle) set.
+
+    ``gain``: the motion filter's gains one after the other, six rows each (``(6 n,
+    3)``); this cycle's is the one at ``ib[Q_GAIN]``, which moves on to the next (after
+    the last, the first): a table of one gain is that gain every cycle, a filter's
+    repeating cycle of gains (:attr:`MotionFilter.gain_period
+    <ffexp.estimation.motion_filter.MotionFilter.gain_period>`) is stepped through here."""
+    at = ib[Q_GAIN]
+    g = gain[6 * at:6 * at + 6]
+    ib[Q_GAIN] = 0 if 6 * (at + 1) >= gain.shape[0] else at + 1
     m = P_MOTION
     x = fb[m:m + 18].reshape((6, 3))
     rot = fb[m + 18:m + 27].reshape((1, 3, 3))
@@ -496,12 +506,12 @@ def checked_cycle(fb: F64, ib: np.ndarray, gain: F64, wrench: F64, time_ns: np.n
     of = fb[P_OF:P_MOTION].reshape((1, OF_SIZE))
     ist = ib[Q_IST:Q_OI].reshape((1, IS_SIZE))
     oi = ib[Q_OI:Q_MJU].reshape((1, OI_SIZE))
-    single_cycle(cfg, fs, ist, x, rot, theta, started, gain, f1_t, ib[Q_MJU:Q_SI], wrench,
+    single_cycle(cfg, fs, ist, x, rot, theta, started, g, f1_t, ib[Q_MJU:Q_SI], wrench,
                  time_ns, status, pose, commanding, t_ns, t0_ns, of, oi)
     code = SAFE
     if check:
         code = safety_check(of[0], oi[0], t_ns, connect, moving, healthy, commanding, pose,
-                            fb[P_SF:P_SIZE], ib[Q_SI:Q_SIZE])
+                            fb[P_SF:P_SIZE], ib[Q_SI:Q_GAIN])
     if oi[0, OI_IN_CONTACT] != 0:
         code |= R_IN_CONTACT
     if oi[0, OI_EVENT] != 0:

@@ -82,6 +82,9 @@ class _PlacementRecord:
     __slots__ = ("insertion", "lateral", "vertical", "within", "yaw")
 
     def __init__(self, p: Placement, within: bool) -> None:
+        self.fill(p, within)
+
+    def fill(self, p: Placement, within: bool) -> None:
         self.insertion, self.lateral, self.vertical, self.yaw = p
         self.within = int(within)
 
@@ -185,6 +188,9 @@ class FunnelAlignment(Scenario):
         self._want = alignment.source
         self._kernels = kernels()
         self._within_is = False
+        # messages()' one message, filled in place each cycle (its record is encoded at once)
+        self._record = _PlacementRecord(Placement((0.0, 0.0, 0.0, 0.0)), False)
+        self._messages: list[tuple[str, object]] = [("/task/funnel", self._record)]
 
     @property
     def hold_s(self) -> float:
@@ -275,7 +281,10 @@ class FunnelAlignment(Scenario):
                 x, y, v, yaw, _, within = geo.tolist()
                 p = self._truth_p = Placement((x, y, v, yaw))
                 self._within_of, self._within_is = p, within == 1.0
-                self._place(state)
+                if self.source == "truth":  # _place, inline
+                    self.placement = p
+                else:
+                    self._place(state)
                 return
             self._truth_p = truth_placement(truth, tcp)
             z = self._advance(state)
@@ -343,8 +352,13 @@ class FunnelAlignment(Scenario):
                               else placement(state.tcp_pose_m, target.mouth_m))
 
     def messages(self) -> list[tuple[str, object]]:
+        """``/task/funnel``'s message of this cycle: one list and record, filled again
+        each cycle (encode it before the next)."""
         p = self._truth_p
-        return [] if p is None else [("/task/funnel", _PlacementRecord(p, self._within(p)))]
+        if p is None:
+            return []
+        self._record.fill(p, self._within(p))
+        return self._messages
 
     # -- the verdict ---------------------------------------------------------
     def holds(self, t_ns: int, state: RobotState, est: Estimate,

@@ -321,11 +321,14 @@ class FunnelAlignment(Scenario):
 
     def _shadow_truth(self, t_ns: int, state: RobotState) -> None:
         p = self._truth_p
-        if p is None:
-            return
+        if p is not None:
+            self._truth_holds(t_ns, self._within(p))
+
+    def _truth_holds(self, t_ns: int, within: bool) -> None:
+        """The truth's own hold, its placement this cycle ``within`` the tolerances or not."""
         if self.truth_aligned is None:
             self.truth_aligned = False
-        if not self._within(p):
+        if not within:
             self._truth_since_ns = None
             return
         if self._truth_since_ns is None:
@@ -363,6 +366,14 @@ class FunnelAlignment(Scenario):
     # -- the verdict ---------------------------------------------------------
     def holds(self, t_ns: int, state: RobotState, est: Estimate,
               target: TargetObservation | None) -> bool:
+        p = self._truth_p
+        if p is not None and p is self._within_of and self.source == "truth":
+            # the truth judges, its placement judged this cycle (observe's compiled call):
+            # _shadow_truth and aligned_now in one
+            within = self._within_is
+            self.placement = p
+            self._truth_holds(t_ns, within)
+            return within
         self._shadow_truth(t_ns, state)
         return self.aligned_now(state, est)
 

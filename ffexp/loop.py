@@ -213,9 +213,9 @@ class Cycle:
                 cmd.stiffness_npm_nmprad[...] = self.cart_k
                 cmd.damping_ratio[...] = self.cart_d
             self._written = phase
-        if phase is _APPROACH:
-            w = self.approach_wrench = self._command(t_ns, state.tcp_pose_m, est.twist_tcf)
-            cmd.wrench_n_nm[...] = w
+        if phase is _APPROACH:  # the law's wrench is the command's (recorded as both)
+            self.approach_wrench = self._command(t_ns, state.tcp_pose_m, est.twist_tcf,
+                                                 cmd.wrench_n_nm)
         elif phase is _ALIGN:
             self._align(t_ns, state, cmd)
         else:  # DONE, ABORT

@@ -117,6 +117,34 @@ def wrench_update(wf: F64, wq: F64, rows: F64) -> None:
         wf[WF_P_BB + k] = bb - k_b * k_b * s
 
 
+@njit(cache=True)
+def motion_gain(f1: F64, p: F64, f1_t: F64, q1: F64, r: F64, k: F64, p_next: F64) -> None:
+    """The motion filter's covariance and gain of one cycle, per axis ``a`` of ``p``
+    ``(6, 3, 3)``: ``P' = F1 P F1^T + Q1``, ``s = P'[0, 0] + r[a]``, the gain
+    ``k[a] = P'[:, 0] / s`` into ``k`` ``(6, 3)`` and ``P' - k P'[0, :]`` into ``p_next``
+    (:meth:`MotionFilter._gain <ffexp.estimation.motion_filter.MotionFilter._gain>`'s
+    numpy form: its products are ``dgemm``'s, :func:`dot3`)."""
+    a = np.empty((3, 3))
+    for ax in range(6):
+        for i in range(3):
+            for j in range(3):
+                a[i, j] = dot3(f1[i, 0], f1[i, 1], f1[i, 2], p[ax, 0, j], p[ax, 1, j],
+                               p[ax, 2, j])
+        for i in range(3):
+            for j in range(3):
+                p_next[ax, i, j] = dot3(a[i, 0], a[i, 1], a[i, 2], f1_t[0, j], f1_t[1, j],
+                                        f1_t[2, j]) + q1[i, j]
+        s = p_next[ax, 0, 0] + r[ax]
+        for i in range(3):
+            k[ax, i] = p_next[ax, i, 0] / s
+        r0, r1, r2 = p_next[ax, 0, 0], p_next[ax, 0, 1], p_next[ax, 0, 2]
+        for i in range(3):
+            ki = k[ax, i]
+            p_next[ax, i, 0] -= ki * r0
+            p_next[ax, i, 1] -= ki * r1
+            p_next[ax, i, 2] -= ki * r2
+
+
 # ---------------------------------------------------------------- the contact detector
 
 

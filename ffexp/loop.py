@@ -83,6 +83,11 @@ class Cycle:
         self._task_step = self.task.step
         self._command = self.approach.command
         self._tmp = np.zeros(6)
+        # what each cycle's record reads, bound once
+        self._log_cycle = log.cycle
+        self._out = self.estimator.out
+        self._law = self.approach.law
+        self.approach_wrench: np.ndarray | None = None
         self.t_ns = 0
         self.target: TargetObservation | None = None
         log.event(0, "INFO", "phase", f"start: {p.name} ({p.method})")
@@ -198,7 +203,7 @@ class Cycle:
         if task.notes:
             self.flush_notes()
         phase, cmd = task.phase, self.cmd
-        self.approach_wrench: np.ndarray | None = None
+        self.approach_wrench = None
         if phase is _CONNECT:
             cmd.wrench_n_nm[...] = 0.0  # self.total
             return None
@@ -208,9 +213,9 @@ class Cycle:
                 cmd.stiffness_npm_nmprad[...] = self.cart_k
                 cmd.damping_ratio[...] = self.cart_d
             self._written = phase
-        if phase is _APPROACH:
-            w = self.approach_wrench = self._command(t_ns, state.tcp_pose_m, est.twist_tcf)
-            cmd.wrench_n_nm[...] = w
+        if phase is _APPROACH:  # the law's wrench is the command's (recorded as both)
+            self.approach_wrench = self._command(t_ns, state.tcp_pose_m, est.twist_tcf,
+                                                 cmd.wrench_n_nm)
         elif phase is _ALIGN:
             self._align(t_ns, state, cmd)
         else:  # DONE, ABORT
@@ -219,10 +224,10 @@ class Cycle:
 
     def record(self, state: RobotState, ft: FtSamples, intent: CartesianCommand | None,
                applied: AppliedCommand) -> None:
-        self.log.cycle(self.t_ns, self.t0_ns, state, ft, self.estimator.out, self.task.phase,
-                       self.controller, self.approach_wrench, self.approach.setpoint,
-                       self.total, intent, applied, self.target,
-                       self.task.scenario if self.task.observed else None)
+        task = self.task
+        self._log_cycle(self.t_ns, self.t0_ns, state, ft, self._out, task.phase,
+                        self.controller, self.approach_wrench, self._law.setpoint, self.total,
+                        intent, applied, self.target, task.scenario if task.observed else None)
 
 
 #: Where a cycle's wall time goes (``timings`` of :func:`run`): waiting for the robot
@@ -310,6 +315,8 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
     # the F/T samples go through the log only when it records them (a lean log does not)
     log_samples = log.samples if log.rec is not None and log.keeps(FT_TOPIC) else None
     compiled.load_kernels()  # every kernel compiled or loaded now: none in the loop
+    samples, send = sensor.samples, robot.send  # each cycle's calls, bound once
+    latest = tracker.latest if tracker is not None else None
     try:
         robot.connect()
         sensor.start()
@@ -320,7 +327,7 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
         for state in robot.measurements():
             if timed:
                 t_b = clock()
-            ft = sensor.samples()
+            ft = samples()
             if timed:
                 t_c = clock()
             if log_samples is not None:
@@ -352,9 +359,9 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
                          Stop(StopReason.STOP_REQUESTED, "stop requested (Ctrl-C / SIGTERM)"))
             if timed:
                 t_c2 = clock()
-                intent = step(state, ft, tracker.latest() if tracker is not None else None)
+                intent = step(state, ft, None if latest is None else latest())
                 t_d = clock()
-                applied = robot.send(intent)
+                applied = send(intent)
                 t_e = clock()
                 record(state, ft, intent, applied)
                 t_f = clock()
@@ -364,8 +371,8 @@ def _run(protocol: RunProtocol, robot: RobotDriver, sensor: ForceTorqueSensor, l
                 t_send += t_e - t_d
                 t_recording += t_f - t_e + t_c2 - t_c
             else:
-                intent = step(state, ft, tracker.latest() if tracker is not None else None)
-                record(state, ft, intent, robot.send(intent))
+                intent = step(state, ft, None if latest is None else latest())
+                record(state, ft, intent, send(intent))
             t_ns = cyc.t_ns
             if progress is not None and t_ns >= next_progress_ns:
                 next_progress_ns = t_ns + NS_PER_S // 10

@@ -136,11 +136,12 @@ class Task:
         scenario = self.scenario
         self.observed = False
         event = est.event
-        if event is not None and event.kind == "made":
-            self.contacts += 1
-            self.notes.append(Event("INFO", "contact", f"contact made (#{self.contacts})"))
-        elif event is not None:
-            self.notes.append(Event("WARNING", "contact", "contact broken"))
+        if event is not None:
+            if event.kind == "made":
+                self.contacts += 1
+                self.notes.append(Event("INFO", "contact", f"contact made (#{self.contacts})"))
+            else:
+                self.notes.append(Event("WARNING", "contact", "contact broken"))
         phase = self.phase
         if phase is not _CONNECT:  # nothing is judged before the approach
             change = scenario.choose_source(state, target)

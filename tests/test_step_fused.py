@@ -174,3 +174,36 @@ def test_the_estimates_columns_are_the_kernels() -> None:
     assert (ek.R_CHECK, ek.R_IN_CONTACT, ek.R_EVENT) == (15, 16, 32)
     assert ek.STOP_WORKSPACE <= ek.R_CHECK
     assert e._NONE_NS == ek.NONE_NS
+
+
+def test_the_gain_table_stepped_in_the_compiled_call_is_the_filters_gains() -> None:
+    """Once the motion filter's gains repeat, a single run's compiled call steps through
+    their table itself: its estimate stays, cycle for cycle and bit for bit, that of a
+    batch of one (which asks the filter for each cycle's gain) through several turns of
+    the table."""
+    rng = np.random.default_rng(7)
+    cfg = Estimation()
+    single, batch = Estimator(cfg, 0.005, 0.05), Estimator(cfg, 0.005, 0.05)
+    pose = np.eye(4)
+    pose[:3, 3] = [0.4, 0.1, 0.3]
+    for cycle in range(500):
+        t_ns = cycle * 5_000_000
+        n = int(rng.choice([0, 5, 5]))
+        times = t_ns + 1_000_000 * np.arange(n, dtype=np.int64) - 4_000_000
+        wrench = rng.normal(scale=2.0, size=(n, 6))
+        status = np.zeros(n, dtype=np.uint32)
+        pose = pose.copy()
+        pose[:3, :3] = pose[:3, :3] @ _rotation(rng, 0.01)
+        pose[:3, 3] += rng.normal(scale=2e-4, size=3)
+        link = LinkHealth(commanding=True, healthy=True, cycle=cycle, cycle_s=0.005)
+        state = RobotState(time_ns=t_ns, tcp_pose_m=pose, joint_pos_rad=np.zeros(7), link=link)
+        got = single.update(state, FtSamples(times, np.arange(n, dtype=np.int64), wrench,
+                                             status), t_ns, 0)
+        want = batch.update_batch(pose[None], wrench, times, status,
+                                  np.array([0, n], dtype=np.int64), np.array([True]),
+                                  np.array([t_ns], dtype=np.int64),
+                                  np.array([0], dtype=np.int64))
+        assert _bits(got.floats) == _bits(want.floats[0])
+        assert got.ints.tolist() == want.ints[0].tolist()  # type: ignore[union-attr]
+    period = single.motion_filter.gain_period
+    assert 0 < period < 150  # found early enough for the table to turn a few times

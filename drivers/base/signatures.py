@@ -39,6 +39,7 @@ __all__ = [
     "RF1A",
     "RF2",
     "RF2A",
+    "RF3",
     "RI1",
     "RU1",
     "U1",
@@ -65,7 +66,7 @@ F1, F2, F3 = (_array(types.float64, n) for n in (1, 2, 3))
 #: float64 arrays of any layout (a slice, a transpose)
 F1A, F2A = (_array(types.float64, n, "A") for n in (1, 2))
 #: read-only float64 arrays (a writable one converts to these)
-RF1, RF2 = (_array(types.float64, n, readonly=True) for n in (1, 2))
+RF1, RF2, RF3 = (_array(types.float64, n, readonly=True) for n in (1, 2, 3))
 RF1A, RF2A = (_array(types.float64, n, "A", readonly=True) for n in (1, 2))
 #: int64, uint32 and bool arrays, C-contiguous (``R``: read-only)
 I1, I2 = (_array(types.int64, n) for n in (1, 2))

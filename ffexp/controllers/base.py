@@ -41,9 +41,11 @@ class Approach:
         self._start_ns = t_ns
         self.law.start(pose)
 
-    def command(self, t_ns: int, pose: F64, twist_tcf: F64) -> F64:
-        """The law's wrench ``t_ns`` into the line (also kept in :attr:`wrench`)."""
-        return self.law.update(pose, twist_tcf, (t_ns - self._start_ns) / NS_PER_S, self.wrench)
+    def command(self, t_ns: int, pose: F64, twist_tcf: F64, out: F64 | None = None) -> F64:
+        """The law's wrench ``t_ns`` into the line, into ``out`` (a 6-vector; by default
+        :attr:`wrench`) and returned."""
+        return self.law.update(pose, twist_tcf, (t_ns - self._start_ns) / NS_PER_S,
+                               self.wrench if out is None else out)
 
 
 @dataclass

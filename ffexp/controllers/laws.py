@@ -314,6 +314,7 @@ class ImpedanceController:
         self._start: F64 | None = None
         self._start_r = self._start_p = np.zeros(0)
         self.setpoint = np.eye(4)
+        self._sp = np.empty((4, 4))  # the compiled form's set-point (filled each cycle)
 
     def start(self, pose: F64) -> None:
         """Anchor the line at the current tool pose (4x4, base frame)."""
@@ -340,14 +341,18 @@ class ImpedanceController:
         lim)`` in one, compiled (:func:`ffexp.controllers.kernels.approach_error` and
         :func:`~ffexp.controllers.kernels.impedance_out`) but for numpy's arc cosine and
         sine between them: the same operations (``tests/test_step_exact.py`` checks it
-        against that composition bit for bit).
+        against that composition bit for bit). :attr:`setpoint` is then the law's own
+        array, filled again next cycle (copy it to keep it).
         """
         start = self._start
         if start is None:
             raise RuntimeError("ImpedanceController.start() was not called")
         k = self._kernels
-        travel = min(self._speed * max(elapsed_s, 0.0), self._distance)
-        sp = np.empty((4, 4))
+        # min(speed * max(elapsed_s, 0.0), distance), without the calls
+        travel = self._speed * (0.0 if 0.0 > elapsed_s else elapsed_s)
+        if self._distance < travel:
+            travel = self._distance
+        sp = self._sp
         work = self._work
         twist = np.asarray(twist_tcf, dtype=np.float64)
         if k.approach_error(pose, start, self._dir, travel, sp, work):

@@ -161,13 +161,16 @@ class Estimator:
                     else np.zeros((runs, k.OI_SIZE), dtype=np.int64))
         ib[k.Q_MJU:k.Q_SI] = self.motion_filter._mju
         # the safety monitor's rows a single run's checks use (check_rows)
-        self._sf, self._si = fb[k.P_SF:k.P_SIZE], ib[k.Q_SI:k.Q_SIZE]
+        self._sf, self._si = fb[k.P_SF:k.P_SIZE], ib[k.Q_SI:k.Q_GAIN]
         self.batch = EstimateBatch(self._of, self._oi)
         # a single run's outputs: views of the first row, made once (Estimate's arrays
         # are reused between cycles)
         self.out: Estimate = RowEstimate(self._of[0], self._oi[0])
         self._oi0 = self._oi[0]
         self._none_ns = k.NONE_NS
+        # once the motion filter's gains repeat, their cycle as one table (six rows a
+        # gain) that update's compiled call steps through itself (its place: ib[Q_GAIN])
+        self._gains: F64 | None = None
         self.safety_code = 0
         """Which of the safety checks held first in the last checked :meth:`update`."""
 
@@ -228,7 +231,13 @@ class Estimator:
         the monitor's checks on this estimate in the same compiled call
         (:func:`kernels.checked_cycle`; ``phase`` the task's phase before the cycle):
         which one held first is left in :attr:`safety_code` (``kernels.SAFE`` for
-        none)."""
+        none).
+
+        Once the motion filter's gain repeats (:attr:`MotionFilter.gain_period
+        <ffexp.estimation.motion_filter.MotionFilter.gain_period>`), its cycle of gains
+        is stepped through by the compiled call (the same gains in the same order; the
+        filter's own place in its cycle is then no longer moved: this estimator steps
+        it)."""
         if self.runs != 1:
             raise ValueError(f"update steps a single run; this estimator has {self.runs}: "
                              "update_batch")
@@ -243,10 +252,14 @@ class Estimator:
         else:
             raise ValueError("update checks with a safety monitor on this estimator's "
                              "check_rows()")
+        table = self._gains
         r = self._k.checked_cycle(
-            self._fb, self._ib, mf.next_gain(), ft.wrench, ft.time_ns, ft.status,
-            state.tcp_pose_m, started, link.commanding, t_ns, t0_ns, link.healthy,
-            phase == 0, phase == 1 or phase == 2, check)
+            self._fb, self._ib, mf.next_gain() if table is None else table, ft.wrench,
+            ft.time_ns, ft.status, state.tcp_pose_m, started, link.commanding, t_ns, t0_ns,
+            link.healthy, phase == 0, phase == 1 or phase == 2, check)
+        if table is None and mf._cycle:  # the gains repeat: from the next cycle, the table
+            self._gains = np.concatenate([g for g, _ in mf._cycle])
+            self._ib[self._k.Q_GAIN] = mf._at
         self.safety_code = r & 15  # kernels.R_CHECK
         out = self.out  # views of the outputs: the scalars read from them when asked
         out.in_contact = r & 16 != 0  # kernels.R_IN_CONTACT

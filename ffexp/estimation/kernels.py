@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 
 from drivers.base.blas import dot3, dot3_n
 from drivers.base.mjlib import c_call, function_addresses
-from drivers.base.signatures import F1, F1A, F2, F3, I1, I2, RF2, RI1, RU1, b1, f8, i8
+from drivers.base.signatures import F1, F1A, F2, F3, I1, I2, RF1, RF2, RF3, RI1, RU1, b1, f8, i8
 from drivers.base.types import F64, FtStatus
 from ffexp.controllers.kernels import MOTION_SPEED, MOTION_WORKSPACE, safety_motion
 
@@ -116,6 +116,34 @@ def wrench_update(wf: F64, wq: F64, rows: F64) -> None:
         wf[WF_P_FF + k] = ff - k_f * k_f * s
         wf[WF_P_FB + k] = fb - k_f * k_b * s
         wf[WF_P_BB + k] = bb - k_b * k_b * s
+
+
+@njit([(RF2, RF3, RF2, RF2, RF1, F2, F3)], cache=True)
+def motion_gain(f1: F64, p: F64, f1_t: F64, q1: F64, r: F64, k: F64, p_next: F64) -> None:
+    """The motion filter's covariance and gain of one cycle, per axis ``a`` of ``p``
+    ``(6, 3, 3)``: ``P' = F1 P F1^T + Q1``, ``s = P'[0, 0] + r[a]``, the gain
+    ``k[a] = P'[:, 0] / s`` into ``k`` ``(6, 3)`` and ``P' - k P'[0, :]`` into ``p_next``
+    (:meth:`MotionFilter._gain <ffexp.estimation.motion_filter.MotionFilter._gain>`'s
+    numpy form: its products are ``dgemm``'s, :func:`dot3`)."""
+    a = np.empty((3, 3))
+    for ax in range(6):
+        for i in range(3):
+            for j in range(3):
+                a[i, j] = dot3(f1[i, 0], f1[i, 1], f1[i, 2], p[ax, 0, j], p[ax, 1, j],
+                               p[ax, 2, j])
+        for i in range(3):
+            for j in range(3):
+                p_next[ax, i, j] = dot3(a[i, 0], a[i, 1], a[i, 2], f1_t[0, j], f1_t[1, j],
+                                        f1_t[2, j]) + q1[i, j]
+        s = p_next[ax, 0, 0] + r[ax]
+        for i in range(3):
+            k[ax, i] = p_next[ax, i, 0] / s
+        r0, r1, r2 = p_next[ax, 0, 0], p_next[ax, 0, 1], p_next[ax, 0, 2]
+        for i in range(3):
+            ki = k[ax, i]
+            p_next[ax, i, 0] -= ki * r0
+            p_next[ax, i, 1] -= ki * r1
+            p_next[ax, i, 2] -= ki * r2
 
 
 # ---------------------------------------------------------------- the contact detector
@@ -462,7 +490,7 @@ def safety_check(ofi: F64, oii: np.ndarray, t_ns: int, connect: bool, moving: bo
 #: caches): the floats ``P_*`` (the settings ``cfg``, the state ``fs``, the outputs
 #: ``of``, the motion filter's ``x``, ``rot``, ``theta`` and ``F1^T``, the safety
 #: monitor's ``SF_*``) and the ints ``Q_*`` (``ist``, ``oi``, the MuJoCo functions, the
-#: safety monitor's ``SI_*``).
+#: safety monitor's ``SI_*``, the motion filter's place in its table of gains ``Q_GAIN``).
 P_CFG = 0
 P_FS = P_CFG + CF_SIZE
 P_OF = P_FS + FS_SIZE
@@ -474,7 +502,8 @@ Q_IST = 0
 Q_OI = Q_IST + IS_SIZE
 Q_MJU = Q_OI + OI_SIZE
 Q_SI = Q_MJU + 2
-Q_SIZE = Q_SI + SI_SIZE
+Q_GAIN = Q_SI + SI_SIZE
+Q_SIZE = Q_GAIN + 1
 
 
 #: :func:`checked_cycle`'s flags beside the check's answer (``& R_CHECK``).
@@ -488,7 +517,16 @@ def checked_cycle(fb: F64, ib: np.ndarray, gain: F64, wrench: F64, time_ns: np.n
     """:func:`single_cycle` on a single run's packed rows ``fb``, ``ib`` (``P_*``,
     ``Q_*``) and then, with ``check``, :func:`safety_check` on its estimate, in one call:
     the check's answer (:data:`SAFE` without) with the flags :data:`R_IN_CONTACT` and
-    :data:`R_EVENT` (the estimate's contact, a contact event this cycle) set."""
+    :data:`R_EVENT` (the estimate's contact, a contact event this cycle) set.
+
+    ``gain``: the motion filter's gains one after the other, six rows each (``(6 n,
+    3)``); this cycle's is the one at ``ib[Q_GAIN]``, which moves on to the next (after
+    the last, the first): a table of one gain is that gain every cycle, a filter's
+    repeating cycle of gains (:attr:`MotionFilter.gain_period
+    <ffexp.estimation.motion_filter.MotionFilter.gain_period>`) is stepped through here."""
+    at = ib[Q_GAIN]
+    g = gain[6 * at:6 * at + 6]
+    ib[Q_GAIN] = 0 if 6 * (at + 1) >= gain.shape[0] else at + 1
     m = P_MOTION
     x = fb[m:m + 18].reshape((6, 3))
     rot = fb[m + 18:m + 27].reshape((1, 3, 3))
@@ -499,12 +537,12 @@ def checked_cycle(fb: F64, ib: np.ndarray, gain: F64, wrench: F64, time_ns: np.n
     of = fb[P_OF:P_MOTION].reshape((1, OF_SIZE))
     ist = ib[Q_IST:Q_OI].reshape((1, IS_SIZE))
     oi = ib[Q_OI:Q_MJU].reshape((1, OI_SIZE))
-    single_cycle(cfg, fs, ist, x, rot, theta, started, gain, f1_t, ib[Q_MJU:Q_SI], wrench,
+    single_cycle(cfg, fs, ist, x, rot, theta, started, g, f1_t, ib[Q_MJU:Q_SI], wrench,
                  time_ns, status, pose, commanding, t_ns, t0_ns, of, oi)
     code = SAFE
     if check:
         code = safety_check(of[0], oi[0], t_ns, connect, moving, healthy, commanding, pose,
-                            fb[P_SF:P_SIZE], ib[Q_SI:Q_SIZE])
+                            fb[P_SF:P_SIZE], ib[Q_SI:Q_GAIN])
     if oi[0, OI_IN_CONTACT] != 0:
         code |= R_IN_CONTACT
     if oi[0, OI_EVENT] != 0:

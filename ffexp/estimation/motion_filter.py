@@ -127,12 +127,13 @@ class MotionFilter:
     def _gain(self) -> tuple[F64, F64]:
         """The gain of this cycle and the covariance after its update, computed; once
         the covariance equals one of an earlier cycle bit for bit, the values from that
-        cycle on are kept to be repeated (:attr:`gain_period`)."""
-        p = self._f1 @ self._p @ self._f1_t
-        p += self._q1
-        s = p[:, 0, 0] + self._r
-        k = p[:, :, 0] / s[:, None]
-        p -= k[:, :, None] * p[:, None, 0, :]
+        cycle on are kept to be repeated (:attr:`gain_period`).
+
+        Compiled (:func:`ffexp.estimation.kernels.motion_gain`): bit for bit the numpy
+        form ``P = F1 P F1^T + Q1``, ``k = P[:, :, 0] / (P[:, 0, 0] + r)``,
+        ``P -= k P[0, :]`` (``tests/test_estimation_batch.py``)."""
+        k, p = np.empty((6, 3)), np.empty((6, 3, 3))
+        self._kernels.motion_gain(self._f1, self._p, self._f1_t, self._q1, self._r, k, p)
         watch = self._watch
         if watch is not None:
             k.flags.writeable = p.flags.writeable = False

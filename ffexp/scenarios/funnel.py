@@ -82,6 +82,9 @@ class _PlacementRecord:
     __slots__ = ("insertion", "lateral", "vertical", "within", "yaw")
 
     def __init__(self, p: Placement, within: bool) -> None:
+        self.fill(p, within)
+
+    def fill(self, p: Placement, within: bool) -> None:
         self.insertion, self.lateral, self.vertical, self.yaw = p
         self.within = int(within)
 
@@ -185,6 +188,9 @@ class FunnelAlignment(Scenario):
         self._want = alignment.source
         self._kernels = kernels()
         self._within_is = False
+        # messages()' one message, filled in place each cycle (its record is encoded at once)
+        self._record = _PlacementRecord(Placement((0.0, 0.0, 0.0, 0.0)), False)
+        self._messages: list[tuple[str, object]] = [("/task/funnel", self._record)]
 
     @property
     def hold_s(self) -> float:
@@ -275,7 +281,10 @@ class FunnelAlignment(Scenario):
                 x, y, v, yaw, _, within = geo.tolist()
                 p = self._truth_p = Placement((x, y, v, yaw))
                 self._within_of, self._within_is = p, within == 1.0
-                self._place(state)
+                if self.source == "truth":  # _place, inline
+                    self.placement = p
+                else:
+                    self._place(state)
                 return
             self._truth_p = truth_placement(truth, tcp)
             z = self._advance(state)
@@ -312,11 +321,14 @@ class FunnelAlignment(Scenario):
 
     def _shadow_truth(self, t_ns: int, state: RobotState) -> None:
         p = self._truth_p
-        if p is None:
-            return
+        if p is not None:
+            self._truth_holds(t_ns, self._within(p))
+
+    def _truth_holds(self, t_ns: int, within: bool) -> None:
+        """The truth's own hold, its placement this cycle ``within`` the tolerances or not."""
         if self.truth_aligned is None:
             self.truth_aligned = False
-        if not self._within(p):
+        if not within:
             self._truth_since_ns = None
             return
         if self._truth_since_ns is None:
@@ -343,12 +355,25 @@ class FunnelAlignment(Scenario):
                               else placement(state.tcp_pose_m, target.mouth_m))
 
     def messages(self) -> list[tuple[str, object]]:
+        """``/task/funnel``'s message of this cycle: one list and record, filled again
+        each cycle (encode it before the next)."""
         p = self._truth_p
-        return [] if p is None else [("/task/funnel", _PlacementRecord(p, self._within(p)))]
+        if p is None:
+            return []
+        self._record.fill(p, self._within(p))
+        return self._messages
 
     # -- the verdict ---------------------------------------------------------
     def holds(self, t_ns: int, state: RobotState, est: Estimate,
               target: TargetObservation | None) -> bool:
+        p = self._truth_p
+        if p is not None and p is self._within_of and self.source == "truth":
+            # the truth judges, its placement judged this cycle (observe's compiled call):
+            # _shadow_truth and aligned_now in one
+            within = self._within_is
+            self.placement = p
+            self._truth_holds(t_ns, within)
+            return within
         self._shadow_truth(t_ns, state)
         return self.aligned_now(state, est)
 

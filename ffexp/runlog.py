@@ -310,17 +310,10 @@ class RunLog:
         # its topic is kept)
         enc = self._enc
         assert enc is not None
-        plans = enc.extras_plans
         topics = ["/robot/state"]
         datas = [state_message(state)]
-        extras = state.extras
-        if extras is not None:
-            plan = plans.get(names := extras.topics())
-            if plan is None:
-                plan = enc.extras_plan(names)
-            for etopic, efn in plan:
-                topics.append(etopic)
-                datas.append(efn(extras))
+        if state.extras is not None:
+            enc.extras_into(state.extras, topics, datas)
         topics.append("/estimator/state")
         datas.append(estimator_message(est.wrench, est.wrench_std, est.bias, est.twist_tcf,
                                        est.f_z, len(ft), est.in_contact))
@@ -337,14 +330,8 @@ class RunLog:
         if self._command_kept:
             topics.append("/control/command")
             datas.append(command_message(intent, applied))
-        extras = applied.extras
-        if extras is not None:
-            plan = plans.get(names := extras.topics())
-            if plan is None:
-                plan = enc.extras_plan(names)
-            for etopic, efn in plan:
-                topics.append(etopic)
-                datas.append(efn(extras))
+        if applied.extras is not None:
+            enc.extras_into(applied.extras, topics, datas)
         truth = state.truth
         if truth is not None:
             if truth.attached is not self._attached:  # once a run: frames fixed on a body

@@ -105,18 +105,8 @@ def state_message(state: RobotState) -> bytes:
         else joints.tobytes() + _NAN_PAD[STATE_JOINTS - n])
     link = state.link
     twist, ext = state.tcp_twist_mps_radps, state.ext_wrench_n_nm
-    if twist is None:
-        tw = _Z48
-    elif type(twist) is _ND and twist.dtype is _F8 and twist.shape == _V6:
-        tw = twist.tobytes()
-    else:
-        tw = _b6(twist)
-    if ext is None:
-        ex = _Z48
-    elif type(ext) is _ND and ext.dtype is _F8 and ext.shape == _V6:
-        ex = ext.tobytes()
-    else:
-        ex = _b6(ext)
+    tw = _Z48 if twist is None else _b6(twist)
+    ex = _Z48 if ext is None else _b6(ext)
     return b"".join((
         _STATE_HEAD.pack(CDR_HEADER, state.time_ns), pose.tobytes(), q,
         _STATE_LINK.pack(n, int(link.commanding), int(link.healthy), link.cycle, link.cycle_s,

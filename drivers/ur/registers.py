@@ -179,7 +179,7 @@ _COMPLIANT: Final = tuple(np.array([bool(b >> i & 1) for i in range(6)]) for b i
 
 @lru_cache(maxsize=16)
 def _axes(stiffness: bytes | None, stiffness_max: float, speed_limits: bytes,
-          deviation_limits: bytes) -> tuple[Mode, int, list[float]]:
+          deviation_limits: bytes) -> tuple[Mode, int, tuple[float, ...]]:
     """The mode, the selection mask and the axes' limits (speed caps on the compliant
     axes, deviation limits on the others) of a command's stiffness (its bytes; ``None``:
     no command, a hold), kept for the next commands with the same."""
@@ -190,4 +190,4 @@ def _axes(stiffness: bytes | None, stiffness_max: float, speed_limits: bytes,
         mode = Mode.FORCE if compliant.any() else Mode.SERVO
     limits = np.where(compliant, np.frombuffer(speed_limits, dtype=np.float64),
                       np.frombuffer(deviation_limits, dtype=np.float64))
-    return mode, selection_bits(compliant), limits.tolist()
+    return mode, selection_bits(compliant), tuple(limits.tolist())  # (shared: immutable)

@@ -126,14 +126,15 @@ def pose_matrix(vector: NDArray[np.float64], out: NDArray[np.float64] | None = N
     return out
 
 
-def compliant_axes(cmd: CartesianCommand, stiffness_max: float) -> NDArray[np.bool_]:
-    """The axes force mode takes: commanded stiffness at most ``stiffness_max``."""
-    return np.asarray(cmd.stiffness_npm_nmprad <= stiffness_max)
-
-
 def selection_bits(compliant: NDArray[np.bool_]) -> int:
     """The selection vector as the program's bit mask (bit i = axis i)."""
     return int(sum(1 << i for i in range(6) if compliant[i]))
+
+
+def selection_axes(bits: int) -> NDArray[np.bool_]:
+    """The program's bit mask as the selection vector (:func:`selection_bits`' inverse;
+    the bits above the sixth axis are not read): one read-only array per mask."""
+    return _COMPLIANT[bits & 63]
 
 
 def fill_command(record: np.ndarray, seq: int, cmd: CartesianCommand | None,
@@ -153,8 +154,7 @@ def fill_command(record: np.ndarray, seq: int, cmd: CartesianCommand | None,
         k = np.asarray(cmd.stiffness_npm_nmprad, dtype=np.float64)
         mode, bits, limits = _axes(k.tobytes(), stiffness_max, speed_limits.tobytes(),
                                    deviation_limits.tobytes())
-        compliant = _COMPLIANT[bits]
-        wrench = np.where(compliant, cmd.wrench_n_nm, 0.0).tolist()
+        wrench = np.where(selection_axes(bits), cmd.wrench_n_nm, 0.0).tolist()
     if record.dtype.names == INPUT_NAMES:  # every field at once, in recipe order
         record[()] = (seq & 0x7FFFFFFF, int(mode), bits, *target.tolist(), *wrench, *limits,
                       damping, gain_scaling, lookahead_s, servo_gain)
@@ -173,8 +173,16 @@ def fill_command(record: np.ndarray, seq: int, cmd: CartesianCommand | None,
 
 
 _ZERO6: Final = [0.0] * 6
+
+
+def _mask_axes(bits: int) -> NDArray[np.bool_]:
+    axes = np.array([bool(bits >> i & 1) for i in range(6)])
+    axes.flags.writeable = False  # (shared by every command with this mask)
+    return axes
+
+
 #: The compliant axes of each selection mask (bit i = axis i).
-_COMPLIANT: Final = tuple(np.array([bool(b >> i & 1) for i in range(6)]) for b in range(64))
+_COMPLIANT: Final = tuple(_mask_axes(b) for b in range(64))
 
 
 @lru_cache(maxsize=16)
@@ -182,7 +190,8 @@ def _axes(stiffness: bytes | None, stiffness_max: float, speed_limits: bytes,
           deviation_limits: bytes) -> tuple[Mode, int, tuple[float, ...]]:
     """The mode, the selection mask and the axes' limits (speed caps on the compliant
     axes, deviation limits on the others) of a command's stiffness (its bytes; ``None``:
-    no command, a hold), kept for the next commands with the same."""
+    no command, a hold), kept for the next commands with the same. Force mode takes the
+    axes whose commanded stiffness is at most ``stiffness_max``."""
     if stiffness is None:
         compliant, mode = np.zeros(6, dtype=bool), Mode.HOLD
     else:

@@ -69,7 +69,6 @@ class UrSimController:
         # any other input written
         self._regs: list[Any] = [0] * len(registers.INPUT_NAMES)
         self._other: dict[str, Any] = {}
-        self._bits_of: tuple[int, np.ndarray] | None = None
         # the world's end state the outputs were made of, held until the next cycle: the
         # arm's next command and the driver's truth read the same object, computed once
         # (SimWorld.last_state: the same object while someone holds it)
@@ -102,13 +101,6 @@ class UrSimController:
         ``values`` in that order (the in-process link's whole input record)."""
         self._regs[:] = values
 
-    def _compliant(self, bits: int) -> np.ndarray:
-        """The selection bits as the compliant axes (the array kept while they are)."""
-        of = self._bits_of
-        if of is None or of[0] != bits:
-            of = self._bits_of = (bits, np.array([bool(bits >> i & 1) for i in range(6)]))
-        return of[1]
-
     def _program(self) -> ForceModeCommand | None:
         """One cycle of ffexp_control.script: the arm's command (``None``: hold)."""
         regs = self._regs
@@ -134,7 +126,7 @@ class UrSimController:
         pose = registers.pose_matrix(np.array(regs[_POSE], dtype=np.float64))
         if mode != Mode.FORCE:
             return ForceModeCommand(pose)
-        return ForceModeCommand(pose, self._compliant(int(regs[_SELECTION])),
+        return ForceModeCommand(pose, registers.selection_axes(int(regs[_SELECTION])),
                                 np.array(regs[_WRENCH], dtype=np.float64),
                                 np.array(regs[_LIMITS], dtype=np.float64),
                                 float(regs[_DAMPING]), float(regs[_GAIN]))

@@ -18,6 +18,7 @@ import select
 import socket
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any, Protocol
 
 import numpy as np
@@ -104,16 +105,10 @@ def state_from_record(rec: np.void) -> FciState:
     f64 = np.float64
     errors, reflex = rec["errors"], rec["reflex_reason"]
     tool = rec["F_T_EE"]
-    key = tool.tobytes()
-    global _tool
-    if _tool is None or _tool[0] != key:
-        f_t_ee = _matrix(tool)
-        f_t_ee.flags.writeable = False
-        _tool = (key, f_t_ee)
     return FciState(
         message_id=int(rec["message_id"]),
         q=np.asarray(rec["q"], dtype=f64), dq=np.asarray(rec["dq"], dtype=f64),
-        o_t_ee=_matrix(rec["O_T_EE"]), f_t_ee=_tool[1],
+        o_t_ee=_matrix(rec["O_T_EE"]), f_t_ee=_tool_matrix(tool.tobytes(), tool.dtype.str),
         o_f_ext=np.asarray(rec["O_F_ext_hat_K"], dtype=f64),
         tau_ext=np.asarray(rec["tau_ext_hat_filtered"], dtype=f64),
         robot_mode=int(rec["robot_mode"]),
@@ -122,8 +117,13 @@ def state_from_record(rec: np.void) -> FciState:
         reflex=codec.error_names(reflex) if reflex.any() else [])
 
 
-#: The tool of the last state read (its bytes, its matrix).
-_tool: tuple[bytes, F64] | None = None
+@lru_cache(maxsize=4)
+def _tool_matrix(values: bytes, dtype: str) -> F64:
+    """The tool ``F_T_EE`` of a record (its values' bytes and dtype) as a read-only matrix,
+    made once while it stays the same (it is, every millisecond)."""
+    f_t_ee = _matrix(np.frombuffer(values, dtype=dtype))
+    f_t_ee.flags.writeable = False
+    return f_t_ee
 
 
 class FciLink(Protocol):

@@ -94,8 +94,7 @@ class _Encoders(dict[str, Callable[[object], bytes] | None]):
         self._recorder = recorder
         self._kept = kept
         # per tuple of topics an extras names: its kept topics and their encoders
-        self.extras_plans: dict[tuple[str, ...],
-                                tuple[tuple[str, Callable[[object], bytes]], ...]] = {}
+        self._extras: dict[tuple[str, ...], tuple[tuple[str, Callable[[object], bytes]], ...]] = {}
         # per shape of a plain ground truth (prefix, bodies, sites, attached frames): its
         # kept topics (the truth's, or None; the bodies' in order), or None when a site is
         # not attached (its messages then asked for)
@@ -111,19 +110,12 @@ class _Encoders(dict[str, Callable[[object], bytes] | None]):
     def _pairs(self, topics: Iterable[str]) -> tuple[tuple[str, Callable[[object], bytes]], ...]:
         return tuple((topic, fn) for topic in topics if (fn := self[topic]) is not None)
 
-    def extras_plan(self, names: tuple[str, ...]) -> tuple[tuple[str, Callable[[object], bytes]],
-                                                           ...]:
-        """The kept topics among an extras' ``names`` and their encoders (kept in
-        :attr:`extras_plans`)."""
-        plan = self.extras_plans[names] = self._pairs(names)
-        return plan
-
     def extras_into(self, extras: Extras, topics: list[str], datas: list[bytes]) -> None:
         """A back-end's extras' kept topics and their messages appended to the cycle's."""
         names = extras.topics()
-        plan = self.extras_plans.get(names)
+        plan = self._extras.get(names)
         if plan is None:
-            plan = self.extras_plan(names)
+            plan = self._extras[names] = self._pairs(names)
         for topic, fn in plan:
             topics.append(topic)
             datas.append(fn(extras))
@@ -216,9 +208,6 @@ class RunLog:
         self.cycles = 0
         """Cycles written so far."""
         self._attached: object = None  # the truth's attached frames last written
-        self._command_kept = self._kept["/control/command"]
-        self._last_topics: list[str] = []  # the last cycle's topics, and as a tuple
-        self._last_key: tuple[str, ...] = ()
 
     def keeps(self, topic: str) -> bool:
         """Whether this log writes ``topic`` (all of them unless :attr:`lean`)."""
@@ -308,7 +297,7 @@ class RunLog:
         log_ns = self.start_utc_ns + t_ns
         # the cycle's messages in order: their topics, their bytes (each built only when
         # its topic is kept)
-        enc = self._enc
+        kept, enc = self._kept, self._enc
         assert enc is not None
         topics = ["/robot/state"]
         datas = [state_message(state)]
@@ -327,7 +316,8 @@ class RunLog:
             if fn is not None:
                 topics.append(topic)
                 datas.append(fn(controller.extra))
-        if self._command_kept:
+
+        if kept["/control/command"]:
             topics.append("/control/command")
             datas.append(command_message(intent, applied))
         if applied.extras is not None:
@@ -337,7 +327,7 @@ class RunLog:
             if truth.attached is not self._attached:  # once a run: frames fixed on a body
                 self._attached = truth.attached
                 fixed = truth.attached_message()
-                if fixed is not None and self._kept[fixed[0]]:
+                if fixed is not None and kept[fixed[0]]:
                     topics.append(fixed[0])
                     datas.append(rec.encode_json(fixed[1]))
             enc.truth_into(truth, topics, datas)
@@ -353,8 +343,7 @@ class RunLog:
             if new_target:
                 assert target is not None
                 self._target(log_ns, state, target, topics, datas)
-            # no /tf, no sink: the metrics read neither
-            rec.write_cycle(log_ns, self._key(topics), datas)
+            rec.write_cycle(log_ns, topics, datas)  # no /tf, no sink: the metrics read neither
             return
         if t_ns >= self._next_tf_ns:
             self._next_tf_ns = t_ns + self.tf_period_ns
@@ -372,16 +361,7 @@ class RunLog:
             for topic, data in msgs:
                 topics.append(topic)
                 datas.append(data)
-        rec.write_cycle(log_ns, self._key(topics), datas)  # the cycle's one write
-
-    def _key(self, topics: list[str]) -> tuple[str, ...]:
-        """The cycle's topics as a tuple, the last cycle's own when they are the same (the
-        recorder then knows their channels at once)."""
-        if topics == self._last_topics:
-            return self._last_key
-        self._last_topics = topics
-        key = self._last_key = tuple(topics)
-        return key
+        rec.write_cycle(log_ns, topics, datas)  # the cycle's one write
 
     def _truth_tf(self, log_ns: int, truth: GroundTruth, topics: list[str],
                   datas: list[bytes]) -> None:

@@ -257,9 +257,8 @@ class Estimator:
             self._fb, self._ib, mf.next_gain() if table is None else table, ft.wrench,
             ft.time_ns, ft.status, state.tcp_pose_m, started, link.commanding, t_ns, t0_ns,
             link.healthy, phase == 0, phase == 1 or phase == 2, check)
-        if table is None and mf._cycle:  # the gains repeat: from the next cycle, the table
-            self._gains = np.concatenate([g for g, _ in mf._cycle])
-            self._ib[self._k.Q_GAIN] = mf._at
+        if table is None and mf.gain_period:  # the gains repeat: from the next cycle, the table
+            self._gains, self._ib[self._k.Q_GAIN] = mf.gain_table()
         self.safety_code = r & 15  # kernels.R_CHECK
         out = self.out  # views of the outputs: the scalars read from them when asked
         out.in_contact = r & 16 != 0  # kernels.R_IN_CONTACT

@@ -156,6 +156,14 @@ class MotionFilter:
         """Cycles after which the filter's gain repeats bit for bit (0: not, or not yet)."""
         return len(self._cycle)
 
+    def gain_table(self) -> tuple[F64, int]:
+        """Once the gain repeats (:attr:`gain_period`): its cycle of gains as one table,
+        six rows a gain (``(6 n, 3)``), and the place of the next cycle's gain in it (a
+        caller that steps through the table itself, as the estimator's compiled cycle)."""
+        if not self._cycle:
+            raise ValueError("the motion filter's gain does not repeat (yet)")
+        return np.concatenate([g for g, _ in self._cycle]), self._at
+
     @property
     def twist_base(self) -> F64:
         """[vx, vy, vz, wx, wy, wz] in the base frame (of the first run)."""

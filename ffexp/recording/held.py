@@ -265,8 +265,7 @@ class Held:
     def _reset(self) -> None:
         self._cycles: dict[tuple[int, ...], _Cycles] = {}
         self._blocks: list[_Cycles | _Loose | _Rows] = []
-        self.last: _Cycles | None = None
-        """The block of the last cycle (:meth:`cycle`; a writer may add to it as it does)."""
+        self._last: _Cycles | None = None  # the block of the last cycle
         self._loose: _Loose | None = None
         self._rows: dict[tuple[int, int], _Rows] = {}
         self.units: list[int] = []  # per unit (call), its block's index in _blocks
@@ -276,7 +275,7 @@ class Held:
     def cycle(self, cids: Sequence[int], log_time: int, datas: Sequence[bytes]) -> None:
         """A cycle's messages at one log time, of the channels ``cids`` (a sequence that
         must not change afterwards: a run's cycles give the same object)."""
-        blk = self.last
+        blk = self._last
         if blk is None or blk.key is not cids:
             if not cids:
                 return
@@ -294,7 +293,7 @@ class Held:
             blk = self._cycles[key] = _Cycles(len(self._blocks), cids, datas)
             self._blocks.append(blk)
         blk.key = cids
-        self.last = blk
+        self._last = blk
         return blk
 
     def loose(self, cids: Sequence[int], times: Sequence[int], datas: Sequence[bytes],

@@ -317,17 +317,9 @@ class FastWriter(Writer):
             self.add_at(channel_ids, log_time, datas)
             return
         held = self._held
-        blk = held.last
-        if blk is not None and blk.key is channel_ids:  # as the last cycle's (Held.cycle)
-            blk.times.append(log_time)
-            blk.datas += datas
-            held.units.append(blk.index)
-            held.count += blk.m
-            held.size += blk.size
-        else:
-            if not held.count:
-                self._start_holding()
-            held.cycle(channel_ids, log_time, datas)
+        if not held.count:
+            self._start_holding()
+        held.cycle(channel_ids, log_time, datas)
         if held.size > self._held_room or held.count >= HELD_MESSAGES:
             self._drain()
 

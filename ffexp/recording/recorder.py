@@ -123,9 +123,6 @@ class Recorder:
         self._last_flush = clock()
         self._channels: dict[str, int] = {}  # topic: channel id
         self._cids: dict[tuple[str, ...], list[int]] = {}  # a cycle's topics: their channels
-        # the last tuple of topics given to write_cycle (its caller's, as is) and its channels
-        self._last_key: tuple[str, ...] | None = None
-        self._last_cids: list[int] = []
         self._records: dict[str, np.ndarray] = {}
         self._names: dict[str, tuple[str, ...]] = {}
         self._layouts: dict[str, struct.Struct] = {}
@@ -222,8 +219,7 @@ class Recorder:
 
         A run's cycles that write the same topics in the same order are framed from one
         template (:meth:`FastWriter.add_cycle
-        <ffexp.recording.mcap_writer.FastWriter.add_cycle>`); ``topics`` given as the very
-        tuple of the last call have their channels looked up no more. In a subclass that
+        <ffexp.recording.mcap_writer.FastWriter.add_cycle>`). In a subclass that
         overrides :meth:`write_batch`, the messages go through it."""
         if self._batch_watched:
             self.write_batch(time_ns, list(zip(topics, datas, strict=True)))
@@ -231,27 +227,20 @@ class Recorder:
             self._write_cycle(time_ns, topics, datas)
 
     def _write_cycle(self, time_ns: int, topics: Sequence[str], datas: Sequence[bytes]) -> None:
-        n = len(datas)
-        if not n:
+        if not datas:
             return
         if time_ns < 0:
             raise ValueError(f"{topics[0]}: negative log time {time_ns} ns")
-        if topics is self._last_key:  # the caller's tuple of the last cycle's topics
-            cids = self._last_cids
-        else:
-            key = tuple(topics)
-            known = self._cids.get(key)
-            if known is None:  # a new mix of topics: their channels, registered in order
-                if len(key) != n:
-                    raise ValueError(f"{len(key)} topics for {n} messages")
-                known = self._cids[key] = [self._channel(topic) for topic in key]
-            cids = known
-            if type(topics) is tuple:
-                self._last_key, self._last_cids = topics, cids
-        if n != len(cids):
-            raise ValueError(f"{len(cids)} topics for {n} messages")
+        key = tuple(topics)
+        cids = self._cids.get(key)
+        if cids is None:  # a new mix of topics: their channels, registered in order
+            if len(key) != len(datas):
+                raise ValueError(f"{len(key)} topics for {len(datas)} messages")
+            cids = self._cids[key] = [self._channel(topic) for topic in key]
+        elif len(datas) != len(cids):
+            raise ValueError(f"{len(key)} topics for {len(datas)} messages")
         self._writer.add_cycle(cids, time_ns, datas)
-        self.message_count += n
+        self.message_count += len(datas)
         if self.taps:
             for topic, data in zip(topics, datas, strict=True):
                 for tap in self.taps:

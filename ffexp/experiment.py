@@ -20,14 +20,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from drivers import registry
-from drivers.config import apply_overrides, load_model, read_toml
+from drivers.config import apply_overrides, read_toml
 from drivers.description import load_scene
 from drivers.factory import Devices, open_devices, robot_arm
 from drivers.rig import Rig, load_rig, validate_rig
 from ffexp import __version__, loop
 from ffexp.contracts import Progress, RunOutcome
 from ffexp.errors import ConfigError, FfexpError, InputError
-from ffexp.filekind import wrong_kind
+from ffexp.filekind import load_as, named_kind
 from ffexp.live.address import LiveOptions
 from ffexp.naming import overrides_id, reserve, run_stem
 from ffexp.protocol import CampaignProtocol, RunProtocol, load_run_protocol, scene_path
@@ -45,16 +45,6 @@ __all__ = [
     "DRIVERS", "FT_SOURCES", "RigChoice", "RunResult", "load_campaign", "load_rig_choice",
     "output_path", "run_file",
 ]
-
-
-def named_kind(exc: ConfigError, path: Path, expected: str) -> ConfigError:
-    """``exc``, or the error naming the fault when ``path`` is another kind of ffexp file
-    than ``expected`` (a run protocol given as a rig)."""
-    try:
-        what = wrong_kind(read_toml(path), expected)
-    except ConfigError:
-        return exc
-    return exc if what is None else ConfigError(str(path), "", what)
 
 
 def load_rig_choice(choice: RigChoice) -> tuple[Rig, str]:
@@ -291,10 +281,7 @@ def _scene_writer(rec: Recorder, protocol_path: Path, protocol: RunProtocol, dev
 
 def load_campaign(path: Path, overrides: list[str] | tuple[str, ...] = ()) -> CampaignProtocol:
     """A campaign file; each entry's protocol path is relative to the campaign file."""
-    try:
-        campaign = load_model(CampaignProtocol, path, overrides)
-    except ConfigError as exc:
-        raise named_kind(exc, path, "campaign") from None
+    campaign = load_as(CampaignProtocol, path, overrides, "campaign")
     for i, entry in enumerate(campaign.runs):
         p = path.parent / entry.protocol
         if not p.is_file():

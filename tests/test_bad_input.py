@@ -535,6 +535,16 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         (f"run {P} --rig {SCENE} --out {{out}}", ["paper.toml", "is a scene, not a rig"]),
         (f"run {SWEEP} --out {{out}}", ["is a sweep protocol, not a run protocol"]),
         (f"campaign {MOCK} --out {{out}}", ["mock.toml", "is a rig, not a campaign"]),
+        (f"hil {P} --out {{out}}", ["method2.toml",
+                                    "is a run protocol, not an impact protocol", "ffexp run"]),
+        (f"hil {CAMP} --out {{out}}", ["paper.toml", "is a campaign, not an impact protocol"]),
+        (f"simulate sweep {P} --out {{out}}", ["method2.toml",
+                                               "is a run protocol, not a sweep protocol"]),
+        (f"simulate sweep {HIL} --out {{out}}", ["hil_impact.toml", "is an impact protocol, "
+                                                 "not a sweep protocol", "ffexp hil"]),
+        (f"reproduce --config {CAMP} --out {{out}}", ["paper.toml", "is a campaign, not a study"]),
+        (f"reproduce --config {SWEEP} --out {{out}}", ["sec3_stiffness.toml",
+                                                       "is a sweep protocol, not a study"]),
         ("campaign {camp_self} --out {out}", ["runs.0.protocol", "this campaign itself"]),
         (f"run {P} --rig {ROOT / 'rigs/ur5e-sim.toml'} --ft sim --out {{out}}",
          ["ur5e-sim.toml", "ft.type"]),
@@ -621,7 +631,7 @@ def test_every_class_has_several_cases() -> None:
 
 @pytest.mark.parametrize("line", [
     "run {proto_nan} --out {out}", f"run {P} --set run.timeout_s=1e400 --out {{out}}",
-    "analyze {corrupt}", f"run {P} --rt --cpu 99 --out {{out}}"])
+    "analyze {corrupt}", f"run {P} --rt --cpu 99 --out {{out}}", f"hil {P} --out {{out}}"])
 def test_the_classes_in_a_subprocess(files: dict[str, str], by_class: dict[str, str],
                                      tmp_path: Path, line: str) -> None:
     out = tmp_path / "out"

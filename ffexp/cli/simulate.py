@@ -107,7 +107,6 @@ def sweep(
 
     Never overwrites: files whose names are taken in OUT get -1, -2, ...
     """
-    from drivers.config import load_model
     from ffexp.cli.progress import Steps
     from ffexp.cli.tables import Column, console, fitted_table
     from ffexp.contact1dof.sweep import (
@@ -118,10 +117,11 @@ def sweep(
         write_outputs,
     )
     from ffexp.errors import ConfigError
+    from ffexp.filekind import load_as
 
     if out.exists() and not out.is_dir():
         raise ConfigError("--out", str(out), "exists and is not a directory")
-    proto = load_model(SweepProtocol, protocol, set_)
+    proto = load_as(SweepProtocol, protocol, set_, "sweep protocol")
     with Steps() as steps:
         with steps.step(f"sweep {proto.name}"):
             results = run_sweep(proto)

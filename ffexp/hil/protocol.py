@@ -9,7 +9,8 @@ from typing import Annotated
 
 from pydantic import Field
 
-from drivers.config import StrictModel, load_model
+from drivers.config import StrictModel
+from ffexp.filekind import load_as
 
 __all__ = ["DeviceLink", "FaultSettings", "HilProtocol", "ImpactSettings", "LinkSettings",
            "load_hil_protocol"]
@@ -84,7 +85,7 @@ def load_hil_protocol(path: Path, overrides: tuple[str, ...] = ()) -> HilProtoco
     Raises:
         ConfigError: ``"<path>: <field>: <message>"``.
     """
-    proto = load_model(HilProtocol, path, overrides)
+    proto = load_as(HilProtocol, path, overrides, "impact protocol")
     if not proto.scene.is_absolute():
         proto = proto.model_copy(update={"scene": path.parent / proto.scene})
     return proto

@@ -20,8 +20,9 @@ from typing import Any, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
-from drivers.config import StrictModel, load_model
+from drivers.config import StrictModel
 from ffexp.errors import ConfigError
+from ffexp.filekind import load_as
 from ffexp.sweeps import claims
 from ffexp.sweeps.engine import Runner
 from ffexp.sweeps.keys import Key, Value, current_value, parse_key
@@ -159,7 +160,7 @@ class Study:
 
 def load(path: Path, fixed: Sequence[str] = ()) -> Study:
     """Read and validate the config, every protocol and every scene (before any run)."""
-    cfg = load_model(ReproduceConfig, path)
+    cfg = load_as(ReproduceConfig, path, (), "study")
     targets = {}
     for role, run in cfg.runs.items():
         proto = path.parent / run.protocol

@@ -31,7 +31,7 @@ def test_the_serving_thread_takes_the_serving_callers_cpu(robot: str, scene: str
     cpu = max(os.sched_getaffinity(0))
     settings = EmulatedRigSettings(scene=load_scene(ROOT / "data/scenes" / scene),
                                    robot=robot, host="127.0.0.45", port=0, netft_port=None,
-                                   duration_s=0.02, **own)  # type: ignore[arg-type]
+                                   duration_s=5.0, **own)  # type: ignore[arg-type]
     before = {t.ident for t in threading.enumerate()}
     seen: dict[str, set[int]] = {}
     failure: list[BaseException] = []

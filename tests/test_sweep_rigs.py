@@ -94,11 +94,13 @@ def test_a_sweep_on_an_arms_simulator_is_ffexp_run_on_it_bit_for_bit(
     assert all(t.max_abs == 0.0 for t in result.topics)
 
 
+@pytest.mark.parametrize("arm", list(ARMS))
 def test_the_batch_executor_gives_the_same_rows(
-        tmp_path: Path, swept: dict[str, tuple[Path, list[Any]]]) -> None:
-    _out, rows = swept["ur5e"]
-    batched = sweep(tmp_path / "batch", ARMS["ur5e"][0], executor="local:1,batch:2")
+        tmp_path: Path, swept: dict[str, tuple[Path, list[Any]]], arm: str) -> None:
+    _out, rows = swept[arm]
+    batched = sweep(tmp_path / "batch", ARMS[arm][0], executor="local:1,batch:2")
     assert table.without_wall_time(batched) == table.without_wall_time(rows)
+    assert len(batched) == 2 and all(r["aligned"] is not None for r in batched)
 
 
 def test_limits_on_the_ur5e_simulator(tmp_path: Path) -> None:

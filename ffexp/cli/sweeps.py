@@ -58,8 +58,9 @@ STUDY_RIG_HELP = RIG_HELP + (
     f"{', '.join(simulated_robots())} with the simulator's F/T and tracker) runs a study; a "
     "lab or emulator rig is refused. The rig is part of each run's id; the row's 'rig' "
     "column and the study's JSON name it.")
-STUDY_RIG_SET_HELP = ("Override a rig field, e.g. --rig-set robot.force_mode_damping=0.01 "
-                      "(repeatable; with or without --rig).")
+STUDY_RIG_SET_HELP = ("Override a rig field, KEY=VALUE as for ffexp run (repeatable; with or "
+                      "without --rig), e.g. robot.force_mode_damping=0.01 with "
+                      "--driver ur-sim.")
 STUDY_DRIVER_HELP = (f"Without --rig: the built-in rig of {', '.join(simulated_drivers())} "
                      "(default: sim; not with --rig); a study runs on a simulated robot only.")
 

@@ -24,10 +24,13 @@ from ffexp.cli._common import (
     stop_signals,
     with_scene_sets,
 )
+from ffexp.cli.run import RIG_HELP
+from ffexp.sweeps.rigs import simulated_drivers, simulated_robots
 
 if TYPE_CHECKING:
     from ffexp.sweeps.engine import Runner
     from ffexp.sweeps.executors import ExecutorSpec
+    from ffexp.sweeps.rigs import StudyRig
     from ffexp.sweeps.session import Display
 
 EXECUTOR_HELP = (
@@ -50,6 +53,16 @@ RECORDING_HELP = (
     "The rows are the same either way; a run done before counts when its recording "
     "serves (a full one always, a lean one for --lean); a lean one is run again for "
     "--full. The row's 'recording' column and the study's JSON say which.")
+STUDY_RIG_HELP = RIG_HELP + (
+    " The runs go to parallel workers: only a rig simulated in the worker's process (robot "
+    f"{', '.join(simulated_robots())} with the simulator's F/T and tracker) runs a study; a "
+    "lab or emulator rig is refused. The rig is part of each run's id; the row's 'rig' "
+    "column and the study's JSON name it.")
+STUDY_RIG_SET_HELP = ("Override a rig field, KEY=VALUE as for ffexp run (repeatable; with or "
+                      "without --rig), e.g. robot.force_mode_damping=0.01 with "
+                      "--driver ur-sim.")
+STUDY_DRIVER_HELP = (f"Without --rig: the built-in rig of {', '.join(simulated_drivers())} "
+                     "(default: sim; not with --rig); a study runs on a simulated robot only.")
 
 
 def _check_out(out: Path) -> None:
@@ -79,6 +92,15 @@ def _session(out: Path, spec: ExecutorSpec, label: str,
             typer.echo(f"{label}: stopped; finished runs are kept in {out} (run the same "
                        "command again to go on)", err=True)
             raise typer.Exit(code)
+
+
+def _study_rig(rig: Path | None, driver: str | None, rig_set: list[str]) -> StudyRig | None:
+    """The study's rig, as ``ffexp run`` reads the options, refused unless simulated in the
+    workers' process (one line naming the rig and the field, exit 2; before any run)."""
+    from ffexp.cli.run import rig_choice
+    from ffexp.sweeps.rigs import study_rig
+
+    return study_rig(rig_choice(rig, driver, rig_set))
 
 
 def _finite_values(vary: Sequence[str]) -> None:
@@ -144,6 +166,10 @@ def sweep(
     seeds: int = typer.Option(1, "--seeds", help=SEEDS_HELP),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
     scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
+    rig: Path | None = typer.Option(None, "--rig", help=STUDY_RIG_HELP),
+    driver: str | None = typer.Option(None, "--driver", help=STUDY_DRIVER_HELP,
+                                      show_default=False),
+    rig_set: list[str] = typer.Option([], "--rig-set", help=STUDY_RIG_SET_HELP),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>."),
@@ -154,9 +180,11 @@ def sweep(
 ) -> None:
     """Run a protocol over a grid (--vary) or a Latin-hypercube sample (--sample, --range).
 
-    Each run has an id from its protocol, overrides and seed; its MCAP file and
-    row go into OUT/runs/<id>/, and a run already there is not run again (kill
-    the sweep, start it again: nothing is lost, nothing is run twice). Writes
+    Each run has an id from its protocol, overrides and seed (and the rig, with
+    --rig, --driver or --rig-set: a simulated arm's rig, the UR5e's or the FR3's);
+    its MCAP file and row go into OUT/runs/<id>/, and a run already there is not
+    run again (kill the sweep, start it again: nothing is lost, nothing is run
+    twice). Writes
     OUT/results.csv and OUT/results.parquet (one row per run) and heat maps
     (two varied keys) or line plots (one) in OUT/figures/. --lean records only
     what the metrics read (the same rows, cheaper runs). Exit code: 0 when
@@ -176,9 +204,11 @@ def sweep(
     out = out if out is not None else Path("runs") / "sweeps" / protocol.stem
     _check_out(out)
     spec = parse_executor(executor)
-    with spinner(sys.stderr.isatty(), "checking every point against the protocol and scene"):
+    with spinner(sys.stderr.isatty(), "checking the rig and every point against the "
+                 "protocol and scene"):
+        study_rig = _study_rig(rig, driver, rig_set)
         prep = prepare(protocol, vary=vary, ranges=ranges, sample=sample,
-                       sample_seed=sample_seed, seeds=seeds, fixed=set_)
+                       sample_seed=sample_seed, seeds=seeds, fixed=set_, rig=study_rig)
     with _session(out, spec, f"sweep {prep.target.label}", lean) as (runner, _display):
         result = execute(prep, runner, figures=draw)
     rows = result["rows"]
@@ -214,6 +244,10 @@ def limits(
         "(the paper's upper limit: contact breaks above it). Default: any."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " Fixed for every run."),
     scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
+    rig: Path | None = typer.Option(None, "--rig", help=STUDY_RIG_HELP),
+    driver: str | None = typer.Option(None, "--driver", help=STUDY_DRIVER_HELP,
+                                      show_default=False),
+    rig_set: list[str] = typer.Option([], "--rig-set", help=STUDY_RIG_SET_HELP),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<protocol>-limits."),
@@ -232,8 +266,9 @@ def limits(
     plots the outcome against the key (OUT/figures/limits.png). With --key
     twice: the boundary in the plane, by bisection along rays from the centre.
     Runs are cached by id in OUT: the same call twice gives the same answer.
-    The runs record lean unless --full. Exit code: 0 done, 2 bad input (before
-    any run), 128+N on signal N.
+    The runs record lean unless --full; they run on the built-in rig unless
+    --rig, --driver or --rig-set name a simulated one. Exit code: 0 done, 2 bad
+    input (before any run), 128+N on signal N.
     """
     set_ = with_scene_sets(set_, scene_set)
     import json
@@ -266,7 +301,7 @@ def limits(
         spans.append((lo, hi))
     if not protocol.is_file():
         raise ConfigError(str(protocol), "", "file not found")
-    target = Target(protocol, tuple(set_))
+    target = Target(protocol, tuple(set_), rig=_study_rig(rig, driver, rig_set))
     res = resolution or [(hi - lo) / 16 for lo, hi in spans]
     search = LimitSearch(target, keys, spans, seeds_of(target, seeds), list(res), coarse,
                          n_rays, max_breaks=max_breaks)
@@ -278,7 +313,8 @@ def limits(
         found = search.limits_rows()
         table.write(table.frame(search.rows), runner.out_dir)
         (runner.out_dir / "limits.json").write_text(json.dumps({
-            "kind": "limits", "protocol": str(protocol), "keys": key, "ranges": spans,
+            "kind": "limits", "protocol": str(protocol), "rig": target.rig_name,
+            "keys": key, "ranges": spans,
             "resolution": search.resolution, "seeds": search.seeds, "max_breaks": max_breaks,
             "limits": found, "recording": recording_kind(lean),
         }, indent=2) + "\n")
@@ -328,6 +364,10 @@ def reproduce(
         "limit searches."),
     set_: list[str] = typer.Option([], "--set", help=SET_HELP + " In every paper run."),
     scene_set: list[str] = typer.Option([], "--scene-set", help=SCENE_SET_HELP),
+    rig: Path | None = typer.Option(None, "--rig", help=STUDY_RIG_HELP),
+    driver: str | None = typer.Option(None, "--driver", help=STUDY_DRIVER_HELP,
+                                      show_default=False),
+    rig_set: list[str] = typer.Option([], "--rig-set", help=STUDY_RIG_SET_HELP),
     executor: str = typer.Option("local", "--executor", help=EXECUTOR_HELP),
     out: Path | None = typer.Option(
         None, "--out", help=OUT_HELP + " Default runs/sweeps/<config name>."),
@@ -343,8 +383,9 @@ def reproduce(
     OUT/claims.csv (the summary), OUT/limits.csv (limits at the nominal scene),
     OUT/results.csv/.parquet (every run) and OUT/figures/claims.png. Runs are
     cached by id in OUT (run it again: nothing is run twice). The runs record
-    lean unless the config says recording = "full" (or --full). Exit code: 0 done,
-    2 bad input (before any run), 128+N on signal N.
+    lean unless the config says recording = "full" (or --full); every paper run is
+    on the built-in rig unless --rig, --driver or --rig-set name a simulated one.
+    Exit code: 0 done, 2 bad input (before any run), 128+N on signal N.
     """
     set_ = with_scene_sets(set_, scene_set)
     from ffexp.cli.tables import json_line
@@ -355,7 +396,7 @@ def reproduce(
 
     spec = parse_executor(executor)
     with spinner(sys.stderr.isatty(), f"checking {config}: every scene of every paper run"):
-        study = study_mod.load(config, set_)
+        study = study_mod.load(config, set_, rig=_study_rig(rig, driver, rig_set))
     out = out if out is not None else Path("runs") / "sweeps" / study.config.name
     _check_out(out)
     n_runs = len(study.scenes) * len(study.targets) * len(study.config.seeds)

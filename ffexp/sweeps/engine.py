@@ -40,6 +40,7 @@ from ffexp.sweeps.worker import (
     read_row,
     run_one,
     serves,
+    with_columns,
 )
 
 #: How often a waiting batch wakes up to look at the stop flag (s).
@@ -222,7 +223,7 @@ class Runner:
                     continue
                 done = read_row(self.out_dir, job.run_id)
                 if done is not None and serves(done, job):
-                    rows[job.run_id] = done
+                    rows[job.run_id] = with_columns(done, job)
                     self.counts.total += 1
                     self.counts.done += 1
                     self.counts.skipped += 1

@@ -19,6 +19,7 @@ from ffexp.errors import ConfigError
 from ffexp.sweeps.engine import Runner
 from ffexp.sweeps.keys import Key, Value, parse_assignment, parse_range
 from ffexp.sweeps.plan import Point, Target, grid, latin_hypercube, seeds_of
+from ffexp.sweeps.rigs import StudyRig
 from ffexp.sweeps.worker import INPUTS_DIR, Job, recording_kind
 
 
@@ -41,12 +42,13 @@ class Prepared:
 def prepare(
     protocol: Path, *, vary: Sequence[str] = (), ranges: Sequence[str] = (),
     sample: int | None = None, sample_seed: int = 0, seeds: int = 1,
-    fixed: Sequence[str] = (),
+    fixed: Sequence[str] = (), rig: StudyRig | None = None,
 ) -> Prepared:
-    """Everything a sweep runs, validated (one-line ConfigError, exit 2, on bad input)."""
+    """Everything a sweep runs, validated (one-line ConfigError, exit 2, on bad input);
+    ``rig``: the rig of every run (``None``: the built-in rig)."""
     if not protocol.is_file():
         raise ConfigError(str(protocol), "", "file not found")
-    target = Target(protocol, tuple(fixed))
+    target = Target(protocol, tuple(fixed), rig=rig)
     axes: list[tuple[Key, list[Value]]] = [parse_assignment(v, "--vary") for v in vary]
     spans: list[tuple[Key, float, float]] = []
     for text in ranges:
@@ -76,7 +78,8 @@ def prepare(
 
 def execute(prep: Prepared, runner: Runner, figures: bool = True) -> dict[str, Any]:
     """Run the sweep; write ``results.csv``/``.parquet``, figures and ``sweep.json``
-    (``recording``: how the runs were asked to record, :attr:`Runner.lean`).
+    (``rig``: the runs' rig; ``recording``: how the runs were asked to record,
+    :attr:`Runner.lean`).
 
     Returns a summary: rows, table paths, figure paths, counts.
     """
@@ -85,7 +88,8 @@ def execute(prep: Prepared, runner: Runner, figures: bool = True) -> dict[str, A
     jobs = prep.jobs(runner.out_dir)
     (runner.out_dir / "sweep.json").write_text(json.dumps({
         "kind": "sweep", "protocol": str(prep.target.protocol_path),
-        "protocol_id": prep.target.ident, "fixed": list(prep.target.fixed),
+        "protocol_id": prep.target.ident, "rig": prep.target.rig_name,
+        "fixed": list(prep.target.fixed),
         "keys": [k.text for k in prep.keys], "points": len(prep.points),
         "seeds": prep.seeds, "runs": [j.run_id for j in jobs], "command": prep.command,
         "recording": recording_kind(runner.lean),

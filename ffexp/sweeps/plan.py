@@ -2,7 +2,9 @@
 
 :class:`Target` is one protocol file with its fixed ``--set`` overrides,
 resolved once (the index keys take their lists from it, the run ids its
-identity). :func:`grid` and :func:`latin_hypercube` make the points;
+identity), and the rig its runs use (:class:`~ffexp.sweeps.rigs.StudyRig`; ``None``:
+the built-in rig, whose run ids are those of studies before they took a rig).
+:func:`grid` and :func:`latin_hypercube` make the points;
 :meth:`Target.check` validates a point against the protocol and scene models
 before anything runs; :meth:`Target.job` turns a point and a seed into the
 :class:`~ffexp.sweeps.worker.Job` a worker runs.
@@ -15,22 +17,28 @@ import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ffexp.errors import ConfigError
 from ffexp.sweeps.keys import Key, Value, point_overrides, run_id, toml_text
 from ffexp.sweeps.worker import Job
+
+if TYPE_CHECKING:
+    from ffexp.sweeps.rigs import StudyRig
 
 Point = dict[str, Value]
 
 
 @dataclass
 class Target:
-    """One protocol file, its fixed overrides and its resolved models."""
+    """One protocol file, its fixed overrides and its resolved models, on a rig."""
 
     protocol_path: Path
     fixed: tuple[str, ...] = ()
     label: str = ""
+    rig: StudyRig | None = None
+    """The rig of every run (``None``: the built-in rig). Part of the identity when given;
+    the scene is then the one its robot runs in."""
     protocol: Any = field(init=False, repr=False)
     scene: Any = field(init=False, repr=False)
     ident: str = field(init=False)
@@ -42,11 +50,19 @@ class Target:
 
         self.protocol = load_run_protocol(self.protocol_path, self.fixed)
         scene_file = scene_path(self.protocol_path, self.protocol)
-        self.scene = load_scene(scene_file, self.protocol.scene.set)
         self.seed = int(self.protocol.seed)
+        if self.rig is None:
+            self.scene = load_scene(scene_file, self.protocol.scene.set)
+        else:
+            from ffexp.experiment import check_arm
+
+            self.scene = self.rig.scene(scene_file, self.protocol.scene.set, self.seed)
+            check_arm(self.rig.model, self.rig.name, self.scene, str(scene_file))
         digest = hashlib.sha1(usedforsecurity=False)
         digest.update(self.protocol.model_dump_json(exclude={"scene"}).encode())
         digest.update(self.scene.model_dump_json().encode())
+        if self.rig is not None:  # without one, the identity (and run ids) of before
+            digest.update(self.rig.identity().encode())
         self.ident = f"{self.protocol.name}:{digest.hexdigest()[:12]}"
         if not self.label:
             self.label = self.protocol.name
@@ -71,7 +87,11 @@ class Target:
         try:
             sets = self.overrides(keys, point)
             proto = load_run_protocol(self.protocol_path, sets)
-            load_scene(scene_path(self.protocol_path, proto), proto.scene.set)
+            scene_file = scene_path(self.protocol_path, proto)
+            if self.rig is None:
+                load_scene(scene_file, proto.scene.set)
+            else:
+                self.rig.scene(scene_file, proto.scene.set, self.seed)
         except ConfigError as exc:
             where = f"{exc.field}: " if exc.field else ""
             raise ConfigError(option, shown, f"{where}{exc.message}") from None
@@ -80,17 +100,27 @@ class Target:
             out_dir: Path, inputs: Path) -> Job:
         """The job of one (point, seed); ``inputs`` is this target's snapshot folder."""
         columns: dict[str, Any] = {k.text: _column_value(point[k.text]) for k in keys}
+        rig, rig_overrides, driver = (None, (), None) if self.rig is None else \
+            self.rig.job_rig(inputs)
         return Job(
             run_id=run_id(self.ident, point, seed, self.fixed),
             protocol=str(inputs / "protocol.toml"),
             overrides=(*self.overrides(keys, point), 'scene.file="scene.toml"', f"seed={seed}"),
             out_dir=str(out_dir),
-            columns={"target": self.label, **columns, "seed": seed},
+            columns={"target": self.label, "rig": self.rig_name, **columns, "seed": seed},
+            rig=rig, rig_overrides=rig_overrides, driver=driver,
         )
 
+    @property
+    def rig_name(self) -> str:
+        """The rows' ``rig``: the rig file as given, or ``<built-in DRIVER rig>``."""
+        from ffexp.sweeps.rigs import BUILTIN
+
+        return BUILTIN if self.rig is None else self.rig.name
+
     def snapshot(self, inputs_root: Path) -> Path:
-        """Copy the protocol and its scene into ``inputs_root/<id>/`` (what the workers
-        read: the sweep does not depend on the files changing under it)."""
+        """Copy the protocol, its scene and the rig's files into ``inputs_root/<id>/`` (what
+        the workers read: the sweep does not depend on the files changing under it)."""
         from ffexp.protocol import scene_path
 
         folder = inputs_root / self.ident.replace(":", "-")
@@ -103,6 +133,8 @@ class Target:
                 tmp = folder / f".{name}.tmp"
                 tmp.write_bytes(data)
                 tmp.replace(dst)
+        if self.rig is not None:
+            self.rig.copy_into(folder)
         return folder
 
 

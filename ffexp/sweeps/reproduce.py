@@ -27,6 +27,7 @@ from ffexp.sweeps import claims
 from ffexp.sweeps.engine import Runner
 from ffexp.sweeps.keys import Key, Value, current_value, parse_key
 from ffexp.sweeps.plan import Point, Target, grid, latin_hypercube
+from ffexp.sweeps.rigs import StudyRig
 from ffexp.sweeps.searches import LimitSearch
 from ffexp.sweeps.worker import recording_kind
 
@@ -158,15 +159,16 @@ class Study:
     """The grid's axes when the scenes are a pure grid (neighbours are defined)."""
 
 
-def load(path: Path, fixed: Sequence[str] = ()) -> Study:
-    """Read and validate the config, every protocol and every scene (before any run)."""
+def load(path: Path, fixed: Sequence[str] = (), rig: StudyRig | None = None) -> Study:
+    """Read and validate the config, every protocol and every scene (before any run), each
+    paper run on ``rig`` (``None``: the built-in rig)."""
     cfg = load_as(ReproduceConfig, path, (), "study")
     targets = {}
     for role, run in cfg.runs.items():
         proto = path.parent / run.protocol
         if not proto.is_file():
             raise ConfigError(str(path), f"runs.{role}.protocol", f"{proto}: file not found")
-        targets[role] = Target(proto, (*run.set, *fixed), label=role)
+        targets[role] = Target(proto, (*run.set, *fixed), label=role, rig=rig)
     first = next(iter(targets.values()))
     axes = []
     for text, vals in cfg.grid.items():
@@ -398,7 +400,8 @@ def write(study: Study, result: Mapping[str, Any], out_dir: Path) -> list[Path]:
         tmp.replace(out_dir / name)
         paths.append(out_dir / name)
     (out_dir / "reproduce.json").write_text(json.dumps({
-        "kind": "reproduce", "config": str(study.path), "config_json":
+        "kind": "reproduce", "config": str(study.path),
+        "rig": next(iter(study.targets.values())).rig_name, "config_json":
         study.config.model_dump(mode="json"), "summary": result["summary"],
         "limits": result["limits"], "flips": result["flips"],
         "regions": result.get("regions", []), "recording": result.get("recording", "full"),

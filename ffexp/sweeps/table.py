@@ -1,6 +1,7 @@
 """The results table: one row per run, typed columns, CSV and Parquet (pandas, pyarrow).
 
-Columns: ``run_id``, ``target`` (the protocol or the paper run), the varied
+Columns: ``run_id``, ``target`` (the protocol or the paper run), ``rig`` (the rig
+file, or ``<built-in DRIVER rig>``), the varied
 keys, ``seed``, every metric of ``ffexp analyze --json`` (six-vectors one
 column per axis, the link summary ``link_*``), ``error``, ``wall_s``,
 ``path`` (relative to the sweep directory) and ``recording`` (``full`` or ``lean``:
@@ -21,8 +22,8 @@ if TYPE_CHECKING:
 TAIL = ("error", "wall_s", "path", "recording")
 #: Text columns (an all-missing column of any other name is numeric: NaN).
 TEXT_COLUMNS = frozenset({
-    "run_id", "target", "protocol", "method", "break_times_s", "aborted", "warnings", "error",
-    "outcome", "outcome_note",
+    "run_id", "target", "rig", "protocol", "method", "break_times_s", "aborted", "warnings",
+    "error", "outcome", "outcome_note",
     "path", "recording",
 })
 CSV_NAME = "results.csv"

@@ -27,6 +27,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ffexp.rig_choice import RigChoice
+
 ROW_FILE = "row.json"
 RUN_FILE = "run.mcap"
 RUNS_DIR = "runs"
@@ -45,9 +47,20 @@ class Job:
     overrides: tuple[str, ...]
     out_dir: str
     columns: dict[str, Any] = field(default_factory=dict)
-    """The sweep's own columns of the row (target, the varied keys, seed)."""
+    """The sweep's own columns of the row (target, rig, the varied keys, seed)."""
     lean: bool = False
     """Record only the topics the metrics read (the row's numbers are the same)."""
+    rig: str | None = None
+    """The rig file (its copy in the study's ``inputs/``); ``None``: a built-in rig."""
+    rig_overrides: tuple[str, ...] = ()
+    """``dotted.key=value`` overrides of the rig's fields (``--rig-set``)."""
+    driver: str | None = None
+    """Without :attr:`rig`: the built-in rig's ``--driver`` (``None``: the default)."""
+
+    def rig_choice(self) -> RigChoice:
+        """The rig of the run, as :func:`ffexp.experiment.run_file` takes it."""
+        return RigChoice(Path(self.rig) if self.rig else None, self.rig_overrides,
+                         None if self.rig else self.driver)
 
 
 def recording_kind(lean: bool) -> str:
@@ -97,12 +110,20 @@ def flat_metrics(m: Any) -> dict[str, Any]:
             for k, v in out.items()}
 
 
+def with_columns(row: dict[str, Any], job: Job) -> dict[str, Any]:
+    """A done run's row with the job's columns it lacks (``rig``: rows from before studies
+    took a rig have none; the run's own values are kept)."""
+    if all(k in row for k in job.columns):
+        return row
+    return {"run_id": row.get("run_id", job.run_id), **job.columns, **row}
+
+
 def run_one(job: Job) -> dict[str, Any]:
     """Run a job (unless it is already done, :func:`serves`) and return its row."""
     out_dir = Path(job.out_dir)
     done = read_row(out_dir, job.run_id)
     if done is not None and serves(done, job):
-        return done
+        return with_columns(done, job)
     tmp = out_dir / RUNS_DIR / (
         f"{TMP_PREFIX}{job.run_id}-{platform.node()}-{os.getpid()}-{uuid.uuid4().hex[:6]}"
     )
@@ -137,7 +158,7 @@ def _commit(out_dir: Path, job: Job, tmp: Path, row: dict[str, Any]) -> dict[str
     there = read_row(out_dir, job.run_id)
     if there is None or serves(there, job):  # another worker committed it first: keep it
         shutil.rmtree(tmp, ignore_errors=True)
-        return there or row
+        return row if there is None else with_columns(there, job)
     old = final.with_name(f"{TMP_PREFIX}{job.run_id}-replaced-{uuid.uuid4().hex[:6]}")
     try:
         final.rename(old)
@@ -155,7 +176,8 @@ def _run_and_analyse(job: Job, tmp: Path) -> dict[str, Any]:
     from ffexp.experiment import run_file
     from ffexp.recording import load
 
-    result = run_file(Path(job.protocol), list(job.overrides), out_dir=tmp, lean=job.lean)
+    result = run_file(Path(job.protocol), list(job.overrides), rig=job.rig_choice(),
+                      out_dir=tmp, lean=job.lean)
     path = result.path.rename(tmp / RUN_FILE)
     return flat_metrics(metrics(load(path)))
 

@@ -252,6 +252,11 @@ class CommandFields:
     """Per TCF axis, normalised."""
     wrench: str
     """The superposed wrench, TCF at the TCP [N, N m]."""
+    held: str = ""
+    """A flags field whose :attr:`held_flag` bit marks a cycle the robot held on its own
+    (the runner sent no command: ``send(None)``), replayed as such; empty: every cycle the
+    robot commanded carries its command (FRI's packets)."""
+    held_flag: int = 0
 
 
 @dataclass(frozen=True)

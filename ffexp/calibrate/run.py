@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 from ffexp.calibrate.fit import Calibration, Progress
-from ffexp.calibrate.inputs import ReplayInput, read_input
+from ffexp.calibrate.inputs import ReplayInput, read_input, replaying_robot
 from ffexp.calibrate.params import FITTABLE, Param, parse_fit
 from ffexp.calibrate.pool import Rollouts
 from ffexp.calibrate.residuals import compare
-from ffexp.calibrate.resim import base_scene
+from ffexp.calibrate.resim import base_scene, replay_scene_file
 from ffexp.calibrate.result import FitResult, mark_inconsistent
 from ffexp.errors import ConfigError, InputError
 
@@ -64,7 +65,7 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
     """
     if not recordings:
         raise ConfigError("RUN.mcap", "", "no recording to fit")
-    scene = base_scene(scene_file, scene_overrides)
+    scene = base_scene(scene_file, scene_overrides, replaying_robot([*recordings, *holdout]))
     params = parse_fit(fit, scene)
     fit_in = load_inputs(recordings, scene, "RUN.mcap")
     held = load_inputs(holdout, scene, "--holdout")
@@ -91,7 +92,9 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
         if progress is not None:
             progress("rollouts", n, None, "replays of a recording")
 
-    with Rollouts(all_in, scene_file, jobs, done, batch) as pool:
+    with tempfile.TemporaryDirectory() as tmp, Rollouts(
+            all_in, replay_scene_file(scene_file, scene, Path(tmp)), jobs, done,
+            batch) as pool:
         fit_idx = list(range(len(fit_in)))
         cal = Calibration(fit_in, params, pool, scene_overrides, period, progress,
                           keep_unidentified, fit_idx, delay_s)

@@ -277,8 +277,12 @@ class Replay:
     """Of :attr:`robots`, those whose commands always cross a float32 wire."""
     estimate_ft: tuple[str, ...] = ()
     """``[ft]`` types that are the robot's own wrench estimate (one sample a cycle, no
-    sensor path), replayed as they are; any other F/T is replayed by the robot's
-    ``default_ft``."""
+    sensor path), replayed as they are (their recorded table); any other F/T is replayed
+    by the robot's ``default_ft``."""
+    settings: tuple[str, ...] = ()
+    """Fields of the recorded robot's ``[robot]`` table (the run's ``rig_json``) that its
+    replay table takes over where the recording holds them: the driver's own settings,
+    so a lab's rig replays as it ran; the others are the replay table's defaults."""
 
 
 @dataclass(frozen=True)

@@ -115,11 +115,14 @@ def _setpoint_cycle_s(scene: Scene) -> float:
 
 
 #: The simulated FR3 replays recordings of a Franka, real or simulated, through the same
-#: driver and impedance law (its settings the table's defaults); the robot's own wrench
-#: estimate (``franka-wrench``) is replayed as it is.
+#: driver and impedance law with the recorded rig's law settings (its ``setpoint_every``
+#: the table's default: a recording at another is refused by its cycle); the robot's own
+#: wrench estimate (``franka-wrench``) is replayed as it is.
 _REPLAY = Replay(robots=("franka-sim", "franka"), commands=APPLIED_COMMANDS,
                  table=_replay_table, cycle_s=_setpoint_cycle_s,
-                 estimate_ft=("franka-wrench",))
+                 estimate_ft=("franka-wrench",),
+                 settings=("stiffness_max_npm_nmprad", "hold_stiffness_npm_nmprad",
+                           "nullspace_stiffness_nmprad", "nullspace_damping_nmsprad"))
 
 
 #: ``ffexp emulate --robot fr3``: an FR3 listening on libfranka's command port.

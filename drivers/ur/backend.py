@@ -112,10 +112,14 @@ def _rtde_cycle_s(scene: Scene) -> float:
 
 
 #: The simulated UR5e replays recordings of a UR, real or simulated, through the same
-#: driver and URScript program (its settings the table's defaults); the UR's own wrench
-#: (``ur-wrench``) is replayed as it is.
+#: driver and URScript program with the recorded rig's force-mode and servo settings (its
+#: rate the table's default: a recording at another is refused by its cycle); the UR's
+#: own wrench (``ur-wrench``, from the recorded source) is replayed as it is.
 _REPLAY = Replay(robots=("ur-sim", "ur"), commands=APPLIED_COMMANDS, table=_replay_table,
-                 cycle_s=_rtde_cycle_s, estimate_ft=("ur-wrench",))
+                 cycle_s=_rtde_cycle_s, estimate_ft=("ur-wrench",),
+                 settings=("force_axis_stiffness_npm_nmprad", "force_mode_damping",
+                           "force_mode_gain_scaling", "compliant_speed_limits_mps_radps",
+                           "deviation_limits_m_rad", "servo_lookahead_s", "servo_gain"))
 
 
 #: ``ffexp emulate --robot ur5e``: a UR controller listening for RTDE clients.

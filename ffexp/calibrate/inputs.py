@@ -97,6 +97,12 @@ class ReplayInput:
     ft_type: str
     """The rig's F/T back-end as the simulator replays it (the simulated robot's default
     sensor, or the robot's own estimate)."""
+    ft_settings: dict[str, Any]
+    """The recorded ``[ft]`` table's other fields when it is the robot's own estimate
+    (the source the UR's wrench is read from), else none."""
+    robot_settings: dict[str, Any]
+    """The recorded ``[robot]`` table's fields the replaying robot takes over
+    (:attr:`drivers.base.backend.Replay.settings`)."""
     ft_estimate: bool
     """The F/T is the robot's own estimate: one sample a cycle, no sensor path to delay."""
     wire_precision: bool
@@ -276,6 +282,11 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
         starts = (override("arm.q_init", q0),)
     recorded_ft = meta.get("ft", "")
     estimate = recorded_ft in replay.estimate_ft
+    rig = _json(rec, "rig_json") or {}
+    robot_table, ft_table = rig.get("robot") or {}, rig.get("ft") or {}
+    robot_settings = {k: robot_table[k] for k in replay.settings if k in robot_table}
+    ft_settings = {k: v for k, v in ft_table.items() if k != "type"} \
+        if estimate and ft_table.get("type") == recorded_ft else {}
     ft_type = recorded_ft if estimate else sim.default_ft
     wire = driver in replay.wire or meta.get("wire_precision") == "true"
     pose = cmd[cmd_fields.pose][:n].reshape(n, 4, 4)
@@ -295,7 +306,8 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
         joints=state["joint_pos"][:n, :n_joints].astype(np.float64),
         ft_t_s=(ft.log_time_ns - t0) / 1e9, ft=ft["wrench"].astype(np.float64),
         target_t_s=tracked_t, target=tracked, start_overrides=starts, robot=sim.rig_type,
-        sim_cycle_s=scene_cycle, ft_type=ft_type, ft_estimate=estimate, wire_precision=wire,
+        sim_cycle_s=scene_cycle, ft_type=ft_type, ft_settings=ft_settings,
+        robot_settings=robot_settings, ft_estimate=estimate, wire_precision=wire,
         seed=int(meta.get("seed", "0") or 0), scene=scene,
         truth_seated=seated,
     )

@@ -80,8 +80,9 @@ class Trace:
 def _rig(inp: ReplayInput) -> Any:
     replay = registry.robot_backend(inp.robot).replay
     assert replay is not None  # (read_input chose a robot that replays)
-    return validate_rig({"robot": replay.table(inp.start_cycles, inp.wire_precision),
-                         "ft": {"type": inp.ft_type}}, _SOURCE)
+    return validate_rig({"robot": {**replay.table(inp.start_cycles, inp.wire_precision),
+                                   **inp.robot_settings},
+                         "ft": {"type": inp.ft_type, **inp.ft_settings}}, _SOURCE)
 
 
 def base_scene(scene_file: Path, overrides: Sequence[str] = (),

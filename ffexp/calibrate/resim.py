@@ -180,7 +180,7 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
                 robot.send(None)
     except SimulationError as exc:
         failed = f"simulation diverged at cycle {k}: {exc}"
-    except FfexpError as exc:  # the KRC stopped the arm (a limit switch), a bad command
+    except FfexpError as exc:  # the robot stopped the arm (a limit, a reflex), a bad command
         failed = f"replay stopped at cycle {k}: {exc}"
     finally:
         devices.close()

@@ -79,7 +79,7 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
                          "no sensor path to delay")
     sources = {i.ft_type for i in (*fit_in, *held)}
     if len(sources) > 1:
-        raise InputError("the recordings' F/T sources differ (a Net F/T and the KRC's estimate): "
+        raise InputError(f"the recordings' F/T sources differ ({', '.join(sorted(sources))}): "
                          "calibrate with recordings of one source at a time")
     period = 1.0 / float(scene["ft_sensor"]["rate"])
     delay_s = float(scene["ft_sensor"]["delay_s"])

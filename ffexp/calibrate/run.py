@@ -65,8 +65,14 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
     """
     if not recordings:
         raise ConfigError("RUN.mcap", "", "no recording to fit")
-    scene = base_scene(scene_file, scene_overrides, replaying_robot([*recordings, *holdout]))
+    try:  # the recordings' robot sets the base scene; the --fit keys are checked first
+        robot, unreplayable = replaying_robot([*recordings, *holdout]), None
+    except InputError as exc:
+        robot, unreplayable = None, exc
+    scene = base_scene(scene_file, scene_overrides, robot)
     params = parse_fit(fit, scene)
+    if unreplayable is not None:
+        raise unreplayable
     fit_in = load_inputs(recordings, scene, "RUN.mcap")
     held = load_inputs(holdout, scene, "--holdout")
     both = {p.resolve() for p in recordings} & {p.resolve() for p in holdout}

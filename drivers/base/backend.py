@@ -252,6 +252,11 @@ class CommandFields:
     """Per TCF axis, normalised."""
     wrench: str
     """The superposed wrench, TCF at the TCP [N, N m]."""
+    held: str = ""
+    """A flags field whose :attr:`held_flag` bit marks a cycle the robot held on its own
+    (the runner sent no command: ``send(None)``), replayed as such; empty: every cycle the
+    robot commanded carries its command (FRI's packets)."""
+    held_flag: int = 0
 
 
 @dataclass(frozen=True)
@@ -272,8 +277,12 @@ class Replay:
     """Of :attr:`robots`, those whose commands always cross a float32 wire."""
     estimate_ft: tuple[str, ...] = ()
     """``[ft]`` types that are the robot's own wrench estimate (one sample a cycle, no
-    sensor path), replayed as they are; any other F/T is replayed by the robot's
-    ``default_ft``."""
+    sensor path), replayed as they are (their recorded table); any other F/T is replayed
+    by the robot's ``default_ft``."""
+    settings: tuple[str, ...] = ()
+    """Fields of the recorded robot's ``[robot]`` table (the run's ``rig_json``) that its
+    replay table takes over where the recording holds them: the driver's own settings,
+    so a lab's rig replays as it ran; the others are the replay table's defaults."""
 
 
 @dataclass(frozen=True)

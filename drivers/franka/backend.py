@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import sys
 from importlib.util import find_spec
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from drivers.base.backend import (
     Backend,
+    CommandFields,
     Emulator,
     FtBackend,
     LinkCounter,
@@ -26,6 +27,7 @@ from drivers.base.backend import (
     OpenContext,
     OpenedRobot,
     OpenedSensor,
+    Replay,
     RobotBackend,
     cdr_topics_of,
     needs_robot,
@@ -36,7 +38,8 @@ from drivers.franka.config import FrankaSettings, FrankaSimConfig, FrankaWrenchF
 if TYPE_CHECKING:
     from drivers.description.scene import Scene
 
-__all__ = ["BACKEND", "FrankaSettings", "FrankaSimConfig", "FrankaWrenchFt"]
+__all__ = ["APPLIED_COMMANDS", "BACKEND", "FrankaSettings", "FrankaSimConfig",
+           "FrankaWrenchFt"]
 
 _TOPIC = "/robot/franka"
 
@@ -89,6 +92,39 @@ def _open_wrench(cfg: FrankaWrenchFt, ctx: OpenContext, robot: OpenedRobot) -> O
     return OpenedSensor(FrankaWrenchSensor(source), note="F/T from the Franka's O_F_ext_hat_K")
 
 
+#: Where a Franka's recordings hold the set-point the driver's impedance law applied: the
+#: runner's ``/control/command`` (its ``applied_*`` fields: the stiffness clipped to the
+#: law's limits; a cycle flagged held was ``send(None)``, the law keeping its set-point).
+#: The law runs in ffexp's driver, so no wire carries the set-point: this is the only
+#: record of it, on a real rig's full recording as on the simulator's.
+APPLIED_COMMANDS = CommandFields("/control/command", pose="applied_pose",
+                                 stiffness="applied_stiffness", damping="applied_damping",
+                                 wrench="applied_wrench", held="status", held_flag=0x1)
+
+
+def _replay_table(start_cycles: int, wire_precision: bool) -> dict[str, Any]:
+    # the law commands from the first state; the set-point crosses no wire
+    return {"type": "franka-sim"}
+
+
+def _setpoint_cycle_s(scene: Scene) -> float:
+    """ffexp's cycle on the simulated FR3: the table's default ``setpoint_every`` world
+    steps (the scene's ``fri.cycle``: the FCI's torque cycle)."""
+    every = int(FrankaSimConfig.model_fields["setpoint_every"].default)
+    return scene.fri.cycle * every
+
+
+#: The simulated FR3 replays recordings of a Franka, real or simulated, through the same
+#: driver and impedance law with the recorded rig's law settings (its ``setpoint_every``
+#: the table's default: a recording at another is refused by its cycle); the robot's own
+#: wrench estimate (``franka-wrench``) is replayed as it is.
+_REPLAY = Replay(robots=("franka-sim", "franka"), commands=APPLIED_COMMANDS,
+                 table=_replay_table, cycle_s=_setpoint_cycle_s,
+                 estimate_ft=("franka-wrench",),
+                 settings=("stiffness_max_npm_nmprad", "hold_stiffness_npm_nmprad",
+                           "nullspace_stiffness_nmprad", "nullspace_damping_nmsprad"))
+
+
 #: ``ffexp emulate --robot fr3``: an FR3 listening on libfranka's command port.
 EMULATOR = Emulator("fr3", "a Franka FR3 over libfranka's protocol (listens on --listen, "
                     "default 127.0.0.1:1337)", serve="drivers.franka.emulate.served:serve",
@@ -106,7 +142,8 @@ BACKEND = Backend(
     robots=(RobotBackend(FrankaSettings, _open_robot, driver="franka",
                          default_ft="franka-wrench", arm="fr3", takes_arm_place=True),
             RobotBackend(FrankaSimConfig, _open_sim, driver="franka-sim", default_ft="sim",
-                         scene=_sim_scene, arm="fr3", takes_arm_place=True)),
+                         scene=_sim_scene, replay=_REPLAY, arm="fr3",
+                         takes_arm_place=True)),
     sensors=(FtBackend(FrankaWrenchFt, _open_wrench,
                        needs_robot("ft", "franka", "franka-sim")),),
     topics=cdr_topics_of("drivers.franka.topics"),

@@ -11,10 +11,11 @@ driver is imported when a rig opens it.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from drivers.base.backend import (
     Backend,
+    CommandFields,
     DeviceConfig,
     Emulator,
     FtBackend,
@@ -22,6 +23,7 @@ from drivers.base.backend import (
     OpenContext,
     OpenedRobot,
     OpenedSensor,
+    Replay,
     RobotBackend,
     cdr_topics_of,
     needs_robot,
@@ -31,7 +33,8 @@ from drivers.ur.config import UrSettings, UrSimConfig
 if TYPE_CHECKING:
     from drivers.description.scene import Scene
 
-__all__ = ["BACKEND", "UR_ROBOT_TYPES", "UrSettings", "UrSimConfig", "UrWrenchFt"]
+__all__ = ["APPLIED_COMMANDS", "BACKEND", "UR_ROBOT_TYPES", "UrSettings", "UrSimConfig",
+           "UrWrenchFt"]
 
 #: The robot types whose driver is a :class:`~drivers.ur.driver.UrRobot`.
 UR_ROBOT_TYPES = ("ur", "ur-sim")
@@ -86,6 +89,39 @@ def _open_sim(cfg: UrSimConfig, ctx: OpenContext) -> OpenedRobot:
     return open_sim(cfg, ctx, ctx.scene_path(cfg.scene_file), _ur_scene(cfg, ctx))
 
 
+#: Where a UR's recordings hold the command the driver applied: the runner's
+#: ``/control/command`` (its ``applied_*`` fields: the wrench zeroed on the axes that follow
+#: the pose, as the registers carry it; a cycle flagged held was ``send(None)``, the
+#: program holding where the arm was). A UR records no wire topic of its commands (the
+#: registers are written from exactly these), and a real rig's full recording holds it too.
+APPLIED_COMMANDS = CommandFields("/control/command", pose="applied_pose",
+                                 stiffness="applied_stiffness", damping="applied_damping",
+                                 wrench="applied_wrench", held="status", held_flag=0x1)
+
+
+def _replay_table(start_cycles: int, wire_precision: bool) -> dict[str, Any]:
+    # the program runs from the first data package; RTDE's doubles cross exactly
+    return {"type": "ur-sim"}
+
+
+def _rtde_cycle_s(scene: Scene) -> float:
+    """The simulated UR's output period: whole world cycles at the table's default rate
+    (:class:`~drivers.ur.emulate.lockstep.LoopbackRtde`)."""
+    hz = float(UrSimConfig.model_fields["frequency_hz"].default)
+    return scene.fri.cycle * max(1, round(1.0 / (scene.fri.cycle * hz)))
+
+
+#: The simulated UR5e replays recordings of a UR, real or simulated, through the same
+#: driver and URScript program with the recorded rig's force-mode and servo settings (its
+#: rate the table's default: a recording at another is refused by its cycle); the UR's
+#: own wrench (``ur-wrench``, from the recorded source) is replayed as it is.
+_REPLAY = Replay(robots=("ur-sim", "ur"), commands=APPLIED_COMMANDS, table=_replay_table,
+                 cycle_s=_rtde_cycle_s, estimate_ft=("ur-wrench",),
+                 settings=("force_axis_stiffness_npm_nmprad", "force_mode_damping",
+                           "force_mode_gain_scaling", "compliant_speed_limits_mps_radps",
+                           "deviation_limits_m_rad", "servo_lookahead_s", "servo_gain"))
+
+
 #: ``ffexp emulate --robot ur5e``: a UR controller listening for RTDE clients.
 EMULATOR = Emulator("ur5e", "a UR e-Series controller over RTDE (listens on --listen, "
                     "default 127.0.0.1:30004)", serve="drivers.ur.emulate.served:serve",
@@ -102,7 +138,8 @@ BACKEND = Backend(
     robots=(RobotBackend(UrSettings, _open_robot, driver="ur", default_ft="ur-wrench",
                          arm="ur5e", takes_arm_place=True),
             RobotBackend(UrSimConfig, _open_sim, driver="ur-sim", default_ft="ur-wrench",
-                         scene=_ur_scene, arm="ur5e", takes_arm_place=True)),
+                         scene=_ur_scene, replay=_REPLAY, arm="ur5e",
+                         takes_arm_place=True)),
     sensors=(FtBackend(UrWrenchFt, _open_wrench, needs_robot("ft", *UR_ROBOT_TYPES)),),
     topics=cdr_topics_of("drivers.ur.topics"),
     # data packages the reader skipped: a cycle the runner never saw, as FRI's skipped

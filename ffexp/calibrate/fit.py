@@ -117,7 +117,7 @@ class Calibration:
         self.keep = keep_unidentified
         self.values: dict[str, float] = {p.key: p.start for p in self.params}
         self.ft_delay_s = ft_delay_s
-        """The start scene's F/T delay (0 for the KRC's estimate, which has none)."""
+        """The start scene's F/T delay (0 for the robot's own estimate, which has none)."""
         self.shift = self.shift_of(self.values.get("ft_sensor.delay_s"))
         self.stages: list[StageResult] = []
         self.notes: dict[str, str] = {}

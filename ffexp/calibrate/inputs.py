@@ -2,10 +2,13 @@
 
 A recording can be replayed into the simulator when a simulated robot replays
 its robot's recordings (:class:`drivers.base.backend.Replay`: the simulated
-LWR4+ those of an LWR4+ behind a KRC) and it holds the commands as the robot
+LWR4+ those of an LWR4+ behind a KRC, the simulated UR5e a UR's, the simulated
+FR3 a Franka's; :func:`replaying_robot`) and it holds the commands as the robot
 applied them (set-point, stiffness, damping and superposed wrench of every
-cycle, on the topic and fields that robot's back-end states), the states it
-measured (``/robot/state``) and the F/T samples (``/ft/raw``). The tracked
+cycle, and the cycles it held on its own, on the topic and fields that robot's
+back-end states), the states it measured (``/robot/state``) and the F/T samples
+(``/ft/raw``). The base scene is the replaying robot's (:func:`ffexp.calibrate.resim.base_scene`:
+a UR5e or an FR3 put in the place of a scene's other arm). The tracked
 target (``/target/pose``) is used where the rig had a tracker. The
 simulator's own truth (``/sim/truth``) is never fitted to (a real rig has
 none); it only gives the recorded outcome.
@@ -22,7 +25,7 @@ differing key.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -60,6 +63,9 @@ class ReplayInput:
     """Cycles before the robot first commanded (the link's MON phase)."""
     commanding: np.ndarray
     """(n,) bool: the robot applied the recorded command in that cycle."""
+    held: np.ndarray
+    """(n,) bool: the runner sent no command in that cycle, the robot held on its own
+    (replayed as ``send(None)``; never, for a robot whose commands say no such thing)."""
     pose: np.ndarray
     """(n, 4, 4) applied set-points [m]."""
     stiffness: np.ndarray
@@ -73,7 +79,7 @@ class ReplayInput:
     tcp: np.ndarray
     """(n, 3) measured TCP position [m]."""
     joints: np.ndarray
-    """(n, 7) measured joints [rad]."""
+    """(n, arm's joints) measured joints [rad]."""
     ft_t_s: np.ndarray
     """(m,) run time of each F/T sample [s]."""
     ft: np.ndarray
@@ -91,6 +97,12 @@ class ReplayInput:
     ft_type: str
     """The rig's F/T back-end as the simulator replays it (the simulated robot's default
     sensor, or the robot's own estimate)."""
+    ft_settings: dict[str, Any]
+    """The recorded ``[ft]`` table's other fields when it is the robot's own estimate
+    (the source the UR's wrench is read from), else none."""
+    robot_settings: dict[str, Any]
+    """The recorded ``[robot]`` table's fields the replaying robot takes over
+    (:attr:`drivers.base.backend.Replay.settings`)."""
     ft_estimate: bool
     """The F/T is the robot's own estimate: one sample a cycle, no sensor path to delay."""
     wire_precision: bool
@@ -163,6 +175,28 @@ def replayer(path: Path, driver: str) -> RobotBackend[Any]:
     return found
 
 
+def _driver(path: Path) -> str:
+    """A recording's robot type (``driver`` of its run metadata; empty: not named)."""
+    meta = load(path, ()).metadata.get("run", {})
+    return meta.get("driver", "")
+
+
+def replaying_robot(paths: Sequence[Path]) -> RobotBackend[Any]:
+    """The one simulated robot that replays every recording of ``paths`` (the first's
+    if none is given), else :class:`InputError` naming the recording that needs another."""
+    found: RobotBackend[Any] | None = None
+    first: Path | None = None
+    for path in paths:
+        robot = replayer(path, _driver(path))
+        if found is None:
+            found, first = robot, path
+        elif robot.rig_type != found.rig_type:
+            raise InputError(f"{path}: replayed by the {robot.rig_type} robot, {first} by the "
+                             f"{found.rig_type} robot: calibrate recordings of one robot "
+                             "family at a time")
+    return found if found is not None else default_robot()
+
+
 def _command_topics() -> tuple[str, ...]:
     """Where the replayable robots' recordings hold their applied commands."""
     return tuple(dict.fromkeys(
@@ -226,6 +260,9 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
     if n < MIN_CYCLES:
         raise InputError(f"{path}: {n} cycles; calibration needs at least {MIN_CYCLES}")
     commanding = state["commanding"][:n].astype(bool)
+    held = np.zeros(n, dtype=bool)
+    if cmd_fields.held:
+        held = (cmd[cmd_fields.held][:n].astype(np.int64) & cmd_fields.held_flag) != 0
     if not commanding.any():
         raise InputError(f"{path}: the robot never commanded; nothing to replay")
     start_cycles = int(np.argmax(commanding))
@@ -245,6 +282,11 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
         starts = (override("arm.q_init", q0),)
     recorded_ft = meta.get("ft", "")
     estimate = recorded_ft in replay.estimate_ft
+    rig = _json(rec, "rig_json") or {}
+    robot_table, ft_table = rig.get("robot") or {}, rig.get("ft") or {}
+    robot_settings = {k: robot_table[k] for k in replay.settings if k in robot_table}
+    ft_settings = {k: v for k, v in ft_table.items() if k != "type"} \
+        if estimate and ft_table.get("type") == recorded_ft else {}
     ft_type = recorded_ft if estimate else sim.default_ft
     wire = driver in replay.wire or meta.get("wire_precision") == "true"
     pose = cmd[cmd_fields.pose][:n].reshape(n, 4, 4)
@@ -254,16 +296,18 @@ def read_input(path: Path, base_scene: Mapping[str, Any], free: tuple[str, ...])
     seated = bool(placed["within"][-1]) if placed is not None and len(placed) else None
     return ReplayInput(
         path=path, cycle_s=cycle_s, start_cycles=start_cycles, commanding=commanding,
+        held=held,
         pose=pose.astype(np.float64),
         stiffness=cmd[cmd_fields.stiffness][:n].astype(np.float64),
         damping=cmd[cmd_fields.damping][:n].astype(np.float64),
         wrench=cmd[cmd_fields.wrench][:n].astype(np.float64),
         t_s=(state.log_time_ns[:n] - t0) / 1e9,
         tcp=state["tcp_pose"][:n].reshape(n, 4, 4)[:, :3, 3].astype(np.float64),
-        joints=state["joint_pos"][:n].astype(np.float64),
+        joints=state["joint_pos"][:n, :n_joints].astype(np.float64),
         ft_t_s=(ft.log_time_ns - t0) / 1e9, ft=ft["wrench"].astype(np.float64),
         target_t_s=tracked_t, target=tracked, start_overrides=starts, robot=sim.rig_type,
-        sim_cycle_s=scene_cycle, ft_type=ft_type, ft_estimate=estimate, wire_precision=wire,
+        sim_cycle_s=scene_cycle, ft_type=ft_type, ft_settings=ft_settings,
+        robot_settings=robot_settings, ft_estimate=estimate, wire_precision=wire,
         seed=int(meta.get("seed", "0") or 0), scene=scene,
         truth_seated=seated,
     )

@@ -102,7 +102,7 @@ def compare(inp: ReplayInput, tr: Trace, shift: int,
     n = min(inp.cycles, len(tr.t_s), int(np.searchsorted(inp.t_s, until_s)))
     diffs: dict[str, np.ndarray] = {
         "tcp": inp.tcp[:n] - tr.tcp[:n],
-        "joints": inp.joints[:n] - tr.joints[:n],
+        "joints": inp.joints[:n] - tr.joints[:n, :inp.joints.shape[1]],
     }
     sim_ft = ft_on_recorded(inp, tr, shift)
     quiet = inp.ft_t_s <= quiet_end_s(inp)

@@ -6,7 +6,7 @@ robot that replays the recording (:attr:`ReplayInput.robot`, its table from its
 :func:`drivers.factory.open_devices` with the base scene and overrides (the
 recording's start, the candidate parameters, a noise-free sensor), then
 ``robot.send()`` of the recorded command of every cycle (``None`` while the
-recorded robot did not command: the KRC mirrors), collecting each
+recorded robot did not command, the KRC mirroring, or held on its own), collecting each
 :class:`~drivers.base.types.RobotState` and the F/T samples.
 
 The simulated F/T sensor runs without noise, bias, drift or delay: the
@@ -25,13 +25,15 @@ from typing import Any
 import numpy as np
 
 from drivers import registry
-from drivers.base.backend import OpenContext
+from drivers.base.backend import OpenContext, RobotBackend
 from drivers.base.types import CartesianCommand
+from drivers.description import load_scene
 from drivers.description.scene import Scene
 from drivers.factory import open_devices
 from drivers.rig import validate_rig
 from ffexp import compiled
 from ffexp.calibrate.inputs import ReplayInput, default_robot
+from ffexp.calibrate.scene_out import scene_text
 from ffexp.errors import FfexpError, SimulationError
 from ffexp.recording.topics import STATE_JOINTS
 from ffexp.scenarios.funnel import Alignment, truth_placement
@@ -78,23 +80,42 @@ class Trace:
 def _rig(inp: ReplayInput) -> Any:
     replay = registry.robot_backend(inp.robot).replay
     assert replay is not None  # (read_input chose a robot that replays)
-    return validate_rig({"robot": replay.table(inp.start_cycles, inp.wire_precision),
-                         "ft": {"type": inp.ft_type}}, _SOURCE)
+    return validate_rig({"robot": {**replay.table(inp.start_cycles, inp.wire_precision),
+                                   **inp.robot_settings},
+                         "ft": {"type": inp.ft_type, **inp.ft_settings}}, _SOURCE)
 
 
-def base_scene(scene_file: Path, overrides: Sequence[str] = ()) -> dict[str, Any]:
-    """The scene the default rig's simulated robot runs in from ``scene_file`` and
-    ``overrides``, as JSON data; read, no world built.
+def base_scene(scene_file: Path, overrides: Sequence[str] = (),
+               robot: RobotBackend[Any] | None = None) -> dict[str, Any]:
+    """The scene the simulated ``robot`` (default: the default rig's) runs in from
+    ``scene_file`` and ``overrides``, as JSON data; read, no world built. A robot that
+    puts its arm in the place of another (a UR5e, an FR3) does so here as in a run.
 
     Raises :class:`~ffexp.errors.ConfigError` naming the file and key of a bad value.
     """
-    robot = default_robot()
-    if robot.scene is None:  # (the default rig is the simulator's)
-        raise TypeError(f"the default rig's robot {robot.rig_type!r} states no scene")
-    cfg = validate_rig({}, _SOURCE).robot
+    if robot is None:
+        robot = default_robot()
+    if robot.scene is None or robot.replay is None:  # (a replaying robot is simulated)
+        raise TypeError(f"robot {robot.rig_type!r} states no scene")
+    cfg = validate_rig({"robot": robot.replay.table(0, False),
+                        "ft": {"type": robot.default_ft}}, _SOURCE).robot
     scene = robot.scene(cfg, OpenContext(_SOURCE, scene_file, tuple(overrides)))
     data: dict[str, Any] = scene.model_dump(mode="json")
     return data
+
+
+def replay_scene_file(scene_file: Path, base: dict[str, Any], tmp: Path) -> Path:
+    """The scene file a replay starts from: ``scene_file`` itself, or, when the replaying
+    robot put its arm in the place of the file's (a UR5e or an FR3 in the paper's scene),
+    ``base`` (that scene, :func:`base_scene`) written to ``tmp``: the recordings' start
+    overrides are that arm's (its joints), which the file's own arm would refuse."""
+    if load_scene(scene_file).arm.model == base["arm"]["model"]:
+        return scene_file
+    path = tmp / f"{scene_file.stem}-{base['arm']['model']}.toml"
+    path.write_text(scene_text(base, [f"{scene_file} with the {base['arm']['model']} arm "
+                                      "in its place (calibration replay)"], {}),
+                    encoding="utf-8")
+    return path
 
 
 def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -> Trace:
@@ -136,8 +157,9 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
             truth = state.truth
             if truth is not None:
                 body = truth.body("target")
-                if body is not None:
-                    p = body.pose
+                if body is not None:  # in the arm's base frame, as a tracker sees it
+                    p = body.pose if truth.base_pose is None else \
+                        np.linalg.inv(truth.base_pose) @ body.pose
                     target[k] = (p[0, 3], p[1, 3], np.arctan2(p[1, 0], p[0, 0]))
                 placed = truth_placement(truth, state.tcp_pose_m)
                 seated[k] = placed is not None and _ALIGNED.within(placed)
@@ -148,7 +170,7 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
                 ft_w.append(samples.wrench.copy())
             if k == n - 1:
                 break
-            if inp.commanding[k]:
+            if inp.commanding[k] and not inp.held[k]:
                 cmd.pose_m[...] = inp.pose[k]
                 cmd.stiffness_npm_nmprad[...] = inp.stiffness[k]
                 cmd.damping_ratio[...] = inp.damping[k]
@@ -158,15 +180,13 @@ def rollout(inp: ReplayInput, scene_file: Path, overrides: Sequence[str] = ()) -
                 robot.send(None)
     except SimulationError as exc:
         failed = f"simulation diverged at cycle {k}: {exc}"
-    except FfexpError as exc:  # the KRC stopped the arm (a limit switch), a bad command
+    except FfexpError as exc:  # the robot stopped the arm (a limit, a reflex), a bad command
         failed = f"replay stopped at cycle {k}: {exc}"
     finally:
         devices.close()
     scene = devices.scene
     if scene is None:  # (a replaying robot is a simulated one)
         raise TypeError(f"robot {inp.robot!r} replays without a scene")
-    base = np.asarray(scene.arm.base_pos)
-    target[:, :2] -= base[:2]
     return Trace(t_s=t_s, pose=pose, joints=joints,
                  ft_t_s=np.concatenate(ft_t) if ft_t else np.zeros(0),
                  ft=np.concatenate(ft_w) if ft_w else np.zeros((0, 6)),

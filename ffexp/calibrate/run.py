@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import math
+import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 from ffexp.calibrate.fit import Calibration, Progress
-from ffexp.calibrate.inputs import ReplayInput, read_input
+from ffexp.calibrate.inputs import ReplayInput, read_input, replaying_robot
 from ffexp.calibrate.params import FITTABLE, Param, parse_fit
 from ffexp.calibrate.pool import Rollouts
 from ffexp.calibrate.residuals import compare
-from ffexp.calibrate.resim import base_scene
+from ffexp.calibrate.resim import base_scene, replay_scene_file
 from ffexp.calibrate.result import FitResult, mark_inconsistent
 from ffexp.errors import ConfigError, InputError
 
@@ -64,8 +65,14 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
     """
     if not recordings:
         raise ConfigError("RUN.mcap", "", "no recording to fit")
-    scene = base_scene(scene_file, scene_overrides)
+    try:  # the recordings' robot sets the base scene; the --fit keys are checked first
+        robot, unreplayable = replaying_robot([*recordings, *holdout]), None
+    except InputError as exc:
+        robot, unreplayable = None, exc
+    scene = base_scene(scene_file, scene_overrides, robot)
     params = parse_fit(fit, scene)
+    if unreplayable is not None:
+        raise unreplayable
     fit_in = load_inputs(recordings, scene, "RUN.mcap")
     held = load_inputs(holdout, scene, "--holdout")
     both = {p.resolve() for p in recordings} & {p.resolve() for p in holdout}
@@ -78,7 +85,7 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
                          "no sensor path to delay")
     sources = {i.ft_type for i in (*fit_in, *held)}
     if len(sources) > 1:
-        raise InputError("the recordings' F/T sources differ (a Net F/T and the KRC's estimate): "
+        raise InputError(f"the recordings' F/T sources differ ({', '.join(sorted(sources))}): "
                          "calibrate with recordings of one source at a time")
     period = 1.0 / float(scene["ft_sensor"]["rate"])
     delay_s = float(scene["ft_sensor"]["delay_s"])
@@ -91,7 +98,9 @@ def calibrate(recordings: Sequence[Path], fit: Sequence[str], scene_file: Path, 
         if progress is not None:
             progress("rollouts", n, None, "replays of a recording")
 
-    with Rollouts(all_in, scene_file, jobs, done, batch) as pool:
+    with tempfile.TemporaryDirectory() as tmp, Rollouts(
+            all_in, replay_scene_file(scene_file, scene, Path(tmp)), jobs, done,
+            batch) as pool:
         fit_idx = list(range(len(fit_in)))
         cal = Calibration(fit_in, params, pool, scene_overrides, period, progress,
                           keep_unidentified, fit_idx, delay_s)

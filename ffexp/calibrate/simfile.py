@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ffexp.calibrate.inputs import ReplayInput, read_input
+from ffexp.calibrate.inputs import ReplayInput, read_input, replaying_robot
 from ffexp.calibrate.params import FITTABLE
 from ffexp.calibrate.residuals import Comparison, compare, ft_on_recorded, outcomes
-from ffexp.calibrate.resim import Trace, base_scene, rollout
+from ffexp.calibrate.resim import Trace, base_scene, replay_scene_file, rollout
 from ffexp.calibrate.scene_out import scene_text
 from ffexp.errors import ConfigError, InputError
 from ffexp.recording import Recorder, load
@@ -94,9 +94,9 @@ def resimulate(recording: Path, out: Path, scene_file: Path | None = None,
                                  "run); give --scene")
             scene_file = Path(tmp) / "recorded-scene.toml"
             scene_file.write_text(scene_text(json.loads(meta["scene_json"]), [], {}))
-        scene = base_scene(scene_file, overrides)
+        scene = base_scene(scene_file, overrides, replaying_robot([recording]))
         inp = read_input(recording, scene, tuple(FITTABLE))
-        tr = rollout(inp, scene_file, overrides)
+        tr = rollout(inp, replay_scene_file(scene_file, scene, Path(tmp)), overrides)
     shift = 0 if inp.ft_estimate else round(  # the robot's own estimate: no delay
         float(scene["ft_sensor"]["delay_s"]) * float(scene["ft_sensor"]["rate"]))
     comp = compare(inp, tr, shift)

@@ -14,7 +14,7 @@ from typing import Any
 
 import typer
 
-from ffexp.cli._common import EXIT_FAILURE, cli_errors
+from ffexp.cli._common import EXIT_FAILURE, cli_errors, new_file
 
 #: A replay simulates no scene (it feeds the recorded measurements): protocol fields only.
 REPLAY_SET_HELP = ("Override a field of the protocol, e.g. --set run.timeout_s=2 (repeatable; "
@@ -53,6 +53,8 @@ def replay(
         raise InputError(f"{out}: --out must be an .mcap file")
     if out.exists() and out.is_dir():
         raise InputError(f"{out}: --out is a directory, expected an .mcap file")
+    if out.resolve() != recording.resolve():  # itself: said more precisely by the replay
+        new_file("--out", out)
     result = run_replay(recording, out, protocol_path=protocol, overrides=overrides)
     _warn(result.warnings)
     how = f" with --set {' '.join(overrides)}" if overrides else ""

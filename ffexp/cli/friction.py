@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors
+from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors, new_file
 from ffexp.errors import InputError
 from ffexp.numfmt import fixed as _fixed
 from ffexp.numfmt import pm
@@ -133,8 +133,7 @@ def synth(
         where = ".".join(str(p) for p in err["loc"]) or "parameters"
         raise InputError(f"synth: {where}: {err['msg']}") from None
     for path, option in ((out, "--out"), (truth, "--truth")):
-        if path is not None and path.is_dir():  # OpenCV would print its own lines first
-            raise InputError(f"{option}: {path}: is a directory, expected a file name")
+        new_file(option, path)  # a directory: OpenCV would print its own lines first
     try:
         with Steps() as steps, steps.step(f"rendering {cfg.n_frames} frames"):
             result = write_video(
@@ -195,6 +194,7 @@ def estimate(
     from ffexp.friction.estimate import Scale, estimate_video
     from ffexp.friction.track import ProgressFn
 
+    new_file("--record", record)  # before the tracking, not after it
     scale = Scale(px_per_m=px_per_m, object_size_m=object_size_m, table_points=table_points)
     show = sys.stderr.isatty() if progress is None else progress
 

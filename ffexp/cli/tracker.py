@@ -19,7 +19,7 @@ from typing import Any
 
 import typer
 
-from ffexp.cli._common import cli_errors
+from ffexp.cli._common import cli_errors, new_file
 
 
 def _points(path: Path) -> tuple[Any, Any]:
@@ -38,6 +38,8 @@ def _points(path: Path) -> tuple[Any, Any]:
         text = path.read_text()
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file (a CSV of u, v, x, y)") from None
     rows = []
     for k, row in enumerate(csv.reader(text.splitlines()), start=1):
         if not row or row[0].strip().startswith("#"):
@@ -73,6 +75,7 @@ def calibrate_camera(
     from drivers.vision.calibration import calibration_from_points, save_calibration
     from ffexp.errors import InputError
 
+    new_file("", out)
     px, plane = _points(points)
     try:
         hom = calibration_from_points(px, plane)

@@ -14,7 +14,7 @@ from typing import Any
 
 import typer
 
-from ffexp.cli._common import EXIT_FAILURE, cli_errors, fail
+from ffexp.cli._common import EXIT_FAILURE, check_scene_file, cli_errors, fail
 from ffexp.cli.progress import Steps
 
 #: Columns of the terminal's tables that give way first when it is narrow (the report, the
@@ -46,6 +46,7 @@ def resimulate(
 
     if out.exists() and out.resolve() != recording.resolve():  # itself: said more precisely
         raise ConfigError("--out", str(out), "exists; a recording is never overwritten")
+    check_scene_file("--scene", scene)
     with Steps() as steps, steps.step(f"replaying {recording.name} into the simulator"):
         r = run(recording, out, scene, scene_set)
     c = r.comparison
@@ -115,6 +116,7 @@ def calibrate(
         raise ConfigError("--jobs", str(jobs), "at least 1")
     if batch < 1:
         raise ConfigError("--batch", str(batch), "at least 1")
+    check_scene_file("--scene", scene)
     report_dir = report if report is not None else out.parent / f"{out.stem}-report"
     if report_dir.exists() and not report_dir.is_dir():
         raise ConfigError("--report", str(report_dir), "exists and is not a directory")

@@ -25,7 +25,14 @@ from pathlib import Path
 import typer
 
 from drivers.emulate import robots
-from ffexp.cli._common import StopFlag, check_cpus, cli_errors, positive, stop_signals
+from ffexp.cli._common import (
+    StopFlag,
+    check_cpus,
+    check_scene_file,
+    cli_errors,
+    positive,
+    stop_signals,
+)
 from ffexp.errors import ConfigError
 
 _ROBOTS = tuple(robots.robot(n) for n in robots.robot_names())
@@ -158,6 +165,7 @@ def emulate(
         raise ConfigError("--listen", listen, f"the {robot} emulator listens nowhere: it "
                           "sends to its remote driver (--remote)")
     remote_addr = None if remote is None else parse_host_port("--remote", remote)
+    check_scene_file("--scene", scene)
     faults = FaultSettings(
         loss=_pct("--loss", loss),
         delay_s=_ms("--delay-ms", delay_ms),

@@ -110,7 +110,9 @@ def finished_runs(directory: Path, campaign_file: Path) -> list[dict[str, object
     except FileNotFoundError:
         raise InputError(f"--resume: {directory}: no {MANIFEST}, not a campaign "
                          "directory") from None
-    except (OSError, ValueError) as exc:
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except ValueError as exc:
         raise InputError(f"{path}: cannot read: {exc}") from None
     if not isinstance(manifest, dict) or manifest.get("kind") != "campaign":
         raise InputError(f"{path}: not a campaign manifest")

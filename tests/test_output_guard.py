@@ -41,12 +41,14 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
         r.metadata("run", {"protocol": "method2", "scene_json": Scene().model_dump_json()})
         r.log(START_NS, "INFO", "phase", "start")
     (d / "a_dir").mkdir()
+    (d / "odd" / "campaign.json").mkdir(parents=True)
     (d / "binary.csv").write_bytes(bytes(range(128, 256)) * 4)
     (d / "points.csv").write_text("u,v,x,y\n0,0,0,0\n100,0,0.1,0\n0,100,0,0.1\n100,100,0.1,0.1\n")
     for name in ("kept.csv", "kept.mcap", "kept.avi", "kept.json", "kept.toml"):
         (d / name).write_text(KEPT)
     return {
         "tmp": str(d), "rec": str(rec), "sim": str(sim), "dir": str(d / "a_dir"),
+        "odd_campaign": str(d / "odd"),
         "binary": str(d / "binary.csv"), "points": str(d / "points.csv"),
         "video": str(ROOT / "data/friction/sample.avi"),
         "rig": str(ROOT / "rigs/sim.toml"), "protocol": str(ROOT / "protocols/method2.toml"),
@@ -90,6 +92,9 @@ CASES: list[tuple[str, list[str]]] = [
     ("hil-sweep {impact} --out {tmp}/hs --delays 0,101", ["--delays", "101",
                                                           "carrier.extra_delay_cycles"]),
     ("campaign {campaign} --resume {kept_csv}", ["--resume", "kept.csv", "not a directory"]),
+    ("campaign {campaign} --resume {odd_campaign}", ["campaign.json", "cannot read: Is a "
+                                                     "directory"]),
+    ("report {tmp} -o {kept_mcap}", ["--out", "kept.mcap", "exists"]),
 ]
 
 
@@ -107,7 +112,7 @@ def test_bad_input_is_one_line_exit_2_and_nothing_is_lost(
 
 #: One case per command, as a user's shell runs it.
 SUBPROCESS = [CASES[0], CASES[1], CASES[2], CASES[3], CASES[6], CASES[10], CASES[11],
-              CASES[13], CASES[15], CASES[17]]
+              CASES[13], CASES[15], CASES[17], CASES[19]]
 
 
 @pytest.mark.slow

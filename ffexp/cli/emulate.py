@@ -130,7 +130,12 @@ def emulate(
     fault: list[str] = typer.Option([], "--fault", help=FAULT_HELP),
 ) -> None:
     """Emulate a robot controller (a KRC over FRI 1.x by default) and the Net F/T box on the
-    simulated rig."""
+    simulated rig.
+
+    Serves until --duration or Ctrl-C/SIGTERM, which is how an emulator is meant to end:
+    the counters are printed and the exit code is 0 (a second signal: 130 at once);
+    2 on bad input.
+    """
     # imported here: the other commands need not load the emulator
     from drivers.config import apply_overrides, validate
     from drivers.description.scene import Scene, load_scene

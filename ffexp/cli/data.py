@@ -44,11 +44,13 @@ def replay(
     reported. Exit 0 when the replay ran, 2 on bad input.
     """
     from ffexp.errors import InputError
+    from ffexp.recording.kind import check_run_recording
     from ffexp.recording.reader import check_file
     from ffexp.replay import OPEN_LOOP
     from ffexp.replay import replay as run_replay
 
     check_file(recording)
+    check_run_recording(recording)
     if out.suffix != ".mcap":
         raise InputError(f"{out}: --out must be an .mcap file")
     if out.exists() and out.is_dir():
@@ -93,7 +95,8 @@ def diff(
     Columns: max |A-B| and its run time, "from": where it first exceeds the
     tolerance, "beyond": messages beyond it, "paired": A's messages compared.
 
-    Exit 0 when everything compared is within tolerance, 1 when not, 2 on bad input.
+    Exit 0 when everything compared is within tolerance, 1 when not, 2 on bad input
+    (also two recordings without a numeric topic in common: nothing compared).
     """
     from ffexp.cli.tables import console
     from ffexp.diff import check_tolerance, figure
@@ -108,6 +111,9 @@ def diff(
     ra, rb = load(a), load(b)
     _warn(ra.warnings + rb.warnings)
     result = run_diff(ra, rb, topics, rtol=rtol, atol=atol)
+    if not result.topics:  # "within tolerance on 0 topics" would say they agree
+        raise ConfigError(f"{a}, {b}", "", "no numeric topic in both recordings: nothing "
+                          "to compare")
     con = console()
     con.print(_diff_table(result), soft_wrap=True)
     for name, only in ((a, result.only_a), (b, result.only_b)):

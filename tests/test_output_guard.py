@@ -95,6 +95,18 @@ CASES: list[tuple[str, list[str]]] = [
     ("campaign {campaign} --resume {odd_campaign}", ["campaign.json", "cannot read: Is a "
                                                      "directory"]),
     ("report {tmp} -o {kept_mcap}", ["--out", "kept.mcap", "exists"]),
+    # friction synth's settings: named by the option typed, and no video cut short is left
+    ("friction synth --out {tmp}/new.avi --duration 0.2 --size 100x100",
+     ["--block-m, --px-per-m, --size", "250.0 px"]),
+    ("friction synth --out {tmp}/new.avi --duration 0.2 --size 32x720", ["--size", "64"]),
+    ("friction synth --out {tmp}/new.avi --duration 0.2 --v0 -1", ["--v0", "greater than 0"]),
+    ("friction synth --out {tmp}/new.avi --duration -1", ["--duration", "greater than 0"]),
+    ("friction synth --out {tmp}/new.avi --duration 0.2 --start-px -5000,0",
+     ["--start-px", "does not fit"]),
+    ("friction synth --out {tmp}/new.avi --duration 0.2 --exposure-s 5",
+     ["--exposure-s", "motion blur"]),
+    ("friction synth --out {tmp}/new.avi --duration 0.2 --marker NOPE", ["--marker", "NOPE"]),
+    ("friction estimate {video} --px-per-m 1000 --marker NOPE", ["--marker", "NOPE"]),
 ]
 
 
@@ -112,7 +124,7 @@ def test_bad_input_is_one_line_exit_2_and_nothing_is_lost(
 
 #: One case per command, as a user's shell runs it.
 SUBPROCESS = [CASES[0], CASES[1], CASES[2], CASES[3], CASES[6], CASES[10], CASES[11],
-              CASES[13], CASES[15], CASES[17], CASES[19]]
+              CASES[13], CASES[15], CASES[17], CASES[19], CASES[24]]
 
 
 @pytest.mark.slow

@@ -171,3 +171,18 @@ def test_schema_help_names_every_kind() -> None:
     assert KIND_NAMES == tuple(KINDS)
     result = runner.invoke(app, ["schema", "-h"])
     assert "hil-impact" in " ".join(result.stdout.split())
+
+
+def test_a_scene_made_valid_by_its_overrides_passes_the_kind_check(
+        files: dict[str, str]) -> None:
+    """The kind check reads the scene file alone; a scene that only its --scene-set
+    makes valid is not stopped there (the replay goes on to the recording)."""
+    scene = Path(files["tmp"]) / "negative_mu.toml"
+    scene.write_text("[target]\nmu = -1.0\n")
+    line = ["resimulate", files["rec"], "--out", str(Path(files["tmp"]) / "o.mcap"),
+            "--scene", str(scene)]
+    alone = runner.invoke(app, line)
+    check_one_line(alone.exit_code, alone.stdout, alone.stderr, ["negative_mu.toml",
+                                                                 "target.mu"])
+    fixed = runner.invoke(app, [*line, "--scene-set", "target.mu=0.005"])
+    check_one_line(fixed.exit_code, fixed.stdout, fixed.stderr, ["rec.mcap", "/robot/command"])

@@ -192,7 +192,8 @@ def check_scene_file(option: str, path: Path | None) -> None:
     """Raise a ConfigError naming what ``path`` is when a scene option was given another
     kind of ffexp file (a rig, a run protocol): ``is a rig, not a scene``, instead of
     the scene's validation error on the other file's first table (``robot: unknown key``).
-    A scene that is merely invalid keeps its own error (raised where it is loaded)."""
+    A scene that is merely invalid passes: where it is loaded with the command's
+    overrides, its own error names its field (or an override makes it valid)."""
     if path is None:
         return
     from drivers.config import read_toml
@@ -206,7 +207,7 @@ def check_scene_file(option: str, path: Path | None) -> None:
         what = wrong_kind(read_toml(path), "scene")
         if what is not None:
             raise ConfigError(option, str(path), what) from None
-        raise
+        # a scene merely invalid (or made valid by the command's overrides): loaded later
 
 
 def check_cpus(option: str, cpus: list[int] | tuple[int, ...]) -> None:

@@ -75,8 +75,8 @@ def calibrate_camera(
     from drivers.vision.calibration import calibration_from_points, save_calibration
     from ffexp.errors import InputError
 
-    new_file("", out)
     px, plane = _points(points)
+    new_file("", out)  # before the fit and the file
     try:
         hom = calibration_from_points(px, plane)
     except ValueError as exc:

@@ -107,6 +107,13 @@ CASES: list[tuple[str, list[str]]] = [
      ["--exposure-s", "motion blur"]),
     ("friction synth --out {tmp}/new.avi --duration 0.2 --marker NOPE", ["--marker", "NOPE"]),
     ("friction estimate {video} --px-per-m 1000 --marker NOPE", ["--marker", "NOPE"]),
+    # a key the protocol does not have is --key's fault, not --range's
+    ("limits {protocol} --key nosuch --range 0:1 --out {tmp}/lim", ["--key", "nosuch",
+                                                                     "unknown key"]),
+    ("limits {protocol} --key align.f_ref[2] --key scene.target.nosuch --range 0:1 "
+     "--range 0:1 --out {tmp}/lim", ["--key", "scene.target.nosuch", "unknown key"]),
+    ("limits {protocol} --key align.k_ri[9] --range 0:1 --out {tmp}/lim",
+     ["--key", "align.k_ri[9]", "past the end"]),
 ]
 
 
@@ -118,7 +125,7 @@ def test_bad_input_is_one_line_exit_2_and_nothing_is_lost(
     assert "recorded-scene.toml" not in result.stderr  # no temporary file named
     for ext in ("csv", "mcap", "avi", "json", "toml"):
         assert Path(files[f"kept_{ext}"]).read_text() == KEPT
-    for made in ("new.avi", "cal.toml", "c.toml", "rs.mcap", "hs"):
+    for made in ("new.avi", "cal.toml", "c.toml", "rs.mcap", "hs", "lim"):
         assert not (Path(files["tmp"]) / made).exists(), made
 
 

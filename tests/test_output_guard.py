@@ -114,6 +114,11 @@ CASES: list[tuple[str, list[str]]] = [
      "--range 0:1 --out {tmp}/lim", ["--key", "scene.target.nosuch", "unknown key"]),
     ("limits {protocol} --key align.k_ri[9] --range 0:1 --out {tmp}/lim",
      ["--key", "align.k_ri[9]", "past the end"]),
+    # ... and a sweep's: named by the key as typed, not by a sampled value of it
+    ("sweep {protocol} --range align.k_ri[9]=0:1 --sample 2 --out {tmp}/lim",
+     ["--range: align.k_ri[9]: index 9 past the end"]),
+    ("sweep {protocol} --vary align.f_ref[2]=1,2 --range scene.target.nosuch=0:1 --sample 2 "
+     "--out {tmp}/lim", ["--range: scene.target.nosuch: unknown key"]),
 ]
 
 

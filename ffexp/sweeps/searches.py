@@ -16,8 +16,8 @@ from ffexp import outcome
 from ffexp.errors import ConfigError
 from ffexp.sweeps import limits
 from ffexp.sweeps.engine import Runner
-from ffexp.sweeps.keys import Key, current_value
-from ffexp.sweeps.plan import Target
+from ffexp.sweeps.keys import Key
+from ffexp.sweeps.plan import Target, check_keys
 
 
 @dataclass
@@ -63,13 +63,7 @@ class LimitSearch:
             for values in corners:
                 self.target.check(self.keys, self._point(values), "--range")
         except ConfigError:
-            proto = self.target.protocol.model_dump(mode="json")
-            scene = self.target.scene.model_dump(mode="json")
-            for key in self.keys:
-                try:
-                    current_value(key, proto, scene)
-                except ConfigError as exc:
-                    raise ConfigError("--key", key.text, exc.message) from None
+            check_keys(self.target, self.keys, {k.text: "--key" for k in self.keys})
             raise
 
     def _point(self, coords: Sequence[float]) -> dict[str, Any]:

@@ -185,7 +185,9 @@ def emulate(
     if entry.takes_cycle:
         overrides.append(f"fri.cycle={cycle_ms / 1000.0}")
     if scene is None:
-        sc = validate(Scene, apply_overrides({}, overrides), "<paper scene>")
+        # an error here is an override's (the robot's own and --cycle-ms's are valid)
+        sc = validate(Scene, apply_overrides({}, overrides),
+                      "the paper scene with --set/--scene-set")
     else:
         sc = load_scene(scene, overrides)
         if entry.overrides_from is not None and sc.arm.model != robot:

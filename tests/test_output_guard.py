@@ -109,6 +109,8 @@ CASES: list[tuple[str, list[str]]] = [
      ["--exposure-s", "motion blur"]),
     ("friction synth --out {tmp}/new.avi --duration 0.2 --marker NOPE", ["--marker", "NOPE"]),
     ("friction estimate {video} --px-per-m 1000 --marker NOPE", ["--marker", "NOPE"]),
+    ("friction estimate {video} --px-per-m 1000 --fps 0", ["--fps", "0", "> 0"]),
+    ("friction estimate {video} --px-per-m 1000 --marker-id 3", ["--marker-id", "--marker"]),
     # a key the protocol does not have is --key's fault, not --range's
     ("limits {protocol} --key nosuch --range 0:1 --out {tmp}/lim", ["--key", "nosuch",
                                                                      "unknown key"]),

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors, new_file
+from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors, new_file, positive
 from ffexp.errors import InputError
 from ffexp.numfmt import fixed as _fixed
 from ffexp.numfmt import pm
@@ -229,6 +229,10 @@ def estimate(
 
     new_file("--record", record)  # before the tracking, not after it
     _check_marker(marker)
+    positive("--fps", fps)  # (None: the video's own)
+    if marker_id is not None and marker is None:
+        raise InputError(f"--marker-id: {marker_id}: needs --marker DICT (the marker's "
+                         "dictionary); without it the block is tracked, not a marker")
     scale = Scale(px_per_m=px_per_m, object_size_m=object_size_m, table_points=table_points)
     show = sys.stderr.isatty() if progress is None else progress
 

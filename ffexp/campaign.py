@@ -102,12 +102,17 @@ def finished_runs(directory: Path, campaign_file: Path) -> list[dict[str, object
     end, in order, up to the first that did not (stopped by Ctrl-C, or missing): what a
     resumed campaign keeps. Bad input (exit 2): no manifest, or another campaign file's."""
     path = directory / MANIFEST
+    if directory.exists() and not directory.is_dir():
+        raise InputError(f"--resume: {directory}: not a directory (give the campaign's "
+                         "directory)")
     try:
         manifest = json.loads(path.read_text())
     except FileNotFoundError:
         raise InputError(f"--resume: {directory}: no {MANIFEST}, not a campaign "
                          "directory") from None
-    except (OSError, ValueError) as exc:
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except ValueError as exc:
         raise InputError(f"{path}: cannot read: {exc}") from None
     if not isinstance(manifest, dict) or manifest.get("kind") != "campaign":
         raise InputError(f"{path}: not a campaign manifest")

@@ -17,6 +17,7 @@ Each fittable key belongs to one stage of the identification
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -114,8 +115,11 @@ def parse_fit(texts: Sequence[str], scene: Mapping[str, Any], where: str = "--fi
                 if not colon:
                     raise ValueError
                 lo, hi = float(a), float(b)
+                if not (math.isfinite(lo) and math.isfinite(hi)):
+                    raise ValueError
             except ValueError:
-                raise ConfigError(where, text, "expected KEY=LO:HI with two numbers") from None
+                raise ConfigError(where, text, "expected KEY=LO:HI with two finite "
+                                  "numbers") from None
             if not lo < hi:
                 raise ConfigError(where, text, f"empty bounds: {lo:g} is not below {hi:g}")
             if lo < spec.lo or hi > spec.hi:

@@ -86,6 +86,7 @@ def resimulate(recording: Path, out: Path, scene_file: Path | None = None,
         raise ConfigError("--out", str(out), "is a directory; give the recording's file name")
     if out.resolve() == recording.resolve():
         raise ConfigError("--out", str(out), "is the recording itself")
+    recorded = scene_file is None
     with tempfile.TemporaryDirectory() as tmp:
         if scene_file is None:
             meta = load(recording, ["/robot/state"]).metadata.get("run", {})
@@ -94,7 +95,14 @@ def resimulate(recording: Path, out: Path, scene_file: Path | None = None,
                                  "run); give --scene")
             scene_file = Path(tmp) / "recorded-scene.toml"
             scene_file.write_text(scene_text(json.loads(meta["scene_json"]), [], {}))
-        scene = base_scene(scene_file, overrides, replaying_robot([recording]))
+        try:
+            scene = base_scene(scene_file, overrides, replaying_robot([recording]))
+        except ConfigError as exc:
+            if not recorded or exc.source != str(scene_file):
+                raise
+            # the recording's own scene, written to a temporary file: name the recording
+            raise ConfigError(f"{recording} (its recorded scene)", exc.field,
+                              exc.message) from None
         inp = read_input(recording, scene, tuple(FITTABLE))
         tr = rollout(inp, replay_scene_file(scene_file, scene, Path(tmp)), overrides)
     shift = 0 if inp.ft_estimate else round(  # the robot's own estimate: no delay

@@ -15,6 +15,7 @@ import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from pathlib import Path
 from types import FrameType
 from typing import ParamSpec, TypeVar
 
@@ -166,6 +167,47 @@ def positive(option: str, value: float | None, *, allow_zero: bool = False) -> N
     if not (ok and value < float("inf")):
         bound = ">= 0" if allow_zero else "> 0"
         raise ConfigError(option, str(value), f"must be finite and {bound}")
+
+
+def new_file(option: str, path: Path | None) -> None:
+    """Raise a ConfigError naming ``option`` (``""``: an argument, the path alone) when
+    ``path``, an output file the user named, is a directory or exists already: nothing
+    already written is overwritten.
+
+    Called before the command does its work, so a refused name costs nothing.
+    """
+    from ffexp.errors import ConfigError
+
+    if path is None:
+        return
+    where = (option, str(path)) if option else (str(path), "")
+    if path.is_dir():
+        raise ConfigError(*where, "is a directory, expected a file name")
+    if path.exists() or path.is_symlink():
+        raise ConfigError(*where, "exists; an output file is never overwritten (give a new "
+                          "name)")
+
+
+def check_scene_file(option: str, path: Path | None) -> None:
+    """Raise a ConfigError naming what ``path`` is when a scene option was given another
+    kind of ffexp file (a rig, a run protocol): ``is a rig, not a scene``, instead of
+    the scene's validation error on the other file's first table (``robot: unknown key``).
+    A scene that is merely invalid passes: where it is loaded with the command's
+    overrides, its own error names its field (or an override makes it valid)."""
+    if path is None:
+        return
+    from drivers.config import read_toml
+    from drivers.description.scene import load_scene
+    from ffexp.errors import ConfigError
+    from ffexp.filekind import wrong_kind
+
+    try:
+        load_scene(path)
+    except ConfigError:
+        what = wrong_kind(read_toml(path), "scene")
+        if what is not None:
+            raise ConfigError(option, str(path), what) from None
+        # a scene merely invalid (or made valid by the command's overrides): loaded later
 
 
 def check_cpus(option: str, cpus: list[int] | tuple[int, ...]) -> None:

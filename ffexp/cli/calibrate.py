@@ -14,7 +14,7 @@ from typing import Any
 
 import typer
 
-from ffexp.cli._common import EXIT_FAILURE, cli_errors, fail
+from ffexp.cli._common import EXIT_FAILURE, check_scene_file, cli_errors, fail
 from ffexp.cli.progress import Steps
 
 #: Columns of the terminal's tables that give way first when it is narrow (the report, the
@@ -43,9 +43,12 @@ def resimulate(
     """
     from ffexp.calibrate.simfile import resimulate as run
     from ffexp.errors import ConfigError
+    from ffexp.recording.kind import check_run_recording
 
     if out.exists() and out.resolve() != recording.resolve():  # itself: said more precisely
         raise ConfigError("--out", str(out), "exists; a recording is never overwritten")
+    check_scene_file("--scene", scene)
+    check_run_recording(recording)
     with Steps() as steps, steps.step(f"replaying {recording.name} into the simulator"):
         r = run(recording, out, scene, scene_set)
     c = r.comparison
@@ -102,6 +105,7 @@ def calibrate(
     from ffexp.calibrate.scene_out import scene_text, set_key, write_scene
     from ffexp.cli.tables import Column, console, fitted_table
     from ffexp.errors import ConfigError
+    from ffexp.recording.kind import check_run_recording
     from ffexp.revision import source_revision
 
     if out.exists():
@@ -115,6 +119,9 @@ def calibrate(
         raise ConfigError("--jobs", str(jobs), "at least 1")
     if batch < 1:
         raise ConfigError("--batch", str(batch), "at least 1")
+    check_scene_file("--scene", scene)
+    for path in (*recordings, *holdout):
+        check_run_recording(path)
     report_dir = report if report is not None else out.parent / f"{out.stem}-report"
     if report_dir.exists() and not report_dir.is_dir():
         raise ConfigError("--report", str(report_dir), "exists and is not a directory")

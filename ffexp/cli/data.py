@@ -14,7 +14,7 @@ from typing import Any
 
 import typer
 
-from ffexp.cli._common import EXIT_FAILURE, cli_errors
+from ffexp.cli._common import EXIT_FAILURE, cli_errors, new_file
 
 #: A replay simulates no scene (it feeds the recorded measurements): protocol fields only.
 REPLAY_SET_HELP = ("Override a field of the protocol, e.g. --set run.timeout_s=2 (repeatable; "
@@ -44,15 +44,19 @@ def replay(
     reported. Exit 0 when the replay ran, 2 on bad input.
     """
     from ffexp.errors import InputError
+    from ffexp.recording.kind import check_run_recording
     from ffexp.recording.reader import check_file
     from ffexp.replay import OPEN_LOOP
     from ffexp.replay import replay as run_replay
 
     check_file(recording)
+    check_run_recording(recording)
     if out.suffix != ".mcap":
         raise InputError(f"{out}: --out must be an .mcap file")
     if out.exists() and out.is_dir():
         raise InputError(f"{out}: --out is a directory, expected an .mcap file")
+    if out.resolve() != recording.resolve():  # itself: said more precisely by the replay
+        new_file("--out", out)
     result = run_replay(recording, out, protocol_path=protocol, overrides=overrides)
     _warn(result.warnings)
     how = f" with --set {' '.join(overrides)}" if overrides else ""
@@ -91,7 +95,8 @@ def diff(
     Columns: max |A-B| and its run time, "from": where it first exceeds the
     tolerance, "beyond": messages beyond it, "paired": A's messages compared.
 
-    Exit 0 when everything compared is within tolerance, 1 when not, 2 on bad input.
+    Exit 0 when everything compared is within tolerance, 1 when not, 2 on bad input
+    (also two recordings without a numeric topic in common: nothing compared).
     """
     from ffexp.cli.tables import console
     from ffexp.diff import check_tolerance, figure
@@ -106,6 +111,9 @@ def diff(
     ra, rb = load(a), load(b)
     _warn(ra.warnings + rb.warnings)
     result = run_diff(ra, rb, topics, rtol=rtol, atol=atol)
+    if not result.topics:  # "within tolerance on 0 topics" would say they agree
+        raise ConfigError(f"{a}, {b}", "", "no numeric topic in both recordings: nothing "
+                          "to compare")
     con = console()
     con.print(_diff_table(result), soft_wrap=True)
     for name, only in ((a, result.only_a), (b, result.only_b)):

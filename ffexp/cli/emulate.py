@@ -25,7 +25,14 @@ from pathlib import Path
 import typer
 
 from drivers.emulate import robots
-from ffexp.cli._common import StopFlag, check_cpus, cli_errors, positive, stop_signals
+from ffexp.cli._common import (
+    StopFlag,
+    check_cpus,
+    check_scene_file,
+    cli_errors,
+    positive,
+    stop_signals,
+)
 from ffexp.errors import ConfigError
 
 _ROBOTS = tuple(robots.robot(n) for n in robots.robot_names())
@@ -123,7 +130,12 @@ def emulate(
     fault: list[str] = typer.Option([], "--fault", help=FAULT_HELP),
 ) -> None:
     """Emulate a robot controller (a KRC over FRI 1.x by default) and the Net F/T box on the
-    simulated rig."""
+    simulated rig.
+
+    Serves until --duration or Ctrl-C/SIGTERM, which is how an emulator is meant to end:
+    the counters are printed and the exit code is 0 (a second signal: 130 at once);
+    2 on bad input.
+    """
     # imported here: the other commands need not load the emulator
     from drivers.config import apply_overrides, validate
     from drivers.description.scene import Scene, load_scene
@@ -158,6 +170,7 @@ def emulate(
         raise ConfigError("--listen", listen, f"the {robot} emulator listens nowhere: it "
                           "sends to its remote driver (--remote)")
     remote_addr = None if remote is None else parse_host_port("--remote", remote)
+    check_scene_file("--scene", scene)
     faults = FaultSettings(
         loss=_pct("--loss", loss),
         delay_s=_ms("--delay-ms", delay_ms),
@@ -172,7 +185,9 @@ def emulate(
     if entry.takes_cycle:
         overrides.append(f"fri.cycle={cycle_ms / 1000.0}")
     if scene is None:
-        sc = validate(Scene, apply_overrides({}, overrides), "<paper scene>")
+        # an error here is an override's (the robot's own and --cycle-ms's are valid)
+        sc = validate(Scene, apply_overrides({}, overrides),
+                      "the paper scene with --set/--scene-set")
     else:
         sc = load_scene(scene, overrides)
         if entry.overrides_from is not None and sc.arm.model != robot:

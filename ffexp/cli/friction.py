@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors
+from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors, new_file, positive
 from ffexp.errors import InputError
 from ffexp.numfmt import fixed as _fixed
 from ffexp.numfmt import pm
@@ -56,6 +56,28 @@ def _parse_size(text: str) -> tuple[int, int]:
     except ValueError:
         raise InputError(f"--size: expected WIDTHxHEIGHT such as 1280x720, not {text!r}") from None
     return w, h
+
+
+#: SynthConfig's fields that synth's options name otherwise.
+SYNTH_OPTIONS = {"v0_mps": "--v0", "duration_s": "--duration", "width_px": "--size",
+                 "height_px": "--size", "marker_dict": "--marker"}
+
+
+def _check_marker(marker: str | None) -> None:
+    """``--marker``: a dictionary OpenCV knows (its error names the option)."""
+    if marker is None:
+        return
+    from drivers.vision.marker import aruco_dictionary
+
+    try:
+        aruco_dictionary(marker)
+    except ValueError as exc:
+        raise InputError(f"--marker: {exc}") from None
+
+
+def _synth_option(field: str) -> str:
+    """The option of ``synth`` that sets SynthConfig's ``field``."""
+    return SYNTH_OPTIONS.get(field, f"--{field.replace('_', '-')}")
 
 
 @app.command()
@@ -109,6 +131,7 @@ def synth(
         start = (su, sv)
     if codec not in FOURCC:
         raise InputError(f"--codec: expected one of {', '.join(FOURCC)}, not {codec!r}")
+    _check_marker(marker)
     try:
         cfg = SynthConfig(
             mu=mu,
@@ -130,21 +153,30 @@ def synth(
         )
     except ValidationError as exc:
         err = exc.errors()[0]
-        where = ".".join(str(p) for p in err["loc"]) or "parameters"
-        raise InputError(f"synth: {where}: {err['msg']}") from None
+        field = ".".join(str(p) for p in err["loc"])
+        # a check across fields: those that make the block's size in the frame
+        where = _synth_option(field) if field else "--block-m, --px-per-m, --size"
+        msg = str(err["msg"]).removeprefix("Value error, ")
+        raise InputError(f"{where}: {msg}") from None
     for path, option in ((out, "--out"), (truth, "--truth")):
-        if path is not None and path.is_dir():  # OpenCV would print its own lines first
-            raise InputError(f"{option}: {path}: is a directory, expected a file name")
+        new_file(option, path)  # a directory: OpenCV would print its own lines first
     try:
-        with Steps() as steps, steps.step(f"rendering {cfg.n_frames} frames"):
-            result = write_video(
-                cfg,
-                out,
-                np.random.default_rng(seed),
-                codec=codec,  # type: ignore[arg-type]
-                truth_path=truth,
-            )
-    except ValueError as exc:
+        try:
+            with Steps() as steps, steps.step(f"rendering {cfg.n_frames} frames"):
+                result = write_video(
+                    cfg,
+                    out,
+                    np.random.default_rng(seed),
+                    codec=codec,  # type: ignore[arg-type]
+                    truth_path=truth,
+                )
+        except BaseException:  # a video cut short (bad settings, Ctrl-C) is not left behind
+            out.unlink(missing_ok=True)  # (new_file: it did not exist before)
+            raise
+    except ValueError as exc:  # a setting the video cannot be made with: "field: why"
+        field, sep, why = str(exc).partition(": ")
+        if sep and field in SynthConfig.model_fields:
+            raise InputError(f"{_synth_option(field)}: {why}") from None
         raise InputError(f"{out}: {exc}") from None
     except OSError as exc:
         raise InputError(f"{truth or out}: {exc.strerror or exc}") from None
@@ -195,6 +227,12 @@ def estimate(
     from ffexp.friction.estimate import Scale, estimate_video
     from ffexp.friction.track import ProgressFn
 
+    new_file("--record", record)  # before the tracking, not after it
+    _check_marker(marker)
+    positive("--fps", fps)  # (None: the video's own)
+    if marker_id is not None and marker is None:
+        raise InputError(f"--marker-id: {marker_id}: needs --marker DICT (the marker's "
+                         "dictionary); without it the block is tracked, not a marker")
     scale = Scale(px_per_m=px_per_m, object_size_m=object_size_m, table_points=table_points)
     show = sys.stderr.isatty() if progress is None else progress
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import typer
 
@@ -78,6 +79,23 @@ def _ints(text: str) -> list[int]:
         raise ConfigError("--delays", text, "expected whole cycles, e.g. 0,1,2") from None
 
 
+def _check_values(proto: Any, options: tuple[tuple[str, str, list[Any]], ...]) -> None:
+    """Each value of each option in the protocol's scene, before any run: a value the
+    scene refuses (a negative stiffness, a delay past its limit) is bad input naming the
+    option, not the scene file it was put into."""
+    from drivers.description.scene import load_scene
+    from ffexp.errors import ConfigError
+
+    for option, key, values in options:
+        for value in values:
+            try:
+                load_scene(proto.scene, (*proto.scene_set, f"{key}={value}"))
+            except ConfigError as exc:
+                if exc.field != key:
+                    raise
+                raise ConfigError(option, str(value), f"{key}: {exc.message}") from None
+
+
 @cli_errors
 def hil_sweep(
     protocol: Path = typer.Argument(..., help="Impact protocol (protocols/hil_impact.toml)."),
@@ -106,7 +124,11 @@ def hil_sweep(
     if bad:
         raise ConfigError("--compensation", bad[0], "expected none, passivity or compliance")
     proto = load_hil_protocol(protocol)
+    ds = _ints(delays)
+    _check_values(proto, (("--delays", "carrier.extra_delay_cycles", ds),
+                          ("--stiffness", "contact.stiffness", ks),
+                          ("--compensation", "carrier.compensation", comps)))
     out.mkdir(parents=True, exist_ok=True)
-    rows = sweep(proto, out, _ints(delays), ks, comps)
+    rows = sweep(proto, out, ds, ks, comps)
     fig = curve_figure(rows, out / "hil_sweep.png")
     typer.echo(f"{len(rows)} runs -> {out / 'hil_sweep.csv'}, {fig}")

@@ -9,10 +9,11 @@ from __future__ import annotations
 import sys
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import typer
 
-from ffexp.cli._common import EXIT_BAD_INPUT, cli_errors, fail
+from ffexp.cli._common import cli_errors, fail, new_file
 from ffexp.cli.progress import Steps
 from ffexp.cli.run import WIDE_HELP
 
@@ -50,9 +51,11 @@ def analyze(
     from ffexp import figures
     from ffexp.analysis import metrics, run_name
     from ffexp.cli.tables import console, json_line, key_value_table
+    from ffexp.errors import InputError
     from ffexp.hil.analysis import analyze_recording, is_hil
     from ffexp.linkcheck import check_link
     from ffexp.recording import load
+    from ffexp.recording.kind import not_a_run
 
     _check_plots_dir(plots)
     con = console()
@@ -65,6 +68,9 @@ def analyze(
             else:
                 con.print(key_value_table(path.stem, values))
             continue
+        what = not_a_run(rec.metadata)
+        if what is not None:
+            raise InputError(f"{path}: {what}")
         link = check_link(rec)
         if not link.measured and "run" in rec.metadata:  # a robot that never answered
             _warn(rec.warnings)
@@ -118,15 +124,19 @@ def compare(
         json_line,
         write_csv,
     )
+    from ffexp.errors import InputError
     from ffexp.recording import load
+    from ffexp.recording.kind import not_a_run
 
-    if csv_path is not None and csv_path.is_dir():
-        raise fail(f"--csv: {csv_path}: is a directory, expected a file name", EXIT_BAD_INPUT)
+    new_file("--csv", csv_path)
     rows = []
     with Steps() as steps, steps.step("loading recordings", total=len(recordings)) as advance:
         for path in recordings:
             rec = load(path)
-            rows.append(compare_row(rec))
+            what = not_a_run(rec.metadata)
+            if what is not None:
+                raise InputError(f"{path}: {what}")
+            rows.append(_unmeasured_row(rec) or compare_row(rec))
             _warn(rec.warnings)
             advance()
     if as_json:
@@ -142,11 +152,30 @@ def compare(
         print(f"wrote {csv_path}", file=sys.stderr if as_json else sys.stdout)
 
 
+def _unmeasured_row(rec: Any) -> dict[str, Any] | None:
+    """The row of a run that never got a measurement (a robot that never answered, a run
+    killed before its first cycle), as ``analyze`` says it; ``None`` for any other file
+    (which :func:`ffexp.analysis.compare_row` reads, or fails on with its one line)."""
+    from ffexp.analysis import COMPARE_KEYS, run_name
+    from ffexp.linkcheck import check_link
+
+    link = check_link(rec)
+    if link.measured or "run" not in rec.metadata:
+        return None
+    row: dict[str, Any] = dict.fromkeys(COMPARE_KEYS)
+    row.update(file=str(rec.path), run=run_name(rec), complete=rec.complete,
+               protocol=rec.metadata["run"].get("protocol"),
+               outcome=link.text().removeprefix("link: "), trial_valid=link.trial_valid,
+               trial_validity=link.validity)
+    return row
+
+
 @cli_errors
 def recover_cmd(
     recording: Path = typer.Argument(..., help="An unfinished recording (killed run)."),
     output: Path | None = typer.Option(
-        None, "-o", "--output", help="Default: <name>.recovered.mcap beside the input."
+        None, "-o", "--output", help="Default: <name>.recovered.mcap beside the input "
+        "(taken: -1, -2, ...). Never overwritten."
     ),
 ) -> None:
     """Rewrite every complete chunk of an unfinished recording as a valid, indexed file.
@@ -155,9 +184,14 @@ def recover_cmd(
     ``analyze`` and ``compare`` show it complete: no, its trial validity unknown.
     Exit code 2 when the file holds no complete message to recover.
     """
+    from ffexp.naming import unique_stem
     from ffexp.recording import recover
 
-    dst = output or recording.with_suffix(".recovered.mcap")
+    if output is not None and output.resolve() != recording.resolve():  # itself: said later
+        new_file("--output", output)
+    # the default name beside the input: a recovered file there already is kept (-1, -2, ...)
+    stem = recording.with_suffix(".recovered").name
+    dst = output or recording.with_name(unique_stem(recording.parent, stem, (".mcap",)) + ".mcap")
     result = recover(recording, dst)
     state = "complete file" if result.complete else "unfinished file"
     if result.corrupt_chunks:

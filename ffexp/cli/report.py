@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from ffexp.cli._common import cli_errors
+from ffexp.cli._common import cli_errors, new_file
 from ffexp.cli.progress import Steps
 
 
@@ -14,8 +14,8 @@ from ffexp.cli.progress import Steps
 def report(
     directory: Path = typer.Argument(..., help="A campaign or sweep directory."),
     out: Path | None = typer.Option(
-        None, "--out", "-o", help="The HTML file (default: DIR/report-<time>.html, never "
-        "overwriting)."
+        None, "--out", "-o", help="The HTML file (default: DIR/report-<time>.html); an "
+        "existing file is never overwritten."
     ),
 ) -> None:
     """Write one HTML page (images embedded) for a campaign or sweep: the paper's table
@@ -25,6 +25,7 @@ def report(
 
     if out is not None and out.is_dir():
         raise ConfigError("--out", str(out), "is a directory; give the HTML file's name")
+    new_file("--out", out)
     with Steps() as steps, steps.step(f"report of {directory}"):
         path = write_report(directory, out)
     typer.echo(f"report: {path}")

@@ -1,4 +1,5 @@
-"""``ffexp schema``: the JSON Schema of protocol, campaign, sweep, scene, rig and study files."""
+"""``ffexp schema``: the JSON Schema of protocol, campaign, sweep, scene, rig, study and impact
+files."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import typer
 from ffexp.cli._common import cli_errors
 
 #: The kinds (ffexp.schemas.KINDS; listed here so that --help needs no import).
-KIND_NAMES = ("protocol", "campaign", "sec3-sweep", "scene", "rig", "study")
+KIND_NAMES = ("protocol", "campaign", "sec3-sweep", "scene", "rig", "study", "hil-impact")
 
 
 @cli_errors

@@ -19,7 +19,7 @@ from typing import Any
 
 import typer
 
-from ffexp.cli._common import cli_errors
+from ffexp.cli._common import cli_errors, new_file
 
 
 def _points(path: Path) -> tuple[Any, Any]:
@@ -38,6 +38,8 @@ def _points(path: Path) -> tuple[Any, Any]:
         text = path.read_text()
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file (a CSV of u, v, x, y)") from None
     rows = []
     for k, row in enumerate(csv.reader(text.splitlines()), start=1):
         if not row or row[0].strip().startswith("#"):
@@ -74,6 +76,7 @@ def calibrate_camera(
     from ffexp.errors import InputError
 
     px, plane = _points(points)
+    new_file("", out)  # before the fit and the file
     try:
         hom = calibration_from_points(px, plane)
     except ValueError as exc:

@@ -75,6 +75,8 @@ def load_table_points(path: Path) -> tuple[F64, F64]:
         tab = np.asarray(doc["table_m"], np.float64)
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a directory, expected a JSON file") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"{path}: cannot read table points ({exc})") from None
     except (KeyError, TypeError, ValueError):

@@ -245,7 +245,7 @@ def frames(
         & (centres[:, 1] + half <= cfg.height_px - 0.5)
     )
     if not bool(inside[0]):
-        raise ValueError("the block does not fit in the frame at its start position")
+        raise ValueError("start_px: the block does not fit in the frame at its start position")
     leaves = None if bool(inside.all()) else float(t_frames[int(np.argmin(inside))])
     truth = SynthTruth(
         mu=cfg.mu,
@@ -305,7 +305,7 @@ def _render(
                 0 <= du and 0 <= dv and du + a.shape[1] <= big[1] and dv + a.shape[0] <= big[0]
             ):
                 raise ValueError(
-                    "motion blur spans more than the sprite margin: shorten exposure_s"
+                    "exposure_s: motion blur spans more than the sprite margin: shorten it"
                 )
             alpha_acc[dv : dv + a.shape[0], du : du + a.shape[1]] += a / n_sub
             prem_acc[dv : dv + a.shape[0], du : du + a.shape[1]] += p / n_sub

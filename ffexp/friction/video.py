@@ -56,6 +56,8 @@ class VideoFrames:
         odd = not_regular(path)
         if odd:
             raise InputError(f"{path}: is {odd}, not a regular video file")
+        if path.is_dir():
+            raise InputError(f"{path}: is a directory, expected a video file")
         if not path.is_file():
             raise InputError(f"{path}: no such file")
         with quiet_opencv():

@@ -18,7 +18,7 @@ from typing import Any
 from ffexp.errors import ConfigError
 from ffexp.sweeps.engine import Runner
 from ffexp.sweeps.keys import Key, Value, parse_assignment, parse_range
-from ffexp.sweeps.plan import Point, Target, grid, latin_hypercube, seeds_of
+from ffexp.sweeps.plan import Point, Target, check_keys, grid, latin_hypercube, seeds_of
 from ffexp.sweeps.rigs import StudyRig
 from ffexp.sweeps.worker import INPUTS_DIR, Job, recording_kind
 
@@ -71,8 +71,13 @@ def prepare(
         sampled = latin_hypercube(spans, sample, sample_seed)
         points = [{**p, **q} for p in points for q in sampled]
     seed_list = seeds_of(target, seeds)
-    for p in points:
-        target.check(keys, p, "--vary" if axes else "--range")
+    try:
+        for p in points:
+            target.check(keys, p, "--vary" if axes else "--range")
+    except ConfigError:  # a key the protocol has not: its option's, not a sampled value's
+        options = {k.text: "--vary" for k, _ in axes} | {k.text: "--range" for k, _, _ in spans}
+        check_keys(target, keys, options)
+        raise
     return Prepared(target, keys, points, seed_list, command=list(sys.argv))
 
 

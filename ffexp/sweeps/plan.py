@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ffexp.errors import ConfigError
-from ffexp.sweeps.keys import Key, Value, point_overrides, run_id, toml_text
+from ffexp.sweeps.keys import Key, Value, current_value, point_overrides, run_id, toml_text
 from ffexp.sweeps.worker import Job
 
 if TYPE_CHECKING:
@@ -171,3 +171,15 @@ def seeds_of(target: Target, n: int) -> list[int]:
     if n < 1:
         raise ConfigError("--seeds", str(n), "must be at least 1")
     return [target.seed + k for k in range(n)]
+
+
+def check_keys(target: Target, keys: Sequence[Key], options: Mapping[str, str]) -> None:
+    """Raise a ConfigError naming a key's option (``options[key.text]``) when the
+    target's protocol or scene has no such key (or list element); else return."""
+    proto = target.protocol.model_dump(mode="json")
+    scene = target.scene.model_dump(mode="json")
+    for key in keys:
+        try:
+            current_value(key, proto, scene)
+        except ConfigError as exc:
+            raise ConfigError(options.get(key.text, "--vary"), key.text, exc.message) from None

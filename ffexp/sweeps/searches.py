@@ -17,7 +17,7 @@ from ffexp.errors import ConfigError
 from ffexp.sweeps import limits
 from ffexp.sweeps.engine import Runner
 from ffexp.sweeps.keys import Key
-from ffexp.sweeps.plan import Target
+from ffexp.sweeps.plan import Target, check_keys
 
 
 @dataclass
@@ -56,10 +56,15 @@ class LimitSearch:
         self.name = self.name or self.target.label
 
     def check(self) -> None:
-        """Validate both ends of every range (and the centre) before anything runs."""
+        """Validate both ends of every range (and the centre) before anything runs; a
+        key the protocol and scene do not have is named as ``--key``'s fault."""
         corners = [[lo for lo, _ in self.ranges], [hi for _, hi in self.ranges]]
-        for values in corners:
-            self.target.check(self.keys, self._point(values), "--range")
+        try:
+            for values in corners:
+                self.target.check(self.keys, self._point(values), "--range")
+        except ConfigError:
+            check_keys(self.target, self.keys, {k.text: "--key" for k in self.keys})
+            raise
 
     def _point(self, coords: Sequence[float]) -> dict[str, Any]:
         return {k.text: float(c) for k, c in zip(self.keys, coords, strict=True)}

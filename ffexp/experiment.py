@@ -174,13 +174,13 @@ def run_file(
     rig_model, rig_source = load_rig_choice(rig or RigChoice())
     server = _live_server(live, notice) if isinstance(live, LiveOptions) else live
     try:
-        devices = open_devices(
-            rig_model,
-            source=rig_source,
-            scene_file=scene_path(protocol_path, protocol),
-            scene_overrides=protocol.scene.set,
-            seed=protocol.seed,
-        )
+        scene_file = scene_path(protocol_path, protocol)
+        try:
+            devices = open_devices(rig_model, source=rig_source, scene_file=scene_file,
+                                   scene_overrides=protocol.scene.set, seed=protocol.seed)
+        except ConfigError as exc:  # a rig or protocol given as the scene: say so
+            raise (named_kind(exc, scene_file, "scene") if exc.source == str(scene_file)
+                   else exc) from None
         path: Path | None = None
         log: RunLog | None = None
         try:

@@ -70,6 +70,10 @@ CASES: list[tuple[str, list[str]]] = [
      ["--truth", "kept.json", "exists"]),
     ("friction estimate {video} --px-per-m 1000 --record {kept_mcap}",
      ["--record", "kept.mcap", "exists"]),
+    ("simulate contact-1dof --duration 0.1 --csv {kept_csv}", ["--csv", "kept.csv", "exists"]),
+    # a rig given as a run protocol's scene file: named as a rig, not a scene's first error
+    ("run {protocol} --set scene.file=\"../rigs/sim.toml\" --out {tmp}/out",
+     ["sim.toml", "is a rig, not a scene"]),
     # a file that is no text, a directory where a file goes
     ("calibrate-camera {binary} {tmp}/cal.toml", ["binary.csv", "not a text file"]),
     ("friction estimate {dir} --px-per-m 1000", ["a_dir", "is a directory"]),

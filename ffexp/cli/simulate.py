@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import typer
 
-from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors
+from ffexp.cli._common import CONTEXT_SETTINGS, cli_errors, new_file
 
 if TYPE_CHECKING:
     from ffexp.contact1dof import ContactParams, Summary
@@ -69,6 +69,7 @@ def contact_1dof(
         raise ConfigError("options", "--dt", f"must be > 0 s and <= --duration, got {dt}")
     if round(duration / dt) + 1 > MAX_SAMPLES:
         raise ConfigError("options", "--dt", f"{duration / dt:.3g} samples is too many: raise it")
+    new_file("--csv", csv_path)
     traj = simulate(params, duration, dt)
     if csv_path is not None:
         try:

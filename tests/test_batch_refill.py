@@ -121,6 +121,43 @@ def test_a_stop_cancels_the_queued_jobs_and_the_running_finish(
     assert r.counts.total == 2
 
 
+def test_a_slot_freed_by_a_run_is_not_refilled_before_its_row_is_resolved(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The race the test above could lose on a loaded machine, made certain: another
+    # thread dispatches (as the engine's submit does, holding the engine's lock that the
+    # first run's callback waits for) after the collector read the first run's row and
+    # before it resolved the run's future, whose callback asks the stop. The slot is not
+    # free yet: nothing queued may go.
+    monkeypatch.setattr(batch_mod, "run_one", Stepping())
+    ex = RefillExecutor(ThreadPoolExecutor(1), processes=1, batch=2)  # type: ignore[arg-type]
+    read = ex._read
+    queued: list[tuple[int, int]] = []
+
+    def read_then_dispatch(s: Any) -> list[Any]:
+        out = read(s)
+        if out:
+            with ex._cond:
+                before = len(ex._pending)
+                ex._dispatch()  # another thread's dispatch in between
+                queued.append((before, len(ex._pending)))
+        return out
+
+    monkeypatch.setattr(ex, "_read", read_then_dispatch)
+    stop = {"now": False}
+
+    def on_change(c: engine.Counts) -> None:
+        if c.done >= 1:
+            stop["now"] = True
+
+    with engine.Runner(tmp_path, ex, 2, on_change=on_change,
+                       stop_requested=lambda: stop["now"]) as r:
+        with pytest.raises(engine.Stopped):
+            r.run_batch(jobs_of([3, 300, 300, 300, 300], tmp_path))
+    ex.shutdown()
+    assert queued and all(before == after for before, after in queued), queued
+    assert (r.counts.done, r.counts.failed, r.counts.total) == (2, 0, 2)
+
+
 def test_other_work_and_shutdown(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(batch_mod, "run_one", Stepping())
     ex = RefillExecutor(ThreadPoolExecutor(1), processes=1, batch=2)  # type: ignore[arg-type]

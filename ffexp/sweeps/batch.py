@@ -286,6 +286,7 @@ class _Slot:
         self.conn = conn
         self.task = task
         self.live: dict[int, Future[dict[str, Any]]] = {}
+        self.ended = 0  # runs whose rows were read but not yet resolved: still no free slot
         self.ending = False  # told that no more jobs come: it ends when its runs have
         self.readable = True  # its pipe not at its end yet
 
@@ -334,8 +335,8 @@ class RefillExecutor(_RunsExecutor):
         while self._pending:
             if self._broken is not None:
                 return self._fail_pending(self._broken)
-            free = [(len(s.live), w) for w, s in enumerate(self._slots)
-                    if s is not None and not s.ending and len(s.live) < self.batch]
+            free = [(len(s.live) + s.ended, w) for w, s in enumerate(self._slots)
+                    if s is not None and not s.ending and len(s.live) + s.ended < self.batch]
             idle = [w for w, s in enumerate(self._slots) if s is None]
             if idle and (not free or min(free)[0] > 0):
                 try:
@@ -426,7 +427,10 @@ class RefillExecutor(_RunsExecutor):
                     fut.set_result(outcome[1])
                 else:
                     fut.set_exception(RuntimeError(outcome[1]))
-            with self._cond:
+            with self._cond:  # the rows resolved: their slots are free now
+                for s in self._slots:
+                    if s is not None:
+                        s.ended = 0
                 failed = self._dispatch()
                 self._end_idle()
                 self._cond.notify_all()
@@ -445,6 +449,7 @@ class RefillExecutor(_RunsExecutor):
                 key, kind, value = s.conn.recv()
                 with self._cond:
                     fut = s.live.pop(key)
+                    s.ended += 1  # its slot freed once its row is resolved (a stop first)
                 out.append((fut, (kind, value)))
         except (EOFError, OSError):
             s.readable = False

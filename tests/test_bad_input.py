@@ -571,6 +571,9 @@ CLASS_CASES: dict[str, list[tuple[str, list[str]]]] = {
         (f"run {P} --scene-set target.mu=-1 --out {{out}}", ["target.mu"]),
         (f"run {P} --set scene.target.mu=nan --out {{out}}", ["target.mu", "finite"]),
         (f"run {P} --scene-set target.mu=1e400 --out {{out}}", ["target.mu", "finite"]),
+        # a typo'd timestep: refused, not hours of steps
+        (f"run {P} --scene-set physics.timestep=1e-9 --out {{out}}", ["physics.timestep",
+                                                                     "0.00001"]),
         ("emulate --robot ur5e --duration -1", ["--duration"]),
     ],
     "rig_devices": [  # two devices with ids: one line each, naming the file and the field

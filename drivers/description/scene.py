@@ -47,7 +47,9 @@ ARMS: dict[str, ArmDescription] = {"lwr4": LWR4, "ur5e": UR5E, "fr3": FR3}
 class PhysicsSettings(StrictModel):
     """MuJoCo solver settings. ``timestep`` must divide the FRI cycle."""
 
-    timestep: Annotated[float, Field(gt=0.0, le=0.001)] = 0.001
+    timestep: Annotated[float, Field(ge=1e-5, le=0.001)] = 0.001
+    """[s] 10 us to 1 ms. Below 10 us a simulated second is over 100,000 steps: a typo
+    such as ``1e-9`` would run for hours and fill the memory."""
     integrator: Literal["implicitfast", "implicit", "Euler", "RK4"] = "implicitfast"
     """MuJoCo's integrator. A body in free flight (``target.support = "free"``) keeps
     its energy and angular momentum only with ``RK4``: over 60 s of a tumbling 12 kg

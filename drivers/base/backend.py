@@ -259,6 +259,16 @@ class CommandFields:
     held_flag: int = 0
 
 
+#: The runner's own record of the command a driver applied: ``/control/command``'s
+#: ``applied_*`` fields, a cycle with bit 0 of ``status`` set held (``send(None)``). The
+#: families whose commands cross no recorded wire (the UR's registers are written from
+#: exactly these; the Franka's law runs in the driver) replay from it; a real rig's full
+#: recording holds it as the simulator's does.
+RUNNER_APPLIED = CommandFields("/control/command", pose="applied_pose",
+                               stiffness="applied_stiffness", damping="applied_damping",
+                               wrench="applied_wrench", held="status", held_flag=0x1)
+
+
 @dataclass(frozen=True)
 class Replay:
     """How a simulated robot replays, open loop, the commands another robot's recording

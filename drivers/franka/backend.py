@@ -18,8 +18,8 @@ from importlib.util import find_spec
 from typing import TYPE_CHECKING, Any
 
 from drivers.base.backend import (
+    RUNNER_APPLIED,
     Backend,
-    CommandFields,
     Emulator,
     FtBackend,
     LinkCounter,
@@ -92,14 +92,10 @@ def _open_wrench(cfg: FrankaWrenchFt, ctx: OpenContext, robot: OpenedRobot) -> O
     return OpenedSensor(FrankaWrenchSensor(source), note="F/T from the Franka's O_F_ext_hat_K")
 
 
-#: Where a Franka's recordings hold the set-point the driver's impedance law applied: the
-#: runner's ``/control/command`` (its ``applied_*`` fields: the stiffness clipped to the
-#: law's limits; a cycle flagged held was ``send(None)``, the law keeping its set-point).
-#: The law runs in ffexp's driver, so no wire carries the set-point: this is the only
-#: record of it, on a real rig's full recording as on the simulator's.
-APPLIED_COMMANDS = CommandFields("/control/command", pose="applied_pose",
-                                 stiffness="applied_stiffness", damping="applied_damping",
-                                 wrench="applied_wrench", held="status", held_flag=0x1)
+#: Where a Franka's recordings hold the set-point its driver's law applied (the stiffness
+#: clipped to the law's limits; a held cycle kept the law's set-point): the runner's own
+#: record, :data:`~drivers.base.backend.RUNNER_APPLIED` (no wire carries the set-point).
+APPLIED_COMMANDS = RUNNER_APPLIED
 
 
 def _replay_table(start_cycles: int, wire_precision: bool) -> dict[str, Any]:

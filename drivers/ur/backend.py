@@ -14,8 +14,8 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any, Literal
 
 from drivers.base.backend import (
+    RUNNER_APPLIED,
     Backend,
-    CommandFields,
     DeviceConfig,
     Emulator,
     FtBackend,
@@ -89,14 +89,10 @@ def _open_sim(cfg: UrSimConfig, ctx: OpenContext) -> OpenedRobot:
     return open_sim(cfg, ctx, ctx.scene_path(cfg.scene_file), _ur_scene(cfg, ctx))
 
 
-#: Where a UR's recordings hold the command the driver applied: the runner's
-#: ``/control/command`` (its ``applied_*`` fields: the wrench zeroed on the axes that follow
-#: the pose, as the registers carry it; a cycle flagged held was ``send(None)``, the
-#: program holding where the arm was). A UR records no wire topic of its commands (the
-#: registers are written from exactly these), and a real rig's full recording holds it too.
-APPLIED_COMMANDS = CommandFields("/control/command", pose="applied_pose",
-                                 stiffness="applied_stiffness", damping="applied_damping",
-                                 wrench="applied_wrench", held="status", held_flag=0x1)
+#: Where a UR's recordings hold the command its driver applied (the wrench zeroed on the
+#: axes that follow the pose, as the registers carry it; a held cycle held where the arm
+#: was): the runner's own record, :data:`~drivers.base.backend.RUNNER_APPLIED`.
+APPLIED_COMMANDS = RUNNER_APPLIED
 
 
 def _replay_table(start_cycles: int, wire_precision: bool) -> dict[str, Any]:

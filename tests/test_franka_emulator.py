@@ -11,6 +11,7 @@ pacing's timing is a benchmark (benchmarks/bench_fci_link.py).
 from __future__ import annotations
 
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -98,6 +99,38 @@ print("q_end", " ".join(repr(x) for x in st.q), flush=True)
 print("success", st.control_command_success_rate, flush=True)
 r.stop()
 """
+
+
+SHORT_CLIENT = r"""
+import sys
+import pylibfranka as plf
+r = plf.Robot(sys.argv[1], plf.RealtimeConfig.kIgnore)
+ctrl = r.start_torque_control()
+for n in range(50):
+    st, _ = ctrl.readOnce()
+    ctrl.writeOnce(plf.Torques([0.0] * 7))
+r.stop()
+"""
+
+
+def test_a_motion_starts_and_stops_without_waiting_out_the_lockstep_timeout() -> None:
+    # libfranka takes the motion's first state while it starts the motion and reads a newer
+    # one before its first command; its stop comes over TCP while the emulator waits for a
+    # UDP command. Each waited out the lockstep timeout (here 50 s: 100 s in all, beyond
+    # the client's 60 s): the newer state is sent at once, and a stop ends the wait.
+    need("pylibfranka")
+    host = free_host()
+    emu = start_emulator(host, "--pacing", "lockstep", "--timeout-ms", "50000")
+    try:
+        res = subprocess.run([sys.executable, "-c", SHORT_CLIENT, host], capture_output=True,
+                             text=True, timeout=60)  # (before: TimeoutExpired)
+    finally:
+        out = stop(emu)
+    assert res.returncode == 0, res.stderr
+    summary = [line for line in out.splitlines() if "cycles;" in line][-1]
+    counts = {k: int(v) for k, v in re.findall(r"(\w+) (\d+)(?= |$)", summary)}
+    assert counts["answered"] == 50 and counts.get("missed", 0) == 0, summary
+    assert counts.get("late", 0) == 0 and counts["states"] <= 60, summary
 
 
 def _simulated(torques: list[np.ndarray], n_report: list[int]) -> list[np.ndarray]:

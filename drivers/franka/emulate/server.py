@@ -22,13 +22,15 @@ robot then keeps the last torque, and ``control_command_success_rate`` drops, as
 counts it); ``lockstep``, the world steps on each command for the current state, and
 only then: while no motion runs the same state is sent again every millisecond with a new
 id, the world not stepping, so that a client that reads without commanding sees time
-pass; in a motion, until its first command, the motion's first state is sent again every
-millisecond with its own id (libfranka reads a state or two while it starts the motion,
-and a client's first command answers that state whenever it comes, so the run does not
-depend on how long the client took to start); once commands come, each state waits for
-its own, and after
-``lockstep_timeout_s`` without it the cycle is missed and the world steps with the last
-torque. So the world's steps are the commands, one by one, as in-process.
+pass; in a motion, until its first command, the motion's first state, and when no command
+answers it within a cycle one newer state (libfranka takes the first while it starts the
+motion and waits for a newer one before it commands; time passes, the world rests), is
+sent again every millisecond with its own id, and a client's first command answers it
+whenever it comes, so the run does not depend on how long the client took to start; once
+commands come, each state waits for its own, and after ``lockstep_timeout_s`` without it
+the cycle is missed and the world steps with the last torque (a stop or a closed
+connection ends the wait at once). So the world's steps are the commands, one by one, as
+in-process.
 
 Faults (:class:`FciFaults`): ``silence`` (connections accepted, never answered),
 ``version`` (the server's protocol version), ``drop_after`` (the connection closed that
@@ -295,36 +297,38 @@ class FciServer:
         """The command for the current state, waiting up to ``timeout_s``; older ones are
         counted late. The record returned is a view of the receive buffer, valid until
         the next call. The client's TCP connection is watched too: bytes there are read
-        at the next cycle's start (not every cycle looks)."""
+        at the next cycle's start (not every cycle looks), except in lockstep, where they
+        are read at once: a stop or a closed connection ends the wait (the client sends no
+        more commands), anything else leaves it waiting."""
         end = time.monotonic() + timeout_s
         want = self.controller.message_id
-        watch = self._watch_udp if self._tcp_pending or self._conn is None else \
-            self._watch_both
         udp = self._udp
         while True:
+            watch = self._watch_udp if self._tcp_pending or self._conn is None else \
+                self._watch_both
             ready, _, _ = select.select(watch, [], [], max(0.0, end - time.monotonic()))
             if len(ready) > 1 or (ready and ready[0] is not watch[0]):  # the TCP link's bytes
                 self._tcp_pending = True
-                watch = self._watch_udp
-                if len(ready) == 1:
-                    continue
-            if not ready:
-                return None
-            while True:
-                try:
-                    n = udp.recv_into(self._cmd)
-                except (BlockingIOError, InterruptedError):
-                    break
-                except OSError:  # the client's port closed (its ICMP answer)
-                    self.counters["udp_errors"] += 1
-                    break
-                if n != codec.ROBOT_COMMAND.itemsize:
-                    self.counters["malformed"] += 1
-                    continue
-                if _MESSAGE_ID.unpack_from(self._cmd)[0] == want:
-                    return self._cmd_rec
-                self.counters["late"] += 1
-            if time.monotonic() >= end:
+            if ready and ready[0] is watch[0]:  # a command first, if one came with them
+                while True:
+                    try:
+                        n = udp.recv_into(self._cmd)
+                    except (BlockingIOError, InterruptedError):
+                        break
+                    except OSError:  # the client's port closed (its ICMP answer)
+                        self.counters["udp_errors"] += 1
+                        break
+                    if n != codec.ROBOT_COMMAND.itemsize:
+                        self.counters["malformed"] += 1
+                        continue
+                    if _MESSAGE_ID.unpack_from(self._cmd)[0] == want:
+                        return self._cmd_rec
+                    self.counters["late"] += 1
+            if self._tcp_pending and self.pacing == "lockstep" and self._conn is not None:
+                self._read_tcp()  # a stop or a closed link ends the wait
+                if self._conn is None or not self.controller.moving:
+                    return None
+            if not ready or time.monotonic() >= end:
                 return None
 
     def cycle_cpu_us(self) -> dict[str, float]:
@@ -365,7 +369,14 @@ class FciServer:
             elif c.moving:  # its first command: the state sent again until it comes
                 end = time.monotonic() + self.lockstep_timeout_s
                 cmd = self._take_commands(_CYCLE_S)
-                while cmd is None and time.monotonic() < end:
+                if cmd is None and c.moving:
+                    # libfranka takes the motion's first state while it starts the motion
+                    # and then waits for a newer one: one more, time passing, the world
+                    # resting (as a reader's time passes outside a motion)
+                    c.message_id += 1
+                    self._send_state()
+                    cmd = self._take_commands(_CYCLE_S)
+                while cmd is None and c.moving and time.monotonic() < end:
                     self._send_state()
                     cmd = self._take_commands(_CYCLE_S)
                 self._commanded = cmd is not None

@@ -53,8 +53,6 @@ def replay(
     check_run_recording(recording)
     if out.suffix != ".mcap":
         raise InputError(f"{out}: --out must be an .mcap file")
-    if out.exists() and out.is_dir():
-        raise InputError(f"{out}: --out is a directory, expected an .mcap file")
     if out.resolve() != recording.resolve():  # itself: said more precisely by the replay
         new_file("--out", out)
     result = run_replay(recording, out, protocol_path=protocol, overrides=overrides)

@@ -51,11 +51,10 @@ def analyze(
     from ffexp import figures
     from ffexp.analysis import metrics, run_name
     from ffexp.cli.tables import console, json_line, key_value_table
-    from ffexp.errors import InputError
     from ffexp.hil.analysis import analyze_recording, is_hil
     from ffexp.linkcheck import check_link
     from ffexp.recording import load
-    from ffexp.recording.kind import not_a_run
+    from ffexp.recording.kind import check_run
 
     _check_plots_dir(plots)
     con = console()
@@ -68,9 +67,7 @@ def analyze(
             else:
                 con.print(key_value_table(path.stem, values))
             continue
-        what = not_a_run(rec.metadata)
-        if what is not None:
-            raise InputError(f"{path}: {what}")
+        check_run(path, rec.metadata)
         link = check_link(rec)
         if not link.measured and "run" in rec.metadata:  # a robot that never answered
             _warn(rec.warnings)
@@ -124,18 +121,15 @@ def compare(
         json_line,
         write_csv,
     )
-    from ffexp.errors import InputError
     from ffexp.recording import load
-    from ffexp.recording.kind import not_a_run
+    from ffexp.recording.kind import check_run
 
     new_file("--csv", csv_path)
     rows = []
     with Steps() as steps, steps.step("loading recordings", total=len(recordings)) as advance:
         for path in recordings:
             rec = load(path)
-            what = not_a_run(rec.metadata)
-            if what is not None:
-                raise InputError(f"{path}: {what}")
+            check_run(path, rec.metadata)
             rows.append(_unmeasured_row(rec) or compare_row(rec))
             _warn(rec.warnings)
             advance()

@@ -20,11 +20,8 @@ def report(
 ) -> None:
     """Write one HTML page (images embedded) for a campaign or sweep: the paper's table
     beside ours, the summary tables, the figures, versions, source revision, protocols."""
-    from ffexp.errors import ConfigError
     from ffexp.report import write_report
 
-    if out is not None and out.is_dir():
-        raise ConfigError("--out", str(out), "is a directory; give the HTML file's name")
     new_file("--out", out)
     with Steps() as steps, steps.step(f"report of {directory}"):
         path = write_report(directory, out)

@@ -35,12 +35,17 @@ def not_a_run(metadata: Mapping[str, Any]) -> str | None:
     return None
 
 
-def check_run_recording(path: Path) -> None:
-    """Raise :class:`InputError` naming ``path`` and its kind when it is a recording of
-    another kind than a run's (reads its metadata only; a missing or damaged file is
-    the one-line error of any reading)."""
-    from ffexp.recording.reader import load
-
-    what = not_a_run(load(path, []).metadata)
+def check_run(path: Path, metadata: Mapping[str, Any]) -> None:
+    """Raise :class:`InputError` naming ``path`` and its kind when its ``metadata`` (a
+    loaded recording's) say it is a recording of another kind than a run's."""
+    what = not_a_run(metadata)
     if what is not None:
         raise InputError(f"{path}: {what}")
+
+
+def check_run_recording(path: Path) -> None:
+    """:func:`check_run` of the file ``path`` (reads its metadata only; a missing or
+    damaged file is the one-line error of any reading)."""
+    from ffexp.recording.reader import load
+
+    check_run(path, load(path, []).metadata)

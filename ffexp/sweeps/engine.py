@@ -37,10 +37,8 @@ from ffexp.sweeps.worker import (
     RUNS_DIR,
     TMP_PREFIX,
     Job,
-    read_row,
+    done_row,
     run_one,
-    serves,
-    with_columns,
 )
 
 #: How often a waiting batch wakes up to look at the stop flag (s).
@@ -221,9 +219,9 @@ class Runner:
             for job in jobs:
                 if job.run_id in rows or job.run_id in waiting:
                     continue
-                done = read_row(self.out_dir, job.run_id)
-                if done is not None and serves(done, job):
-                    rows[job.run_id] = with_columns(done, job)
+                done = done_row(self.out_dir, job)
+                if done is not None:
+                    rows[job.run_id] = done
                     self.counts.total += 1
                     self.counts.done += 1
                     self.counts.skipped += 1

@@ -118,12 +118,19 @@ def with_columns(row: dict[str, Any], job: Job) -> dict[str, Any]:
     return {"run_id": row.get("run_id", job.run_id), **job.columns, **row}
 
 
-def run_one(job: Job) -> dict[str, Any]:
-    """Run a job (unless it is already done, :func:`serves`) and return its row."""
-    out_dir = Path(job.out_dir)
+def done_row(out_dir: Path, job: Job) -> dict[str, Any] | None:
+    """The committed row of ``job`` in ``out_dir`` when it serves the job (:func:`serves`),
+    with the job's columns it lacks (:func:`with_columns`); ``None``: to be run."""
     done = read_row(out_dir, job.run_id)
-    if done is not None and serves(done, job):
-        return with_columns(done, job)
+    return with_columns(done, job) if done is not None and serves(done, job) else None
+
+
+def run_one(job: Job) -> dict[str, Any]:
+    """Run a job (unless it is already done, :func:`done_row`) and return its row."""
+    out_dir = Path(job.out_dir)
+    done = done_row(out_dir, job)
+    if done is not None:
+        return done
     tmp = out_dir / RUNS_DIR / (
         f"{TMP_PREFIX}{job.run_id}-{platform.node()}-{os.getpid()}-{uuid.uuid4().hex[:6]}"
     )
